@@ -1,0 +1,18 @@
+"""SMBS Caustics render core: numpy arrays in, numpy arrays out.
+
+Public API::
+
+    from smbs_addon import Scene, BakeSettings, bake
+    scene = Scene.load("scene.npz")
+    result = bake(scene, BakeSettings(method="reference", spp=16, seed=1))
+    result.image, result.variance, result.stats
+
+Nothing here imports bpy; only ``export`` (bpy -> Scene) and ``composite``
+(image -> Blender) do, and they are imported on demand.
+"""
+from .bake import BakeResult, BakeSettings, bake
+from .errors import BakeCancelled, SceneError
+from .scene import Camera, Scene
+
+__all__ = ["Scene", "Camera", "BakeSettings", "BakeResult", "bake", "SceneError", "BakeCancelled"]
+__version__ = "0.1.0"

@@ -1,0 +1,167 @@
+"""Command line: ``python -m smbs_addon bake IN [options]``.
+
+IN is a .blend file (opened with the bpy module) or an exported .npz scene.
+Exit codes a render farm can trust: 0 done, 1 the scene cannot be baked,
+2 bad arguments, 3 unreadable input or unwritable output, 130 cancelled.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+from pathlib import Path
+
+EXIT_OK, EXIT_SCENE, EXIT_USAGE, EXIT_IO, EXIT_CANCELLED = 0, 1, 2, 3, 130
+
+
+class _Parser(argparse.ArgumentParser):
+    def error(self, message):  # one clear line, not a usage dump
+        self.exit(EXIT_USAGE, f"smbs_addon: error: {message}\n")
+
+
+def _positive_int(s):
+    try:
+        v = int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a whole number") from None
+    if v < 1:
+        raise argparse.ArgumentTypeError(f"must be at least 1, not {v}")
+    return v
+
+
+def _seed(s):
+    try:
+        v = int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a whole number") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"must not be negative, not {v}")
+    return v
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .bake import METHODS
+
+    p = _Parser(prog="python -m smbs_addon", description="Bake caustics for a Blender scene.")
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("bake", help="bake the caustic layer to an EXR")
+    b.add_argument("input", help=".blend file or exported .npz scene")
+    b.add_argument("--method", choices=METHODS, default="reference")
+    b.add_argument("--spp", type=_positive_int, default=16, help="light paths per pixel and light")
+    b.add_argument("--seed", type=_seed, default=0)
+    b.add_argument("--batches", type=_positive_int, default=8, help="independent batches for the noise estimate")
+    b.add_argument("--threads", type=_positive_int, default=None, help="worker threads (default: all cores)")
+    b.add_argument("--flags", choices=("AUTO", "ON", "OFF"), default="AUTO",
+                   help="honour Cycles' caustic caster/receiver/light flags")
+    b.add_argument("--out", default=None, help="output EXR (default: IN with .caustics.exr)")
+    b.add_argument("--stats", default=None, help="statistics JSON (default: beside the EXR)")
+    b.add_argument("--quiet", action="store_true")
+    e = sub.add_parser("export", help="export a .blend to a .npz scene")
+    e.add_argument("input")
+    e.add_argument("output")
+    return p
+
+
+def load_input(path: str, warn=print):
+    """A Scene from a .npz or a .blend (the latter through the bpy module)."""
+    from .errors import SceneError
+    from .scene import Scene
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"input '{path}' does not exist")
+    if p.suffix.lower() == ".npz":
+        return Scene.load(p)
+    if p.suffix.lower() == ".blend":
+        try:
+            import bpy
+        except ImportError:
+            raise SceneError("reading .blend files needs the bpy module (pip install bpy==5.0.1)") from None
+        from .export import export_scene
+
+        try:
+            bpy.ops.wm.open_mainfile(filepath=str(p.resolve()), load_ui=False)
+        except RuntimeError as err:
+            raise OSError(f"cannot open '{path}' as a .blend file: {str(err).strip().splitlines()[-1]}") from None
+        return export_scene(bpy.context.scene, warn=warn)
+    raise SceneError(f"input '{path}': expected a .blend or .npz file")
+
+
+def _check_writable(path: Path):
+    parent = path.parent if str(path.parent) else Path(".")
+    if not parent.is_dir():
+        raise OSError(f"output folder '{parent}' does not exist")
+    if not os.access(parent, os.W_OK):
+        raise OSError(f"output folder '{parent}' is not writable")
+
+
+def summary_lines(stats: dict) -> list[str]:
+    lines = [f"scene '{stats['scene']}': {stats['method']}, {stats['resolution'][0]}x{stats['resolution'][1]}, "
+             f"{stats['time_s']:.2f} s, {stats['rays']:,} rays"]
+    for name, s in stats["lights"].items():
+        lines.append(f"  light '{name}': {s['photons']:,} light paths, {s['splats']:,} reached the camera, "
+                     f"{s['rays_photon'] + s['rays_camera']:,} rays, {s['time_s']:.2f} s")
+    for sk in stats["skipped"]:
+        lines.append(f"  skipped {sk['kind']} '{sk['name']}': {sk['reason']}")
+    nz = stats["noise"]
+    lines.append(f"  noise: mean {nz['mean']:.4g} over {nz['region_pixels']} caustic pixels, "
+                 f"standard error {nz['std_error_of_mean']:.2g}, per-pixel relative noise {nz['relative_noise']:.1%}")
+    return lines
+
+
+def main(argv=None) -> int:
+    args = build_parser().parse_args(argv)
+    from .errors import BakeCancelled, SceneError
+
+    say = (lambda *a: None) if getattr(args, "quiet", False) else print
+    try:
+        if args.command == "export":
+            out = Path(args.output)
+            _check_writable(out)
+            load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr)).save(out)
+            say(f"wrote {out}")
+            return EXIT_OK
+        from .bake import BakeSettings, bake
+        from .imageio import write_exr
+
+        settings = BakeSettings(method=args.method, spp=args.spp, seed=args.seed, batches=args.batches,
+                                threads=args.threads or 0, use_cycles_flags=args.flags)
+        settings.validate()
+        out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
+        stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
+        _check_writable(out)
+        _check_writable(stats_path)
+        scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
+
+        def progress(frac, msg):
+            if not args.quiet:
+                print(f"\r{frac:6.1%} {msg}", end="", file=sys.stderr, flush=True)
+
+        result = bake(scene, settings, progress=progress)
+        if not args.quiet:
+            print(file=sys.stderr)
+        meta = {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
+                "time_s": result.stats["time_s"], "rays": result.stats["rays"],
+                "noise_relative": result.stats["noise"]["relative_noise"], "stats": result.stats}
+        write_exr(out, result.image, meta)
+        tmp = stats_path.with_name(f".{stats_path.name}.tmp")
+        tmp.write_text(json.dumps(result.stats, indent=2))
+        tmp.replace(stats_path)
+        for line in summary_lines(result.stats):
+            say(line)
+        say(f"wrote {out} and {stats_path}")
+        return EXIT_OK
+    except SceneError as e:
+        print(f"smbs_addon: error: {e}", file=sys.stderr)
+        return EXIT_SCENE
+    except OSError as e:
+        print(f"smbs_addon: error: {e}", file=sys.stderr)
+        return EXIT_IO
+    except (BakeCancelled, KeyboardInterrupt):
+        print("smbs_addon: cancelled", file=sys.stderr)
+        return EXIT_CANCELLED
+
+
+if __name__ == "__main__":
+    sys.exit(main())

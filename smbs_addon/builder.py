@@ -1,0 +1,229 @@
+"""Build a Scene piece by piece: used by the Blender export, the tests and the CLI.
+
+Everything is given in world space. Names are kept so messages can name objects.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import scene as S
+from .errors import SceneError
+
+
+def _unit(v):
+    v = np.asarray(v, float)
+    n = np.linalg.norm(v)
+    if not n > 0:
+        raise SceneError("zero-length direction")
+    return v / n
+
+
+def look_at(origin, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
+    """A 4x4 world matrix whose local -Z looks from origin at target (Blender camera/light)."""
+    o = np.asarray(origin, float)
+    fwd = _unit(np.asarray(target, float) - o)
+    upv = np.asarray(up, float)
+    if abs(np.dot(fwd, _unit(upv))) > 0.999:
+        upv = np.array([0.0, 1.0, 0.0]) if abs(fwd[1]) < 0.9 else np.array([1.0, 0.0, 0.0])
+    x = _unit(np.cross(fwd, upv))
+    y = np.cross(x, fwd)
+    m = np.eye(4)
+    m[:3, 0], m[:3, 1], m[:3, 2], m[:3, 3] = x, y, -fwd, o
+    return m
+
+
+class SceneBuilder:
+    def __init__(self, name: str = "scene"):
+        self.name = name
+        self._tris, self._normals, self._uvs, self._obj, self._mat = [], [], [], [], []
+        self.objects: list[dict] = []
+        self.materials: list[dict] = []
+        self.lights: list[dict] = []
+        self.camera = S.Camera()
+        self.world_color = np.zeros(3)
+
+    # ------------------------------------------------------------ materials
+    def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
+                 strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE) -> int:
+        for i, m in enumerate(self.materials):
+            if m["name"] == name:
+                return i
+        kind = S.MATERIAL_KINDS.index(kind) if isinstance(kind, str) else int(kind)
+        self.materials.append(dict(name=name, kind=kind, color=np.asarray(color, float),
+                                   reflect_color=np.asarray(reflect_color, float), ior=float(ior),
+                                   roughness=float(roughness), strength=float(strength),
+                                   fresnel=int(fresnel)))
+        return len(self.materials) - 1
+
+    # --------------------------------------------------------------- meshes
+    def mesh(self, name, vertices, faces, material, normals=None, smooth=None, uvs=None,
+             caster=False, receiver=False, face_materials=None) -> int:
+        """Add a mesh. faces: (F,3) triangles or (F,4) quads (split 0-1-2, 0-2-3).
+
+        normals: per-vertex normals (V,3) for smooth shading; None means flat.
+        material: a material index, or a name already defined.
+        """
+        V = np.asarray(vertices, float).reshape(-1, 3)
+        F = np.asarray(faces, np.int64)
+        if F.ndim != 2 or F.shape[1] not in (3, 4):
+            raise SceneError(f"object '{name}': faces must be triangles or quads")
+        if F.shape[1] == 4:
+            F = np.concatenate([F[:, [0, 1, 2]], F[:, [0, 2, 3]]])
+        if F.size and (F.min() < 0 or F.max() >= len(V)):
+            raise SceneError(f"object '{name}': face index out of range")
+        if isinstance(material, str):
+            material = [m["name"] for m in self.materials].index(material)
+        tv = V[F]
+        if normals is not None:
+            N = np.asarray(normals, float).reshape(-1, 3)
+            tn = N[F]
+        else:
+            fn = np.cross(tv[:, 1] - tv[:, 0], tv[:, 2] - tv[:, 0])
+            ln = np.linalg.norm(fn, axis=1, keepdims=True)
+            fn = np.divide(fn, ln, out=np.zeros_like(fn), where=ln > 0)
+            tn = np.repeat(fn[:, None, :], 3, axis=1)
+        if uvs is not None:
+            tu = np.asarray(uvs, float).reshape(-1, 2)[F]
+        else:
+            tu = np.broadcast_to(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), (len(F), 3, 2))
+        oid = len(self.objects)
+        self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
+                                 smooth=bool(normals is not None if smooth is None else smooth)))
+        self._tris.append(tv)
+        self._normals.append(tn)
+        self._uvs.append(np.array(tu))
+        self._obj.append(np.full(len(F), oid, np.int32))
+        fm = (np.full(len(F), material, np.int32) if face_materials is None
+              else np.asarray(face_materials, np.int32))
+        self._mat.append(fm)
+        return oid
+
+    def mesh_corners(self, name, tri_vertices, tri_normals, tri_uvs, tri_material,
+                     caster=False, receiver=False, smooth=False) -> int:
+        """Add an object from per-triangle arrays (the Blender export's entry point).
+
+        tri_vertices, tri_normals: (T,3,3) world positions and unit shading normals per
+        corner; tri_uvs: (T,3,2) or None; tri_material: (T,) material indices (already
+        defined with ``material``); smooth: whether any face is smooth shaded.
+        """
+        tv = np.asarray(tri_vertices, float).reshape(-1, 3, 3)
+        T = len(tv)
+        tn = np.asarray(tri_normals, float).reshape(-1, 3, 3)
+        if tn.shape != tv.shape:
+            raise SceneError(f"object '{name}': {len(tn)} normal triples for {T} triangles")
+        if tri_uvs is None:
+            tu = np.broadcast_to(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), (T, 3, 2))
+        else:
+            tu = np.asarray(tri_uvs, float).reshape(-1, 3, 2)
+            if len(tu) != T:
+                raise SceneError(f"object '{name}': {len(tu)} UV triples for {T} triangles")
+        fm = np.broadcast_to(np.asarray(tri_material, np.int32), (T,))
+        if T and (fm.min() < 0 or fm.max() >= len(self.materials)):
+            raise SceneError(f"object '{name}': material index out of range")
+        oid = len(self.objects)
+        self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
+                                 smooth=bool(smooth)))
+        self._tris.append(tv)
+        self._normals.append(tn)
+        self._uvs.append(np.array(tu))
+        self._obj.append(np.full(T, oid, np.int32))
+        self._mat.append(np.array(fm, np.int32))
+        return oid
+
+    def plane(self, name, center, size, material, normal=(0, 0, 1), **kw) -> int:
+        """A flat rectangle of size (sx, sy) centred at center, facing normal."""
+        n = _unit(normal)
+        m = look_at(np.zeros(3), -n)  # local -Z = -n, so local +Z = n
+        sx, sy = (size, size) if np.isscalar(size) else size
+        c = np.asarray(center, float)
+        corners = [(-sx / 2, -sy / 2), (sx / 2, -sy / 2), (sx / 2, sy / 2), (-sx / 2, sy / 2)]
+        V = [c + a * m[:3, 0] + b * m[:3, 1] for a, b in corners]
+        return self.mesh(name, V, [[0, 1, 2, 3]], material, **kw)
+
+    def uv_sphere(self, name, center, radius, material, segments=64, rings=32, smooth=True, **kw):
+        c = np.asarray(center, float)
+        th = np.linspace(0, math.pi, rings + 1)
+        ph = np.linspace(0, 2 * math.pi, segments + 1)[:-1]
+        T, P = np.meshgrid(th, ph, indexing="ij")
+        dirs = np.stack([np.sin(T) * np.cos(P), np.sin(T) * np.sin(P), np.cos(T)], -1).reshape(-1, 3)
+        V = c + radius * dirs
+        faces = []
+        for i in range(rings):
+            for j in range(segments):
+                a = i * segments + j
+                b = i * segments + (j + 1) % segments
+                cc, d = a + segments, b + segments
+                if i > 0:
+                    faces.append([a, cc, b])
+                if i < rings - 1:
+                    faces.append([b, cc, d])
+        return self.mesh(name, V, faces, material, normals=dirs if smooth else None, **kw)
+
+    # --------------------------------------------------------------- lights
+    def light(self, name, type, matrix=None, location=None, target=None, power=1000.0,
+              color=(1.0, 1.0, 1.0), radius=0.0, soft_falloff=False, spot_size=math.radians(45),
+              spot_blend=0.15, shape="SQUARE", size=(1.0, 1.0), spread=math.pi, angle=0.0,
+              caustics=True) -> int:
+        """power: watts (point/spot/area) or irradiance W/m^2 (sun)."""
+        if matrix is None:
+            loc = np.zeros(3) if location is None else location
+            tgt = np.asarray(loc, float) - np.array([0, 0, 1.0]) if target is None else target
+            matrix = look_at(loc, tgt)
+        size = (size, size) if np.isscalar(size) else tuple(size)
+        self.lights.append(dict(
+            name=name, type=S.LIGHT_TYPES.index(type), matrix=np.asarray(matrix, float),
+            color=np.asarray(color, float) * float(power), radius=float(radius),
+            soft_falloff=bool(soft_falloff), spot_size=float(spot_size),
+            spot_blend=float(spot_blend), shape=S.AREA_SHAPES.index(shape),
+            size=np.asarray(size, float), spread=float(spread), angle=float(angle),
+            caustics=bool(caustics)))
+        return len(self.lights) - 1
+
+    # --------------------------------------------------------------- camera
+    def set_camera(self, location=None, target=None, matrix=None, **kw) -> S.Camera:
+        if matrix is None:
+            matrix = look_at(location, target)
+        self.camera = S.Camera(matrix_world=np.asarray(matrix, float), **kw)
+        return self.camera
+
+    # ---------------------------------------------------------------- build
+    def build(self) -> S.Scene:
+        def cat(parts, shape, dtype=float):
+            return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
+
+        m, lt, ob = self.materials, self.lights, self.objects
+        sc = S.Scene(
+            tri_vertices=cat(self._tris, (0, 3, 3)), tri_normals=cat(self._normals, (0, 3, 3)),
+            tri_uvs=cat(self._uvs, (0, 3, 2)), tri_object=cat(self._obj, (0,), np.int32),
+            tri_material=cat(self._mat, (0,), np.int32),
+            object_names=[o["name"] for o in ob],
+            object_caster=np.array([o["caster"] for o in ob], bool),
+            object_receiver=np.array([o["receiver"] for o in ob], bool),
+            object_smooth=np.array([o["smooth"] for o in ob], bool),
+            mat_names=[x["name"] for x in m],
+            mat_kind=np.array([x["kind"] for x in m], np.int32),
+            mat_color=np.array([x["color"] for x in m], float).reshape(-1, 3),
+            mat_reflect_color=np.array([x["reflect_color"] for x in m], float).reshape(-1, 3),
+            mat_ior=np.array([x["ior"] for x in m], float),
+            mat_roughness=np.array([x["roughness"] for x in m], float),
+            mat_strength=np.array([x["strength"] for x in m], float),
+            mat_fresnel=np.array([x["fresnel"] for x in m], np.int32),
+            light_names=[x["name"] for x in lt],
+            light_type=np.array([x["type"] for x in lt], np.int32),
+            light_matrix=np.array([x["matrix"] for x in lt], float).reshape(-1, 4, 4),
+            light_color=np.array([x["color"] for x in lt], float).reshape(-1, 3),
+            light_radius=np.array([x["radius"] for x in lt], float),
+            light_soft_falloff=np.array([x["soft_falloff"] for x in lt], bool),
+            light_spot_size=np.array([x["spot_size"] for x in lt], float),
+            light_spot_blend=np.array([x["spot_blend"] for x in lt], float),
+            light_shape=np.array([x["shape"] for x in lt], np.int32),
+            light_size=np.array([x["size"] for x in lt], float).reshape(-1, 2),
+            light_spread=np.array([x["spread"] for x in lt], float),
+            light_angle=np.array([x["angle"] for x in lt], float),
+            light_caustics=np.array([x["caustics"] for x in lt], bool),
+            camera=self.camera, world_color=np.asarray(self.world_color, float), name=self.name,
+        )
+        sc.validate()
+        return sc

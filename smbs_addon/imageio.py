@@ -1,0 +1,70 @@
+"""EXR read/write through OpenImageIO, with statistics in the header.
+
+Images are (H, W, C) float arrays, top row first. Files are written atomically:
+a temporary file beside the target, then a rename, so a crash never leaves half
+an image.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SceneError
+
+
+def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
+    """Write a linear float32 EXR (RGB or RGBA). metadata values go in the header."""
+    import OpenImageIO as oiio
+
+    path = Path(path)
+    img = np.ascontiguousarray(image, dtype=np.float32)
+    if img.ndim == 2:
+        img = img[:, :, None]
+    h, w, c = img.shape
+    if not path.parent.exists():
+        raise SceneError(f"output folder '{path.parent}' does not exist")
+    if not os.access(path.parent, os.W_OK):
+        raise SceneError(f"output folder '{path.parent}' is not writable")
+    spec = oiio.ImageSpec(w, h, c, oiio.FLOAT)
+    spec.channelnames = ("R", "G", "B", "A")[:c] if c <= 4 else tuple(f"C{i}" for i in range(c))
+    spec.attribute("compression", "zip")
+    spec.attribute("oiio:ColorSpace", "lin_rec709")
+    for k, v in (metadata or {}).items():
+        if isinstance(v, (int, float)) and not isinstance(v, bool):
+            spec.attribute(f"smbs:{k}", float(v))
+        else:
+            spec.attribute(f"smbs:{k}", v if isinstance(v, str) else json.dumps(v))
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.exr")
+    out = oiio.ImageOutput.create(str(tmp))
+    if out is None or not out.open(str(tmp), spec):
+        raise SceneError(f"cannot write '{path}': {oiio.geterror()}")
+    try:
+        if not out.write_image(img):
+            raise SceneError(f"cannot write '{path}': {out.geterror()}")
+    finally:
+        out.close()
+    os.replace(tmp, path)
+    return path
+
+
+def read_exr(path) -> tuple[np.ndarray, dict]:
+    """Read an image as (H, W, C) float32 plus its smbs:* header entries."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SceneError(f"cannot read image '{path}': {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        img = inp.read_image(oiio.FLOAT)
+        meta = {}
+        for a in spec.extra_attribs:
+            if a.name.startswith("smbs:"):
+                meta[a.name[5:]] = a.value
+    finally:
+        inp.close()
+    img = np.asarray(img, np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    return img, meta

@@ -1,0 +1,267 @@
+"""Scene arrays: meshes, materials, lights and camera as plain numpy arrays.
+
+This is the contract between the Blender export (``export.py``) and the render
+core. Nothing here imports ``bpy``. All geometry is world space, float64, in
+Blender's units and conventions (Z up, camera looking down its local -Z).
+
+A scene is saved and loaded as a single ``.npz`` file (``save`` / ``load``).
+"""
+from __future__ import annotations
+
+import dataclasses
+import zipfile
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import SceneError
+
+FORMAT_VERSION = 1
+
+# Material classes (Scene.mat_kind)
+DIFFUSE, CONDUCTOR, DIELECTRIC, EMITTER = 0, 1, 2, 3
+MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
+# Conductor Fresnel models (Scene.mat_fresnel): Glossy BSDF (constant colour),
+# Principled metallic (Schlick from F0 = base colour towards white).
+FRESNEL_NONE, FRESNEL_SCHLICK = 0, 1
+
+# Light types (Scene.light_type), as Cycles defines them
+POINT, SPOT, AREA, SUN = 0, 1, 2, 3
+LIGHT_TYPES = ("POINT", "SPOT", "AREA", "SUN")
+# Area light shapes (Scene.light_shape)
+SQUARE, RECTANGLE, DISK, ELLIPSE = 0, 1, 2, 3
+AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
+
+PERSP, ORTHO = 0, 1
+SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+
+
+@dataclass
+class Camera:
+    """A Blender camera with the render settings that shape the image."""
+
+    matrix_world: np.ndarray = field(default_factory=lambda: np.eye(4))
+    type: int = PERSP
+    lens: float = 50.0  # focal length, mm
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: str = "AUTO"
+    ortho_scale: float = 6.0
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+    resolution_x: int = 1920
+    resolution_y: int = 1080
+    resolution_percentage: int = 100
+    pixel_aspect_x: float = 1.0
+    pixel_aspect_y: float = 1.0
+    use_border: bool = False
+    border: tuple = (0.0, 1.0, 0.0, 1.0)  # min_x, max_x, min_y, max_y (fractions, y up)
+    use_crop_to_border: bool = False
+    filter_width: float = 1.5  # Cycles pixel filter width (Blackman-Harris), pixels
+
+    @property
+    def width(self) -> int:
+        return max(1, int(self.resolution_x * self.resolution_percentage // 100))
+
+    @property
+    def height(self) -> int:
+        return max(1, int(self.resolution_y * self.resolution_percentage // 100))
+
+
+@dataclass
+class Scene:
+    """Triangles, materials, lights and a camera, all as numpy arrays.
+
+    Triangles: ``tri_vertices`` (T,3,3) world positions; ``tri_normals`` (T,3,3)
+    shading normals per corner (equal to the face normal for flat shading);
+    ``tri_uvs`` (T,3,2); ``tri_object`` (T,) index into the object tables;
+    ``tri_material`` (T,) index into the material tables.
+    """
+
+    tri_vertices: np.ndarray
+    tri_normals: np.ndarray
+    tri_uvs: np.ndarray
+    tri_object: np.ndarray
+    tri_material: np.ndarray
+    # objects
+    object_names: list
+    object_caster: np.ndarray  # Cycles is_caustics_caster
+    object_receiver: np.ndarray  # Cycles is_caustics_receiver
+    object_smooth: np.ndarray  # any smooth-shaded face
+    # materials
+    mat_names: list
+    mat_kind: np.ndarray  # DIFFUSE, CONDUCTOR, DIELECTRIC, EMITTER
+    mat_color: np.ndarray  # (M,3): albedo / F0 / transmission colour / emission colour
+    mat_reflect_color: np.ndarray  # (M,3): dielectric reflection tint
+    mat_ior: np.ndarray  # (M,)
+    mat_roughness: np.ndarray  # (M,)
+    mat_strength: np.ndarray  # (M,) emission strength (radiance, W/m^2/sr)
+    mat_fresnel: np.ndarray  # (M,) conductor Fresnel model
+    # lights
+    light_names: list
+    light_type: np.ndarray  # (L,) POINT, SPOT, AREA, SUN
+    light_matrix: np.ndarray  # (L,4,4) world matrix (scale removed for AREA sizes)
+    light_color: np.ndarray  # (L,3) colour x power (W) or x strength (sun, W/m^2)
+    light_radius: np.ndarray  # (L,) point/spot radius (shadow_soft_size)
+    light_soft_falloff: np.ndarray  # (L,) bool
+    light_spot_size: np.ndarray  # (L,) full cone angle, radians
+    light_spot_blend: np.ndarray  # (L,)
+    light_shape: np.ndarray  # (L,) SQUARE..ELLIPSE
+    light_size: np.ndarray  # (L,2) area size x, y (world units, scale applied)
+    light_spread: np.ndarray  # (L,) area spread, radians
+    light_angle: np.ndarray  # (L,) sun angular diameter, radians
+    light_caustics: np.ndarray  # (L,) Cycles is_caustics_light
+    camera: Camera = field(default_factory=Camera)
+    world_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    name: str = "scene"
+
+    # ------------------------------------------------------------------ derived
+    @property
+    def n_tris(self) -> int:
+        return int(self.tri_vertices.shape[0])
+
+    @property
+    def n_lights(self) -> int:
+        return int(self.light_type.shape[0])
+
+    def bounds(self) -> tuple[np.ndarray, np.ndarray]:
+        if self.n_tris == 0:
+            return np.zeros(3), np.zeros(3)
+        v = self.tri_vertices.reshape(-1, 3)
+        return v.min(axis=0), v.max(axis=0)
+
+    @property
+    def scale(self) -> float:
+        """A length for relative tolerances: the diagonal of the geometry's bounds."""
+        lo, hi = self.bounds()
+        d = float(np.linalg.norm(hi - lo))
+        return d if d > 0 else 1.0
+
+    def object_bounds(self, obj: int) -> tuple[np.ndarray, np.ndarray]:
+        v = self.tri_vertices[self.tri_object == obj].reshape(-1, 3)
+        return v.min(axis=0), v.max(axis=0)
+
+    # ---------------------------------------------------------------- validate
+    def validate(self) -> None:
+        """Check shapes and values; raise SceneError naming what is wrong."""
+        T = self.n_tris
+        expect = {
+            "tri_vertices": (T, 3, 3), "tri_normals": (T, 3, 3), "tri_uvs": (T, 3, 2),
+            "tri_object": (T,), "tri_material": (T,),
+        }
+        for name, shape in expect.items():
+            a = getattr(self, name)
+            if a.shape != shape:
+                raise SceneError(f"scene array '{name}' has shape {a.shape}, expected {shape}")
+        O, M, L = len(self.object_names), len(self.mat_names), self.n_lights
+        for name in ("object_caster", "object_receiver", "object_smooth"):
+            if getattr(self, name).shape != (O,):
+                raise SceneError(f"scene array '{name}' must have one entry per object ({O})")
+        for name in ("mat_kind", "mat_ior", "mat_roughness", "mat_strength", "mat_fresnel"):
+            if getattr(self, name).shape != (M,):
+                raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
+        for name in ("mat_color", "mat_reflect_color"):
+            if getattr(self, name).shape != (M, 3):
+                raise SceneError(f"scene array '{name}' must be ({M}, 3)")
+        if T and (self.tri_object.min() < 0 or self.tri_object.max() >= O):
+            raise SceneError("triangle object index out of range")
+        if T and (self.tri_material.min() < 0 or self.tri_material.max() >= M):
+            raise SceneError("triangle material index out of range")
+        for name in ("light_type", "light_radius", "light_soft_falloff", "light_spot_size",
+                     "light_spot_blend", "light_shape", "light_spread", "light_angle",
+                     "light_caustics"):
+            if getattr(self, name).shape != (L,):
+                raise SceneError(f"scene array '{name}' must have one entry per light ({L})")
+        if self.light_matrix.shape != (L, 4, 4) or self.light_color.shape != (L, 3) \
+                or self.light_size.shape != (L, 2):
+            raise SceneError("light matrix/colour/size arrays do not match the light count")
+        for name in ("tri_vertices", "tri_normals", "tri_uvs", "mat_color", "mat_ior",
+                     "light_matrix", "light_color", "light_size"):
+            if not np.all(np.isfinite(getattr(self, name))):
+                raise SceneError(f"scene array '{name}' holds NaN or infinite values")
+        bad = np.flatnonzero((self.mat_kind == DIELECTRIC) & ~(self.mat_ior > 0))
+        if bad.size:
+            raise SceneError(f"material '{self.mat_names[bad[0]]}': IOR must be positive")
+        if np.any(self.light_color < 0):
+            i = int(np.flatnonzero((self.light_color < 0).any(axis=1))[0])
+            raise SceneError(f"light '{self.light_names[i]}': negative power")
+
+    # -------------------------------------------------------------- save/load
+    def save(self, path) -> None:
+        arrays = {}
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            if f.name == "camera":
+                for cf in dataclasses.fields(Camera):
+                    arrays["camera." + cf.name] = np.asarray(getattr(v, cf.name))
+            elif isinstance(v, list):
+                arrays[f.name] = np.asarray(v, dtype=str) if v else np.zeros(0, dtype="<U1")
+            else:
+                arrays[f.name] = np.asarray(v)
+        arrays["format_version"] = np.asarray(FORMAT_VERSION)
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        np.savez_compressed(tmp, **arrays)
+        tmp.replace(path)
+
+    @classmethod
+    def load(cls, path) -> "Scene":
+        path = Path(path)
+        try:
+            with np.load(path, allow_pickle=False) as z:
+                data = {k: z[k] for k in z.files}
+        except FileNotFoundError:
+            raise SceneError(f"{path}: no such file") from None
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
+            raise SceneError(f"{path}: not a readable scene .npz ({e})") from None
+        version = int(data.pop("format_version", -1))
+        if version != FORMAT_VERSION:
+            raise SceneError(f"{path}: scene format version {version}, expected {FORMAT_VERSION}")
+        cam_kw = {}
+        for cf in dataclasses.fields(Camera):
+            key = "camera." + cf.name
+            if key not in data:
+                raise SceneError(f"{path}: missing camera field '{cf.name}'")
+            v = data.pop(key)
+            cam_kw[cf.name] = (v if cf.name == "matrix_world" else
+                               tuple(v.tolist()) if cf.name == "border" else v.item())
+        kw = {}
+        for f in dataclasses.fields(cls):
+            if f.name == "camera":
+                continue
+            if f.name not in data:
+                raise SceneError(f"{path}: missing array '{f.name}'")
+            v = data[f.name]
+            if f.name in ("object_names", "mat_names", "light_names"):
+                v = [str(s) for s in v.tolist()]
+            elif f.name == "name":
+                v = str(v)
+            kw[f.name] = v
+        scene = cls(camera=Camera(**cam_kw), **kw)
+        scene.validate()
+        return scene
+
+
+def empty_scene(**kw) -> Scene:
+    """A scene with no geometry, materials or lights (filled in by builders)."""
+    z3 = np.zeros((0, 3, 3))
+    base = dict(
+        tri_vertices=z3, tri_normals=z3.copy(), tri_uvs=np.zeros((0, 3, 2)),
+        tri_object=np.zeros(0, np.int32), tri_material=np.zeros(0, np.int32),
+        object_names=[], object_caster=np.zeros(0, bool), object_receiver=np.zeros(0, bool),
+        object_smooth=np.zeros(0, bool),
+        mat_names=[], mat_kind=np.zeros(0, np.int32), mat_color=np.zeros((0, 3)),
+        mat_reflect_color=np.zeros((0, 3)), mat_ior=np.zeros(0), mat_roughness=np.zeros(0),
+        mat_strength=np.zeros(0), mat_fresnel=np.zeros(0, np.int32),
+        light_names=[], light_type=np.zeros(0, np.int32), light_matrix=np.zeros((0, 4, 4)),
+        light_color=np.zeros((0, 3)), light_radius=np.zeros(0),
+        light_soft_falloff=np.zeros(0, bool), light_spot_size=np.zeros(0),
+        light_spot_blend=np.zeros(0), light_shape=np.zeros(0, np.int32),
+        light_size=np.zeros((0, 2)), light_spread=np.zeros(0), light_angle=np.zeros(0),
+        light_caustics=np.zeros(0, bool),
+    )
+    base.update(kw)
+    return Scene(**base)

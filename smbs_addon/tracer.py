@@ -1,0 +1,198 @@
+"""Ray casting with embree (embreex), hit records re-computed in float64.
+
+One ``EmbreeScene`` holds every triangle. A single ``run`` call uses one core and
+releases the GIL, so large batches are split across a thread pool. Embree works
+in float32; positions, normals and barycentrics are re-computed in float64 from
+the primitive id (ray-plane intersection), and spawned rays are offset along the
+geometric normal by a distance relative to the scene's size.
+"""
+from __future__ import annotations
+
+import os
+from concurrent.futures import ThreadPoolExecutor
+from dataclasses import dataclass
+
+import numpy as np
+
+from .vec import cross, dot, normalize
+
+_MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
+
+
+def default_threads() -> int:
+    return max(1, min(os.cpu_count() or 1, 64))
+
+
+@dataclass
+class Hits:
+    """Float64 hit records for a batch of rays (valid where ``hit``)."""
+
+    hit: np.ndarray  # (N,) bool
+    prim: np.ndarray  # (N,) int64, -1 on miss
+    t: np.ndarray  # (N,) distance along the (unit) ray
+    p: np.ndarray  # (N,3) position
+    ng: np.ndarray  # (N,3) unit geometric normal (triangle winding)
+    ns: np.ndarray  # (N,3) unit shading normal (interpolated), same side as ng
+    b: np.ndarray  # (N,2) barycentrics (b1, b2) of corners 1 and 2
+
+
+class Tracer:
+    def __init__(self, scene, threads: int | None = None):
+        import embreex.mesh_construction as emc
+        import embreex.rtcore_scene as ers
+
+        self.scene = scene
+        self.threads = threads or default_threads()
+        self.v = np.ascontiguousarray(scene.tri_vertices, dtype=np.float64)
+        e1 = self.v[:, 1] - self.v[:, 0]
+        e2 = self.v[:, 2] - self.v[:, 0]
+        n_raw = cross(e1, e2)
+        self.area2 = np.sqrt(dot(n_raw, n_raw))  # twice the triangle area
+        self.ng = normalize(n_raw)
+        self.degenerate = ~(self.area2 > 1e-14 * max(scene.scale, 1e-30) ** 2)
+        self.ns_corner = scene.tri_normals.astype(np.float64)
+        lo, hi = scene.bounds()
+        extent = float(max(np.abs(lo).max(initial=0), np.abs(hi).max(initial=0)))
+        # self-intersection offset: a few float32 ulps of the largest coordinate
+        self.eps = 4e-6 * (extent + scene.scale)
+        self._embree = None
+        if scene.n_tris:
+            self._embree = ers.EmbreeScene()
+            emc.TriangleMesh(self._embree, np.ascontiguousarray(self.v, dtype=np.float32))
+        self.rays_cast = 0
+
+    # ------------------------------------------------------------- low level
+    def _run(self, o, d, tmax, query):
+        n = len(o)
+        if n == 0:
+            return np.zeros(0, np.int64), np.zeros(0)
+        if self._embree is None:
+            return np.full(n, -1, np.int64), np.full(n, np.inf)
+        o32 = np.ascontiguousarray(o, dtype=np.float32)
+        d32 = np.ascontiguousarray(d, dtype=np.float32)
+        t32 = None if tmax is None else np.ascontiguousarray(np.minimum(tmax, 3e37), np.float32)
+        self.rays_cast += n
+
+        def job(sl):
+            kw = {} if t32 is None else {"dists": t32[sl]}
+            if query == "OCCLUDED":
+                r = self._embree.run(o32[sl], d32[sl], query="OCCLUDED", **kw)
+                return np.asarray(r), None
+            r = self._embree.run(o32[sl], d32[sl], output=1, **kw)
+            return r["primID"], r["tfar"]
+
+        parts = max(1, min(self.threads, n // _MIN_SPLIT))
+        bounds = np.linspace(0, n, parts + 1).astype(int)
+        slices = [slice(bounds[i], bounds[i + 1]) for i in range(parts)]
+        if parts == 1:
+            res = [job(slices[0])]
+        else:
+            with ThreadPoolExecutor(max_workers=parts) as ex:
+                res = list(ex.map(job, slices))
+        prim = np.concatenate([r[0] for r in res]).astype(np.int64)
+        t = None if query == "OCCLUDED" else np.concatenate([r[1] for r in res]).astype(np.float64)
+        return prim, t
+
+    # -------------------------------------------------------------- queries
+    def occluded(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
+        """True where something lies on the segment o + t d, 0 < t < tmax (d unit)."""
+        prim, _ = self._run(o, d, tmax, "OCCLUDED")
+        return prim >= 0
+
+    def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None) -> Hits:
+        """Closest hits of rays o + t d (d unit), re-computed in float64."""
+        prim, t32 = self._run(o, d, tmax, "INTERSECT")
+        hit = prim >= 0
+        n = len(o)
+        p = np.zeros((n, 3))
+        ng = np.zeros((n, 3))
+        ns = np.zeros((n, 3))
+        b = np.zeros((n, 2))
+        t = np.full(n, np.inf)
+        if hit.any():
+            idx = np.flatnonzero(hit)
+            pi = prim[idx]
+            oi, di = o[idx], d[idx]
+            v0 = self.v[pi, 0]
+            g = self.ng[pi]
+            den = dot(di, g)
+            num = dot(v0 - oi, g)
+            ok = np.abs(den) > 1e-12
+            ti = np.where(ok, num / np.where(ok, den, 1.0), t32[idx])
+            # keep embree's distance where the plane re-intersection disagrees badly
+            bad = ~np.isfinite(ti) | (np.abs(ti - t32[idx]) > 1e-3 * (np.abs(t32[idx]) + self.eps))
+            ti = np.where(bad, t32[idx], ti)
+            pi_pos = oi + ti[:, None] * di
+            bi = self.barycentrics(pi, pi_pos)
+            t[idx] = ti
+            p[idx] = pi_pos
+            ng[idx] = g
+            ns[idx] = self.shading_normal(pi, bi)
+            b[idx] = bi
+        return Hits(hit=hit, prim=prim, t=t, p=p, ng=ng, ns=ns, b=b)
+
+    # ------------------------------------------------------------- geometry
+    def barycentrics(self, prim: np.ndarray, p: np.ndarray) -> np.ndarray:
+        v0, v1, v2 = self.v[prim, 0], self.v[prim, 1], self.v[prim, 2]
+        e1, e2, q = v1 - v0, v2 - v0, p - v0
+        d11, d12, d22 = dot(e1, e1), dot(e1, e2), dot(e2, e2)
+        q1, q2 = dot(q, e1), dot(q, e2)
+        det = d11 * d22 - d12 * d12
+        ok = det > 0
+        inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+        b1 = (d22 * q1 - d12 * q2) * inv
+        b2 = (d11 * q2 - d12 * q1) * inv
+        b1 = np.where(ok, b1, 1.0 / 3.0)
+        b2 = np.where(ok, b2, 1.0 / 3.0)
+        return np.stack([b1, b2], -1)
+
+    def shading_normal(self, prim: np.ndarray, b: np.ndarray) -> np.ndarray:
+        """Interpolated corner normal, flipped to the geometric normal's side;
+        falls back to the geometric normal where corner normals are missing/zero."""
+        c = self.ns_corner[prim]
+        b0 = 1.0 - b[:, 0] - b[:, 1]
+        nraw = b0[:, None] * c[:, 0] + b[:, 0:1] * c[:, 1] + b[:, 1:2] * c[:, 2]
+        n = normalize(nraw)
+        g = self.ng[prim]
+        bad = dot(n, n) < 0.5
+        n = np.where(bad[:, None], g, n)
+        return n
+
+    def differentials(self, prim: np.ndarray, b: np.ndarray) -> dict:
+        """dp/du, dp/dv from the triangle's UVs (per-triangle default UVs when
+        degenerate) and dn/du, dn/dv of the normalised interpolated normal."""
+        v = self.v[prim]
+        uv = self.scene.tri_uvs[prim]
+        e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+        duv1, duv2 = uv[:, 1] - uv[:, 0], uv[:, 2] - uv[:, 0]
+        det = duv1[:, 0] * duv2[:, 1] - duv1[:, 1] * duv2[:, 0]
+        scale = np.maximum(np.abs(duv1).max(1), np.abs(duv2).max(1)) ** 2
+        ok = np.abs(det) > 1e-12 * np.maximum(scale, 1e-300)
+        inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
+        # barycentric derivatives w.r.t. (u, v): [db1/du db1/dv; db2/du db2/dv] = M^-1
+        db1du = np.where(ok, duv2[:, 1] * inv, 1.0)
+        db1dv = np.where(ok, -duv2[:, 0] * inv, 0.0)
+        db2du = np.where(ok, -duv1[:, 1] * inv, 0.0)
+        db2dv = np.where(ok, duv1[:, 0] * inv, 1.0)
+        dpdu = e1 * db1du[:, None] + e2 * db2du[:, None]
+        dpdv = e1 * db1dv[:, None] + e2 * db2dv[:, None]
+        c = self.ns_corner[prim]
+        b0 = 1.0 - b[:, 0] - b[:, 1]
+        nraw = b0[:, None] * c[:, 0] + b[:, 0:1] * c[:, 1] + b[:, 1:2] * c[:, 2]
+        ln = np.sqrt(dot(nraw, nraw))
+        good = ln > 0.5 * 1e-3
+        n = np.where(good[:, None], nraw / np.where(good, ln, 1.0)[:, None], self.ng[prim])
+        dn1 = c[:, 1] - c[:, 0]
+        dn2 = c[:, 2] - c[:, 0]
+
+        def proj(x):  # d(N/|N|) = (I - n n^T) dN / |N|
+            return np.where(good[:, None], (x - dot(x, n)[:, None] * n) / np.where(good, ln, 1.0)[:, None], 0.0)
+
+        dndu = proj(dn1 * db1du[:, None] + dn2 * db2du[:, None])
+        dndv = proj(dn1 * db1dv[:, None] + dn2 * db2dv[:, None])
+        return {"dpdu": dpdu, "dpdv": dpdv, "dndu": dndu, "dndv": dndv, "n": n}
+
+    def spawn(self, p: np.ndarray, ng: np.ndarray, d: np.ndarray) -> np.ndarray:
+        """Ray origins offset from surface points to the side d leaves on."""
+        side = np.where(dot(d, ng) >= 0, 1.0, -1.0)
+        return p + (self.eps * side)[:, None] * ng

@@ -1,0 +1,99 @@
+"""Tiny scenes built in code for the tests, with their analytic answers."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from smbs_addon.builder import SceneBuilder
+
+MIRROR_RHO, FLOOR_ALBEDO = 0.9, 0.8
+
+
+def mirror_scene(resolution=(160, 120), power=100.0, radius=0.25):
+    """A flat mirror tilted 45 degrees sends a disk light straight down onto the floor.
+
+    The light at (-2, 0, 1.5) faces +x; its mirror image is a disk at height 3.5
+    facing down, centred over the origin."""
+    b = SceneBuilder("mirror")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    mirror = b.material("mirror", "conductor", color=(MIRROR_RHO,) * 3)
+    b.plane("Floor", (0, 0, 0), 10, floor, receiver=True)
+    b.plane("Mirror", (0, 0, 1.5), 1.5, mirror, normal=np.array([-1, 0, -1]) / math.sqrt(2), caster=True)
+    b.light("Disk", "AREA", location=(-2, 0, 1.5), target=(0, 0, 1.5), power=power, shape="DISK",
+            size=2 * radius)
+    b.set_camera((0, -6, 5), (-0.2, 0, 0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
+
+
+def disk_irradiance(points, center, normal, radius, radiance, n=256):
+    """Irradiance on upward-facing floor points from a one-sided Lambertian disk (quadrature)."""
+    normal = np.asarray(normal, float)
+    s = np.cross(normal, [0.0, 1.0, 0.0] if abs(normal[1]) < 0.9 else [1.0, 0.0, 0.0])
+    s /= np.linalg.norm(s)
+    t = np.cross(normal, s)
+    # midpoint rule in (r^2, phi): equal-area cells
+    r = radius * np.sqrt((np.arange(n) + 0.5) / n)
+    phi = 2 * math.pi * (np.arange(n) + 0.5) / n
+    R, P = np.meshgrid(r, phi, indexing="ij")
+    q = center + (R * np.cos(P))[..., None] * s + (R * np.sin(P))[..., None] * t
+    dA = math.pi * radius**2 / (n * n)
+    out = []
+    for x in np.atleast_2d(points):
+        v = q - x
+        d2 = (v * v).sum(-1)
+        cos_x = np.maximum(v[..., 2], 0) / np.sqrt(d2)
+        cos_l = np.maximum(-(v @ normal), 0) / np.sqrt(d2)
+        out.append(radiance * (cos_x * cos_l / d2).sum() * dA)
+    return np.array(out)
+
+
+def water_scene(light="point", size=4.0, ior=1.33, resolution=64, sun_tilt_deg=30.0):
+    """A flat water surface at z=1 over a floor at z=0; an ortho camera under
+    the water at z=0.9 looks straight down at a 2 x 2 patch of floor."""
+    b = SceneBuilder("water")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    water = b.material("water", "dielectric", color=(1, 1, 1), ior=ior)
+    b.plane("Floor", (0, 0, 0), 20, floor)
+    b.plane("Water", (0, 0, 1), size, water)
+    if light == "point":
+        b.light("Point", "POINT", location=(0, 0, 4), power=1000.0, radius=0.05)
+    else:
+        tilt = math.radians(sun_tilt_deg)
+        d = np.array([-math.sin(tilt), 0.0, -math.cos(tilt)])
+        b.light("Sun", "SUN", location=(0, 0, 10), target=np.array([0, 0, 10]) + d, power=3.0,
+                angle=math.radians(0.5))
+    b.set_camera((0, 0, 0.9), (0, 0, 0), type=1, ortho_scale=2.0, resolution_x=resolution,
+                 resolution_y=resolution, clip_start=0.01)
+    return b.build()
+
+
+def fresnel(cos_i, eta):
+    """Unpolarised Fresnel reflectance from air into a medium of index eta (textbook form)."""
+    sin_t = math.sqrt(max(0.0, 1 - cos_i**2)) / eta
+    cos_t = math.sqrt(1 - sin_t**2)
+    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
+    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
+    return 0.5 * (rs * rs + rp * rp)
+
+
+def point_through_water(rho, intensity, h_light, h_water, eta):
+    """Floor irradiance at radial distance rho from below a point light of
+    intensity I at height h_light above a flat water surface of depth h_water."""
+    # solve rho = h_light tan(ti) + h_water tan(tt) for ti by bisection
+    lo, hi = 0.0, math.pi / 2 - 1e-9
+    for _ in range(200):
+        ti = 0.5 * (lo + hi)
+        tt = math.asin(math.sin(ti) / eta)
+        if h_light * math.tan(ti) + h_water * math.tan(tt) < rho:
+            lo = ti
+        else:
+            hi = ti
+    ti = 0.5 * (lo + hi)
+    tt = math.asin(math.sin(ti) / eta)
+    dtt = math.cos(ti) / (eta * math.cos(tt))
+    drho = h_light / math.cos(ti) ** 2 + h_water / math.cos(tt) ** 2 * dtt
+    T = 1 - fresnel(math.cos(ti), eta)
+    if rho < 1e-9:  # limit sin(ti)/rho -> 1/drho
+        return intensity * T / drho**2
+    return intensity * T * math.sin(ti) / (rho * drho)

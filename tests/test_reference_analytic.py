@@ -1,0 +1,85 @@
+"""The brute-force reference against closed-form answers (issue 2).
+
+Each test states its tolerance; the statistical part of it is checked against
+the bake's own noise estimate, so a failure means bias, not bad luck.
+"""
+import math
+
+import numpy as np
+import pytest
+
+import scenes
+from smbs_addon import BakeSettings, bake
+from smbs_addon.camera import CameraModel
+
+
+def pixel_floor_points(scene):
+    """Floor (z=0) point seen through each pixel centre: (H,W,3) and a mask."""
+    cam = CameraModel(scene.camera)
+    jj, ii = np.mgrid[0:cam.H, 0:cam.W]
+    o, d, _ = cam.rays(ii.ravel() + 0.5, jj.ravel() + 0.5)
+    t = -o[:, 2] / np.where(d[:, 2] != 0, d[:, 2], 1e-30)
+    ok = (t > 0) & (d[:, 2] < 0)
+    return (o + t[:, None] * d).reshape(cam.H, cam.W, 3), ok.reshape(cam.H, cam.W)
+
+
+def check_against(result, expected, region, tol):
+    """Mean over the region within tol (relative), beyond 4 standard errors of noise."""
+    img = result.image.mean(axis=2)[region]
+    var = result.variance.mean(axis=2)[region]
+    mean, ref = img.mean(), expected[region].mean()
+    se = math.sqrt(var.sum()) / region.sum()
+    assert se < 0.25 * tol * ref, f"too noisy to judge: standard error {se / ref:.2%}"
+    assert abs(mean - ref) <= tol * ref, (
+        f"mean {mean:.5f} vs analytic {ref:.5f}: off by {(mean - ref) / ref:+.2%} (tolerance {tol:.0%}, "
+        f"noise {se / ref:.2%})")
+    return (mean - ref) / ref
+
+
+def test_flat_mirror_matches_mirrored_disk_light():
+    scene = scenes.mirror_scene()
+    res = bake(scene, BakeSettings(spp=64, seed=3))
+    pts, ok = pixel_floor_points(scene)
+    r = np.hypot(pts[..., 0], pts[..., 1])
+    region = ok & (r < 0.45)
+    radius, power = 0.25, 100.0
+    radiance = power / (math.pi * math.pi * radius**2)
+    E = scenes.disk_irradiance(pts[region], center=np.array([0, 0, 3.5]), normal=[0, 0, -1],
+                               radius=radius, radiance=radiance, n=64)
+    expected = np.zeros(region.shape)
+    expected[region] = scenes.MIRROR_RHO * scenes.FLOOR_ALBEDO / math.pi * E
+    check_against(res, expected, region, 0.02)
+
+
+def test_flat_water_point_light_matches_snell_and_fresnel():
+    scene = scenes.water_scene("point")
+    res = bake(scene, BakeSettings(spp=512, seed=5))
+    pts, ok = pixel_floor_points(scene)
+    rho = np.hypot(pts[..., 0], pts[..., 1])
+    region = ok & (rho < 0.9)
+    intensity = 1000.0 / (4 * math.pi)
+    E = np.array([scenes.point_through_water(x, intensity, 3.0, 1.0, 1.33) for x in rho[region]])
+    expected = np.zeros(region.shape)
+    expected[region] = scenes.FLOOR_ALBEDO / math.pi * E
+    check_against(res, expected, region, 0.02)
+
+
+def test_flat_water_sun_matches_snell_and_fresnel():
+    scene = scenes.water_scene("sun", sun_tilt_deg=30.0)
+    res = bake(scene, BakeSettings(spp=256, seed=7))
+    region = np.ones(res.image.shape[:2], bool)
+    region[:3], region[-3:], region[:, :3], region[:, -3:] = False, False, False, False
+    c = math.cos(math.radians(30))
+    E = 3.0 * c * (1 - scenes.fresnel(c, 1.33))
+    expected = np.full(region.shape, scenes.FLOOR_ALBEDO / math.pi * E)
+    check_against(res, expected, region, 0.02)
+
+
+def test_same_seed_same_image_bit_for_bit():
+    scene = scenes.mirror_scene(resolution=(64, 48))
+    a = bake(scene, BakeSettings(spp=4, seed=11, threads=1))
+    b = bake(scene, BakeSettings(spp=4, seed=11, threads=2))
+    c = bake(scene, BakeSettings(spp=4, seed=12))
+    assert a.image.tobytes() == b.image.tobytes()
+    assert a.variance.tobytes() == b.variance.tobytes()
+    assert a.image.tobytes() != c.image.tobytes()
