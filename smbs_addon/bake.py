@@ -80,6 +80,29 @@ def _rng(seed, *key):
     return np.random.default_rng(np.random.SeedSequence([int(seed), *[int(k) for k in key]]))
 
 
+class _Scaled:
+    """A film view that scales every splat (one chunk's share of a batch)."""
+
+    def __init__(self, film, k):
+        self.film, self.k = film, k
+
+    def splat(self, rx, ry, rgb):
+        self.film.splat(rx, ry, rgb * self.k)
+
+
+def _specular_visible(scene, tracer, cam) -> bool:
+    """Does any pixel see a mirror or glass surface first? (one ray per pixel)"""
+    x0, x1, y0, y1 = cam.region
+    jj, ii = np.mgrid[y0:y1, x0:x1]
+    if jj.size == 0:
+        return False
+    o, d, tnear = cam.rays(ii.ravel() + 0.5, jj.ravel() + 0.5)
+    h = tracer.intersect(o + tnear[:, None] * d, d)
+    kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
+    from . import scene as S
+    return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)))
+
+
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None) -> BakeResult:
     """Bake the caustic layer of a Scene.
 
@@ -100,7 +123,12 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     keys = ("photons", "rays_photon", "rays_camera", "splats", "truncated", "lost_shading_normal")
     light_stats = {lp.name: dict.fromkeys(keys, 0) | {"time_s": 0.0, "casters":
                    [scene.object_names[o] for o in lp.caster_objects]} for lp in plan.lights}
-    total_chunks = settings.batches * len(plan.lights) * math.ceil(per_batch / CHUNK)
+    eye = _specular_visible(scene, tracer, cam)
+    eye_stats = dict.fromkeys(("eye_paths", "rays_eye", "eye_splats"), 0) | {"time_s": 0.0, "enabled": eye}
+    eye_per_batch = per_light // settings.batches if eye else 0
+    light_ids = [lp.index for lp in plan.lights]
+    total_chunks = settings.batches * (len(plan.lights) * math.ceil(per_batch / CHUNK)
+                                       + math.ceil(eye_per_batch / CHUNK))
     done = 0
     for b in range(settings.batches):
         for lp in plan.lights:
@@ -110,7 +138,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                 if cancel is not None and cancel():
                     raise BakeCancelled("bake cancelled")
                 n = min(CHUNK, per_batch - start)
-                rng = _rng(settings.seed, lp.index, b, c)
+                rng = _rng(settings.seed, 0, lp.index, b, c)
                 ph = emit(scene, lp.index, lp.targets, n, rng)
                 ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
                 reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st)
@@ -118,6 +146,17 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                 if progress is not None:
                     progress(done / total_chunks, f"light '{lp.name}', batch {b + 1}/{settings.batches}")
             st["time_s"] += time.perf_counter() - t_light
+        t_eye = time.perf_counter()
+        for c, start in enumerate(range(0, eye_per_batch, CHUNK)):
+            if cancel is not None and cancel():
+                raise BakeCancelled("bake cancelled")
+            n = min(CHUNK, eye_per_batch - start)
+            reference.trace_eye(scene, tracer, cam, _Scaled(film, n / eye_per_batch), plan, light_ids, n,
+                                _rng(settings.seed, 1, 0, b, c), eye_stats)
+            done += 1
+            if progress is not None:
+                progress(done / total_chunks, f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
+        eye_stats["time_s"] += time.perf_counter() - t_eye
         film.end_batch()
     image = film.image
     variance = film.variance
@@ -127,7 +166,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         image = image[y0:y1, x0:x1]
         variance = variance[y0:y1, x0:x1]
     elapsed = time.perf_counter() - t0
-    rays = sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
+    rays = sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values()) + eye_stats["rays_eye"]
     stats = {
         "method": settings.method,
         "settings": asdict(settings),
@@ -136,6 +175,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         "time_s": elapsed,
         "rays": int(rays),
         "lights": light_stats,
+        "eye_pass": eye_stats,
         "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
         "noise": noise_summary(image, variance),
     }

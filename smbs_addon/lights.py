@@ -172,3 +172,63 @@ def light_covers(scene, li: int, center: np.ndarray, radius: float) -> bool:
         reach = float(np.dot(center - cen, nrm)) + radius
         return reach > 0
     return True
+
+
+def _sphere_hit(o, d, c, r):
+    """Nearest positive t where rays o + t d (unit d) enter the sphere (c, r); inf on a miss."""
+    oc = o - c
+    b = dot(oc, d)
+    cc = dot(oc, oc) - r * r
+    disc = b * b - cc
+    ok = disc >= 0
+    sq = np.sqrt(np.where(ok, disc, 0.0))
+    t0, t1 = -b - sq, -b + sq
+    t = np.where(t0 > 0, t0, t1)
+    return np.where(ok & (t > 0) & (cc > 0), t, np.inf)
+
+
+def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.ndarray | None = None):
+    """Radiance a ray o + t d sees from light li, and the distance (inf if the ray
+    misses it). escaped marks rays that left the scene (needed for the sun).
+    Point lights of radius 0 cannot be hit (delta lights)."""
+    n = len(o)
+    L = np.zeros((n, 3))
+    t = np.full(n, np.inf)
+    typ = scene.light_type[li]
+    color = scene.light_color[li]
+    m = scene.light_matrix[li]
+    if typ in (S.POINT, S.SPOT):
+        r = float(scene.light_radius[li])
+        if r <= 0:
+            return L, t
+        t = _sphere_hit(o, d, m[:3, 3], r)
+        val = color / (4.0 * math.pi**2 * r * r)
+        L = np.where(np.isfinite(t)[:, None], val, 0.0)
+        if typ == S.SPOT:
+            L = L * spot_mask(scene, li, -d)[:, None]
+        return L, t
+    if typ == S.AREA:
+        cen, ex, ey, nrm, hx, hy, area = area_light_shape(scene, li)
+        den = dot(d, nrm)
+        front = den < 0
+        tt = np.divide(dot(cen - o, nrm), den, out=np.full(n, -1.0), where=front)
+        q = o + tt[:, None] * d - cen
+        a, b = dot(q, ex) / hx, dot(q, ey) / hy
+        if scene.light_shape[li] in (S.DISK, S.ELLIPSE):
+            inside = a * a + b * b <= 1.0
+        else:
+            inside = (np.abs(a) <= 1.0) & (np.abs(b) <= 1.0)
+        hit = front & (tt > 0) & inside
+        t = np.where(hit, tt, np.inf)
+        L = np.where(hit[:, None], color / (math.pi * area), 0.0)
+        return L, t
+    if typ == S.SUN and escaped is not None:
+        half = 0.5 * float(scene.light_angle[li])
+        if half <= 0:
+            return L, t
+        axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+        inside = escaped & (dot(-d, axis) >= math.cos(half))
+        omega = 2.0 * math.pi * (1.0 - math.cos(half))
+        L = np.where(inside[:, None], color / omega, 0.0)
+        t = np.where(inside, 1e30, np.inf)
+    return L, t

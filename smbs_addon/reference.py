@@ -18,7 +18,8 @@ import numpy as np
 
 from . import scene as S
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
-from .vec import dot, normalize
+from .lights import light_radiance
+from .vec import cosine_hemisphere, dot, frame, normalize, to_world
 
 MAX_SPECULAR_BOUNCES = 32
 
@@ -58,6 +59,42 @@ def splat_to_camera(scene, tracer, cam, film, y, ng, ns, w_in, beta, albedo, sta
     stats["splats"] += int(idx.size)
 
 
+def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta):
+    """One perfect-specular interaction per lane: mirror reflection (conductor),
+    or reflection/refraction chosen by Fresnel (dielectric, Russian roulette so
+    the weight is just the tint). w_in points away from the surface.
+
+    Returns (new unit directions, new weights, kept lane indices): lanes whose
+    scattered direction is on the wrong side of the geometric normal (a
+    shading-normal artefact) or whose weight is zero are dropped."""
+    n_out = np.zeros_like(w_in)
+    beta = beta.copy()
+    cond = kind == S.CONDUCTOR
+    if cond.any():
+        ci = np.flatnonzero(cond)
+        f = np.where((scene.mat_fresnel[mat[ci]] == S.FRESNEL_SCHLICK)[:, None],
+                     fresnel_schlick(dot(w_in[ci], ns[ci]), scene.mat_color[mat[ci]]),
+                     scene.mat_color[mat[ci]])
+        n_out[ci] = reflect(w_in[ci], ns[ci])
+        beta[ci] *= f
+    diel = kind == S.DIELECTRIC
+    if diel.any():
+        di = np.flatnonzero(diel)
+        eta = scene.mat_ior[mat[di]]
+        wi, n = w_in[di], ns[di]
+        choose_r = rng.random(di.size) < fresnel_dielectric(dot(wi, n), eta)
+        t, t_ok = refract(wi, n, eta)
+        choose_r |= ~t_ok
+        n_out[di] = np.where(choose_r[:, None], reflect(wi, n), t)
+        beta[di] *= np.where(choose_r[:, None], scene.mat_reflect_color[mat[di]], scene.mat_color[mat[di]])
+    # the geometric normal decides the side: reflection stays, refraction crosses
+    cin, cout = dot(w_in, ng), dot(n_out, ng)
+    is_refl = dot(w_in, ns) * dot(n_out, ns) > 0
+    ok = np.where(is_refl, cin * cout > 0, cin * cout < 0) & (beta.max(axis=1) > 0)
+    keep = np.flatnonzero(ok)
+    return normalize(n_out[keep]), beta[keep], keep
+
+
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounces=MAX_SPECULAR_BOUNCES):
     """Follow photons through specular chains and splat at the first diffuse vertex."""
     o, d, beta = photons.o, photons.d, photons.w
@@ -92,39 +129,102 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         si = np.flatnonzero(spec)
         if si.size == 0:
             break
-        p, ng, ns, w_in, beta, mat, kind = p[si], ng[si], ns[si], w_in[si], beta[si], mat[si], kind[si]
-        n_out = np.zeros_like(p)
-        ok = np.ones(len(p), bool)
-        cond = kind == S.CONDUCTOR
-        if cond.any():
-            ci = np.flatnonzero(cond)
-            r = reflect(w_in[ci], ns[ci])
-            f = np.where((scene.mat_fresnel[mat[ci]] == S.FRESNEL_SCHLICK)[:, None],
-                         fresnel_schlick(dot(w_in[ci], ns[ci]), scene.mat_color[mat[ci]]),
-                         scene.mat_color[mat[ci]])
-            n_out[ci] = r
-            beta[ci] = beta[ci] * f
-        diel = kind == S.DIELECTRIC
-        if diel.any():
-            di = np.flatnonzero(diel)
-            eta = scene.mat_ior[mat[di]]
-            wi, n = w_in[di], ns[di]
-            F = fresnel_dielectric(dot(wi, n), eta)
-            choose_r = rng.random(di.size) < F
-            t, t_ok = refract(wi, n, eta)
-            choose_r |= ~t_ok
-            out = np.where(choose_r[:, None], reflect(wi, n), t)
-            tint = np.where(choose_r[:, None], scene.mat_reflect_color[mat[di]], scene.mat_color[mat[di]])
-            n_out[di] = out
-            beta[di] = beta[di] * tint
-        # the geometric normal decides the side: reflection stays, refraction crosses
-        cin, cout = dot(w_in, ng), dot(n_out, ng)
-        is_refl = dot(w_in, ns) * dot(n_out, ns) > 0
-        ok &= np.where(is_refl, cin * cout > 0, cin * cout < 0)
-        ok &= beta.max(axis=1) > 0
-        stats["lost_shading_normal"] += int((~ok).sum())
-        keep = np.flatnonzero(ok)
-        d = normalize(n_out[keep])
-        o = tracer.spawn(p[keep], ng[keep], d)
-        beta = beta[keep]
+        d, beta, keep = scatter_specular(scene, rng, -d[si], ns[si], ng[si], mat[si], kind[si], beta[si])
+        stats["lost_shading_normal"] += int(si.size - keep.size)
+        o = tracer.spawn(p[si][keep], ng[si][keep], d)
         bounces += 1
+
+
+def trace_eye(scene, tracer, cam, film, plan, light_indices, n, rng, stats,
+              max_bounces=MAX_SPECULAR_BOUNCES):
+    """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse
+    receiver x0 -> (specular)+ -> light, by path tracing from the eye.
+
+    The light tracer cannot connect such x0 to the camera (the connection
+    passes a delta BSDF), so this estimator covers exactly the paths whose eye
+    chain has at least one specular vertex; together they partition the
+    caustic layer. From x0 a cosine-sampled direction must find a finite light
+    through a specular chain whose last vertex is a caster: unbiased, noisy for
+    small lights, blind to point lights of radius 0 and suns of angle 0."""
+    x0, x1, y0, y1 = cam.region
+    area = max(1, (x1 - x0) * (y1 - y0))
+    rx = x0 + rng.random(n) * (x1 - x0)
+    ry = y0 + rng.random(n) * (y1 - y0)
+    o, d, tnear = cam.rays(rx, ry)
+    o = o + tnear[:, None] * d
+    lane = np.arange(n)
+    beta = np.ones((n, 3))
+    stats["eye_paths"] += n
+    # the eye chain: a specular first hit, then on to the first diffuse receiver
+    eye_spec = 0
+    while len(o):
+        h = tracer.intersect(o, d)
+        stats["rays_eye"] += len(o)
+        prim = np.maximum(h.prim, 0)
+        mat = scene.tri_material[prim]
+        kind = np.where(h.hit, scene.mat_kind[mat], -1)
+        if eye_spec > 0:
+            r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[scene.tri_object[prim]])
+            _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, ry, area, n,
+                             lane[r], h.p[r], h.ng[r], h.ns[r], -d[r], beta[r] * scene.mat_color[mat[r]],
+                             max_bounces)
+        if eye_spec >= max_bounces:
+            break
+        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+        if si.size == 0:
+            break
+        d, beta, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], mat[si], kind[si], beta[si])
+        o = tracer.spawn(h.p[si][keep], h.ng[si][keep], d)
+        lane = lane[si][keep]
+        eye_spec += 1
+
+
+def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, ry, area, n,
+                     lane, p, ng, ns, w_eye, beta, max_bounces):
+    """From receiver points x0 (reached through the eye chain), follow one
+    cosine-sampled direction through specular chains to the lights; splat the
+    radiance found at the eye sample's film position."""
+    if len(p) == 0:
+        return
+
+    side = np.where(dot(w_eye, ng) >= 0, 1.0, -1.0)[:, None]
+    nn = ns * side
+    s, t = frame(nn)
+    d = to_world(cosine_hemisphere(rng.random(len(p)), rng.random(len(p))), s, t, nn)
+    ok = dot(d, ng * side) > 0  # cosine lobe below the geometric surface: no light
+    lane, p, ng, beta, d = lane[ok], p[ok], ng[ok], beta[ok], d[ok]  # f cos / pdf = albedo
+    o = tracer.spawn(p, ng, d)
+    radiance = np.zeros((len(o), 3))
+    alive = np.arange(len(o))
+    last_caster = np.zeros(len(o), bool)
+    bounces = 0
+    while len(o):
+        h = tracer.intersect(o, d)
+        stats["rays_eye"] += len(o)
+        if bounces > 0:  # a light seen after at least one specular vertex, itself a caster
+            tsurf = np.where(h.hit, h.t, np.inf)
+            best_t = tsurf.copy()
+            best_L = np.zeros((len(o), 3))
+            for li in light_indices:
+                L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
+                closer = tl < best_t
+                best_t = np.where(closer, tl, best_t)
+                best_L = np.where(closer[:, None], L, best_L)
+            radiance[alive] += beta * best_L * last_caster[:, None]
+        if bounces >= max_bounces:
+            break
+        kind = np.where(h.hit, scene.mat_kind[scene.tri_material[np.maximum(h.prim, 0)]], -1)
+        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+        if si.size == 0:
+            break
+        prim = h.prim[si]
+        dd, bb, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], scene.tri_material[prim],
+                                        kind[si], beta[si])
+        last_caster = plan.casters[scene.tri_object[prim]][keep]
+        o = tracer.spawn(h.p[si][keep], h.ng[si][keep], dd)
+        d, beta, alive = dd, bb, alive[si][keep]
+        bounces += 1
+    hit = np.flatnonzero(radiance.max(axis=1) > 0)
+    if hit.size:
+        film.splat(rx[lane[hit]], ry[lane[hit]], radiance[hit] * (area / n))
+        stats["eye_splats"] += int(hit.size)
