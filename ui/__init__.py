@@ -1,0 +1,1 @@
+"""User interface: the settings stored on the scene and the Render Properties panels."""
