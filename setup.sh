@@ -13,5 +13,5 @@ fi
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -e . 2>&1 | grep -v -e '^\s*$' -e '!!' -e 'WheelFile' || true
 .venv/bin/python -c "import smbs_addon, bpy, embreex, OpenImageIO" 
 mkdir -p out
-.venv/bin/python -m smbs_addon bake sample_blends/mirror.blend --spp 16 --seed 1 \
+.venv/bin/python -m smbs_addon bake sample_blends/mirror.blend --method smbs --spp 16 --seed 1 \
   --out out/mirror.exr --stats out/mirror.json

@@ -47,7 +47,10 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     b = sub.add_parser("bake", help="bake the caustic layer to an EXR")
     b.add_argument("input", help=".blend file or exported .npz scene")
-    b.add_argument("--method", choices=METHODS, default="reference")
+    b.add_argument("--method", choices=METHODS, default="smbs",
+                   help="smbs (default), sms, mnee, or the brute-force light-tracing reference")
+    b.add_argument("--estimator", choices=("unbiased", "biased"), default="unbiased")
+    b.add_argument("--trials", type=_positive_int, default=4, help="biased estimator: walks per lane")
     b.add_argument("--spp", type=_positive_int, default=16, help="light paths per pixel and light")
     b.add_argument("--seed", type=_seed, default=0)
     b.add_argument("--batches", type=_positive_int, default=8, help="independent batches for the noise estimate")
@@ -99,9 +102,19 @@ def _check_writable(path: Path):
 def summary_lines(stats: dict) -> list[str]:
     lines = [f"scene '{stats['scene']}': {stats['method']}, {stats['resolution'][0]}x{stats['resolution'][1]}, "
              f"{stats['time_s']:.2f} s, {stats['rays']:,} rays"]
+    if "walks" in stats:
+        lines.append(f"  manifold walks: {stats['walks']:,}, success rate {stats['success_rate']:.1%}, "
+                     f"{stats['mutations_per_path']:.2f} mutations per path, chains {', '.join(stats['chain_types'])}")
     for name, s in stats["lights"].items():
-        lines.append(f"  light '{name}': {s['photons']:,} light paths, {s['splats']:,} reached the camera, "
-                     f"{s['rays_photon'] + s['rays_camera']:,} rays, {s['time_s']:.2f} s")
+        if "walks" in s:
+            lm = ", ".join(f"{k} {v:,}" for k, v in s.get("large_mutations", {}).items())
+            lines.append(f"  light '{name}': {s['walks']:,} walks, success {s['success_rate']:.1%}, "
+                         f"{s['mutations_per_path']:.2f} mutations/path, large mutations ({lm}), "
+                         f"trials mean {s['trials']['mean']:.2f} max {s['trials']['max']} capped {s['trials']['capped']}, "
+                         f"{s['rays']:,} rays, {s['time_s']:.2f} s")
+        else:
+            lines.append(f"  light '{name}': {s['photons']:,} light paths, {s['splats']:,} reached the camera, "
+                         f"{s['rays_photon'] + s['rays_camera']:,} rays, {s['time_s']:.2f} s")
     for sk in stats["skipped"]:
         lines.append(f"  skipped {sk['kind']} '{sk['name']}': {sk['reason']}")
     nz = stats["noise"]
@@ -126,7 +139,8 @@ def main(argv=None) -> int:
         from .imageio import write_exr
 
         settings = BakeSettings(method=args.method, spp=args.spp, seed=args.seed, batches=args.batches,
-                                threads=args.threads or 0, use_cycles_flags=args.flags)
+                                threads=args.threads or 0, use_cycles_flags=args.flags,
+                                estimator=args.estimator, trials=args.trials)
         settings.validate()
         out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
         stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")

@@ -21,28 +21,63 @@ from .lights import emit
 from .plan import make_plan
 from .tracer import Tracer
 
-METHODS = ("reference",)
+METHODS = ("reference", "mnee", "sms", "smbs")
+ESTIMATORS = ("unbiased", "biased")
 CHUNK = 65536  # lanes per chunk (keeps temporaries in cache, see performance-anchors.md)
+WALK_CHUNK = 8192  # eye samples per manifold chunk (each fans out to lights x chain types x trials)
 
 
 @dataclass
 class BakeSettings:
-    method: str = "reference"
-    spp: int = 16  # light paths per pixel and light (reference)
+    method: str = "smbs"  # reference (light tracing), mnee, sms, smbs
+    spp: int = 16  # reference: light paths per pixel and light; manifold: eye samples per pixel
     seed: int = 0
     batches: int = 8  # independent batches for the noise estimate
     threads: int = 0  # 0: all cores
     use_cycles_flags: str = "AUTO"  # AUTO, ON, OFF
+    estimator: str = "unbiased"  # manifold methods: unbiased (Bernoulli trials) or biased (unique solutions)
+    trials: int = 4  # biased estimator: walks per receiver, light and chain type
+    max_trials: int = 10000  # unbiased estimator: cap on the Bernoulli count
+    max_iterations: int = 20
+    solver_threshold: float = 1e-6  # radians, scale-free
+    uniqueness: float = 1e-7
+    tau: float = 0.85  # SMBS slow-progress threshold
+    large_mutation_tir: bool = True
+    large_mutation_backlit: bool = True
+    large_mutation_slow: bool = True
+    max_chain: int = 4
+    chains: tuple = ()  # explicit chain types ("R", "TT", ...); empty: what the scene calls for
 
     def validate(self) -> None:
         if self.method not in METHODS:
             raise SceneError(f"unknown method '{self.method}' (choose from {', '.join(METHODS)})")
-        if not (isinstance(self.spp, int) and self.spp >= 1):
-            raise SceneError(f"spp must be a positive whole number, not {self.spp!r}")
-        if not (isinstance(self.batches, int) and self.batches >= 1):
-            raise SceneError(f"batches must be a positive whole number, not {self.batches!r}")
+        if self.estimator not in ESTIMATORS:
+            raise SceneError(f"unknown estimator '{self.estimator}' (choose from {', '.join(ESTIMATORS)})")
+        for name in ("spp", "batches", "trials", "max_trials", "max_iterations", "max_chain"):
+            v = getattr(self, name)
+            if not (isinstance(v, (int, np.integer)) and not isinstance(v, bool) and v >= 1):
+                raise SceneError(f"{name} must be a positive whole number, not {v!r}")
         if self.seed < 0:
             raise SceneError(f"seed must not be negative, not {self.seed}")
+        if not (0 < self.tau < 1):
+            raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
+        if not (self.solver_threshold > 0 and self.uniqueness > 0):
+            raise SceneError("solver_threshold and uniqueness must be positive")
+        for c in self.chains:
+            if not c or set(c) - {"R", "T"}:
+                raise SceneError(f"chain type '{c}' must be a string of R (reflect) and T (refract)")
+
+    def manifold_options(self):
+        from .manifold import ManifoldOptions
+        from .walk import WalkConfig
+
+        walk = WalkConfig(form="hv" if self.method == "mnee" else "ad", max_iterations=self.max_iterations,
+                          threshold=self.solver_threshold, smbs=self.method == "smbs",
+                          tir=self.large_mutation_tir, backlit=self.large_mutation_backlit,
+                          slow=self.large_mutation_slow, tau=self.tau)
+        return ManifoldOptions(method=self.method, estimator=self.estimator, trials=self.trials,
+                               max_trials=self.max_trials, uniqueness=self.uniqueness,
+                               chains=tuple(self.chains), max_chain=self.max_chain, walk=walk)
 
 
 @dataclass
@@ -59,7 +94,7 @@ def caustic_region(image: np.ndarray, frac: float = 0.05) -> np.ndarray:
     return lum > frac * top if top > 0 else np.zeros(lum.shape, bool)
 
 
-def noise_summary(image: np.ndarray, variance: np.ndarray) -> dict:
+def noise_summary(image: np.ndarray, variance: np.ndarray, design_effect: float = 1.0) -> dict:
     region = caustic_region(image)
     if not region.any():
         return {"region_pixels": 0, "mean": 0.0, "std_error_of_mean": 0.0, "relative_noise": 0.0,
@@ -70,7 +105,9 @@ def noise_summary(image: np.ndarray, variance: np.ndarray) -> dict:
     return {
         "region_pixels": int(region.sum()),
         "mean": mean,
-        "std_error_of_mean": float(math.sqrt(var.sum()) / region.sum()),
+        # the filter correlates neighbours: a region mean's variance is design_effect x the sum
+        "std_error_of_mean": float(math.sqrt(design_effect * var.sum()) / region.sum()),
+        "design_effect": design_effect,
         "pixel_rms_noise": float(math.sqrt(var.mean())),
         "relative_noise": float(math.sqrt(var.mean()) / mean) if mean > 0 else 0.0,
     }
@@ -80,14 +117,11 @@ def _rng(seed, *key):
     return np.random.default_rng(np.random.SeedSequence([int(seed), *[int(k) for k in key]]))
 
 
-class _Scaled:
-    """A film view that scales every splat (one chunk's share of a batch)."""
+def _eye_per_batch(cam, film, settings) -> int:
+    """Eye samples per batch: spp per film cell over all batches (at least one pass)."""
+    from .eye import film_cells
 
-    def __init__(self, film, k):
-        self.film, self.k = film, k
-
-    def splat(self, rx, ry, rgb):
-        self.film.splat(rx, ry, rgb * self.k)
+    return max(film_cells(cam, film), film_cells(cam, film) * settings.spp // settings.batches)
 
 
 def _specular_visible(scene, tracer, cam) -> bool:
@@ -101,6 +135,68 @@ def _specular_visible(scene, tracer, cam) -> bool:
     kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
     from . import scene as S
     return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)))
+
+
+class _Progress:
+    def __init__(self, total, progress, cancel):
+        self.total, self.done, self.progress, self.cancel = max(total, 1), 0, progress, cancel
+
+    def check(self):
+        if self.cancel is not None and self.cancel():
+            raise BakeCancelled("bake cancelled")
+
+    def step(self, message):
+        self.done += 1
+        if self.progress is not None:
+            self.progress(min(1.0, self.done / self.total), message)
+
+
+def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog):
+    per_batch = max(1, per_light // settings.batches)
+    for lp in plan.lights:
+        st = light_stats[lp.name]
+        t_light = time.perf_counter()
+        for c, start in enumerate(range(0, per_batch, CHUNK)):
+            prog.check()
+            n = min(CHUNK, per_batch - start)
+            rng = _rng(settings.seed, 0, lp.index, b, c)
+            ph = emit(scene, lp.index, lp.targets, n, rng)
+            ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
+            reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st)
+            prog.step(f"light '{lp.name}', batch {b + 1}/{settings.batches}")
+        st["time_s"] += time.perf_counter() - t_light
+    eye_per_batch = _eye_per_batch(cam, film, settings) if eye_stats["enabled"] else 0
+    t_eye = time.perf_counter()
+    light_ids = [lp.index for lp in plan.lights]
+    for c, start in enumerate(range(0, eye_per_batch, CHUNK)):
+        prog.check()
+        n = min(CHUNK, eye_per_batch - start)
+        reference.trace_eye(scene, tracer, cam, film, plan, light_ids, start, n, eye_per_batch,
+                            _rng(settings.seed, 1, 0, b, c), eye_stats)
+        prog.step(f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
+    eye_stats["time_s"] += time.perf_counter() - t_eye
+
+
+def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
+                    eye_stats, prog):
+    from .manifold import manifold_chunk
+
+    for c, start in enumerate(range(0, per_batch, WALK_CHUNK)):
+        prog.check()
+        n = min(WALK_CHUNK, per_batch - start)
+        manifold_chunk(scene, tracer, cam, film, plan, opts, types, start, n, per_batch,
+                       _rng(settings.seed, 2, 0, b, c), light_stats, eye_stats)
+        prog.step(f"{settings.method}, batch {b + 1}/{settings.batches}")
+
+
+def _summarise_walks(st: dict) -> None:
+    walks = st.get("walks", 0)
+    st["success_rate"] = st.get("successes", 0) / walks if walks else 0.0
+    st["mutations_per_path"] = st.get("mutations", 0) / walks if walks else 0.0
+    lanes = st.get("bernoulli_lanes", 0)
+    st["trials"] = {"mean": st.get("bernoulli_trials", 0) / lanes if lanes else 0.0,
+                    "max": st.get("bernoulli_max", 0), "capped": st.get("capped", 0)}
+    st["rays"] = sum(v for k, v in st.items() if k.startswith("rays_"))
 
 
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None) -> BakeResult:
@@ -119,45 +215,47 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     x0, x1, y0, y1 = cam.region
     n_pix = max(0, x1 - x0) * max(0, y1 - y0)
     per_light = settings.spp * n_pix
-    per_batch = max(1, per_light // settings.batches)
-    keys = ("photons", "rays_photon", "rays_camera", "splats", "truncated", "lost_shading_normal")
-    light_stats = {lp.name: dict.fromkeys(keys, 0) | {"time_s": 0.0, "casters":
-                   [scene.object_names[o] for o in lp.caster_objects]} for lp in plan.lights}
-    eye = _specular_visible(scene, tracer, cam)
-    eye_stats = dict.fromkeys(("eye_paths", "rays_eye", "eye_splats"), 0) | {"time_s": 0.0, "enabled": eye}
-    eye_per_batch = per_light // settings.batches if eye else 0
-    light_ids = [lp.index for lp in plan.lights]
-    total_chunks = settings.batches * (len(plan.lights) * math.ceil(per_batch / CHUNK)
-                                       + math.ceil(eye_per_batch / CHUNK))
-    done = 0
-    for b in range(settings.batches):
-        for lp in plan.lights:
-            st = light_stats[lp.name]
-            t_light = time.perf_counter()
-            for c, start in enumerate(range(0, per_batch, CHUNK)):
-                if cancel is not None and cancel():
-                    raise BakeCancelled("bake cancelled")
-                n = min(CHUNK, per_batch - start)
-                rng = _rng(settings.seed, 0, lp.index, b, c)
-                ph = emit(scene, lp.index, lp.targets, n, rng)
-                ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
-                reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st)
-                done += 1
-                if progress is not None:
-                    progress(done / total_chunks, f"light '{lp.name}', batch {b + 1}/{settings.batches}")
-            st["time_s"] += time.perf_counter() - t_light
-        t_eye = time.perf_counter()
-        for c, start in enumerate(range(0, eye_per_batch, CHUNK)):
-            if cancel is not None and cancel():
-                raise BakeCancelled("bake cancelled")
-            n = min(CHUNK, eye_per_batch - start)
-            reference.trace_eye(scene, tracer, cam, _Scaled(film, n / eye_per_batch), plan, light_ids, n,
-                                _rng(settings.seed, 1, 0, b, c), eye_stats)
-            done += 1
-            if progress is not None:
-                progress(done / total_chunks, f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
-        eye_stats["time_s"] += time.perf_counter() - t_eye
-        film.end_batch()
+    light_stats = {lp.name: {"time_s": 0.0, "casters": [scene.object_names[o] for o in lp.caster_objects]}
+                   for lp in plan.lights}
+    extra = {}
+    if settings.method == "reference":
+        for st in light_stats.values():
+            st.update(dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats", "truncated",
+                                     "lost_shading_normal"), 0))
+        eye_stats = {"eye_paths": 0, "rays_eye": 0, "eye_splats": 0, "time_s": 0.0,
+                     "enabled": _specular_visible(scene, tracer, cam)}
+        per_batch = max(1, per_light // settings.batches)
+        eye_chunks = math.ceil(_eye_per_batch(cam, film, settings) / CHUNK) if eye_stats["enabled"] else 0
+        prog = _Progress(settings.batches * (len(plan.lights) * math.ceil(per_batch / CHUNK) + eye_chunks),
+                         progress, cancel)
+        for b in range(settings.batches):
+            _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog)
+            film.end_batch()
+        rays = sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values()) + eye_stats["rays_eye"]
+        extra["eye_pass"] = eye_stats
+    else:
+        from .manifold import chain_types
+
+        opts = settings.manifold_options()
+        types = chain_types(scene, plan, opts)
+        eye_stats = {"eye_paths": 0, "rays_eye": 0}
+        per_batch = _eye_per_batch(cam, film, settings)
+        prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
+        for b in range(settings.batches):
+            _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
+                            eye_stats, prog)
+            film.end_batch()
+        for st in light_stats.values():
+            _summarise_walks(st)
+        rays = sum(st["rays"] for st in light_stats.values()) + eye_stats["rays_eye"]
+        walks = sum(st.get("walks", 0) for st in light_stats.values())
+        extra.update({
+            "chain_types": types, "eye_pass": eye_stats, "walks": walks,
+            "successes": sum(st.get("successes", 0) for st in light_stats.values()),
+            "mutations": sum(st.get("mutations", 0) for st in light_stats.values()),
+        })
+        extra["success_rate"] = extra["successes"] / walks if walks else 0.0
+        extra["mutations_per_path"] = extra["mutations"] / walks if walks else 0.0
     image = film.image
     variance = film.variance
     if not (np.all(np.isfinite(image)) and np.all(np.isfinite(variance))):
@@ -166,7 +264,6 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         image = image[y0:y1, x0:x1]
         variance = variance[y0:y1, x0:x1]
     elapsed = time.perf_counter() - t0
-    rays = sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values()) + eye_stats["rays_eye"]
     stats = {
         "method": settings.method,
         "settings": asdict(settings),
@@ -175,8 +272,8 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         "time_s": elapsed,
         "rays": int(rays),
         "lights": light_stats,
-        "eye_pass": eye_stats,
+        **extra,
         "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
-        "noise": noise_summary(image, variance),
+        "noise": noise_summary(image, variance, film.design_effect()),
     }
     return BakeResult(image=image.astype(np.float32), variance=variance.astype(np.float32), stats=stats)

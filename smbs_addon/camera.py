@@ -9,12 +9,15 @@ the ortho window itself (orthographic).
 """
 from __future__ import annotations
 
-import math
-
 import numpy as np
 
 from . import scene as S
 from .vec import normalize
+
+
+def _border_pixel(frac: float, size: int) -> int:
+    """Blender's ``rcti`` border edge: float32(frac) * size, truncated to an int."""
+    return int(np.float32(frac) * np.float32(size))
 
 
 class CameraModel:
@@ -24,6 +27,9 @@ class CameraModel:
         m = np.asarray(cam.matrix_world, float)
         rot = m[:3, :3]
         self.axes = rot / np.linalg.norm(rot, axis=0)  # columns: x, y, z (scale removed)
+        # world -> camera is the true inverse (as in Blender and Cycles): a camera under a
+        # non-uniformly scaled parent has sheared, non-orthogonal axes
+        self.inv_axes = np.linalg.inv(self.axes)
         self.origin = m[:3, 3].copy()
         self.ortho = cam.type == S.ORTHO
         aspx, aspy = cam.pixel_aspect_x, cam.pixel_aspect_y
@@ -43,18 +49,18 @@ class CameraModel:
         self.pix_w = pix  # pixel width on the view plane
         self.pix_h = pix * self.ycor
         self.pixel_area = self.pix_w * self.pix_h
-        # render region in raster pixels (x0, x1, y0, y1), y from the top
+        # render region in raster pixels (x0, x1, y0, y1), y from the top. Blender
+        # (re_init_resolution) truncates border * size computed in single precision.
         if cam.use_border:
-            bx0, bx1, by0, by1 = cam.border
-            self.region = (int(math.floor(bx0 * self.W + 0.5)), int(math.floor(bx1 * self.W + 0.5)),
-                           self.H - int(math.floor(by1 * self.H + 0.5)),
-                           self.H - int(math.floor(by0 * self.H + 0.5)))
+            bx0, bx1, by0, by1 = (_border_pixel(f, n) for f, n in
+                                  zip(cam.border, (self.W, self.W, self.H, self.H)))
+            self.region = (bx0, bx1, self.H - by1, self.H - by0)
         else:
             self.region = (0, self.W, 0, self.H)
 
     # ------------------------------------------------------------ projection
     def to_camera(self, p: np.ndarray) -> np.ndarray:
-        return (p - self.origin) @ self.axes
+        return (p - self.origin) @ self.inv_axes.T
 
     def project(self, p: np.ndarray):
         """World points -> (raster x, raster y from top, depth, cos to axis, distance).
@@ -70,7 +76,8 @@ class CameraModel:
         else:
             safe = np.where(depth > 0, depth, 1.0)
             fx, fy = c[:, 0] / safe, c[:, 1] / safe
-            dist = np.sqrt((c * c).sum(1))
+            v = p - self.origin
+            dist = np.sqrt((v * v).sum(1))  # world distance (equal to |c| unless sheared)
             cos = np.divide(depth, dist, out=np.zeros_like(dist), where=dist > 0)
         rx = (fx - self.xmin) / self.pix_w
         ry = self.H - (fy - self.ymin) / self.pix_h
@@ -91,7 +98,9 @@ class CameraModel:
             local_d = normalize(np.stack([fx, fy, -np.ones(n)], -1))
         o = self.origin + local_o @ self.axes.T
         d = local_d @ self.axes.T
-        tnear = self.cam.clip_start / np.abs(local_d[:, 2])
+        stretch = np.sqrt((d * d).sum(1))  # 1 unless the axes are sheared
+        d = d / stretch[:, None]
+        tnear = self.cam.clip_start * stretch / np.abs(local_d[:, 2])
         return o, d, tnear
 
     def importance(self, cos_axis: np.ndarray, dist: np.ndarray, cos_surface: np.ndarray):

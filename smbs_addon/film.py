@@ -78,6 +78,17 @@ class Film:
         b = max(self.batches, 1)
         return (self.sum / b).reshape(self.H, self.W, 3)
 
+    def design_effect(self) -> float:
+        """How much the filter correlates neighbouring pixels: for a sum over a
+        region much larger than the filter, Var(sum) = design_effect x sum of
+        the per-pixel variances (each splat lands on several pixels at once)."""
+        f = (np.arange(64) + 0.5) / 64
+        k = np.arange(-int(math.ceil(self.filter_width)) - 1, int(math.ceil(self.filter_width)) + 2)
+        h = blackman_harris(k[None, :] + 0.5 - f[:, None], self.filter_width)
+        s1, s2 = h.sum(1), (h * h).sum(1)
+        # separable: average over independent x and y offsets
+        return float(np.mean(s1**2) ** 2 / np.mean(s2) ** 2)
+
     @property
     def variance(self) -> np.ndarray:
         """Variance of the mean image per pixel and channel (zero with < 2 batches)."""

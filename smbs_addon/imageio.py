@@ -33,7 +33,11 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
     spec.attribute("compression", "zip")
     spec.attribute("oiio:ColorSpace", "lin_rec709")
     for k, v in (metadata or {}).items():
-        if isinstance(v, (int, float)) and not isinstance(v, bool):
+        if isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)):
+            # float attributes are 32-bit: a seed or ray count above 2^24 would be rounded
+            v = int(v)
+            spec.attribute(f"smbs:{k}", v if -2**31 <= v < 2**31 else str(v))
+        elif isinstance(v, (float, np.floating)):
             spec.attribute(f"smbs:{k}", float(v))
         else:
             spec.attribute(f"smbs:{k}", v if isinstance(v, str) else json.dumps(v))

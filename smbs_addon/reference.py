@@ -135,7 +135,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         bounces += 1
 
 
-def trace_eye(scene, tracer, cam, film, plan, light_indices, n, rng, stats,
+def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, rng, stats,
               max_bounces=MAX_SPECULAR_BOUNCES):
     """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse
     receiver x0 -> (specular)+ -> light, by path tracing from the eye.
@@ -146,41 +146,16 @@ def trace_eye(scene, tracer, cam, film, plan, light_indices, n, rng, stats,
     caustic layer. From x0 a cosine-sampled direction must find a finite light
     through a specular chain whose last vertex is a caster: unbiased, noisy for
     small lights, blind to point lights of radius 0 and suns of angle 0."""
-    x0, x1, y0, y1 = cam.region
-    area = max(1, (x1 - x0) * (y1 - y0))
-    rx = x0 + rng.random(n) * (x1 - x0)
-    ry = y0 + rng.random(n) * (y1 - y0)
-    o, d, tnear = cam.rays(rx, ry)
-    o = o + tnear[:, None] * d
-    lane = np.arange(n)
-    beta = np.ones((n, 3))
-    stats["eye_paths"] += n
-    # the eye chain: a specular first hit, then on to the first diffuse receiver
-    eye_spec = 0
-    while len(o):
-        h = tracer.intersect(o, d)
-        stats["rays_eye"] += len(o)
-        prim = np.maximum(h.prim, 0)
-        mat = scene.tri_material[prim]
-        kind = np.where(h.hit, scene.mat_kind[mat], -1)
-        if eye_spec > 0:
-            r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[scene.tri_object[prim]])
-            _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, ry, area, n,
-                             lane[r], h.p[r], h.ng[r], h.ns[r], -d[r], beta[r] * scene.mat_color[mat[r]],
-                             max_bounces)
-        if eye_spec >= max_bounces:
-            break
-        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
-        if si.size == 0:
-            break
-        d, beta, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], mat[si], kind[si], beta[si])
-        o = tracer.spawn(h.p[si][keep], h.ng[si][keep], d)
-        lane = lane[si][keep]
-        eye_spec += 1
+    from .eye import eye_receivers
+
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=1,
+                       max_bounces=max_bounces)
+    _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rc.rx, rc.ry, rc.weight,
+                     rc.p, rc.ng, rc.ns, rc.w_eye, rc.beta * scene.mat_color[rc.mat], max_bounces)
 
 
-def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, ry, area, n,
-                     lane, p, ng, ns, w_eye, beta, max_bounces):
+def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, ry, weight,
+                     p, ng, ns, w_eye, beta, max_bounces):
     """From receiver points x0 (reached through the eye chain), follow one
     cosine-sampled direction through specular chains to the lights; splat the
     radiance found at the eye sample's film position."""
@@ -192,7 +167,8 @@ def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, r
     s, t = frame(nn)
     d = to_world(cosine_hemisphere(rng.random(len(p)), rng.random(len(p))), s, t, nn)
     ok = dot(d, ng * side) > 0  # cosine lobe below the geometric surface: no light
-    lane, p, ng, beta, d = lane[ok], p[ok], ng[ok], beta[ok], d[ok]  # f cos / pdf = albedo
+    rx, ry, weight = rx[ok], ry[ok], weight[ok]
+    p, ng, beta, d = p[ok], ng[ok], beta[ok], d[ok]  # f cos / pdf = albedo
     o = tracer.spawn(p, ng, d)
     radiance = np.zeros((len(o), 3))
     alive = np.arange(len(o))
@@ -226,5 +202,5 @@ def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, r
         bounces += 1
     hit = np.flatnonzero(radiance.max(axis=1) > 0)
     if hit.size:
-        film.splat(rx[lane[hit]], ry[lane[hit]], radiance[hit] * (area / n))
+        film.splat(rx[hit], ry[hit], radiance[hit] * weight[hit, None])
         stats["eye_splats"] += int(hit.size)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import dataclasses
 import zipfile
+import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -178,10 +179,24 @@ class Scene:
         if self.light_matrix.shape != (L, 4, 4) or self.light_color.shape != (L, 3) \
                 or self.light_size.shape != (L, 2):
             raise SceneError("light matrix/colour/size arrays do not match the light count")
-        for name in ("tri_vertices", "tri_normals", "tri_uvs", "mat_color", "mat_ior",
-                     "light_matrix", "light_color", "light_size"):
+        for name in ("tri_vertices", "tri_normals", "tri_uvs", "mat_color", "mat_reflect_color",
+                     "mat_ior", "mat_roughness", "mat_strength", "light_matrix", "light_color",
+                     "light_radius", "light_spot_size", "light_spot_blend", "light_size",
+                     "light_spread", "light_angle", "world_color"):
             if not np.all(np.isfinite(getattr(self, name))):
                 raise SceneError(f"scene array '{name}' holds NaN or infinite values")
+        cam = self.camera
+        if np.shape(cam.matrix_world) != (4, 4) or not np.all(np.isfinite(cam.matrix_world)):
+            raise SceneError("camera matrix must be a finite 4x4 matrix")
+        for name in ("lens", "sensor_width", "sensor_height", "ortho_scale", "pixel_aspect_x",
+                     "pixel_aspect_y", "clip_start", "clip_end", "filter_width"):
+            v = getattr(cam, name)
+            if not (np.isfinite(v) and v > 0):
+                raise SceneError(f"camera {name} must be a positive number, not {v}")
+        if not (np.isfinite(cam.shift_x) and np.isfinite(cam.shift_y)):
+            raise SceneError("camera shift holds NaN or infinite values")
+        if cam.sensor_fit not in SENSOR_FITS or cam.type not in (PERSP, ORTHO):
+            raise SceneError(f"camera type {cam.type!r} / sensor fit {cam.sensor_fit!r} not supported")
         bad = np.flatnonzero((self.mat_kind == DIELECTRIC) & ~(self.mat_ior > 0))
         if bad.size:
             raise SceneError(f"material '{self.mat_names[bad[0]]}': IOR must be positive")
@@ -210,12 +225,15 @@ class Scene:
     @classmethod
     def load(cls, path) -> "Scene":
         path = Path(path)
+        # np.load would return a bare array for a .npy and try pickle on anything else
+        if path.is_file() and not zipfile.is_zipfile(path):
+            raise SceneError(f"{path}: not a readable scene .npz (not a zip archive)")
         try:
             with np.load(path, allow_pickle=False) as z:
                 data = {k: z[k] for k in z.files}
         except FileNotFoundError:
             raise SceneError(f"{path}: no such file") from None
-        except (OSError, ValueError, zipfile.BadZipFile, EOFError) as e:
+        except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error, NotImplementedError) as e:
             raise SceneError(f"{path}: not a readable scene .npz ({e})") from None
         version = int(data.pop("format_version", -1))
         if version != FORMAT_VERSION:

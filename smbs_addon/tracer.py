@@ -32,7 +32,7 @@ class Hits:
     t: np.ndarray  # (N,) distance along the (unit) ray
     p: np.ndarray  # (N,3) position
     ng: np.ndarray  # (N,3) unit geometric normal (triangle winding)
-    ns: np.ndarray  # (N,3) unit shading normal (interpolated), same side as ng
+    ns: np.ndarray  # (N,3) unit shading normal (interpolated, not flipped towards ng, as in Cycles)
     b: np.ndarray  # (N,2) barycentrics (b1, b2) of corners 1 and 2
 
 
@@ -119,8 +119,9 @@ class Tracer:
             num = dot(v0 - oi, g)
             ok = np.abs(den) > 1e-12
             ti = np.where(ok, num / np.where(ok, den, 1.0), t32[idx])
-            # keep embree's distance where the plane re-intersection disagrees badly
-            bad = ~np.isfinite(ti) | (np.abs(ti - t32[idx]) > 1e-3 * (np.abs(t32[idx]) + self.eps))
+            # keep embree's distance where the plane re-intersection disagrees badly; embree's
+            # own error is absolute (float32 vertices: ~1e-7 of the extent), hence + eps
+            bad = ~np.isfinite(ti) | (np.abs(ti - t32[idx]) > 1e-3 * np.abs(t32[idx]) + self.eps)
             ti = np.where(bad, t32[idx], ti)
             pi_pos = oi + ti[:, None] * di
             bi = self.barycentrics(pi, pi_pos)
@@ -147,8 +148,9 @@ class Tracer:
         return np.stack([b1, b2], -1)
 
     def shading_normal(self, prim: np.ndarray, b: np.ndarray) -> np.ndarray:
-        """Interpolated corner normal, flipped to the geometric normal's side;
-        falls back to the geometric normal where corner normals are missing/zero."""
+        """Interpolated, normalised corner normal (not flipped towards the geometric
+        normal, like Cycles' triangle_smooth_normal); falls back to the geometric
+        normal where the interpolated corner normals are zero."""
         c = self.ns_corner[prim]
         b0 = 1.0 - b[:, 0] - b[:, 1]
         nraw = b0[:, None] * c[:, 0] + b[:, 0:1] * c[:, 1] + b[:, 1:2] * c[:, 2]

@@ -28,7 +28,7 @@ def check_against(result, expected, region, tol):
     img = result.image.mean(axis=2)[region]
     var = result.variance.mean(axis=2)[region]
     mean, ref = img.mean(), expected[region].mean()
-    se = math.sqrt(var.sum()) / region.sum()
+    se = math.sqrt(result.stats["noise"]["design_effect"] * var.sum()) / region.sum()
     assert se < 0.25 * tol * ref, f"too noisy to judge: standard error {se / ref:.2%}"
     assert abs(mean - ref) <= tol * ref, (
         f"mean {mean:.5f} vs analytic {ref:.5f}: off by {(mean - ref) / ref:+.2%} (tolerance {tol:.0%}, "
@@ -38,7 +38,7 @@ def check_against(result, expected, region, tol):
 
 def test_flat_mirror_matches_mirrored_disk_light():
     scene = scenes.mirror_scene()
-    res = bake(scene, BakeSettings(spp=64, seed=3))
+    res = bake(scene, BakeSettings(method="reference", spp=64, seed=3))
     pts, ok = pixel_floor_points(scene)
     r = np.hypot(pts[..., 0], pts[..., 1])
     region = ok & (r < 0.45)
@@ -53,7 +53,7 @@ def test_flat_mirror_matches_mirrored_disk_light():
 
 def test_flat_water_point_light_matches_snell_and_fresnel():
     scene = scenes.water_scene("point")
-    res = bake(scene, BakeSettings(spp=512, seed=5))
+    res = bake(scene, BakeSettings(method="reference", spp=512, seed=5))
     pts, ok = pixel_floor_points(scene)
     rho = np.hypot(pts[..., 0], pts[..., 1])
     region = ok & (rho < 0.9)
@@ -66,7 +66,7 @@ def test_flat_water_point_light_matches_snell_and_fresnel():
 
 def test_flat_water_sun_matches_snell_and_fresnel():
     scene = scenes.water_scene("sun", sun_tilt_deg=30.0)
-    res = bake(scene, BakeSettings(spp=256, seed=7))
+    res = bake(scene, BakeSettings(method="reference", spp=256, seed=7))
     region = np.ones(res.image.shape[:2], bool)
     region[:3], region[-3:], region[:, :3], region[:, -3:] = False, False, False, False
     c = math.cos(math.radians(30))
@@ -77,9 +77,9 @@ def test_flat_water_sun_matches_snell_and_fresnel():
 
 def test_same_seed_same_image_bit_for_bit():
     scene = scenes.mirror_scene(resolution=(64, 48))
-    a = bake(scene, BakeSettings(spp=4, seed=11, threads=1))
-    b = bake(scene, BakeSettings(spp=4, seed=11, threads=2))
-    c = bake(scene, BakeSettings(spp=4, seed=12))
+    a = bake(scene, BakeSettings(method="reference", spp=4, seed=11, threads=1))
+    b = bake(scene, BakeSettings(method="reference", spp=4, seed=11, threads=2))
+    c = bake(scene, BakeSettings(method="reference", spp=4, seed=12))
     assert a.image.tobytes() == b.image.tobytes()
     assert a.variance.tobytes() == b.variance.tobytes()
     assert a.image.tobytes() != c.image.tobytes()

@@ -1,0 +1,115 @@
+"""What a converged chain contributes, and the two ways to weight it.
+
+Contribution of a solution x0 -> x1..xk -> y (Zeltner et al. 2020, eq. 7):
+
+    beta_eye * f_d(x0) cos(x0) * T(x1..xk) * G(x0 <-> y) * L_e(y) / p(y)
+
+with the generalised geometric term G = |dw0/dA_y| (or |dw0/dw_y| for a
+sun), computed from the block-tridiagonal Jacobian (Jakob & Marschner 2012):
+solving J X = -D_k gives dx1/dy in orthonormal tangent coordinates, so
+dw0/dA_y = |cos theta_1| / |x1 - x0|^2 * |det dx1/dy|. T multiplies each
+vertex's Fresnel term and colour, and the radiance change (eta_to/eta_from)^2
+at refractions.
+
+Estimators over M trials of the stochastic walk:
+- unbiased: 1/p of the found solution by geometric Bernoulli trials (repeat the
+  whole procedure until the same solution comes back);
+- biased: the sum over the unique solutions found, each with weight one.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import scene as S
+from .constraints import ANGLE_DIFF, LightEnd, block_solve, blocks
+from .lights import spot_mask
+from .optics import fresnel_dielectric, fresnel_schlick
+from .vec import dot, frame, normalize
+
+RADIANCE_SCALING = True  # (eta_to / eta_from)^2 at refractions: physically correct radiance
+
+
+def chain_throughput(scene, types, x0, verts, light_point, directional):
+    """Product over the chain of the specular weights, (N,3)."""
+    n = len(x0)
+    T = np.ones((n, 3))
+    k = len(types)
+    for j in range(k):
+        v = verts[j]
+        prev = x0 if j == 0 else verts[j - 1].p
+        wi = normalize(prev - v.p)
+        kind = scene.mat_kind[v.mat]
+        color = scene.mat_color[v.mat]
+        eta = scene.mat_ior[v.mat]
+        F = fresnel_dielectric(dot(wi, v.n), eta)
+        if types[j] == "R":
+            schlick = fresnel_schlick(dot(wi, v.n), color)
+            cond = np.where((scene.mat_fresnel[v.mat] == S.FRESNEL_SCHLICK)[:, None], schlick, color)
+            diel = F[:, None] * scene.mat_reflect_color[v.mat]
+            T *= np.where((kind == S.CONDUCTOR)[:, None], cond, diel)
+        else:
+            w = (1.0 - F)[:, None] * color
+            if RADIANCE_SCALING:  # light arrives from the w_o side and leaves on the w_i side
+                inside_i = dot(wi, v.ng) < 0
+                ratio = np.where(inside_i, eta, 1.0 / eta)  # eta(w_i side) / eta(w_o side)
+                w = w * (ratio**2)[:, None]
+            T *= w
+    return T
+
+
+def light_end_at_solution(scene, li, light: LightEnd, xk):
+    """Tangents of the light end at the solution (for the geometric term) and
+    the emission factor L_e / p per lane, zero where the light does not face xk."""
+    typ = scene.light_type[li]
+    color = scene.light_color[li]
+    n = len(xk)
+    if typ == S.SUN:
+        ys, yt = frame(light.y)
+        return LightEnd(True, light.y, ys, yt), np.broadcast_to(color, (n, 3)).copy()
+    m = scene.light_matrix[li]
+    if typ == S.AREA:
+        ax = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
+        nrm = -ax[:, 2]
+        facing = dot(xk - light.y, nrm) > 0
+        ys = np.broadcast_to(ax[:, 0], (n, 3)).copy()
+        yt = np.broadcast_to(ax[:, 1], (n, 3)).copy()
+        e = np.where(facing[:, None], color / math.pi, 0.0)  # (P / (pi A)) / (1 / A)
+        return LightEnd(False, light.y, ys, yt), e
+    r = float(scene.light_radius[li])
+    c = m[:3, 3]
+    if r > 0:
+        nrm = normalize(light.y - c)
+        facing = dot(xk - light.y, nrm) > 0
+        e = np.where(facing[:, None], color / math.pi, 0.0)  # (P / (4 pi^2 r^2)) / (1 / (4 pi r^2))
+    else:
+        nrm = normalize(xk - c)  # a point light: the tangent plane faces the chain
+        e = np.broadcast_to(color / (4.0 * math.pi), (n, 3)).copy()  # intensity, per unit dA_perp
+    ys, yt = frame(nrm)
+    if typ == S.SPOT:
+        e = e * spot_mask(scene, li, normalize(xk - c))[:, None]
+    return LightEnd(False, light.y, ys, yt), e
+
+
+def geometric_term(types, x0, verts, etas, light_end: LightEnd):
+    """|d w0 / d A_y| (or d w0 / d w_y for a sun) at converged chains, and ok."""
+    k = len(types)
+    _, A, B, D, ok = blocks(ANGLE_DIFF, types, x0, verts, etas, light_end)
+    rhs = np.zeros(A.shape[:2] + (2, 2))
+    rhs[:, k - 1] = -D[:, k - 1]
+    X, oks = block_solve(A, B, D, rhs)
+    X1 = X[:, 0]
+    det = X1[:, 0, 0] * X1[:, 1, 1] - X1[:, 0, 1] * X1[:, 1, 0]
+    d01 = verts[0].p - x0
+    r2 = dot(d01, d01)
+    cos1 = np.abs(dot(d01, verts[0].ng)) / np.sqrt(np.maximum(r2, 1e-300))
+    g = cos1 / np.maximum(r2, 1e-300) * np.abs(det)
+    ok = ok & oks & np.isfinite(g)
+    return np.where(ok, g, 0.0), ok
+
+
+def same_solution(d_a, d_b, obj_a, obj_b, threshold):
+    """Two solutions are the same when the first segment's direction agrees and
+    the first vertex lies on the same object."""
+    return (np.abs(dot(d_a, d_b) - 1.0) < threshold) & (obj_a == obj_b)

@@ -1,0 +1,513 @@
+"""Blender scene -> smbs ``Scene`` (numpy arrays). The only core module that imports bpy.
+
+``export_scene(bpy_scene)`` walks the evaluated depsgraph (so modifiers, geometry
+nodes and instances are included), converts every renderable mesh to world-space
+triangles with per-corner shading normals, classifies materials from their node
+trees, converts lights and the camera with Cycles' conventions, and returns a
+validated ``Scene``. The user's scene is only read: temporary meshes from
+``to_mesh()`` are freed with ``to_mesh_clear()``.
+
+Anything that cannot be represented is reported through ``warn`` (a callable
+taking one string; by default the messages go to ``logging``) and replaced by a
+stated fallback, e.g. an unsupported material becomes diffuse with albedo 0.8.
+"""
+from __future__ import annotations
+
+import logging
+import math
+
+import bpy
+import numpy as np
+
+from . import scene as S
+from .builder import SceneBuilder
+from .errors import SceneError
+
+log = logging.getLogger(__name__)
+
+DEFAULT_ALBEDO = 0.8
+DEFAULT_MATERIAL = "<default diffuse>"
+MESH_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+_OLD_NODES_FLAG = bpy.app.version < (5, 0, 0)  # use_nodes is deprecated (always on) in 5.0
+_LUMA = np.array([0.2126, 0.7152, 0.0722])  # Rec.709 weights (colour -> float socket)
+
+
+class _Unsupported(Exception):
+    """A material (or world/light node setup) we cannot represent; the text says why."""
+
+
+# ----------------------------------------------------------------------------- helpers
+def _orthonormal(m: np.ndarray) -> np.ndarray:
+    """The 4x4 matrix with each of its first three columns normalised (scale removed)."""
+    out = np.array(m, float)
+    for i in range(3):
+        n = np.linalg.norm(out[:3, i])
+        if n > 0:
+            out[:3, i] /= n
+    return out
+
+
+def _axis_scale(m: np.ndarray) -> np.ndarray:
+    return np.linalg.norm(np.asarray(m, float)[:3, :3], axis=0)
+
+
+def _uses_nodes(idblock) -> bool:
+    return bool(getattr(idblock, "use_nodes", True)) if _OLD_NODES_FLAG else True
+
+
+def _follow(socket):
+    """The (node, output socket) feeding an input socket, through reroutes; None if unlinked."""
+    seen = 0
+    while socket is not None and socket.is_linked and seen < 64:
+        links = [lk for lk in socket.links if lk.is_valid and not lk.is_muted]
+        if not links:
+            return None
+        node, out = links[0].from_node, links[0].from_socket
+        if node.type == "REROUTE":
+            socket = node.inputs[0]
+            seen += 1
+            continue
+        return node, out
+    return None
+
+
+def _const(node, name):
+    """The constant value of an input socket: its default, or an RGB/Value node feeding it.
+
+    Returns a float or an (3,) array depending on the socket type. Raises _Unsupported
+    naming the socket if it is driven by anything else (a texture, a math node, ...).
+    """
+    sock = node.inputs.get(name)
+    if sock is None:
+        raise _Unsupported(f"node '{node.name}' has no input '{name}'")
+    want_color = sock.type in ("RGBA", "VECTOR")
+    src = _follow(sock)
+    if src is None:
+        val = sock.default_value
+    else:
+        snode, sout = src
+        if snode.type in ("RGB", "VALUE") and not snode.mute:
+            val = sout.default_value
+        else:
+            raise _Unsupported(f"input '{name}' of node '{node.name}' is driven by node "
+                               f"'{snode.name}' (a constant is needed)")
+    try:
+        arr = np.array(val[:], float)
+    except TypeError:
+        arr = np.array(float(val))
+    if want_color:
+        return np.broadcast_to(arr, (3,)).astype(float) if arr.ndim == 0 else arr[:3].copy()
+    if arr.ndim == 0:
+        return float(arr)
+    return float(np.dot(arr[:3], _LUMA))
+
+
+def _linked(node, name) -> bool:
+    sock = node.inputs.get(name)
+    return sock is not None and _follow(sock) is not None
+
+
+def _shader_node(tree, out_type):
+    """The shader node linked to the Surface of the active output, through simple cases."""
+    out = None
+    if hasattr(tree, "get_output_node"):
+        try:
+            out = tree.get_output_node("CYCLES")
+        except (TypeError, RuntimeError):
+            out = None
+    if out is None:
+        outs = [n for n in tree.nodes if n.type == out_type]
+        outs.sort(key=lambda n: (not n.is_active_output, getattr(n, "target", "ALL") == "EEVEE"))
+        out = outs[0] if outs else None
+    if out is None:
+        raise _Unsupported("node tree has no output node")
+    src = _follow(out.inputs["Surface"])
+    if src is None:
+        return None
+    node = src[0]
+    for _ in range(64):
+        if node.mute:
+            raise _Unsupported(f"node '{node.name}' is muted")
+        if node.type == "MIX_SHADER" and not _linked(node, "Factor"):
+            fac = float(node.inputs[0].default_value)
+            if fac <= 0.0 or fac >= 1.0:
+                nxt = _follow(node.inputs[1 if fac <= 0.0 else 2])
+                if nxt is None:
+                    return None
+                node = nxt[0]
+                continue
+        return node
+    raise _Unsupported("node tree is too deep")
+
+
+# --------------------------------------------------------------------------- materials
+def classify_material(mat, warn) -> dict:
+    """Keyword arguments for ``SceneBuilder.material`` (minus the name) for a bpy Material."""
+    def diffuse(reason, albedo=None):
+        a = DEFAULT_ALBEDO if albedo is None else albedo
+        a = np.broadcast_to(np.asarray(a, float), (3,))
+        shown = f"{a[0]:g}" if np.all(a == a[0]) else "(" + ", ".join(f"{x:.3g}" for x in a) + ")"
+        warn(f"material '{mat.name}': {reason}; treated as diffuse (albedo {shown})")
+        return dict(kind=S.DIFFUSE, color=a.copy())
+
+    tree = mat.node_tree
+    if tree is None or not _uses_nodes(mat):
+        return diffuse("material has no shader nodes", np.array(mat.diffuse_color[:3], float))
+    try:
+        node = _shader_node(tree, "OUTPUT_MATERIAL")
+        if node is None:
+            warn(f"material '{mat.name}': nothing is linked to the Material Output's Surface "
+                 "(renders black in Cycles); treated as black diffuse")
+            return dict(kind=S.DIFFUSE, color=np.zeros(3))
+        t = node.type
+        if t == "BSDF_PRINCIPLED":
+            base = _const(node, "Base Color")
+            metallic = _const(node, "Metallic")
+            rough = _const(node, "Roughness")
+            trans = _const(node, "Transmission Weight")
+            ior = _const(node, "IOR")
+            ignored = []
+
+            def active(sock_name, nonzero=lambda v: float(v) > 0):
+                sock = node.inputs.get(sock_name)
+                return sock is not None and (_follow(sock) is not None or nonzero(sock.default_value))
+
+            if active("Emission Strength") and active("Emission Color", lambda c: max(c[:3]) > 0):
+                ignored.append("emission")
+            for sock_name, label in (("Coat Weight", "coat"), ("Sheen Weight", "sheen"),
+                                     ("Subsurface Weight", "subsurface")):
+                if active(sock_name):
+                    ignored.append(label)
+            a = node.inputs.get("Alpha")
+            if a is not None and (_follow(a) is not None or float(a.default_value) < 1.0):
+                ignored.append("alpha")
+            if _linked(node, "Normal"):
+                ignored.append("normal map")
+            if ignored:
+                warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
+            if metallic >= 0.5:
+                return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK)
+            if trans >= 0.5:
+                return dict(kind=S.DIELECTRIC, color=base, reflect_color=np.ones(3), ior=ior,
+                            roughness=rough)
+            return dict(kind=S.DIFFUSE, color=base, roughness=rough)
+        if t == "BSDF_GLASS":
+            c = _const(node, "Color")
+            return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
+                        ior=_const(node, "IOR"), roughness=_const(node, "Roughness"))
+        if t == "BSDF_REFRACTION":
+            return dict(kind=S.DIELECTRIC, color=_const(node, "Color"), reflect_color=np.zeros(3),
+                        ior=_const(node, "IOR"), roughness=_const(node, "Roughness"))
+        if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
+            if node.inputs.get("Anisotropy") is not None and (
+                    _linked(node, "Anisotropy") or float(node.inputs["Anisotropy"].default_value) != 0):
+                warn(f"material '{mat.name}': Glossy BSDF anisotropy ignored")
+            return dict(kind=S.CONDUCTOR, color=_const(node, "Color"),
+                        roughness=_const(node, "Roughness"), fresnel=S.FRESNEL_NONE)
+        if t == "BSDF_DIFFUSE":
+            return dict(kind=S.DIFFUSE, color=_const(node, "Color"),
+                        roughness=_const(node, "Roughness"))
+        if t == "EMISSION":
+            return dict(kind=S.EMITTER, color=_const(node, "Color"),
+                        strength=_const(node, "Strength"))
+        raise _Unsupported(f"node '{node.name}' is not supported")
+    except _Unsupported as e:
+        return diffuse(str(e))
+
+
+# ------------------------------------------------------------------------------ meshes
+def _mesh_arrays(ob_eval):
+    """Local-space triangle arrays of an evaluated object, or None if it has no triangles."""
+    me = ob_eval.to_mesh()
+    if me is None:
+        return None
+    try:
+        me.calc_loop_triangles()
+        T = len(me.loop_triangles)
+        if T == 0:
+            return None
+        co = np.empty(len(me.vertices) * 3, np.float32)
+        me.vertices.foreach_get("co", co)
+        tv = np.empty(T * 3, np.int32)
+        me.loop_triangles.foreach_get("vertices", tv)
+        tl = np.empty(T * 3, np.int32)
+        me.loop_triangles.foreach_get("loops", tl)
+        mi = np.empty(T, np.int32)
+        me.loop_triangles.foreach_get("material_index", mi)
+        sm = np.empty(T, bool)
+        me.loop_triangles.foreach_get("use_smooth", sm)
+        cn = np.empty(len(me.loops) * 3, np.float32)
+        me.corner_normals.foreach_get("vector", cn)
+        uv = None
+        layer = me.uv_layers.active
+        if layer is not None and len(me.loops):
+            uvs = np.empty(len(me.loops) * 2, np.float32)
+            if hasattr(layer, "uv"):
+                layer.uv.foreach_get("vector", uvs)
+            else:
+                layer.data.foreach_get("uv", uvs)
+            uv = uvs.reshape(-1, 2)[tl].reshape(T, 3, 2).astype(float)
+        mats = list(me.materials)
+    finally:
+        ob_eval.to_mesh_clear()
+    return dict(
+        verts=co.reshape(-1, 3).astype(float)[tv].reshape(T, 3, 3),
+        normals=cn.reshape(-1, 3).astype(float)[tl].reshape(T, 3, 3),
+        uvs=uv, mat_index=mi, smooth=sm, mesh_materials=mats)
+
+
+def _to_world(local, M):
+    """World-space (verts, normals, uvs) for one instance, fixing winding for negative scale."""
+    A, t = M[:3, :3], M[:3, 3]
+    v = local["verts"] @ A.T + t
+    try:
+        nt = np.linalg.inv(A).T
+    except np.linalg.LinAlgError:
+        nt = A
+    n = local["normals"] @ nt.T
+    uv = local["uvs"]
+    if np.linalg.det(A) < 0:  # mirrored: keep the winding (geometric normal) on the normal's side
+        v = v[:, [0, 2, 1]]
+        n = n[:, [0, 2, 1]]
+        uv = None if uv is None else uv[:, [0, 2, 1]]
+    fn = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    fl = np.linalg.norm(fn, axis=1, keepdims=True)
+    fn = np.divide(fn, fl, out=np.zeros_like(fn), where=fl > 0)
+    flat = ~local["smooth"]
+    n[flat] = fn[flat][:, None, :]
+    nl = np.linalg.norm(n, axis=2, keepdims=True)
+    bad = ~(nl[..., 0] > 0)
+    n = np.divide(n, nl, out=np.zeros_like(n), where=nl > 0)
+    if bad.any():  # degenerate normals: fall back to the face normal
+        n[bad] = np.broadcast_to(fn[:, None, :], n.shape)[bad]
+    return v, n, uv
+
+
+# ------------------------------------------------------------------------------ lights
+def _light_node_factor(light, warn):
+    """Colour factor from a light's node tree (Emission node) if it uses nodes."""
+    if not getattr(light, "use_nodes", False) or light.node_tree is None:  # not deprecated
+        return np.ones(3)
+    try:
+        node = _shader_node(light.node_tree, "OUTPUT_LIGHT")
+        if node is None:
+            return np.zeros(3)
+        if node.type != "EMISSION":
+            raise _Unsupported(f"node '{node.name}' is not supported")
+        return _const(node, "Color") * _const(node, "Strength")
+    except _Unsupported as e:
+        warn(f"light '{light.name}': {e}; its node tree is ignored")
+        return np.ones(3)
+
+
+def _export_light(b, name, ob, M, warn):
+    lt = ob.data
+    orig = lt.original if getattr(lt, "original", None) is not None else lt
+    color = np.array(lt.color[:3], float)
+    if getattr(lt, "use_temperature", False):
+        color = color * np.array(lt.temperature_color[:3], float)
+    power = float(lt.energy) * 2.0 ** float(getattr(lt, "exposure", 0.0))
+    color = color * _light_node_factor(lt, warn)
+    normalize = bool(getattr(lt, "normalize", True))
+    caustics = bool(orig.cycles.is_caustics_light)
+    Mn = _orthonormal(M)
+    sc = _axis_scale(M)
+    kw = dict(matrix=Mn, color=color, caustics=caustics)
+    if lt.type in ("POINT", "SPOT"):
+        r = float(lt.shadow_soft_size)
+        if not normalize:  # Cycles divides by the sphere area (4 if r = 0) only when normalised
+            power *= 4.0 * math.pi * r * r if r > 0 else 4.0
+        kw.update(radius=r, soft_falloff=bool(lt.use_soft_falloff))
+        if lt.type == "SPOT":
+            kw.update(spot_size=float(lt.spot_size), spot_blend=float(lt.spot_blend))
+            if abs(sc[0] - sc[1]) > 1e-6 * max(sc[0], sc[1]):
+                warn(f"light '{name}': non-uniform scale of a spot cone is ignored")
+    elif lt.type == "AREA":
+        shape = lt.shape
+        sx = float(lt.size)
+        sy = float(lt.size_y) if shape in ("RECTANGLE", "ELLIPSE") else sx
+        sx, sy = sx * sc[0], sy * sc[1]
+        if abs(sx - sy) > 1e-6 * max(sx, sy):  # unequal scale: Cycles stretches the shape
+            shape = {"SQUARE": "RECTANGLE", "DISK": "ELLIPSE"}.get(shape, shape)
+        else:
+            sy = sx if shape in ("SQUARE", "DISK") else sy
+        if not normalize:
+            power *= sx * sy * (math.pi / 4 if shape in ("DISK", "ELLIPSE") else 1.0)
+        kw.update(shape=shape, size=(sx, sy), spread=float(lt.spread))
+        if getattr(orig.cycles, "is_portal", False):
+            warn(f"light '{name}': portal lights are skipped")
+            return
+    elif lt.type == "SUN":
+        ang = float(lt.angle)
+        if not normalize:
+            power *= math.pi * math.sin(ang / 2) ** 2 if ang > 0 else 1.0
+        kw.update(angle=ang)
+    else:
+        warn(f"light '{name}': type {lt.type} is not supported; skipped")
+        return
+    b.light(name, lt.type, power=power, **kw)
+
+
+# ------------------------------------------------------------------------------ camera
+def _export_camera(bpy_scene, depsgraph, warn) -> S.Camera:
+    cam_ob = bpy_scene.camera
+    if cam_ob is None:
+        raise SceneError(f"scene '{bpy_scene.name}' has no camera")
+    if cam_ob.type != "CAMERA":
+        raise SceneError(f"scene camera '{cam_ob.name}' is a {cam_ob.type.lower()} object, not a camera")
+    ev = cam_ob.evaluated_get(depsgraph)
+    cam = ev.data
+    if cam.type == "PANO":
+        raise SceneError(f"camera '{cam_ob.name}': panoramic cameras are not supported")
+    if cam.type not in ("PERSP", "ORTHO"):
+        raise SceneError(f"camera '{cam_ob.name}': {cam.type.lower()} cameras are not supported")
+    if cam.dof.use_dof:
+        warn(f"camera '{cam_ob.name}': depth of field is ignored")
+    r = bpy_scene.render
+    cyc = getattr(bpy_scene, "cycles", None)
+    fw = float(cyc.filter_width) if cyc is not None and hasattr(cyc, "filter_width") \
+        else float(r.filter_size)
+    if cyc is not None and getattr(cyc, "pixel_filter_type", "BLACKMAN_HARRIS") != "BLACKMAN_HARRIS":
+        warn(f"scene '{bpy_scene.name}': pixel filter {cyc.pixel_filter_type} is treated as "
+             f"Blackman-Harris of width {fw:g}")
+    return S.Camera(
+        matrix_world=_orthonormal(np.array(ev.matrix_world)),
+        type=S.PERSP if cam.type == "PERSP" else S.ORTHO,
+        lens=float(cam.lens), sensor_width=float(cam.sensor_width),
+        sensor_height=float(cam.sensor_height), sensor_fit=str(cam.sensor_fit),
+        ortho_scale=float(cam.ortho_scale), shift_x=float(cam.shift_x), shift_y=float(cam.shift_y),
+        clip_start=float(cam.clip_start), clip_end=float(cam.clip_end),
+        resolution_x=int(r.resolution_x), resolution_y=int(r.resolution_y),
+        resolution_percentage=int(r.resolution_percentage),
+        pixel_aspect_x=float(r.pixel_aspect_x), pixel_aspect_y=float(r.pixel_aspect_y),
+        use_border=bool(r.use_border),
+        border=(float(r.border_min_x), float(r.border_max_x),
+                float(r.border_min_y), float(r.border_max_y)),
+        use_crop_to_border=bool(r.use_crop_to_border), filter_width=fw)
+
+
+# ------------------------------------------------------------------------------- world
+def _world_color(bpy_scene, warn) -> np.ndarray:
+    w = bpy_scene.world
+    if w is None:
+        return np.zeros(3)
+    if w.node_tree is None or not _uses_nodes(w):
+        return np.array(w.color[:3], float)
+    try:
+        node = _shader_node(w.node_tree, "OUTPUT_WORLD")
+        if node is None:
+            return np.zeros(3)
+        if node.type != "BACKGROUND":
+            raise _Unsupported(f"node '{node.name}' is not supported")
+        return _const(node, "Color") * _const(node, "Strength")
+    except _Unsupported as e:
+        warn(f"world '{w.name}': {e}; world lighting treated as black")
+        return np.zeros(3)
+
+
+# ------------------------------------------------------------------------------ export
+def _default_depsgraph(bpy_scene):
+    ctx = bpy.context
+    if ctx.scene == bpy_scene:
+        return ctx.evaluated_depsgraph_get()
+    vl = bpy_scene.view_layers[0]
+    dg = vl.depsgraph
+    dg.update()
+    return dg
+
+
+def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
+    """Convert a bpy Scene (default: the context scene) into a validated ``Scene``.
+
+    depsgraph: the evaluated depsgraph to read (default: the context's); warn:
+    callable(str) receiving each warning once (default: ``logging.warning``).
+    Raises SceneError for things that cannot be rendered at all (no camera, a
+    panoramic camera).
+    """
+    if bpy_scene is None:
+        bpy_scene = bpy.context.scene
+    seen_warnings = set()
+
+    def _warn(msg):
+        if msg in seen_warnings:
+            return
+        seen_warnings.add(msg)
+        (warn or log.warning)(msg)
+
+    if depsgraph is None:
+        if bpy_scene.camera is None:  # fail fast, before evaluating anything
+            raise SceneError(f"scene '{bpy_scene.name}' has no camera")
+        depsgraph = _default_depsgraph(bpy_scene)
+    camera = _export_camera(bpy_scene, depsgraph, _warn)
+
+    b = SceneBuilder(bpy_scene.name)
+    b.camera = camera
+    b.world_color = _world_color(bpy_scene, _warn)
+
+    mat_index = {}  # material name_full -> builder index
+
+    def material_id(mat):
+        if mat is None:
+            key = DEFAULT_MATERIAL
+            if key not in mat_index:
+                mat_index[key] = b.material(key, S.DIFFUSE, color=(DEFAULT_ALBEDO,) * 3)
+            return mat_index[key]
+        key = mat.original.name_full if getattr(mat, "original", None) is not None else mat.name_full
+        if key not in mat_index:
+            mat_index[key] = b.material(key, **classify_material(mat, _warn))
+        return mat_index[key]
+
+    mesh_cache = {}
+    names_used = {}
+    viewport = getattr(depsgraph, "mode", "VIEWPORT") == "VIEWPORT"
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        orig = ob.original
+        if inst.is_instance:
+            parent = inst.parent
+            if parent is not None and parent.original.hide_render:
+                continue
+        elif not inst.show_self:
+            continue
+        if orig.hide_render:
+            continue
+        if ob.type not in MESH_TYPES and ob.type != "LIGHT":
+            continue
+        M = np.array(inst.matrix_world, float)
+        name = orig.name
+        if inst.is_instance and inst.parent is not None:
+            name = f"{inst.parent.original.name}/{name}"
+        k = names_used.get(name, 0)
+        names_used[name] = k + 1
+        if k:
+            name = f"{name}.{k}"
+        if ob.type == "LIGHT":
+            _export_light(b, name, ob, M, _warn)
+            continue
+
+        key = (orig.name_full, ob.data.as_pointer() if ob.data is not None else 0)
+        if key not in mesh_cache:
+            if viewport and not inst.is_instance:
+                for mod in orig.modifiers:
+                    lv, rl = getattr(mod, "levels", None), getattr(mod, "render_levels", None)
+                    if mod.show_viewport and lv is not None and rl is not None and lv != rl:
+                        _warn(f"object '{orig.name}': modifier '{mod.name}' is exported at its "
+                              f"viewport level {lv}, not its render level {rl}")
+            local = _mesh_arrays(ob)
+            if local is not None:
+                slots = [s.material for s in ob.material_slots] or local["mesh_materials"]
+                # no slots: default diffuse; an empty slot: default diffuse; an index past
+                # the last slot uses the last slot (as Blender does)
+                ids = np.array([material_id(m) for m in slots] or [material_id(None)], np.int32)
+                tri_mat = ids[np.clip(local["mat_index"], 0, len(ids) - 1)]
+                local["tri_material"] = tri_mat.astype(np.int32)
+            mesh_cache[key] = local
+        local = mesh_cache[key]
+        if local is None:
+            continue
+        v, n, uv = _to_world(local, M)
+        b.mesh_corners(name, v, n, uv, local["tri_material"],
+                       caster=bool(orig.cycles.is_caustics_caster),
+                       receiver=bool(orig.cycles.is_caustics_receiver),
+                       smooth=bool(local["smooth"].any()))
+    return b.build()

@@ -1,0 +1,95 @@
+"""Eye paths: from film samples through mirrors and glass to the first diffuse receiver.
+
+Film positions are stratified: the render region widened by the pixel filter's
+radius (so border pixels get their whole filter footprint) is cut into unit
+cells, sample i of a batch goes to cell i mod cells at a uniform position in it,
+and an estimate is splatted through the filter with weight 1 / (samples in its
+cell this batch), an unbiased estimate of integral h(x - c) L(x) dx.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import scene as S
+
+
+@dataclass
+class Receivers:
+    rx: np.ndarray  # (M,) film position of the eye sample
+    ry: np.ndarray
+    p: np.ndarray  # (M,3) receiver point x0
+    ng: np.ndarray
+    ns: np.ndarray
+    w_eye: np.ndarray  # (M,3) direction from x0 back along the eye path
+    beta: np.ndarray  # (M,3) eye-path throughput up to x0 (BSDF at x0 excluded)
+    mat: np.ndarray  # (M,) material at x0
+    eye_specular: np.ndarray  # (M,) specular vertices between the camera and x0
+    weight: np.ndarray  # (M,) splat weight of the eye sample
+
+
+def film_cells(cam, film) -> int:
+    x0, x1, y0, y1 = cam.region
+    r = int(np.ceil(film.filter_width))
+    return (x1 - x0 + 2 * r) * (y1 - y0 + 2 * r)
+
+
+def film_samples(cam, film, start, n, n_batch, rng):
+    """Samples start..start+n of a batch of n_batch stratified film samples."""
+    x0, x1, y0, y1 = cam.region
+    r = int(np.ceil(film.filter_width))
+    cw = x1 - x0 + 2 * r
+    cells = film_cells(cam, film)
+    i = np.arange(start, start + n)
+    c = i % cells
+    per, extra = divmod(n_batch, cells)
+    count = per + (c < extra)
+    rx = x0 - r + (c % cw) + rng.random(n)
+    ry = y0 - r + (c // cw) + rng.random(n)
+    return rx, ry, 1.0 / count
+
+
+def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
+                  max_bounces=32) -> Receivers:
+    """Trace n eye samples to their first diffuse receiver, keeping those with at
+    least min_specular specular vertices on the way (glass by Fresnel choice)."""
+    from .reference import scatter_specular
+
+    rx, ry, weight = film_samples(cam, film, start, n, n_batch, rng)
+    o, d, tnear = cam.rays(rx, ry)
+    o = o + tnear[:, None] * d
+    lane = np.arange(n)
+    beta = np.ones((n, 3))
+    out = {k: [] for k in ("lane", "p", "ng", "ns", "w", "beta", "mat", "spec")}
+    stats["eye_paths"] = stats.get("eye_paths", 0) + n
+    depth = 0
+    while len(o):
+        h = tracer.intersect(o, d)
+        stats["rays_eye"] = stats.get("rays_eye", 0) + len(o)
+        prim = np.maximum(h.prim, 0)
+        mat = scene.tri_material[prim]
+        kind = np.where(h.hit, scene.mat_kind[mat], -1)
+        if depth >= min_specular:
+            r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[scene.tri_object[prim]])
+            for key, val in (("lane", lane[r]), ("p", h.p[r]), ("ng", h.ng[r]), ("ns", h.ns[r]),
+                             ("w", -d[r]), ("beta", beta[r]), ("mat", mat[r]),
+                             ("spec", np.full(r.size, depth))):
+                out[key].append(val)
+        if depth >= max_bounces:
+            break
+        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+        if si.size == 0:
+            break
+        d, beta, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], mat[si], kind[si], beta[si])
+        o = tracer.spawn(h.p[si][keep], h.ng[si][keep], d)
+        lane = lane[si][keep]
+        depth += 1
+
+    def cat(key, shape, dtype=float):
+        return np.concatenate(out[key]).astype(dtype) if out[key] else np.zeros(shape, dtype)
+
+    ln = cat("lane", (0,), np.int64)
+    return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=cat("p", (0, 3)), ng=cat("ng", (0, 3)), ns=cat("ns", (0, 3)),
+                     w_eye=cat("w", (0, 3)), beta=cat("beta", (0, 3)), mat=cat("mat", (0,), np.int64),
+                     eye_specular=cat("spec", (0,), np.int64))

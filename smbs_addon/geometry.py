@@ -1,0 +1,64 @@
+"""Differential geometry at specular vertices, in orthonormal tangent coordinates.
+
+A vertex lies on a triangle; it moves in the triangle's plane along two
+orthonormal tangents (s, t). The shading normal n varies with position
+(interpolated corner normals); dn_s and dn_t are its derivatives along s and t.
+Orthonormal tangents make area elements agree between the Newton solve and the
+generalised geometric term (no separate re-parameterisation needed).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .vec import cross, dot, normalize
+
+
+@dataclass
+class Vertex:
+    """Structure of arrays for one chain vertex over N lanes."""
+
+    p: np.ndarray  # (N,3)
+    ng: np.ndarray  # (N,3) unit geometric normal
+    n: np.ndarray  # (N,3) unit shading normal
+    s: np.ndarray  # (N,3) unit tangent in the triangle plane
+    t: np.ndarray  # (N,3) ng x s
+    dn_s: np.ndarray  # (N,3) d n / d s
+    dn_t: np.ndarray  # (N,3) d n / d t
+    prim: np.ndarray  # (N,)
+    obj: np.ndarray  # (N,)
+    mat: np.ndarray  # (N,)
+
+    def take(self, idx) -> "Vertex":
+        return Vertex(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+
+def vertex_from_hits(scene, tracer, prim: np.ndarray, p: np.ndarray, b: np.ndarray) -> Vertex:
+    v = tracer.v[prim]
+    e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
+    ng = tracer.ng[prim]
+    s = normalize(e1)
+    t = cross(ng, s)
+    c = tracer.ns_corner[prim]
+    b0 = 1.0 - b[:, 0] - b[:, 1]
+    nraw = b0[:, None] * c[:, 0] + b[:, 0:1] * c[:, 1] + b[:, 1:2] * c[:, 2]
+    ln = np.sqrt(dot(nraw, nraw))
+    good = ln > 1e-3
+    n = np.where(good[:, None], nraw / np.where(good, ln, 1.0)[:, None], ng)
+    # barycentric derivatives along s and t: solve [e1 e2] (alpha, beta) = w in the plane
+    g11, g12, g22 = dot(e1, e1), dot(e1, e2), dot(e2, e2)
+    det = g11 * g22 - g12 * g12
+    inv = np.divide(1.0, det, out=np.zeros_like(det), where=det > 1e-300)
+    dn1, dn2 = c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]
+
+    def dn_along(w):
+        r1, r2 = dot(w, e1), dot(w, e2)
+        alpha = (g22 * r1 - g12 * r2) * inv
+        beta = (g11 * r2 - g12 * r1) * inv
+        dN = alpha[:, None] * dn1 + beta[:, None] * dn2
+        out = (dN - dot(dN, n)[:, None] * n) / np.where(good, ln, 1.0)[:, None]
+        return np.where(good[:, None], out, 0.0)
+
+    return Vertex(p=p, ng=ng, n=n, s=s, t=t, dn_s=dn_along(s), dn_t=dn_along(t), prim=prim,
+                  obj=scene.tri_object[prim], mat=scene.tri_material[prim])

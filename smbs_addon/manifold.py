@@ -1,0 +1,373 @@
+"""The manifold pass (MNEE, SMS, SMBS): receiver points from the eye, a light
+sample per light, a walk per chain type, an estimator, and splats.
+
+Lanes = (receiver point, light sample, chain type, trial), processed as
+structure-of-arrays chunks. Chain types (one letter per specular vertex, R
+reflect, T refract) come from the plan: a conductor gives R; open glass (a
+water surface) T and R; closed glass TT and R, plus T when a receiver reaches
+inside it.
+"""
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from . import scene as S
+from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
+from .estimators import chain_throughput, geometric_term, light_end_at_solution, same_solution
+from .eye import eye_receivers
+from .lights import area_light_shape
+from .vec import dot, normalize, uniform_cone, frame, to_world
+from .walk import OK, OCCLUDED, OUTCOMES, SEED_OBJECT, TRIGGERS, WalkConfig, newton_walk, propagate
+
+
+@dataclass
+class ManifoldOptions:
+    method: str = "smbs"  # mnee, sms, smbs
+    estimator: str = "unbiased"  # unbiased, biased
+    trials: int = 4  # biased: walks per lane
+    max_trials: int = 10000  # unbiased: cap of the Bernoulli count (capped lanes count, contribute 0)
+    uniqueness: float = 1e-7  # |d.d' - 1| below this: the same solution
+    chains: tuple = ()  # explicit chain types, e.g. ("R", "TT"); empty: from the plan
+    max_chain: int = 4
+    walk: WalkConfig = field(default_factory=WalkConfig)
+
+
+class Ctx:
+    """What the walk needs: scene, tracer, caster mask, object boxes, counters."""
+
+    def __init__(self, scene, tracer, plan, stats):
+        self.scene, self.tracer, self.casters, self.stats = scene, tracer, plan.casters, stats
+        O = len(scene.object_names)
+        self.obj_lo = np.zeros((O, 3))
+        self.obj_hi = np.zeros((O, 3))
+        for o in range(O):
+            if np.any(scene.tri_object == o):
+                self.obj_lo[o], self.obj_hi[o] = scene.object_bounds(o)
+        self.ray_kind = "rays_walk"
+
+    def count(self, key, n):
+        key = self.ray_kind if key == "rays_walk" else key
+        self.stats[key] = self.stats.get(key, 0) + int(n)
+
+
+def _closed(scene, obj) -> bool:
+    """Is the object's mesh watertight (every edge shared by exactly two triangles)?"""
+    tv = scene.tri_vertices[scene.tri_object == obj]
+    if len(tv) == 0:
+        return False
+    _, inv = np.unique(np.round(tv.reshape(-1, 3), 9), axis=0, return_inverse=True)
+    f = inv.reshape(-1, 3)
+    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
+    _, counts = np.unique(e, axis=0, return_counts=True)
+    return bool(np.all(counts == 2))
+
+
+def chain_types(scene, plan, opts: ManifoldOptions) -> list:
+    if opts.chains:
+        return [c for c in opts.chains if 1 <= len(c) <= opts.max_chain]
+    kinds = scene.mat_kind[scene.tri_material]
+    types = []
+    rec_lo = np.array([np.inf] * 3)
+    rec_hi = -rec_lo
+    for o in np.flatnonzero(plan.receivers):
+        lo, hi = scene.object_bounds(o)
+        rec_lo, rec_hi = np.minimum(rec_lo, lo), np.maximum(rec_hi, hi)
+    for o in np.flatnonzero(plan.casters):
+        k = kinds[scene.tri_object == o]
+        if np.any(k == S.CONDUCTOR) or np.any(k == S.DIELECTRIC):
+            types.append("R")
+        if np.any(k == S.DIELECTRIC):
+            if _closed(scene, o):
+                types.append("TT")
+                lo, hi = scene.object_bounds(o)
+                if np.all(rec_lo <= hi) and np.all(lo <= rec_hi):  # a receiver may reach inside
+                    types.append("T")
+            else:
+                types.append("T")
+    out = []
+    for t in types:
+        if t not in out and len(t) <= opts.max_chain:
+            out.append(t)
+    return out
+
+
+def sample_light(scene, li, n, rng) -> LightEnd:
+    """One light sample per lane: a point on the light (uniform in area), or a
+    sun direction (uniform in its cone). Tangents are set at the solution."""
+    typ = scene.light_type[li]
+    m = scene.light_matrix[li]
+    z = np.zeros((n, 3))
+    if typ == S.SUN:
+        axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+        half = 0.5 * float(scene.light_angle[li])
+        to_sun = np.broadcast_to(-axis, (n, 3)).copy()
+        if half > 0:
+            s, t = frame(to_sun)
+            to_sun = to_world(uniform_cone(rng.random(n), rng.random(n), math.cos(half)), s, t, to_sun)
+        return LightEnd(True, to_sun, z, z.copy())
+    if typ == S.AREA:
+        cen, ex, ey, nrm, hx, hy, _ = area_light_shape(scene, li)
+        u1, u2 = rng.random(n), rng.random(n)
+        if scene.light_shape[li] in (S.DISK, S.ELLIPSE):
+            from .vec import concentric_disk
+
+            a, b = concentric_disk(u1, u2)
+        else:
+            a, b = 2 * u1 - 1, 2 * u2 - 1
+        y = cen + (a * hx)[:, None] * ex + (b * hy)[:, None] * ey
+        return LightEnd(False, y, z, z.copy())
+    c = m[:3, 3]
+    r = float(scene.light_radius[li])
+    if r > 0:
+        zc = 1.0 - 2.0 * rng.random(n)
+        phi = 2 * math.pi * rng.random(n)
+        rr = np.sqrt(np.maximum(0.0, 1 - zc * zc))
+        u = np.stack([rr * np.cos(phi), rr * np.sin(phi), zc], -1)
+        return LightEnd(False, c + r * u, z, z.copy())
+    return LightEnd(False, np.broadcast_to(c, (n, 3)).copy(), z, z.copy())
+
+
+class Seeder:
+    """Seed chains: SMS's uniform point on a caster (the first hit must be on
+    that caster), or MNEE's straight line towards the light (towards the
+    caster's box centre for a reflection first)."""
+
+    def __init__(self, scene, plan, types, method):
+        self.method = method
+        kinds = scene.mat_kind[scene.tri_material]
+        ok_kind = (kinds == S.DIELECTRIC) if types[0] == "T" else ((kinds == S.CONDUCTOR) | (kinds == S.DIELECTRIC))
+        self.tris = np.flatnonzero(plan.casters[scene.tri_object] & ok_kind)
+        v = scene.tri_vertices[self.tris]
+        area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+        self.cdf = np.cumsum(area)
+        self.total = float(self.cdf[-1]) if len(self.cdf) else 0.0
+        self.v = v
+        self.obj = scene.tri_object[self.tris]
+        self.reflect_first = types[0] == "R"
+        self.types = types
+        # planar casters: a one-vertex chain needs the receiver and the light on the
+        # same side (R) or on opposite sides (T) of the plane, which culls lanes up front
+        self.planes = []
+        if len(types) == 1:
+            for o in np.unique(self.obj):
+                pts = scene.tri_vertices[scene.tri_object == o].reshape(-1, 3)
+                c = pts.mean(axis=0)
+                _, sv, vt = np.linalg.svd(pts - c, full_matrices=False)
+                if sv[-1] <= 1e-9 * max(sv[0], 1e-300):
+                    self.planes.append((vt[-1], c))
+                else:
+                    self.planes = None
+                    break
+        objs = np.unique(self.obj)
+        self.centers = np.array([np.mean(scene.object_bounds(o), axis=0) for o in objs]).reshape(-1, 3)
+        self.center_obj = objs
+
+    def feasible(self, x0, light: LightEnd, margin):
+        """Lanes that can have a solution at all (always True unless every eligible
+        caster is planar and the receiver/light sides rule it out)."""
+        if not self.planes:
+            return np.ones(len(x0), bool)
+        ok = np.zeros(len(x0), bool)
+        for nrm, c in self.planes:
+            a = dot(x0 - c, nrm)
+            b = dot(light.y, nrm) if light.directional else dot(light.y - c, nrm)
+            straddle = np.abs(b) <= (0 if light.directional else margin)
+            same = (a > 0) == (b > 0)
+            ok |= straddle | (same if self.types == "R" else ~same)
+        return ok
+
+    def directions(self, rng, x0, light: LightEnd, ctx):
+        n = len(x0)
+        if self.method == "mnee":
+            if self.reflect_first:  # a mirror is not on the line to the light: aim at its box centre
+                k = rng.integers(len(self.centers), size=n) if len(self.centers) > 1 else np.zeros(n, int)
+                return normalize(self.centers[k] - x0), None
+            if light.directional:
+                return light.y.copy(), None
+            return normalize(light.y - x0), None
+        t = np.searchsorted(self.cdf, rng.random(n) * self.total, side="right")
+        t = np.minimum(t, len(self.cdf) - 1)
+        u1, u2 = rng.random(n), rng.random(n)
+        su = np.sqrt(u1)
+        b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
+        q = b0[:, None] * self.v[t, 0] + b1[:, None] * self.v[t, 1] + b2[:, None] * self.v[t, 2]
+        return normalize(q - x0), self.obj[t]
+
+    def seed(self, ctx, rng, types, x0, ng0, light):
+        d, want_obj = self.directions(rng, x0, light, ctx)
+        ctx.ray_kind = "rays_seed"
+        ch = propagate(ctx, x0, ng0, d, types)
+        ctx.ray_kind = "rays_walk"
+        if want_obj is not None:
+            wrong = (ch.status == OK) & (ch.verts[0].obj != want_obj)
+            ch.status[wrong] = SEED_OBJECT
+        return ch
+
+
+def _walk(ctx, opts, seeder, types, x0, ng0, light, rng, primary=True):
+    """Seed and walk; statistics count primary walks (the paper's SR and mpp),
+    Bernoulli re-walks are counted apart."""
+    ch = seeder.seed(ctx, rng, types, x0, ng0, light)
+    res = newton_walk(ctx, opts.walk, types, x0, ng0, light, ch)
+    st = ctx.stats
+    if not primary:
+        st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + len(x0)
+        return res
+    st["walks"] = st.get("walks", 0) + len(x0)
+    st["successes"] = st.get("successes", 0) + int(res.converged.sum())
+    st["mutations"] = st.get("mutations", 0) + int(res.mutations.sum())
+    lm = st.setdefault("large_mutations", dict.fromkeys(TRIGGERS[1:], 0))
+    for k, v in res.large.items():
+        lm[k] += v
+    oc = st.setdefault("outcomes", {})
+    for code, cnt in zip(*np.unique(res.outcome, return_counts=True)):
+        oc[OUTCOMES[code]] = oc.get(OUTCOMES[code], 0) + int(cnt)
+    return res
+
+
+def _contribution(ctx, li, types, rc, idx, light, chain):
+    """Radiance estimate (without estimator weight) of converged lanes, and visibility."""
+    scene, tracer = ctx.scene, ctx.tracer
+    x0 = rc.p[idx]
+    verts = chain.verts
+    k = len(types)
+    xk = verts[k - 1].p
+    le, emit = light_end_at_solution(scene, li, light, xk)
+    etas = [scene.mat_ior[v.mat] for v in verts]
+    G, okg = geometric_term(types, x0, verts, etas, le)
+    d01 = normalize(verts[0].p - x0)
+    ng0, ns0, w_eye = rc.ng[idx], rc.ns[idx], rc.w_eye[idx]
+    side = np.sign(dot(w_eye, ng0))
+    cos0 = dot(d01, ns0) * side
+    ok = okg & (dot(d01, ng0) * side > 0) & (cos0 > 0)
+    T = chain_throughput(scene, types, x0, verts, le.y, le.directional)
+    albedo = scene.mat_color[rc.mat[idx]]
+    val = rc.beta[idx] * albedo / math.pi * (np.maximum(cos0, 0) * G)[:, None] * T * emit
+    ok &= val.max(axis=1) > 0
+    # shadow ray from the last vertex to the light sample
+    if le.directional:
+        dirs, tmax = le.y, np.full(len(xk), np.inf)
+    else:
+        to = le.y - xk
+        dist = np.sqrt(dot(to, to))
+        dirs, tmax = to / np.maximum(dist, 1e-300)[:, None], dist * (1 - 1e-7)
+    vis_idx = np.flatnonzero(ok)
+    if vis_idx.size:
+        o = tracer.spawn(xk[vis_idx], verts[k - 1].ng[vis_idx], dirs[vis_idx])
+        blocked = tracer.occluded(o, dirs[vis_idx], tmax[vis_idx] - tracer.eps)
+        ctx.count("rays_shadow", vis_idx.size)
+        ctx.stats["occluded"] = ctx.stats.get("occluded", 0) + int(blocked.sum())
+        ok[vis_idx[blocked]] = False
+    finite = np.all(np.isfinite(val), axis=1)
+    ctx.stats["non_finite"] = ctx.stats.get("non_finite", 0) + int((ok & ~finite).sum())
+    ok &= finite
+    return np.where(ok[:, None], val, 0.0), ok
+
+
+def estimate(ctx, opts, li, types, rc, rng):
+    """Per-receiver radiance (M,3) of one light and one chain type."""
+    n = len(rc.p)
+    out = np.zeros((n, 3))
+    if n == 0:
+        return out
+    seeder = Seeder(ctx.scene, _Plan(ctx.casters), types, opts.method)
+    if seeder.total <= 0:
+        return out
+    light = sample_light(ctx.scene, li, n, rng)
+    x0, ng0 = rc.p, rc.ng
+    # the eye side of x0 must see the light side: offset origins towards the receiver's eye side
+    ng_eye = ng0 * np.sign(dot(rc.w_eye, ng0))[:, None]
+    unbiased = opts.estimator == "unbiased" and opts.method != "mnee"
+    M = 1 if (unbiased or opts.method == "mnee") else max(1, opts.trials)
+    feasible = seeder.feasible(x0, light, 1e-9 * ctx.scene.scale)
+    ctx.stats["culled_lanes"] = ctx.stats.get("culled_lanes", 0) + int((~feasible).sum())
+    lanes = np.repeat(np.flatnonzero(feasible), M)
+    if lanes.size == 0:
+        return out
+    res = _walk(ctx, opts, seeder, types, x0[lanes], ng_eye[lanes], light.take(lanes), rng)
+    conv = np.flatnonzero(res.converged)
+    if conv.size == 0:
+        return out
+    chain = res.chain.take(conv)
+    owner = lanes[conv]
+    val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain)
+    if opts.method == "mnee" and seeder.reflect_first:  # one caster picked uniformly per lane
+        val = val * len(seeder.centers)
+    d1 = normalize(chain.verts[0].p - x0[owner])
+    obj1 = chain.verts[0].obj
+    if not unbiased:
+        # biased: each unique solution once (earlier trials win)
+        keep = np.ones(conv.size, bool)
+        if M > 1:
+            order = np.argsort(owner, kind="stable")
+            o_s, d_s, ob_s = owner[order], d1[order], obj1[order]
+            for shift in range(1, M):
+                same_owner = o_s[shift:] == o_s[:-shift]
+                dup = same_owner & same_solution(d_s[shift:], d_s[:-shift], ob_s[shift:], ob_s[:-shift],
+                                                 opts.uniqueness)
+                k2 = np.ones(conv.size, bool)
+                k2[shift:] = ~dup
+                keep[order] &= k2
+        np.add.at(out, owner[keep & ok], val[keep & ok])
+        return out
+    # unbiased: 1/p by Bernoulli trials, only where the contribution is non-zero
+    pend = np.flatnonzero(ok)
+    count = np.ones(pend.size)
+    done = np.zeros(pend.size, bool)
+    rnd = 0
+    while True:
+        left = np.flatnonzero(~done & (count <= opts.max_trials))
+        if left.size == 0:
+            break
+        # trials run in parallel per lane, more each round for the lanes still pending;
+        # the count is that of the first success in trial order, as if run one by one
+        m = int(min(2**rnd, 64, max(1, 65536 // left.size)))
+        rnd += 1
+        rep = np.repeat(left, m)
+        own = owner[pend[rep]]
+        r2 = _walk(ctx, opts, seeder, types, x0[own], ng_eye[own], light.take(own), rng, primary=False)
+        found = r2.converged.copy()
+        c_idx = np.flatnonzero(found)
+        if c_idx.size:
+            d2 = normalize(r2.chain.verts[0].p[c_idx] - x0[own[c_idx]])
+            match = same_solution(d2, d1[pend[rep[c_idx]]], r2.chain.verts[0].obj[c_idx],
+                                  obj1[pend[rep[c_idx]]], opts.uniqueness)
+            found[c_idx] = match
+        found = found.reshape(left.size, m)
+        first = np.where(found.any(axis=1), found.argmax(axis=1), m)
+        count[left] += first
+        done[left] |= first < m
+    capped = ~done
+    ctx.stats["capped"] = ctx.stats.get("capped", 0) + int(capped.sum())
+    st = ctx.stats
+    st["bernoulli_lanes"] = st.get("bernoulli_lanes", 0) + int(pend.size)
+    st["bernoulli_trials"] = st.get("bernoulli_trials", 0) + int(count.sum())
+    st["bernoulli_max"] = max(st.get("bernoulli_max", 0), int(count.max()) if count.size else 0)
+    w = np.where(capped, 0.0, count)
+    np.add.at(out, owner[pend], val[pend] * w[:, None])
+    return out
+
+
+class _Plan:
+    def __init__(self, casters):
+        self.casters = casters
+
+
+def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n_batch, rng, stats_per_light,
+                   eye_stats):
+    """Eye samples start..start+n of a batch: receivers, then every light x chain type."""
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats, min_specular=0)
+    total = np.zeros((len(rc.p), 3))
+    for lp in plan.lights:
+        st = stats_per_light[lp.name]
+        t = time.perf_counter()
+        ctx = Ctx(scene, tracer, plan, st)
+        for types in types_list:
+            total += estimate(ctx, opts, lp.index, types, rc, rng)
+        st["time_s"] += time.perf_counter() - t
+    hit = np.flatnonzero(total.max(axis=1) > 0)
+    film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None])

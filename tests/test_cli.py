@@ -1,0 +1,192 @@
+"""The command line, ``python -m smbs_addon bake``, run as a subprocess.
+
+Exit codes (module docstring of smbs_addon/__main__.py): 0 done, 1 the scene
+cannot be baked, 2 bad arguments, 3 unreadable input or unwritable output.
+Errors are one line on stderr: ``smbs_addon: error: <message>``.
+"""
+import json
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import scenes
+from smbs_addon.imageio import read_exr
+
+ROOT = Path(__file__).resolve().parent.parent
+MIRROR_BLEND = ROOT / "sample_blends" / "mirror.blend"
+
+
+def run(*args, timeout=120):
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
+    return subprocess.run([sys.executable, "-m", "smbs_addon", *map(str, args)], cwd=ROOT, env=env,
+                          capture_output=True, text=True, timeout=timeout)
+
+
+def one_error_line(proc) -> str:
+    lines = proc.stderr.strip().splitlines()
+    assert len(lines) == 1, f"expected one line on stderr, got:\n{proc.stderr}"
+    assert lines[0].startswith("smbs_addon: error: "), lines[0]
+    assert "Traceback" not in proc.stderr
+    return lines[0]
+
+
+@pytest.fixture(scope="module")
+def npz(tmp_path_factory):
+    path = tmp_path_factory.mktemp("cli") / "mirror.npz"
+    scenes.mirror_scene(resolution=(32, 24)).save(path)
+    return path
+
+
+@pytest.fixture(scope="module")
+def baked(npz):
+    """One bake with --spp 2 and a seed above 2^24 (float32 could not hold it)."""
+    out = npz.parent / "first" / "mirror.caustics.exr"
+    out.parent.mkdir()
+    proc = run("bake", npz, "--method", "reference", "--spp", 2, "--seed", 123456789, "--out", out)
+    return proc, out
+
+
+def test_bake_npz_writes_exr_and_stats(baked):
+    proc, out = baked
+    assert proc.returncode == 0, proc.stderr
+    stats_path = out.with_suffix(".json")
+    assert out.is_file() and stats_path.is_file()
+    img, meta = read_exr(out)
+    assert img.shape == (24, 32, 3) and img.dtype == np.float32
+    assert np.all(np.isfinite(img)) and img.max() > 0
+    assert meta["method"] == "reference"
+    assert meta["spp"] == 2
+    assert meta["seed"] == 123456789  # exactly, not rounded to float32
+    stats = json.loads(stats_path.read_text())
+    for key in ("lights", "rays", "time_s", "noise"):
+        assert key in stats, key
+    assert stats["resolution"] == [32, 24]
+    assert stats["settings"]["spp"] == 2 and stats["settings"]["seed"] == 123456789
+    assert set(stats["lights"]) == {"Disk"} and stats["lights"]["Disk"]["photons"] > 0
+    assert stats["rays"] > 0 and stats["time_s"] > 0
+    assert stats["noise"]["region_pixels"] > 0
+    # the header's copy of the statistics is the same JSON
+    assert json.loads(meta["stats"])["rays"] == stats["rays"]
+    assert re.search(r"^scene 'mirror': reference, 32x24, [0-9.]+ s, [0-9,]+ rays$", proc.stdout, re.M), proc.stdout
+    assert re.search(r"^  light 'Disk': [0-9,]+ light paths", proc.stdout, re.M)
+    assert f"wrote {out} and {stats_path}" in proc.stdout
+
+
+def test_same_seed_same_pixels(baked, npz, tmp_path):
+    _, first = baked
+    again = tmp_path / "again.exr"
+    proc = run("bake", npz, "--method", "reference", "--spp", 2, "--seed", 123456789, "--out", again, "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout == "" and proc.stderr == ""  # --quiet
+    a, _ = read_exr(first)
+    b, _ = read_exr(again)
+    assert a.tobytes() == b.tobytes()
+    other = tmp_path / "other.exr"
+    assert run("bake", npz, "--method", "reference", "--spp", 2, "--seed", 5, "--out", other, "--quiet").returncode == 0
+    assert read_exr(other)[0].tobytes() != a.tobytes()
+
+
+def test_default_output_names(npz, tmp_path):
+    src = tmp_path / "scene.npz"
+    src.write_bytes(npz.read_bytes())
+    proc = run("bake", src, "--spp", 1, "--quiet")
+    assert proc.returncode == 0, proc.stderr
+    assert (tmp_path / "scene.caustics.exr").is_file() and (tmp_path / "scene.caustics.json").is_file()
+
+
+@pytest.mark.parametrize("args,code,words", [
+    (["--spp", "0"], 2, ["--spp", "at least 1", "0"]),
+    (["--spp", "abc"], 2, ["--spp", "'abc'", "not a whole number"]),
+    (["--seed", "-1"], 2, ["--seed", "must not be negative", "-1"]),
+    (["--method", "nonsense"], 2, ["--method", "invalid choice", "'nonsense'", "reference"]),
+    (["--batches", "0"], 2, ["--batches", "at least 1"]),
+])
+def test_bad_arguments(npz, tmp_path, args, code, words):
+    out = tmp_path / "x.exr"
+    proc = run("bake", npz, "--out", out, *args)
+    assert proc.returncode == code
+    line = one_error_line(proc)
+    for w in words:
+        assert w in line, (w, line)
+    assert not out.exists()
+
+
+def test_no_command_is_a_usage_error():
+    proc = run()
+    assert proc.returncode == 2
+    assert "required" in one_error_line(proc)
+
+
+def test_missing_input(tmp_path):
+    missing = tmp_path / "nope.npz"
+    proc = run("bake", missing)
+    assert proc.returncode == 3
+    assert one_error_line(proc) == f"smbs_addon: error: input '{missing}' does not exist"
+
+
+def test_text_file_input(tmp_path):
+    txt = tmp_path / "scene.txt"
+    txt.write_text("not a scene\n")
+    proc = run("bake", txt)
+    assert proc.returncode == 1
+    assert one_error_line(proc) == f"smbs_addon: error: input '{txt}': expected a .blend or .npz file"
+
+
+def test_unwritable_output_folder(npz):
+    proc = run("bake", npz, "--out", "/nonexistent/x.exr")
+    assert proc.returncode == 3
+    assert one_error_line(proc) == "smbs_addon: error: output folder '/nonexistent' does not exist"
+    proc = run("bake", npz, "--stats", "/nonexistent/s.json", "--out", npz.parent / "ok.exr")
+    assert proc.returncode == 3
+    assert "output folder '/nonexistent' does not exist" in one_error_line(proc)
+
+
+@pytest.mark.parametrize("damage", ["random", "truncated", "damaged"])
+def test_corrupt_npz(npz, tmp_path, damage):
+    data = npz.read_bytes()
+    bad = tmp_path / "bad.npz"
+    if damage == "random":
+        bad.write_bytes(np.random.default_rng(0).bytes(2048))
+    elif damage == "truncated":
+        bad.write_bytes(data[: len(data) // 2])
+    else:  # zip directory intact, a compressed member overwritten (zlib error)
+        b = bytearray(data)
+        b[len(b) // 3:len(b) // 3 + 64] = b"\xff" * 64
+        bad.write_bytes(bytes(b))
+    proc = run("bake", bad, "--out", tmp_path / "x.exr")
+    # a scene file that cannot be read is reported as a scene error (SceneError)
+    assert proc.returncode == 1, proc.stderr
+    line = one_error_line(proc)
+    assert str(bad) in line and "not a readable scene .npz" in line
+    assert not (tmp_path / "x.exr").exists()
+
+
+def test_invalid_scene_values(npz, tmp_path):
+    with np.load(npz) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["light_color"] = -arrays["light_color"]
+    bad = tmp_path / "negative.npz"
+    np.savez_compressed(bad, **arrays)
+    proc = run("bake", bad, "--out", tmp_path / "x.exr")
+    assert proc.returncode == 1
+    assert one_error_line(proc) == "smbs_addon: error: light 'Disk': negative power"
+
+
+def test_bake_blend(tmp_path):
+    if not MIRROR_BLEND.is_file():
+        pytest.skip(f"{MIRROR_BLEND} not built (python sample_blends/build.py)")
+    pytest.importorskip("bpy")
+    out = tmp_path / "mirror.exr"
+    proc = run("bake", MIRROR_BLEND, "--spp", 1, "--batches", 2, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    img, meta = read_exr(out)
+    stats = json.loads(out.with_suffix(".json").read_text())
+    assert [img.shape[1], img.shape[0]] == stats["resolution"]
+    assert meta["spp"] == 1 and meta["seed"] == 0
+    assert img.max() > 0 and np.all(np.isfinite(img))
+    assert re.search(r"^scene '.+': smbs, \d+x\d+, ", proc.stdout, re.M), proc.stdout

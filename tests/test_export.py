@@ -1,0 +1,723 @@
+"""Blender scene -> Scene arrays (smbs_addon.export), with tiny scenes built in bpy."""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+bpy = pytest.importorskip("bpy")
+bmesh = pytest.importorskip("bmesh")
+
+from smbs_addon import scene as S  # noqa: E402
+from smbs_addon.errors import SceneError  # noqa: E402
+from smbs_addon.export import export_scene  # noqa: E402
+
+pytestmark = pytest.mark.bpy
+SAMPLES = Path(__file__).resolve().parent.parent / "sample_blends"
+
+
+@pytest.fixture(autouse=True)
+def fresh():
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    yield
+
+
+# ------------------------------------------------------------------------------ helpers
+def scene():
+    return bpy.context.scene
+
+
+def add_camera(location=(0, -10, 0), rotation=(math.pi / 2, 0, 0), **props):
+    cam = bpy.data.cameras.new("Cam")
+    for k, v in props.items():
+        setattr(cam, k, v)
+    ob = bpy.data.objects.new("Cam", cam)
+    ob.location = location
+    ob.rotation_euler = rotation
+    scene().collection.objects.link(ob)
+    scene().camera = ob
+    return ob
+
+
+def link(ob, collection=None):
+    (collection or scene().collection).objects.link(ob)
+    return ob
+
+
+def cube_mesh(name="Cube", size=2.0):
+    me = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_cube(bm, size=size)
+    bm.to_mesh(me)
+    bm.free()
+    return me
+
+
+def sphere_mesh(name="Sphere", radius=1.0, smooth=True):
+    me = bpy.data.meshes.new(name)
+    bm = bmesh.new()
+    bmesh.ops.create_uvsphere(bm, u_segments=16, v_segments=8, radius=radius)
+    bm.to_mesh(me)
+    bm.free()
+    for p in me.polygons:
+        p.use_smooth = smooth
+    return me
+
+
+def material(name, node_type, **inputs):
+    m = bpy.data.materials.new(name)
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    node = nt.nodes.new(node_type)
+    for k, v in inputs.items():
+        sock = node.inputs[k]
+        sock.default_value = (*v, 1.0) if isinstance(v, tuple) and len(v) == 3 else v
+    nt.links.new(node.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def mesh_with(mat, name="Thing"):
+    me = cube_mesh(name)
+    if mat is not None:
+        me.materials.append(mat)
+    return link(bpy.data.objects.new(name, me))
+
+
+def export(**kw):
+    warnings = []
+    sc = export_scene(scene(), warn=warnings.append, **kw)
+    return sc, warnings
+
+
+def obj_tris(sc, name):
+    i = sc.object_names.index(name)
+    return sc.tri_vertices[sc.tri_object == i], sc.tri_normals[sc.tri_object == i]
+
+
+def face_normals(v):
+    n = np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0])
+    return n / np.linalg.norm(n, axis=1, keepdims=True)
+
+
+# ---------------------------------------------------------------------------- geometry
+def test_cube_has_twelve_triangles_and_outward_flat_normals():
+    add_camera()
+    link(bpy.data.objects.new("Cube", cube_mesh()))
+    sc, warnings = export()
+    assert sc.n_tris == 12 and sc.object_names == ["Cube"]
+    v, n = obj_tris(sc, "Cube")
+    assert np.allclose(np.abs(v), 1.0)
+    centroid = v.mean(axis=1)
+    fn = face_normals(v)
+    assert np.all(np.einsum("ij,ij->i", fn, centroid) > 0)  # winding gives outward normals
+    assert np.allclose(n, fn[:, None, :])  # flat: the face normal at all three corners
+    assert not sc.object_smooth[0]
+    assert sc.mat_names == ["<default diffuse>"] and sc.mat_kind[0] == S.DIFFUSE
+    assert np.allclose(sc.mat_color[0], 0.8)
+    assert warnings == []
+
+
+def test_world_transform_is_applied():
+    add_camera()
+    ob = link(bpy.data.objects.new("Cube", cube_mesh(size=1.0)))
+    ob.location = (1.0, 2.0, 3.0)
+    ob.rotation_euler = (0.3, -0.4, 1.1)
+    ob.scale = (1.0, 2.0, 0.5)
+    bpy.context.view_layer.update()
+    M = np.array(ob.matrix_world)
+    local = np.array([v.co[:] for v in ob.data.vertices])
+    expect = local @ M[:3, :3].T + M[:3, 3]
+    sc, _ = export()
+    v, n = obj_tris(sc, "Cube")
+    got = v.reshape(-1, 3)
+    d = np.linalg.norm(got[:, None, :] - expect[None, :, :], axis=2).min(axis=1)
+    assert d.max() < 1e-6
+    assert np.allclose(got.mean(axis=0), [1, 2, 3])
+    # normals: unit, outward, perpendicular to the transformed faces
+    assert np.allclose(np.linalg.norm(n, axis=2), 1.0)
+    assert np.all(np.einsum("ij,ij->i", n[:, 0], v.mean(axis=1) - [1, 2, 3]) > 0)
+    e1 = v[:, 1] - v[:, 0]
+    assert np.allclose(np.einsum("ij,ij->i", n[:, 0], e1), 0, atol=1e-9)
+
+
+def test_smooth_normals_use_the_inverse_transpose():
+    add_camera()
+    ob = link(bpy.data.objects.new("Ball", sphere_mesh(smooth=True)))
+    ob.location = (0.0, 0.0, 2.0)
+    sc0, _ = export()
+    v0, n0 = obj_tris(sc0, "Ball")
+    assert sc0.object_smooth[0]
+    radial = (v0 - [0, 0, 2]) / np.linalg.norm(v0 - [0, 0, 2], axis=2, keepdims=True)
+    assert np.einsum("tci,tci->tc", n0, radial).min() > 0.97  # vertex normals: nearly radial
+    assert not np.allclose(n0[:, 0], n0[:, 1])  # interpolated, not per face
+    ob.scale = (2.0, 1.0, 1.0)
+    sc1, _ = export()
+    v1, n1 = obj_tris(sc1, "Ball")
+    assert np.allclose(v1 - [0, 0, 2], (v0 - [0, 0, 2]) * [2, 1, 1])
+    expect = n0 * [0.5, 1.0, 1.0]  # inverse transpose of diag(2, 1, 1)
+    expect /= np.linalg.norm(expect, axis=2, keepdims=True)
+    assert np.allclose(n1, expect, atol=1e-6)
+
+
+def test_flat_sphere_uses_face_normals():
+    add_camera()
+    link(bpy.data.objects.new("Ball", sphere_mesh(smooth=False)))
+    sc, _ = export()
+    v, n = obj_tris(sc, "Ball")
+    assert not sc.object_smooth[0]
+    assert np.allclose(n, face_normals(v)[:, None, :], atol=1e-6)
+    assert not np.allclose(n[:, 0], n[:, 1]) or np.allclose(n[:, 0], n[:, 2])
+
+
+def test_mixed_smooth_and_flat_faces():
+    add_camera()
+    me = sphere_mesh(smooth=True)
+    me.polygons[0].use_smooth = False
+    link(bpy.data.objects.new("Ball", me))
+    sc, _ = export()
+    v, n = obj_tris(sc, "Ball")
+    fn = face_normals(v)
+    flat = np.all(np.isclose(n, fn[:, None, :], atol=1e-6), axis=(1, 2))
+    assert 1 <= flat.sum() <= 2  # the one flat face (a triangle at the pole, or a quad)
+    assert sc.object_smooth[0]
+
+
+def test_negative_scale_keeps_winding_consistent_with_normals():
+    add_camera()
+    ob = link(bpy.data.objects.new("Cube", cube_mesh()))
+    ob.scale = (-1.0, 1.0, 1.0)
+    sc, _ = export()
+    v, n = obj_tris(sc, "Cube")
+    fn = face_normals(v)
+    assert np.all(np.einsum("ij,ij->i", fn, v.mean(axis=1)) > 0)
+    assert np.allclose(n, fn[:, None, :])
+
+
+def test_uvs_come_from_the_active_layer():
+    add_camera()
+    me = cube_mesh()
+    me.uv_layers.new(name="Other")
+    layer = me.uv_layers.new(name="XY")
+    me.uv_layers.active = layer
+    for loop in me.loops:  # uv = the corner's vertex (x + 10, y)
+        co = me.vertices[loop.vertex_index].co
+        layer.uv[loop.index].vector = (co.x + 10.0, co.y)
+    ob = link(bpy.data.objects.new("Cube", me))
+    ob.location = (0, 0, 4)
+    sc, _ = export()
+    assert sc.tri_uvs.shape == (12, 3, 2)
+    assert np.allclose(sc.tri_uvs[..., 0], sc.tri_vertices[..., 0] + 10.0)
+    assert np.allclose(sc.tri_uvs[..., 1], sc.tri_vertices[..., 1])
+
+
+def test_no_uv_layer_gives_default_uvs():
+    add_camera()
+    link(bpy.data.objects.new("Cube", cube_mesh()))
+    sc, _ = export()
+    assert np.allclose(sc.tri_uvs, [[0, 0], [1, 0], [0, 1]])
+
+
+@pytest.mark.parametrize("kind,expected", [("SUBSURF", 6 * 4 * 2), ("ARRAY", 3 * 12)])
+def test_modifiers_are_applied(kind, expected):
+    add_camera()
+    ob = link(bpy.data.objects.new("Cube", cube_mesh()))
+    mod = ob.modifiers.new("Mod", kind)
+    if kind == "SUBSURF":
+        mod.levels = mod.render_levels = 1
+    else:
+        mod.count = 3
+    n_polys = len(ob.data.polygons)
+    sc, warnings = export()
+    assert sc.n_tris == expected
+    assert len(ob.data.polygons) == n_polys  # the original mesh is untouched
+    assert warnings == []
+
+
+def test_subdivision_viewport_level_differs_from_render_level_warns():
+    add_camera()
+    ob = link(bpy.data.objects.new("Cube", cube_mesh()))
+    mod = ob.modifiers.new("Subdivision", "SUBSURF")
+    mod.levels, mod.render_levels = 1, 2
+    sc, warnings = export()
+    assert sc.n_tris == 48
+    assert any("'Cube'" in w and "render level 2" in w for w in warnings)
+
+
+def test_collection_instances():
+    add_camera()
+    col = bpy.data.collections.new("Parts")
+    inner = bpy.data.objects.new("Part", cube_mesh())
+    inner.cycles.is_caustics_caster = True
+    col.objects.link(inner)  # not linked to the scene: only reachable through the instances
+    for i, x in enumerate((-3.0, 3.0)):
+        e = link(bpy.data.objects.new(f"Inst{i}", None))
+        e.instance_type = "COLLECTION"
+        e.instance_collection = col
+        e.location = (x, 0.0, 0.0)
+    sc, _ = export()
+    assert sc.n_tris == 24
+    assert sc.object_names == ["Inst0/Part", "Inst1/Part"]
+    assert np.all(sc.object_caster)
+    for name, x in (("Inst0/Part", -3.0), ("Inst1/Part", 3.0)):
+        v, _ = obj_tris(sc, name)
+        assert np.allclose(v.reshape(-1, 3).mean(axis=0), [x, 0, 0])
+
+
+def test_linked_duplicates_share_data_but_get_their_own_transform():
+    add_camera()
+    me = cube_mesh()
+    a = link(bpy.data.objects.new("A", me))
+    b = link(bpy.data.objects.new("B", me))
+    b.location = (0, 0, 5)
+    b.modifiers.new("Array", "ARRAY").count = 2
+    sc, _ = export()
+    assert sc.object_names == ["A", "B"]
+    assert len(obj_tris(sc, "A")[0]) == 12 and len(obj_tris(sc, "B")[0]) == 24
+    assert np.isclose(obj_tris(sc, "B")[0][..., 2].mean(), 5.0)
+    assert a.data is b.data
+
+
+def test_geometry_nodes_instances():
+    add_camera()
+    host = link(bpy.data.objects.new("Host", bpy.data.meshes.new("pts")))
+    host.data.from_pydata([(0, 0, 5), (2, 0, 5), (4, 0, 5)], [], [])
+    ng = bpy.data.node_groups.new("Scatter", "GeometryNodeTree")
+    ng.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    ng.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    gi, go = ng.nodes.new("NodeGroupInput"), ng.nodes.new("NodeGroupOutput")
+    iop = ng.nodes.new("GeometryNodeInstanceOnPoints")
+    cube = ng.nodes.new("GeometryNodeMeshCube")
+    ng.links.new(gi.outputs[0], iop.inputs["Points"])
+    ng.links.new(cube.outputs["Mesh"], iop.inputs["Instance"])
+    ng.links.new(iop.outputs[0], go.inputs[0])
+    host.modifiers.new("GN", "NODES").node_group = ng
+    sc, _ = export()
+    assert sc.n_tris == 36
+    centres = sorted(np.round(sc.tri_vertices[sc.tri_object == i].reshape(-1, 3).mean(0), 6)[0]
+                     for i in range(len(sc.object_names)))
+    assert centres == [0.0, 2.0, 4.0]
+
+
+def test_hidden_for_render_objects_are_skipped():
+    add_camera()
+    link(bpy.data.objects.new("Shown", cube_mesh()))
+    link(bpy.data.objects.new("Hidden", cube_mesh())).hide_render = True
+    sc, _ = export()
+    assert sc.object_names == ["Shown"]
+
+
+def test_per_face_materials():
+    add_camera()
+    me = cube_mesh()
+    me.materials.append(material("Red", "ShaderNodeBsdfDiffuse", Color=(1.0, 0.0, 0.0)))
+    me.materials.append(material("Blue", "ShaderNodeBsdfDiffuse", Color=(0.0, 0.0, 1.0)))
+    for p in me.polygons:
+        p.material_index = 1 if p.index < 2 else 0
+    link(bpy.data.objects.new("Cube", me))
+    sc, _ = export()
+    names = [sc.mat_names[m] for m in sc.tri_material]
+    assert names.count("Blue") == 4 and names.count("Red") == 8
+    assert np.allclose(sc.mat_color[sc.mat_names.index("Blue")], [0, 0, 1])
+
+
+def test_cycles_caustic_flags():
+    add_camera()
+    a = mesh_with(None, "Caster")
+    a.cycles.is_caustics_caster = True
+    b = mesh_with(None, "Receiver")
+    b.cycles.is_caustics_receiver = True
+    mesh_with(None, "Plain")
+    sc, _ = export()
+    assert sc.object_names == ["Caster", "Receiver", "Plain"]
+    assert sc.object_caster.tolist() == [True, False, False]
+    assert sc.object_receiver.tolist() == [False, True, False]
+
+
+# ---------------------------------------------------------------------------- materials
+def one_material(mat):
+    add_camera()
+    mesh_with(mat)
+    sc, warnings = export()
+    assert len(sc.mat_names) == 1
+    return sc, warnings
+
+
+def test_principled_diffuse():
+    sc, w = one_material(material("P", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (0.2, 0.3, 0.4), "Roughness": 0.7}))
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], [0.2, 0.3, 0.4])
+    assert np.isclose(sc.mat_roughness[0], 0.7) and w == []
+
+
+def test_principled_metallic_is_a_schlick_conductor():
+    sc, _ = one_material(material("Gold", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (1.0, 0.8, 0.3), "Metallic": 1.0, "Roughness": 0.1}))
+    assert sc.mat_kind[0] == S.CONDUCTOR and sc.mat_fresnel[0] == S.FRESNEL_SCHLICK
+    assert np.allclose(sc.mat_color[0], [1.0, 0.8, 0.3]) and np.isclose(sc.mat_roughness[0], 0.1)
+
+
+def test_principled_transmission_is_a_dielectric():
+    sc, _ = one_material(material("PGlass", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (0.9, 1.0, 0.95), "Transmission Weight": 1.0, "IOR": 1.33,
+        "Roughness": 0.0}))
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.33)
+    assert np.allclose(sc.mat_color[0], [0.9, 1.0, 0.95]) and np.allclose(sc.mat_reflect_color[0], 1)
+
+
+def test_glass_bsdf_tints_reflection_and_transmission():
+    sc, _ = one_material(material("Glass", "ShaderNodeBsdfGlass", Color=(0.5, 0.6, 0.7), IOR=1.5,
+                                  Roughness=0.05))
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.5)
+    assert np.allclose(sc.mat_color[0], [0.5, 0.6, 0.7])
+    assert np.allclose(sc.mat_reflect_color[0], [0.5, 0.6, 0.7])
+    assert np.isclose(sc.mat_roughness[0], 0.05)
+
+
+def test_refraction_bsdf_has_no_reflection():
+    sc, _ = one_material(material("Refr", "ShaderNodeBsdfRefraction", Color=(1.0, 1.0, 1.0),
+                                  IOR=1.33))
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.33)
+    assert np.allclose(sc.mat_reflect_color[0], 0) and np.allclose(sc.mat_color[0], 1)
+
+
+@pytest.mark.parametrize("idname", ["ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"])
+def test_glossy_is_a_plain_conductor(idname):
+    sc, _ = one_material(material("Mirror", idname, Color=(0.9, 0.9, 0.9), Roughness=0.0))
+    assert sc.mat_kind[0] == S.CONDUCTOR and sc.mat_fresnel[0] == S.FRESNEL_NONE
+    assert np.allclose(sc.mat_color[0], 0.9) and sc.mat_roughness[0] == 0
+
+
+def test_diffuse_bsdf():
+    sc, _ = one_material(material("D", "ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.3)))
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], [0.1, 0.2, 0.3])
+
+
+def test_emission():
+    sc, _ = one_material(material("Lamp", "ShaderNodeEmission", Color=(1.0, 0.5, 0.25),
+                                  Strength=7.0))
+    assert sc.mat_kind[0] == S.EMITTER and np.isclose(sc.mat_strength[0], 7.0)
+    assert np.allclose(sc.mat_color[0], [1.0, 0.5, 0.25])
+
+
+def test_unsupported_node_warns_naming_the_material():
+    m = material("Foo", "ShaderNodeMixShader", Factor=0.5)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8)
+    assert warnings == ["material 'Foo': node 'Mix Shader' is not supported; "
+                        "treated as diffuse (albedo 0.8)"]
+
+
+def test_mix_shader_with_constant_factor_one_is_followed():
+    m = bpy.data.materials.new("Mixed")
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Factor"].default_value = 1.0
+    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
+    g = nt.nodes.new("ShaderNodeBsdfGlass")
+    nt.links.new(d.outputs[0], mix.inputs[1])
+    nt.links.new(g.outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and warnings == []
+
+
+def test_linked_input_where_a_constant_is_needed_warns():
+    m = material("Textured", "ShaderNodeBsdfDiffuse")
+    tex = m.node_tree.nodes.new("ShaderNodeTexChecker")
+    m.node_tree.links.new(tex.outputs["Color"], m.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8)
+    assert len(warnings) == 1 and warnings[0].startswith("material 'Textured': input 'Color'")
+    assert "'Checker Texture'" in warnings[0] and warnings[0].endswith("(albedo 0.8)")
+
+
+def test_rgb_and_value_nodes_count_as_constants():
+    m = material("Const", "ShaderNodeBsdfGlass")
+    nt = m.node_tree
+    rgb = nt.nodes.new("ShaderNodeRGB")
+    rgb.outputs[0].default_value = (0.25, 0.5, 0.75, 1.0)
+    val = nt.nodes.new("ShaderNodeValue")
+    val.outputs[0].default_value = 1.6
+    nt.links.new(rgb.outputs[0], nt.nodes["Glass BSDF"].inputs["Color"])
+    nt.links.new(val.outputs[0], nt.nodes["Glass BSDF"].inputs["IOR"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.6)
+    assert np.allclose(sc.mat_color[0], [0.25, 0.5, 0.75]) and warnings == []
+
+
+def test_unlinked_surface_is_black():
+    m = bpy.data.materials.new("Empty")
+    m.node_tree.nodes.clear()
+    m.node_tree.nodes.new("ShaderNodeOutputMaterial")
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0)
+    assert len(warnings) == 1 and "'Empty'" in warnings[0]
+
+
+def test_default_factory_material_is_principled_diffuse():
+    sc, warnings = one_material(bpy.data.materials.new("New"))
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8, atol=1e-6)
+    assert warnings == []
+
+
+# ------------------------------------------------------------------------------- lights
+def add_light(kind, location=(0, 0, 3), rotation=(0, 0, 0), scale=(1, 1, 1), **props):
+    lt = bpy.data.lights.new(kind.title(), kind)
+    for k, v in props.items():
+        setattr(lt, k, v)
+    ob = link(bpy.data.objects.new(kind.title(), lt))
+    ob.location, ob.rotation_euler, ob.scale = location, rotation, scale
+    return ob
+
+
+def test_point_light():
+    add_camera()
+    add_light("POINT", energy=250.0, color=(1.0, 0.5, 0.5), shadow_soft_size=0.1,
+              use_soft_falloff=False)
+    sc, _ = export()
+    assert sc.light_type.tolist() == [S.POINT] and sc.light_names == ["Point"]
+    assert np.allclose(sc.light_color[0], [250, 125, 125])
+    assert np.isclose(sc.light_radius[0], 0.1) and not sc.light_soft_falloff[0]
+    assert np.allclose(sc.light_matrix[0][:3, 3], [0, 0, 3])
+    assert not sc.light_caustics[0]
+
+
+def test_spot_light_and_exposure():
+    add_camera()
+    ob = add_light("SPOT", energy=100.0, exposure=1.0, spot_size=math.radians(60),
+                   spot_blend=0.3, shadow_soft_size=0.2)
+    ob.data.cycles.is_caustics_light = True
+    sc, _ = export()
+    assert sc.light_type[0] == S.SPOT and np.allclose(sc.light_color[0], 200.0)
+    assert np.isclose(sc.light_spot_size[0], math.radians(60))
+    assert np.isclose(sc.light_spot_blend[0], 0.3) and sc.light_soft_falloff[0]
+    assert sc.light_caustics[0]
+
+
+def test_area_light_size_takes_object_scale():
+    add_camera()
+    add_light("AREA", rotation=(0.2, 0.0, 0.5), scale=(2.0, 3.0, 4.0), energy=50.0,
+              shape="RECTANGLE", size=0.5, size_y=0.25, spread=math.radians(90))
+    add_light("AREA", scale=(2.0, 2.0, 1.0), energy=10.0, shape="DISK", size=0.5).name = "Disk"
+    sc, _ = export()
+    i = sc.light_names.index("Area")
+    assert sc.light_type[i] == S.AREA and sc.light_shape[i] == S.RECTANGLE
+    assert np.allclose(sc.light_size[i], [1.0, 0.75])
+    assert np.allclose(np.linalg.norm(sc.light_matrix[i][:3, :3], axis=0), 1.0)  # scale removed
+    R = np.array(bpy.data.objects["Area"].matrix_world.to_3x3().normalized())
+    assert np.allclose(sc.light_matrix[i][:3, :3], R)
+    assert np.isclose(sc.light_spread[i], math.radians(90)) and np.allclose(sc.light_color[i], 50)
+    j = sc.light_names.index("Disk")
+    assert sc.light_shape[j] == S.DISK and np.allclose(sc.light_size[j], [1.0, 1.0])
+
+
+def test_square_area_light_with_unequal_scale_becomes_a_rectangle():
+    add_camera()
+    add_light("AREA", scale=(1.0, 2.0, 1.0), shape="SQUARE", size=0.5)
+    sc, _ = export()
+    assert sc.light_shape[0] == S.RECTANGLE and np.allclose(sc.light_size[0], [0.5, 1.0])
+
+
+def test_unnormalized_area_light_power_scales_with_area():
+    add_camera()
+    add_light("AREA", energy=10.0, shape="SQUARE", size=2.0, normalize=False)
+    sc, _ = export()
+    assert np.allclose(sc.light_color[0], 40.0)  # Cycles: strength not divided by area 4 m^2
+
+
+def test_sun_light():
+    add_camera()
+    add_light("SUN", rotation=(0, math.radians(30), 0), energy=3.0, angle=math.radians(0.5))
+    sc, _ = export()
+    assert sc.light_type[0] == S.SUN and np.allclose(sc.light_color[0], 3.0)
+    assert np.isclose(sc.light_angle[0], math.radians(0.5))
+    d = -sc.light_matrix[0][:3, 2]  # travel direction: local -Z
+    assert np.allclose(d, [-0.5, 0, -math.sqrt(3) / 2])
+
+
+# ------------------------------------------------------------------------------- camera
+def test_camera_fields():
+    cam_ob = add_camera(location=(1, -5, 2), lens=35.0, sensor_width=32.0, sensor_height=20.0,
+                        sensor_fit="HORIZONTAL", shift_x=0.1, shift_y=-0.05,
+                        clip_start=0.5, clip_end=50.0)
+    cam_ob.scale = (2, 2, 2)
+    r = scene().render
+    r.resolution_x, r.resolution_y, r.resolution_percentage = 320, 200, 50
+    r.pixel_aspect_x, r.pixel_aspect_y = 1.0, 2.0
+    r.use_border, r.use_crop_to_border = True, True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.1, 0.6, 0.2, 0.9
+    scene().cycles.filter_width = 2.0
+    sc, _ = export()
+    c = sc.camera
+    assert c.type == S.PERSP and c.lens == 35.0 and c.sensor_fit == "HORIZONTAL"
+    assert (c.sensor_width, c.sensor_height) == (32.0, 20.0)
+    assert np.isclose(c.shift_x, 0.1) and np.isclose(c.shift_y, -0.05)
+    assert (c.clip_start, c.clip_end) == (0.5, 50.0)
+    assert (c.resolution_x, c.resolution_y, c.resolution_percentage) == (320, 200, 50)
+    assert (c.width, c.height) == (160, 100)
+    assert (c.pixel_aspect_x, c.pixel_aspect_y) == (1.0, 2.0)
+    assert c.use_border and c.use_crop_to_border
+    assert np.allclose(c.border, (0.1, 0.6, 0.2, 0.9))
+    assert c.filter_width == 2.0
+    assert np.allclose(c.matrix_world[:3, 3], [1, -5, 2])
+    assert np.allclose(np.linalg.norm(c.matrix_world[:3, :3], axis=0), 1)  # scale removed
+    assert np.allclose(-c.matrix_world[:3, 2], [0, 1, 0], atol=1e-6)  # looks along +y
+
+
+def test_ortho_camera():
+    add_camera(type="ORTHO", ortho_scale=2.5)
+    sc, _ = export()
+    assert sc.camera.type == S.ORTHO and sc.camera.ortho_scale == 2.5
+
+
+def test_panoramic_camera_is_an_error():
+    add_camera(type="PANO")
+    with pytest.raises(SceneError, match=r"^camera 'Cam': panoramic cameras are not supported$"):
+        export()
+
+
+def test_no_camera_is_an_error():
+    scene().name = "Empty Scene"
+    mesh_with(None)
+    with pytest.raises(SceneError, match=r"^scene 'Empty Scene' has no camera$"):
+        export()
+
+
+# -------------------------------------------------------------------------------- world
+def test_world_background_colour_times_strength():
+    add_camera()
+    w = bpy.data.worlds.new("Sky")
+    scene().world = w
+    bg = w.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.5, 0.25, 1.0, 1.0)
+    bg.inputs["Strength"].default_value = 2.0
+    sc, warnings = export()
+    assert np.allclose(sc.world_color, [1.0, 0.5, 2.0]) and warnings == []
+
+
+def test_textured_world_is_black_with_a_warning():
+    add_camera()
+    w = bpy.data.worlds.new("Sky")
+    scene().world = w
+    sky = w.node_tree.nodes.new("ShaderNodeTexSky")
+    w.node_tree.links.new(sky.outputs[0], w.node_tree.nodes["Background"].inputs["Color"])
+    sc, warnings = export()
+    assert np.allclose(sc.world_color, 0)
+    assert len(warnings) == 1 and warnings[0].startswith("world 'Sky':")
+
+
+# -------------------------------------------------------------------- files and safety
+def test_mirror_sample_blend():
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "mirror.blend"))
+    sc, warnings = export()
+    assert warnings == []
+    assert sc.object_names == ["Floor", "Mirror"] and sc.n_tris == 4
+    assert sc.object_caster.tolist() == [False, True]
+    assert sc.object_receiver.tolist() == [True, False]
+    assert sc.object_smooth.tolist() == [False, True]
+    fl, mi = sc.mat_names.index("Floor"), sc.mat_names.index("Mirror")
+    assert sc.mat_kind[fl] == S.DIFFUSE and np.allclose(sc.mat_color[fl], 0.8)
+    assert sc.mat_kind[mi] == S.CONDUCTOR and sc.mat_fresnel[mi] == S.FRESNEL_NONE
+    assert np.allclose(sc.mat_color[mi], 0.9) and sc.mat_roughness[mi] == 0
+    v, n = obj_tris(sc, "Mirror")
+    a = math.radians(157.5)  # local +Z rotated about Y
+    assert np.allclose(n.reshape(-1, 3), [math.sin(a), 0, math.cos(a)], atol=1e-6)
+    assert np.allclose(v.reshape(-1, 3).mean(axis=0), [-3, 0, 4])
+    assert sc.light_names == ["Light"] and sc.light_type[0] == S.AREA
+    assert sc.light_shape[0] == S.DISK and np.allclose(sc.light_size[0], 0.5)
+    assert np.allclose(sc.light_color[0], 1000.0) and sc.light_caustics[0]
+    assert np.isclose(sc.light_spread[0], math.pi)
+    assert np.allclose(sc.light_matrix[0][:3, 3], [-3, 0, 2])
+    assert np.allclose(-sc.light_matrix[0][:3, 2], [0, 0, 1], atol=1e-6)  # faces up
+    c = sc.camera
+    assert c.lens == 35 and (c.width, c.height) == (160, 120) and c.filter_width == 1.5
+    assert np.allclose(c.matrix_world[:3, 3], [1.3, -8.5, 6.5])
+    fwd = -c.matrix_world[:3, 2]
+    to_target = np.array([1.3, 0, 0]) - [1.3, -8.5, 6.5]
+    assert np.allclose(fwd, to_target / np.linalg.norm(to_target), atol=1e-6)
+    assert np.allclose(sc.world_color, 0)
+
+
+def test_sample_blends_export_cleanly():
+    for name in ("glass_sphere", "water"):
+        bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / f"{name}.blend"))
+        sc, warnings = export()
+        assert warnings == [] and sc.n_tris > 0 and np.any(sc.object_caster)
+    # water: a point light and a sun tilted 30 degrees towards -x, ortho camera
+    assert sc.light_type.tolist() == [S.POINT, S.SUN]
+    assert np.isclose(sc.light_radius[0], 0.05) and not sc.light_soft_falloff[0]
+    assert np.allclose(sc.light_color, [[1000] * 3, [3] * 3])
+    assert np.allclose(-sc.light_matrix[1][:3, 2], [-0.5, 0, -math.sqrt(3) / 2], atol=1e-6)
+    assert sc.camera.type == S.ORTHO and sc.camera.ortho_scale == 2
+
+
+def test_export_does_not_change_the_scene():
+    add_camera()
+    ob = link(bpy.data.objects.new("Cube", cube_mesh()))
+    ob.modifiers.new("Subdivision", "SUBSURF").levels = 1
+    ob.data.materials.append(material("Foo", "ShaderNodeMixShader"))
+    add_light("AREA", scale=(2, 2, 2))
+    col = bpy.data.collections.new("Parts")
+    col.objects.link(bpy.data.objects.new("Part", cube_mesh("PartMesh")))
+    e = link(bpy.data.objects.new("Inst", None))
+    e.instance_type, e.instance_collection = "COLLECTION", col
+
+    def snapshot():
+        return dict(
+            counts={k: len(getattr(bpy.data, k)) for k in (
+                "objects", "meshes", "materials", "lights", "cameras", "collections", "images",
+                "node_groups", "worlds")},
+            verts=len(ob.data.vertices), mods=[m.name for m in ob.modifiers],
+            matrix=[tuple(r) for r in ob.matrix_world], light_scale=tuple(bpy.data.objects["Area"].scale),
+            nodes=len(bpy.data.materials["Foo"].node_tree.nodes), is_dirty=bpy.data.is_dirty)
+
+    before = snapshot()
+    export()
+    export()
+    assert snapshot() == before
+
+
+def test_light_node_tree_emission_scales_the_light():
+    add_camera()
+    ob = add_light("POINT", energy=10.0)
+    ob.data.use_nodes = True
+    em = ob.data.node_tree.nodes["Emission"]
+    em.inputs["Strength"].default_value = 3.0
+    em.inputs["Color"].default_value = (1.0, 0.5, 1.0, 1.0)
+    sc, warnings = export()
+    assert np.allclose(sc.light_color[0], [30, 15, 30]) and warnings == []
+    ob.data.use_nodes = False
+    sc, _ = export()
+    assert np.allclose(sc.light_color[0], 10)
+
+
+def test_principled_extras_are_reported_as_ignored():
+    sc, warnings = one_material(material("Glow", "ShaderNodeBsdfPrincipled", **{
+        "Emission Strength": 2.0, "Emission Color": (1.0, 1.0, 1.0), "Alpha": 0.5}))
+    assert sc.mat_kind[0] == S.DIFFUSE
+    assert warnings == ["material 'Glow': Principled BSDF emission, alpha ignored"]
+
+
+def test_library_linked_objects_are_exported(tmp_path):
+    lib = tmp_path / "lib.blend"
+    ob = link(bpy.data.objects.new("LibCube", cube_mesh("LibCubeMesh")))
+    ob.location = (0, 0, 7)
+    ob.cycles.is_caustics_caster = True
+    ob.data.materials.append(material("LibGlass", "ShaderNodeBsdfGlass", IOR=1.5))
+    bpy.ops.wm.save_as_mainfile(filepath=str(lib))
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    with bpy.data.libraries.load(str(lib), link=True) as (src, dst):
+        dst.objects = ["LibCube"]
+    linked = dst.objects[0]
+    assert linked.library is not None
+    link(linked)
+    add_camera()
+    sc, warnings = export()
+    assert sc.object_names == ["LibCube"] and sc.n_tris == 12 and sc.object_caster[0]
+    assert np.isclose(sc.tri_vertices[..., 2].mean(), 7.0)
+    assert sc.mat_kind[0] == S.DIELECTRIC and warnings == []

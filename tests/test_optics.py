@@ -1,0 +1,176 @@
+"""Reflection, refraction and Fresnel (smbs_addon/optics.py) against the textbook.
+
+Conventions (optics.py): w points away from the surface, n is unit, eta =
+n_inside / n_outside with n pointing outside; cos_i = w.n > 0 means outside.
+Property tests use hypothesis with a derandomized profile (same examples every run).
+"""
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from smbs_addon.optics import fresnel_dielectric, fresnel_schlick, reflect, refract
+
+PROFILE = settings(max_examples=300, derandomize=True, deadline=None, database=None)
+
+eta_st = st.floats(1.0001, 2.6)
+coord = st.floats(-1.0, 1.0)
+vec_st = st.tuples(coord, coord, coord).filter(lambda v: 1e-3 < math.sqrt(sum(x * x for x in v)) <= 1.0)
+
+
+def unit(v):
+    v = np.asarray(v, float)
+    return v / np.linalg.norm(v)
+
+
+def textbook_fresnel(cos_i, n1, n2):
+    """Unpolarised reflectance going from index n1 into n2 (1 on TIR)."""
+    sin_t = n1 / n2 * math.sqrt(max(0.0, 1 - cos_i * cos_i))
+    if sin_t >= 1:
+        return 1.0
+    cos_t = math.sqrt(1 - sin_t * sin_t)
+    rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t)
+    rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t)
+    return 0.5 * (rs * rs + rp * rp)
+
+
+# ------------------------------------------------------------------ Fresnel
+@pytest.mark.parametrize("eta", [1.0001, 1.33, 1.5, 2.0, 2.42, 2.6])
+def test_fresnel_normal_incidence(eta):
+    r0 = ((eta - 1) / (eta + 1)) ** 2
+    assert fresnel_dielectric(np.array([1.0]), eta)[0] == pytest.approx(r0, rel=1e-12)
+    assert fresnel_dielectric(np.array([-1.0]), eta)[0] == pytest.approx(r0, rel=1e-12)  # from inside
+
+
+@given(eta=eta_st, x=st.floats(1e-6, 1.0))
+@PROFILE
+def test_fresnel_total_internal_reflection_from_inside(eta, x):
+    cos_c = math.sqrt(1 - 1 / eta**2)  # critical angle, seen from inside
+    cos_i = cos_c * x * (1 - 1e-9)  # strictly beyond it (grazing side)
+    assert fresnel_dielectric(np.array([-cos_i]), eta)[0] == 1.0
+
+
+@given(eta=eta_st, cos_i=st.floats(1e-6, 1.0))
+@PROFILE
+def test_fresnel_matches_textbook_both_sides(eta, cos_i):
+    out = fresnel_dielectric(np.array([cos_i]), eta)[0]
+    assert out == pytest.approx(textbook_fresnel(cos_i, 1.0, eta), rel=1e-9, abs=1e-15)
+    inside = fresnel_dielectric(np.array([-cos_i]), eta)[0]
+    assert inside == pytest.approx(textbook_fresnel(cos_i, eta, 1.0), rel=1e-9, abs=1e-15)
+    assert 0.0 <= out <= 1.0 and 0.0 <= inside <= 1.0
+
+
+@given(eta=eta_st, cos_i=st.floats(1e-4, 1.0))
+@PROFILE
+def test_fresnel_reciprocity(eta, cos_i):
+    """F from outside at theta_i equals F from inside at the refracted angle."""
+    sin_t = math.sqrt(1 - cos_i**2) / eta
+    cos_t = math.sqrt(1 - sin_t**2)
+    a = fresnel_dielectric(np.array([cos_i]), eta)[0]
+    b = fresnel_dielectric(np.array([-cos_t]), eta)[0]
+    assert a == pytest.approx(b, rel=1e-9, abs=1e-14)
+
+
+def test_fresnel_array_and_scalar_eta_broadcast():
+    cos_i = np.array([1.0, 0.5, -0.5, -0.1])
+    eta = np.array([1.5, 1.5, 1.5, 1.5])
+    np.testing.assert_array_equal(fresnel_dielectric(cos_i, eta), fresnel_dielectric(cos_i, 1.5))
+    assert fresnel_dielectric(cos_i, 1.5)[3] == 1.0  # sin_t = 1.5 * 0.995 > 1
+
+
+def test_fresnel_schlick_endpoints():
+    f0 = np.array([0.04, 0.5, 0.9])
+    np.testing.assert_allclose(fresnel_schlick(np.array([1.0]), f0)[0], f0, rtol=1e-15)
+    np.testing.assert_allclose(fresnel_schlick(np.array([0.0]), f0)[0], 1.0, rtol=1e-15)
+    np.testing.assert_allclose(fresnel_schlick(np.array([0.5]), f0)[0], f0 + (1 - f0) * 0.5**5, rtol=1e-15)
+
+
+# ---------------------------------------------------------------- refraction
+@given(w=vec_st, n=vec_st, eta=eta_st)
+@PROFILE
+def test_refract_obeys_snell_and_reverses(w, n, eta):
+    w, n = unit(w), unit(n)
+    c = float(w @ n)
+    t, ok = refract(w[None], n[None], eta)
+    t, ok = t[0], bool(ok[0])
+    assert not np.isnan(t).any()
+    n1, n2 = (1.0, eta) if c >= 0 else (eta, 1.0)
+    sin_i = float(np.linalg.norm(np.cross(w, n)))  # better conditioned than sqrt(1 - c^2)
+    if n1 / n2 * sin_i >= 1.0 + 1e-12:
+        assert not ok and np.all(t == 0)
+        return
+    if n1 / n2 * sin_i > 1.0 - 1e-9:
+        return  # too close to the critical angle to ask for more
+    assert ok
+    assert np.linalg.norm(t) == pytest.approx(1.0, abs=1e-12)
+    ct = float(t @ n)
+    assert ct * c <= 0  # crosses to the other side
+    sin_t = float(np.linalg.norm(np.cross(t, n)))
+    assert n1 * sin_i == pytest.approx(n2 * sin_t, rel=1e-9, abs=1e-14)  # Snell
+    # coplanar with w and n, on the other side of n's line (the tangential parts oppose)
+    assert abs(np.linalg.det(np.stack([w, n, t]))) < 1e-9
+    assert float((w - c * n) @ (t - ct * n)) <= 1e-12
+    if abs(c) < 1e-4:
+        return  # at grazing incidence the way back starts at the critical angle (ill-conditioned)
+    back, ok_back = refract(t[None], n[None], eta)
+    assert ok_back[0]
+    np.testing.assert_allclose(back[0], w, atol=1e-10)
+
+
+@given(n=vec_st, eta=eta_st, x=st.floats(1e-6, 0.999))
+@PROFILE
+def test_total_internal_reflection_gives_zero_not_nan(n, eta, x):
+    n = unit(n)
+    s = unit(np.cross(n, [0.3, 0.5, 0.7]) if abs(n @ unit([0.3, 0.5, 0.7])) < 0.99 else np.cross(n, [1, 0, 0]))
+    cos_c = math.sqrt(1 - 1 / eta**2)
+    cos_i = x * cos_c  # beyond the critical angle
+    w = -cos_i * n + math.sqrt(1 - cos_i**2) * s  # inside (w.n < 0)
+    t, ok = refract(w[None], n[None], eta)
+    assert not ok[0]
+    assert np.all(t == 0) and not np.isnan(t).any()
+
+
+def test_refract_normal_incidence_and_known_angle():
+    n = np.array([[0.0, 0.0, 1.0]])
+    t, ok = refract(np.array([[0.0, 0.0, 1.0]]), n, 1.5)
+    assert ok[0] and np.allclose(t[0], [0, 0, -1], atol=0)
+    # 60 degrees in air into water (1.33): sin_t = sin 60 / 1.33
+    w = np.array([[-math.sin(math.pi / 3), 0.0, math.cos(math.pi / 3)]])
+    t, ok = refract(w, n, 1.33)
+    st_ = math.sin(math.pi / 3) / 1.33
+    np.testing.assert_allclose(t[0], [st_, 0.0, -math.sqrt(1 - st_**2)], atol=1e-15)
+
+
+def test_refract_batch_with_per_lane_eta():
+    rng = np.random.default_rng(0)
+    w = rng.normal(size=(1000, 3))
+    w /= np.linalg.norm(w, axis=1)[:, None]
+    n = np.tile([0.0, 0.0, 1.0], (1000, 1))
+    eta = rng.uniform(1.0001, 2.6, 1000)
+    t, ok = refract(w, n, eta)
+    for i in range(0, 1000, 97):
+        ti, oki = refract(w[i:i + 1], n[i:i + 1], eta[i])
+        assert oki[0] == ok[i]
+        np.testing.assert_array_equal(ti[0], t[i])
+    assert not np.isnan(t).any()
+    # TIR exactly where sin_t would exceed 1, from inside only
+    sin_i = np.sqrt(1 - w[:, 2] ** 2)
+    tir = (w[:, 2] < 0) & (eta * sin_i > 1)
+    assert np.array_equal(~ok, tir)
+
+
+# ---------------------------------------------------------------- reflection
+@given(w=vec_st, n=vec_st)
+@PROFILE
+def test_reflect_is_an_involution_and_mirrors(w, n):
+    w, n = unit(w), unit(n)
+    r = reflect(w[None], n[None])[0]
+    np.testing.assert_allclose(reflect(r[None], n[None])[0], w, atol=1e-14)
+    assert np.linalg.norm(r) == pytest.approx(1.0, abs=1e-14)
+    assert float(r @ n) == pytest.approx(float(w @ n), abs=1e-14)  # same side, same angle
+    # tangential component flips
+    np.testing.assert_allclose(r - (r @ n) * n, -(w - (w @ n) * n), atol=1e-14)
+    # the normal's sign does not matter
+    np.testing.assert_allclose(reflect(w[None], -n[None])[0], r, atol=1e-15)

@@ -1,0 +1,263 @@
+"""Scene save/load (.npz) and validate() (smbs_addon/scene.py)."""
+import dataclasses
+import math
+import re
+import zipfile
+
+import numpy as np
+import pytest
+
+from smbs_addon import scene as S
+from smbs_addon.builder import SceneBuilder, look_at
+from smbs_addon.errors import SceneError
+from smbs_addon.scene import Scene
+
+
+def full_scene() -> Scene:
+    """Every light type and area shape, every material kind, a smooth mesh with UVs,
+    a non-default camera."""
+    b = SceneBuilder("everything")
+    floor = b.material("Floor", "diffuse", color=(0.8, 0.7, 0.6))
+    metal = b.material("Gold", "conductor", color=(1.0, 0.8, 0.3), fresnel=S.FRESNEL_SCHLICK)
+    glass = b.material("Glass", "dielectric", color=(0.9, 1.0, 0.95), ior=1.45,
+                       reflect_color=(1.0, 0.9, 0.9))
+    lamp = b.material("Lamp", "emitter", color=(1.0, 1.0, 0.5), strength=7.5)
+    b.plane("Floor", (0, 0, 0), 10, floor, receiver=True)
+    b.plane("Mirror", (0, 0, 1), 1.5, metal, normal=(1, 0, -1), caster=True)
+    b.uv_sphere("Ball", (1, 1, 1), 0.5, glass, segments=12, rings=6, caster=True, receiver=True)
+    b.plane("Panel", (0, 0, 4), 0.5, lamp, normal=(0, 0, -1))
+    b.light("Point", "POINT", location=(1, 2, 3), power=500.0, radius=0.1, soft_falloff=True)
+    b.light("Spot", "SPOT", location=(-1, 0, 3), target=(0, 0, 0), power=800.0, color=(1, 0.5, 0.25),
+            spot_size=math.radians(30), spot_blend=0.3, radius=0.05)
+    for shape, size in (("SQUARE", 0.5), ("RECTANGLE", (0.5, 0.25)), ("DISK", 0.4), ("ELLIPSE", (0.4, 0.2))):
+        b.light(f"Area {shape}", "AREA", location=(0, -2, 3), target=(0, 0, 0), power=100.0, shape=shape,
+                size=size, spread=math.radians(60))
+    b.light("Sun", "SUN", location=(0, 0, 10), target=(0.3, 0.1, 0), power=3.0, angle=math.radians(0.5),
+            caustics=False)
+    b.set_camera((0, -6, 5), (0, 0, 0), type=S.ORTHO, lens=42.0, sensor_width=30.0, sensor_height=20.0,
+                 sensor_fit="VERTICAL", ortho_scale=4.5, shift_x=0.1, shift_y=-0.05, clip_start=0.05,
+                 clip_end=250.0, resolution_x=320, resolution_y=200, resolution_percentage=50,
+                 pixel_aspect_x=1.0, pixel_aspect_y=1.25, use_border=True, border=(0.1, 0.6, 0.2, 0.9),
+                 use_crop_to_border=True, filter_width=2.25)
+    b.world_color = np.array([0.01, 0.02, 0.03])
+    return b.build()
+
+
+def assert_scenes_equal(a: Scene, b: Scene):
+    for f in dataclasses.fields(Scene):
+        x, y = getattr(a, f.name), getattr(b, f.name)
+        if f.name == "camera":
+            for cf in dataclasses.fields(S.Camera):
+                cx, cy = getattr(x, cf.name), getattr(y, cf.name)
+                if isinstance(cx, np.ndarray):
+                    assert np.array_equal(cx, cy), cf.name
+                else:
+                    assert cx == cy and type(cx) is type(cy), (cf.name, cx, cy)
+        elif isinstance(x, np.ndarray):
+            assert x.dtype == y.dtype and x.shape == y.shape and np.array_equal(x, y), f.name
+        else:
+            assert x == y and type(x) is type(y), (f.name, x, y)
+
+
+def test_round_trip_every_field(tmp_path):
+    sc = full_scene()
+    assert sc.n_lights == 7 and set(sc.light_type.tolist()) == {S.POINT, S.SPOT, S.AREA, S.SUN}
+    assert set(sc.light_shape[sc.light_type == S.AREA].tolist()) == {S.SQUARE, S.RECTANGLE, S.DISK, S.ELLIPSE}
+    assert set(sc.mat_kind.tolist()) == {S.DIFFUSE, S.CONDUCTOR, S.DIELECTRIC, S.EMITTER}
+    path = tmp_path / "scene.npz"
+    sc.save(path)
+    back = Scene.load(path)
+    assert_scenes_equal(sc, back)
+    assert back.camera.border == (0.1, 0.6, 0.2, 0.9)
+    assert back.camera.width == 160 and back.camera.height == 100
+    # saving the loaded scene again gives the same arrays
+    path2 = tmp_path / "again.npz"
+    back.save(path2)
+    assert_scenes_equal(sc, Scene.load(path2))
+    assert not list(tmp_path.glob("*.tmp*")), "temporary files left behind"
+
+
+def test_round_trip_empty_scene(tmp_path):
+    sc = S.empty_scene(name="nothing")
+    sc.save(tmp_path / "e.npz")
+    back = Scene.load(tmp_path / "e.npz")
+    assert_scenes_equal(sc, back)
+    assert back.object_names == [] and back.n_tris == 0 and back.n_lights == 0
+
+
+# -------------------------------------------------------------------- corrupt
+@pytest.fixture
+def saved(tmp_path):
+    path = tmp_path / "good.npz"
+    full_scene().save(path)
+    return path
+
+
+def load_error(path) -> str:
+    with pytest.raises(SceneError) as e:
+        Scene.load(path)
+    msg = str(e.value)
+    assert str(path) in msg, f"message does not name the file: {msg}"
+    assert "\n" not in msg
+    return msg
+
+
+def test_random_bytes(tmp_path):
+    p = tmp_path / "noise.npz"
+    p.write_bytes(np.random.default_rng(0).bytes(4096))
+    assert load_error(p) == f"{p}: not a readable scene .npz (not a zip archive)"
+
+
+def test_empty_file_and_plain_npy(tmp_path):
+    p = tmp_path / "empty.npz"
+    p.write_bytes(b"")
+    assert load_error(p) == f"{p}: not a readable scene .npz (not a zip archive)"
+    q = tmp_path / "array.npz"
+    with open(q, "wb") as f:
+        np.save(f, np.arange(5))
+    assert load_error(q) == f"{q}: not a readable scene .npz (not a zip archive)"
+
+
+def test_truncated(saved):
+    data = saved.read_bytes()
+    saved.write_bytes(data[: len(data) // 2])
+    assert "not a readable scene .npz" in load_error(saved)
+
+
+def test_damaged_member(saved, tmp_path):
+    """The zip directory is intact but compressed data is damaged: the error from
+    zlib or the CRC check still becomes a SceneError naming the file."""
+    data = bytearray(saved.read_bytes())
+    with zipfile.ZipFile(saved) as z:
+        info = z.getinfo("tri_vertices.npy")
+    h = info.header_offset  # local header: name and extra lengths at bytes 26..29
+    start = h + 30 + int.from_bytes(data[h + 26:h + 28], "little") + int.from_bytes(data[h + 28:h + 30], "little")
+    msgs = []
+    for k in range(6):
+        d = bytearray(data)
+        pos = start + 4 + k * (info.compress_size // 7)
+        d[pos:pos + 16] = bytes(16) if k % 2 else b"\xff" * 16
+        p = tmp_path / f"damaged{k}.npz"
+        p.write_bytes(bytes(d))
+        msgs.append(load_error(p))
+    assert all("not a readable scene .npz" in m for m in msgs)
+
+
+def test_missing_array(saved, tmp_path):
+    with np.load(saved) as z:
+        arrays = {k: z[k] for k in z.files if k != "light_color"}
+    p = tmp_path / "missing.npz"
+    np.savez_compressed(p, **arrays)
+    assert load_error(p) == f"{p}: missing array 'light_color'"
+    arrays.pop("camera.lens")
+    np.savez_compressed(p, **arrays)
+    assert load_error(p) == f"{p}: missing camera field 'lens'"
+
+
+@pytest.mark.parametrize("version", [0, 2, None])
+def test_wrong_format_version(saved, tmp_path, version):
+    with np.load(saved) as z:
+        arrays = {k: z[k] for k in z.files}
+    if version is None:
+        del arrays["format_version"]
+        shown = -1
+    else:
+        arrays["format_version"] = np.asarray(version)
+        shown = version
+    p = tmp_path / "version.npz"
+    np.savez_compressed(p, **arrays)
+    assert load_error(p) == f"{p}: scene format version {shown}, expected {S.FORMAT_VERSION}"
+
+
+def test_missing_file(tmp_path):
+    p = tmp_path / "nope.npz"
+    assert load_error(p) == f"{p}: no such file"
+
+
+def test_loaded_values_are_validated(saved, tmp_path):
+    with np.load(saved) as z:
+        arrays = {k: z[k] for k in z.files}
+    arrays["tri_vertices"][3, 1, 2] = np.nan
+    p = tmp_path / "nan.npz"
+    np.savez_compressed(p, **arrays)
+    with pytest.raises(SceneError, match=re.escape("scene array 'tri_vertices' holds NaN or infinite values")):
+        Scene.load(p)
+
+
+# ------------------------------------------------------------------- validate
+def test_validate_rejects_nan_vertices():
+    sc = full_scene()
+    sc.tri_vertices[0, 0, 0] = np.nan
+    with pytest.raises(SceneError) as e:
+        sc.validate()
+    assert str(e.value) == "scene array 'tri_vertices' holds NaN or infinite values"
+    sc = full_scene()
+    sc.tri_vertices[-1, 2, 1] = -np.inf
+    with pytest.raises(SceneError, match="'tri_vertices' holds NaN or infinite"):
+        sc.validate()
+
+
+def test_validate_rejects_negative_power_naming_the_light():
+    sc = full_scene()
+    i = sc.light_names.index("Spot")
+    sc.light_color[i, 1] = -1.0
+    with pytest.raises(SceneError) as e:
+        sc.validate()
+    assert str(e.value) == "light 'Spot': negative power"
+
+
+@pytest.mark.parametrize("ior", [0.0, -1.5, np.nan])
+def test_validate_rejects_bad_ior_naming_the_material(ior):
+    sc = full_scene()
+    sc.mat_ior[sc.mat_names.index("Glass")] = ior
+    with pytest.raises(SceneError) as e:
+        sc.validate()
+    expected = ("scene array 'mat_ior' holds NaN or infinite values" if np.isnan(ior)
+                else "material 'Glass': IOR must be positive")
+    assert str(e.value) == expected
+
+
+@pytest.mark.parametrize("name", ["light_radius", "light_spot_size", "light_spread", "light_angle",
+                                  "mat_strength", "mat_roughness", "mat_reflect_color"])
+def test_validate_rejects_nan_in_any_float_array(name):
+    sc = full_scene()
+    getattr(sc, name).flat[0] = np.nan
+    with pytest.raises(SceneError) as e:
+        sc.validate()
+    assert str(e.value) == f"scene array '{name}' holds NaN or infinite values"
+
+
+@pytest.mark.parametrize("field,value,message", [
+    ("lens", float("nan"), "camera lens must be a positive number, not nan"),
+    ("lens", 0.0, "camera lens must be a positive number, not 0.0"),
+    ("clip_end", -1.0, "camera clip_end must be a positive number, not -1.0"),
+    ("ortho_scale", float("inf"), "camera ortho_scale must be a positive number, not inf"),
+    ("shift_x", float("nan"), "camera shift holds NaN or infinite values"),
+    ("sensor_fit", "DIAGONAL", "camera type 1 / sensor fit 'DIAGONAL' not supported"),
+])
+def test_validate_rejects_bad_camera(field, value, message):
+    sc = full_scene()
+    setattr(sc.camera, field, value)
+    with pytest.raises(SceneError) as e:
+        sc.validate()
+    assert str(e.value) == message
+
+
+def test_validate_rejects_mismatched_shapes():
+    sc = full_scene()
+    sc.light_radius = sc.light_radius[:-1]
+    with pytest.raises(SceneError) as e:
+        sc.validate()
+    assert str(e.value) == f"scene array 'light_radius' must have one entry per light ({sc.n_lights})"
+    sc = full_scene()
+    sc.tri_material = sc.tri_material.copy()
+    sc.tri_material[5] = len(sc.mat_names)
+    with pytest.raises(SceneError, match="triangle material index out of range"):
+        sc.validate()
+
+
+def test_builder_look_at_is_a_rotation():
+    m = look_at((1, 2, 3), (0, 0, 0))
+    R = m[:3, :3]
+    np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-15)
+    np.testing.assert_allclose(-R[:, 2], -np.array([1, 2, 3]) / math.sqrt(14), atol=1e-15)

@@ -1,0 +1,179 @@
+"""Render a Cycles reference for the caustic layer of a sample scene.
+
+    python tools/cycles_reference.py sample_blends/mirror.blend --spp 4096 \\
+        --out tests/data/cycles_mirror [--off-spp 512] [--threads 2]
+
+Renders the scene with Cycles (bpy module, CPU):
+  * twice with caustics on (``caustics_reflective = caustics_refractive = True``),
+    with two different seeds, each with half of ``--spp`` samples:
+    ``<out>_on_a.exr``, ``<out>_on_b.exr``;
+  * once with caustics off: ``<out>_off.exr``.
+The caustic component is ``(on_a + on_b) / 2 - off``, and half the RMS of
+``on_a - on_b`` is the reference's own noise. The images are the Combined pass,
+scene linear, 32-bit float OpenEXR (zip), RGB, with an opaque film; the view
+transform is set to Standard with no look (EXR output is scene linear either
+way; this only keeps any preview consistent). A JSON file ``<out>.json`` holds
+the settings, timings and summary statistics.
+
+By default the objects' Cycles caustic-caster flags are cleared before rendering
+(not saved): with a caster, a receiver and a caustics light present, Cycles
+enables MNEE and culls the BSDF-sampled caustic paths, so e.g. a mirror's
+caustic is simply missing. ``--keep-mnee`` renders the scene as saved.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+
+def _set_render(scene, spp, seed, caustics, threads, keep_mnee=False):
+    scene.render.engine = "CYCLES"
+    if not keep_mnee:
+        # Cycles turns on MNEE ("shadow caustics") when a caster, a receiver and a caustics
+        # light all exist, and then DROPS every path receiver -> caster -> caustics light
+        # found by BSDF sampling (it expects MNEE to have handled it). MNEE only solves
+        # refraction, so e.g. the mirror's caustic disappears entirely. The reference must be
+        # plain path tracing, so clear the caster flags in this in-memory copy (the .blend
+        # file is not saved).
+        for ob in scene.objects:
+            ob.cycles.is_caustics_caster = False
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = int(spp)
+    c.seed = int(seed)
+    c.use_animated_seed = False
+    c.use_adaptive_sampling = False
+    c.use_denoising = False
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    c.blur_glossy = 0.0
+    c.caustics_reflective = bool(caustics)
+    c.caustics_refractive = bool(caustics)
+    r = scene.render
+    r.threads_mode = "FIXED"
+    r.threads = int(threads)
+    r.film_transparent = False
+    r.use_compositing = False
+    r.use_sequencer = False
+    r.image_settings.file_format = "OPEN_EXR"
+    r.image_settings.color_depth = "32"
+    r.image_settings.exr_codec = "ZIP"
+    r.image_settings.color_mode = "RGB"
+    scene.view_settings.view_transform = "Standard"
+    scene.view_settings.look = "None"
+    scene.view_settings.exposure = 0.0
+    scene.view_settings.gamma = 1.0
+
+
+def _read_exr(path):
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise RuntimeError(f"cannot read {path}: {oiio.geterror()}")
+    spec = inp.spec()
+    img = np.asarray(inp.read_image(oiio.FLOAT), np.float32).reshape(
+        spec.height, spec.width, spec.nchannels)
+    inp.close()
+    return img[:, :, :3]
+
+
+def render(blend, spp, seed, caustics, threads, path, keep_mnee=False):
+    import bpy
+
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    scene = bpy.context.scene
+    _set_render(scene, spp, seed, caustics, threads, keep_mnee)
+    scene.render.filepath = str(path)
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    dt = time.perf_counter() - t
+    return dt
+
+
+def caustic_stats(on_a, on_b, off, frac=0.05, pct=99.5):
+    """Mean caustic over the region above frac x its pct-th percentile, and the noise there."""
+    on = 0.5 * (on_a + on_b)
+    caus = (on - off).mean(axis=2)
+    thr = frac * float(np.percentile(caus, pct))
+    region = caus > thr
+    half_rms = 0.5 * float(np.sqrt(np.mean(((on_a - on_b).mean(axis=2)[region]) ** 2))) \
+        if region.any() else 0.0
+    return dict(threshold=thr, region_pixels=int(region.sum()),
+                mean_caustic=float(caus[region].mean()) if region.any() else 0.0,
+                mean_caustic_rgb=[float(x) for x in (on - off)[region].mean(axis=0)]
+                if region.any() else [0.0, 0.0, 0.0],
+                # noise of one half-image pixel is rms(a-b)/sqrt(2); of the mean of both, rms/2
+                half_rms_difference=half_rms,
+                max_caustic=float(caus.max()), p995=float(np.percentile(caus, pct)))
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("blend", type=Path)
+    ap.add_argument("--spp", type=int, default=4096, help="total samples of the 'on' render "
+                    "(split over two seeds)")
+    ap.add_argument("--off-spp", type=int, default=None,
+                    help="samples of the 'off' render (default spp/8, at least 64)")
+    ap.add_argument("--out", type=Path, required=True, help="output prefix")
+    ap.add_argument("--threads", type=int, default=2)
+    ap.add_argument("--seeds", type=int, nargs=2, default=(1, 2))
+    ap.add_argument("--keep-mnee", action="store_true",
+                    help="keep the scene's caustic caster flags, so Cycles uses MNEE (which also "
+                    "culls the path-traced caustics it stands in for); default: plain path tracing")
+    args = ap.parse_args(sys.argv[1:] if argv is None else argv)
+
+    import bpy  # noqa: F401  (imported here so --help works without it)
+
+    blend = args.blend.resolve()
+    out = args.out.resolve()
+    out.parent.mkdir(parents=True, exist_ok=True)
+    half = max(1, args.spp // 2)
+    off_spp = args.off_spp or max(64, args.spp // 8)
+    jobs = [("on_a", half, args.seeds[0], True), ("on_b", half, args.seeds[1], True),
+            ("off", off_spp, 3, False)]
+    timings = {}
+    for tag, spp, seed, caustics in jobs:
+        path = Path(f"{out}_{tag}.exr")
+        dt = render(blend, spp, seed, caustics, args.threads, path, args.keep_mnee)
+        timings[tag] = dict(spp=spp, seed=seed, caustics=caustics, seconds=round(dt, 2))
+        print(f"{tag}: {spp} spp, seed {seed}, caustics {'on' if caustics else 'off'}: "
+              f"{dt:.1f} s -> {path.name}", flush=True)
+
+    on_a, on_b, off = (_read_exr(f"{out}_{t}.exr") for t in ("on_a", "on_b", "off"))
+    stats = caustic_stats(on_a, on_b, off)
+    import bpy
+
+    scene = bpy.context.scene
+    meta = dict(
+        blend=os.path.relpath(blend, Path.cwd()) if blend.is_relative_to(Path.cwd()) else str(blend),
+        blender=bpy.app.version_string, resolution=[scene.render.resolution_x,
+                                                    scene.render.resolution_y],
+        resolution_percentage=scene.render.resolution_percentage,
+        renders=timings, threads=args.threads, device="CPU",
+        mnee="kept (scene caster flags as saved)" if args.keep_mnee else
+             "disabled (is_caustics_caster cleared on all objects): plain path tracing",
+        settings=dict(sample_clamp_direct=0.0, sample_clamp_indirect=0.0, blur_glossy=0.0,
+                      denoising=False, adaptive_sampling=False,
+                      max_bounces=scene.cycles.max_bounces,
+                      glossy_bounces=scene.cycles.glossy_bounces,
+                      transmission_bounces=scene.cycles.transmission_bounces,
+                      diffuse_bounces=scene.cycles.diffuse_bounces,
+                      filter=scene.cycles.pixel_filter_type, filter_width=scene.cycles.filter_width,
+                      film_transparent=False, view_transform="Standard", exr="32-bit float ZIP RGB"),
+        caustic=stats,
+        how="caustic = (on_a + on_b)/2 - off; region = caustic > 5% of its 99.5th percentile; "
+            "half_rms_difference = 0.5 * rms(on_a - on_b) over the region (noise of the mean)",
+    )
+    Path(f"{out}.json").write_text(json.dumps(meta, indent=2) + "\n")
+    print(json.dumps(stats, indent=2))
+
+
+if __name__ == "__main__":
+    main()
