@@ -99,8 +99,13 @@ class Tracer:
         prim, _ = self._run(o, d, tmax, "OCCLUDED")
         return prim >= 0
 
-    def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None) -> Hits:
-        """Closest hits of rays o + t d (d unit), re-computed in float64."""
+    def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None,
+                  exact_origin: np.ndarray | None = None) -> Hits:
+        """Closest hits of rays o + t d (d unit), re-computed in float64.
+
+        exact_origin: where the ray really starts (o is then only the offset
+        origin embree traces from); the hit is re-computed on the line
+        exact_origin + t d, so chains of specular vertices stay exact."""
         prim, t32 = self._run(o, d, tmax, "INTERSECT")
         hit = prim >= 0
         n = len(o)
@@ -112,7 +117,10 @@ class Tracer:
         if hit.any():
             idx = np.flatnonzero(hit)
             pi = prim[idx]
-            oi, di = o[idx], d[idx]
+            oi, di = (o if exact_origin is None else exact_origin)[idx], d[idx]
+            if exact_origin is not None:
+                t32 = t32.copy()
+                t32[idx] += dot(o[idx] - oi, di)
             v0 = self.v[pi, 0]
             g = self.ng[pi]
             den = dot(di, g)

@@ -92,7 +92,7 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
     for j, kind in enumerate(types):
         if act.size == 0:
             break
-        h = tracer.intersect(o, dirs)
+        h = tracer.intersect(o, dirs, exact_origin=None if j == 0 else prev)
         ctx.count("rays_walk", len(o))
         miss = ~h.hit
         prim = np.where(h.hit, h.prim, 0)

@@ -97,3 +97,35 @@ def point_through_water(rho, intensity, h_light, h_water, eta):
     if rho < 1e-9:  # limit sin(ti)/rho -> 1/drho
         return intensity * T / drho**2
     return intensity * T * math.sin(ti) / (rho * drho)
+
+
+def glass_sphere_scene(resolution=(64, 48), ior=1.5, light_size=0.5, power=200.0):
+    """A glass ball (radius 0.5, centre 0.6 above the floor) under a square area
+    light: the classic refractive caustic through two refractions (TT)."""
+    b = SceneBuilder("glass sphere")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    glass = b.material("glass", "dielectric", color=(1, 1, 1), ior=ior)
+    b.plane("Floor", (0, 0, 0), 10, floor)
+    b.uv_sphere("Ball", (0, 0, 0.6), 0.5, glass, segments=64, rings=32)
+    b.light("Area", "AREA", location=(0.3, 0.2, 4.0), target=(0.3, 0.2, 0), power=power, size=light_size)
+    b.set_camera((0, -2.2, 2.2), (0, 0, 0.2), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
+
+
+def ring_scene(resolution=(64, 48)):
+    """A gold-ish conductor ring (open cylinder, radius 1, height 0.4) on the
+    floor lit from the side: the cardioid caustic inside it (single R)."""
+    b = SceneBuilder("ring")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    metal = b.material("ring", "conductor", color=(0.9, 0.8, 0.5))
+    b.plane("Floor", (0, 0, 0), 10, floor)
+    seg = 128
+    ang = np.linspace(0, 2 * math.pi, seg + 1)[:-1]
+    ring = np.stack([np.cos(ang), np.sin(ang)], -1)
+    V = np.concatenate([np.c_[ring, np.zeros(seg)], np.c_[ring, np.full(seg, 0.4)]])
+    N = np.concatenate([np.c_[-ring, np.zeros(seg)]] * 2)  # inward-facing shading normals
+    F = [[i, i + seg, (i + 1) % seg + seg, (i + 1) % seg] for i in range(seg)]
+    b.mesh("Ring", V, F, metal, normals=N)
+    b.light("Area", "AREA", location=(-4, 0, 1.6), target=(0, 0, 0), power=800, size=0.3)
+    b.set_camera((0, 0, 3.2), (0, 0, 0), lens=40, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
