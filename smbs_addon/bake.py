@@ -85,6 +85,19 @@ class BakeResult:
     image: np.ndarray  # (H,W,3) float32, top row first
     variance: np.ndarray  # (H,W,3) float32, variance of the image estimate
     stats: dict = field(default_factory=dict)
+    batch_luminance: np.ndarray | None = None  # (B,H,W) float32, one image per independent batch
+
+    def region_mean(self, region: np.ndarray) -> tuple[float, float]:
+        """Mean luminance over a pixel mask and its standard error, from the spread
+        of the independent batches' region means (honest whatever the sampling)."""
+        return region_mean_error(self.batch_luminance, region)
+
+
+def region_mean_error(batch_luminance, region) -> tuple[float, float]:
+    means = np.array([b[region].mean() for b in batch_luminance], dtype=float)
+    b = len(means)
+    se = float(means.std(ddof=1) / math.sqrt(b)) if b > 1 else float("inf")
+    return float(means.mean()), se
 
 
 def caustic_region(image: np.ndarray, frac: float = 0.05) -> np.ndarray:
@@ -94,7 +107,7 @@ def caustic_region(image: np.ndarray, frac: float = 0.05) -> np.ndarray:
     return lum > frac * top if top > 0 else np.zeros(lum.shape, bool)
 
 
-def noise_summary(image: np.ndarray, variance: np.ndarray, design_effect: float = 1.0) -> dict:
+def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None) -> dict:
     region = caustic_region(image)
     if not region.any():
         return {"region_pixels": 0, "mean": 0.0, "std_error_of_mean": 0.0, "relative_noise": 0.0,
@@ -102,12 +115,13 @@ def noise_summary(image: np.ndarray, variance: np.ndarray, design_effect: float 
     lum = image.mean(axis=2)[region]
     var = variance.mean(axis=2)[region]  # variance of the channel mean (conservative: /3 ignored)
     mean = float(lum.mean())
+    se = region_mean_error(batch_luminance, region)[1] if batch_luminance is not None else float("nan")
     return {
         "region_pixels": int(region.sum()),
         "mean": mean,
-        # the filter correlates neighbours: a region mean's variance is design_effect x the sum
-        "std_error_of_mean": float(math.sqrt(design_effect * var.sum()) / region.sum()),
-        "design_effect": design_effect,
+        # from the spread of the batches' region means: pixels are correlated by the filter
+        # and by stratification, so the per-pixel variances cannot simply be summed
+        "std_error_of_mean": se if math.isfinite(se) else 0.0,
         "pixel_rms_noise": float(math.sqrt(var.mean())),
         "relative_noise": float(math.sqrt(var.mean()) / mean) if mean > 0 else 0.0,
     }
@@ -260,9 +274,11 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     variance = film.variance
     if not (np.all(np.isfinite(image)) and np.all(np.isfinite(variance))):
         raise FloatingPointError("non-finite value in the caustic buffer")  # a bug, never user input
+    batch_lum = np.stack(film.batch_luminance)
     if scene.camera.use_border and scene.camera.use_crop_to_border:
         image = image[y0:y1, x0:x1]
         variance = variance[y0:y1, x0:x1]
+        batch_lum = batch_lum[:, y0:y1, x0:x1]
     elapsed = time.perf_counter() - t0
     stats = {
         "method": settings.method,
@@ -274,6 +290,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         "lights": light_stats,
         **extra,
         "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
-        "noise": noise_summary(image, variance, film.design_effect()),
+        "noise": noise_summary(image, variance, batch_lum),
     }
-    return BakeResult(image=image.astype(np.float32), variance=variance.astype(np.float32), stats=stats)
+    return BakeResult(image=image.astype(np.float32), variance=variance.astype(np.float32), stats=stats,
+                      batch_luminance=batch_lum)

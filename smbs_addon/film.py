@@ -42,6 +42,7 @@ class Film:
         self.sumsq = np.zeros((self.H * self.W, 3))
         self.batches = 0
         self._cur = np.zeros((self.H * self.W, 3))
+        self.batch_luminance = []  # per batch (H,W) float32: errors of region means
 
     def splat(self, rx: np.ndarray, ry: np.ndarray, rgb: np.ndarray) -> None:
         """Add rgb (N,3) at raster positions (rx, ry from top) through the filter."""
@@ -70,6 +71,7 @@ class Film:
     def end_batch(self) -> None:
         self.sum += self._cur
         self.sumsq += self._cur * self._cur
+        self.batch_luminance.append(self._cur.mean(axis=1).reshape(self.H, self.W).astype(np.float32))
         self._cur[:] = 0.0
         self.batches += 1
 
@@ -77,17 +79,6 @@ class Film:
     def image(self) -> np.ndarray:
         b = max(self.batches, 1)
         return (self.sum / b).reshape(self.H, self.W, 3)
-
-    def design_effect(self) -> float:
-        """How much the filter correlates neighbouring pixels: for a sum over a
-        region much larger than the filter, Var(sum) = design_effect x sum of
-        the per-pixel variances (each splat lands on several pixels at once)."""
-        f = (np.arange(64) + 0.5) / 64
-        k = np.arange(-int(math.ceil(self.filter_width)) - 1, int(math.ceil(self.filter_width)) + 2)
-        h = blackman_harris(k[None, :] + 0.5 - f[:, None], self.filter_width)
-        s1, s2 = h.sum(1), (h * h).sum(1)
-        # separable: average over independent x and y offsets
-        return float(np.mean(s1**2) ** 2 / np.mean(s2) ** 2)
 
     @property
     def variance(self) -> np.ndarray:

@@ -42,15 +42,12 @@ def test_caustic_seen_in_a_mirror_matches_direct_view():
     a = bake(_mirror_scene(False), BakeSettings(method="reference", spp=64, seed=1, use_cycles_flags="ON"))
     b = bake(_mirror_scene(True), BakeSettings(method="reference", spp=1024, seed=2, use_cycles_flags="ON"))
     assert b.stats["eye_pass"]["enabled"] and b.stats["eye_pass"]["eye_splats"] > 1000
-    fa = a.image.mean(axis=2)
-    fb = b.image.mean(axis=2)
-    va = a.variance.mean(axis=2)
-    vb = b.variance.mean(axis=2)
     region = caustic_region(a.image)
     region[:, :3] = region[:, -3:] = False
-    ma, mb = RHO2 * fa[region].mean(), fb[region].mean()
-    de = a.stats["noise"]["design_effect"]  # the pixel filter correlates neighbouring pixels
-    se = math.sqrt(de * (RHO2**2 * va[region].sum() + vb[region].sum())) / region.sum()
+    ma, sa = a.region_mean(region)
+    mb, sb = b.region_mean(region)
+    ma, sa = RHO2 * ma, RHO2 * sa
+    se = math.sqrt(sa**2 + sb**2)
     assert se < 0.03 * ma, f"too noisy to judge: {se / ma:.2%}"
     print(f"eye-through-mirror: {mb:.5f} vs {ma:.5f} ({(mb - ma) / ma:+.2%}, noise {se / ma:.2%})")
     assert abs(mb - ma) < max(4 * se, 0.02 * ma), (
