@@ -35,6 +35,7 @@ class BakeSettings:
     batches: int = 8  # independent batches for the noise estimate
     threads: int = 0  # 0: all cores
     use_cycles_flags: str = "AUTO"  # AUTO, ON, OFF
+    guide: bool = True  # photon pre-pass: walk rarely (Russian roulette) where no caustic lands
     estimator: str = "unbiased"  # manifold methods: unbiased (Bernoulli trials) or biased (unique solutions)
     trials: int = 4  # biased estimator: walks per receiver, light and chain type
     max_trials: int = 10000  # unbiased estimator: cap on the Bernoulli count
@@ -192,14 +193,14 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
 
 
 def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
-                    eye_stats, prog):
+                    eye_stats, prog, guide=None):
     from .manifold import manifold_chunk
 
     for c, start in enumerate(range(0, per_batch, WALK_CHUNK)):
         prog.check()
         n = min(WALK_CHUNK, per_batch - start)
         manifold_chunk(scene, tracer, cam, film, plan, opts, types, start, n, per_batch,
-                       _rng(settings.seed, 2, 0, b, c), light_stats, eye_stats)
+                       _rng(settings.seed, 2, 0, b, c), light_stats, eye_stats, guide)
         prog.step(f"{settings.method}, batch {b + 1}/{settings.batches}")
 
 
@@ -254,14 +255,25 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         types = chain_types(scene, plan, opts)
         eye_stats = {"eye_paths": 0, "rays_eye": 0}
         per_batch = _eye_per_batch(cam, film, settings)
+        guide = None
+        if settings.guide:
+            from .guide import Guide, build_guide, photon_budget
+
+            t_g = time.perf_counter()
+            masks, gstats = build_guide(scene, tracer, cam, plan, types, _rng(settings.seed, 3, 0),
+                                        photon_budget(cam))
+            gstats["time_s"] = time.perf_counter() - t_g
+            guide = Guide(cam, masks, gstats)
+            extra["guide"] = gstats
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
         for b in range(settings.batches):
             _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
-                            eye_stats, prog)
+                            eye_stats, prog, guide)
             film.end_batch()
         for st in light_stats.values():
             _summarise_walks(st)
-        rays = sum(st["rays"] for st in light_stats.values()) + eye_stats["rays_eye"]
+        rays = (sum(st["rays"] for st in light_stats.values()) + eye_stats["rays_eye"]
+                + extra.get("guide", {}).get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())
         extra.update({
             "chain_types": types, "eye_pass": eye_stats, "walks": walks,

@@ -66,6 +66,14 @@ def _closed(scene, obj) -> bool:
     return bool(np.all(counts == 2))
 
 
+def _planar(scene, obj) -> bool:
+    pts = scene.tri_vertices[scene.tri_object == obj].reshape(-1, 3)
+    if len(pts) < 4:
+        return True
+    _, sv, _ = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
+    return bool(sv[-1] <= 1e-9 * max(sv[0], 1e-300))
+
+
 def chain_types(scene, plan, opts: ManifoldOptions) -> list:
     if opts.chains:
         return [c for c in opts.chains if 1 <= len(c) <= opts.max_chain]
@@ -76,10 +84,14 @@ def chain_types(scene, plan, opts: ManifoldOptions) -> list:
     for o in np.flatnonzero(plan.receivers):
         lo, hi = scene.object_bounds(o)
         rec_lo, rec_hi = np.minimum(rec_lo, lo), np.maximum(rec_hi, hi)
+    conductors = [o for o in np.flatnonzero(plan.casters)
+                   if np.any(kinds[scene.tri_object == o] == S.CONDUCTOR)]
     for o in np.flatnonzero(plan.casters):
         k = kinds[scene.tri_object == o]
         if np.any(k == S.CONDUCTOR) or np.any(k == S.DIELECTRIC):
             types.append("R")
+        if o in conductors and (len(conductors) > 1 or not _planar(scene, o)):
+            types.append("RR")  # a curved mirror (a ring, a bowl) or two mirrors see each other
         if np.any(k == S.DIELECTRIC):
             if _closed(scene, o):
                 types.append("TT")
@@ -268,7 +280,7 @@ def _contribution(ctx, li, types, rc, idx, light, chain):
     return np.where(ok[:, None], val, 0.0), ok
 
 
-def estimate(ctx, opts, li, types, rc, rng):
+def estimate(ctx, opts, li, types, rc, rng, guide=None):
     """Per-receiver radiance (M,3) of one light and one chain type."""
     n = len(rc.p)
     out = np.zeros((n, 3))
@@ -285,6 +297,13 @@ def estimate(ctx, opts, li, types, rc, rng):
     M = 1 if (unbiased or opts.method == "mnee") else max(1, opts.trials)
     feasible = seeder.feasible(x0, light, 1e-9 * ctx.scene.scale)
     ctx.stats["culled_lanes"] = ctx.stats.get("culled_lanes", 0) + int((~feasible).sum())
+    rr_weight = np.ones(n)
+    if guide is not None:  # Russian roulette outside the tiles the photon pre-pass reached
+        q = guide.keep_probability(li, types, rc.rx, rc.ry, rc.eye_specular)
+        survive = rng.random(n) < q
+        ctx.stats["guided_skips"] = ctx.stats.get("guided_skips", 0) + int((feasible & ~survive).sum())
+        feasible &= survive
+        rr_weight = 1.0 / q
     lanes = np.repeat(np.flatnonzero(feasible), M)
     if lanes.size == 0:
         return out
@@ -295,6 +314,7 @@ def estimate(ctx, opts, li, types, rc, rng):
     chain = res.chain.take(conv)
     owner = lanes[conv]
     val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain)
+    val = val * rr_weight[owner][:, None]
     if opts.method == "mnee" and seeder.reflect_first:  # one caster picked uniformly per lane
         val = val * len(seeder.centers)
     d1 = normalize(chain.verts[0].p - x0[owner])
@@ -358,7 +378,7 @@ class _Plan:
 
 
 def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n_batch, rng, stats_per_light,
-                   eye_stats):
+                   eye_stats, guide=None):
     """Eye samples start..start+n of a batch: receivers, then every light x chain type."""
     rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats, min_specular=0)
     total = np.zeros((len(rc.p), 3))
@@ -367,7 +387,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         t = time.perf_counter()
         ctx = Ctx(scene, tracer, plan, st)
         for types in types_list:
-            total += estimate(ctx, opts, lp.index, types, rc, rng)
+            total += estimate(ctx, opts, lp.index, types, rc, rng, guide)
         st["time_s"] += time.perf_counter() - t
     hit = np.flatnonzero(total.max(axis=1) > 0)
     film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None])

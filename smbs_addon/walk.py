@@ -47,6 +47,7 @@ class WalkConfig:
     backlit: bool = True  # SMBS trigger 2: light on the wrong side of x1 for its interaction
     slow: bool = True  # SMBS trigger 3: an accepted small step shrank the mismatch by less than tau
     tau: float = 0.85
+    min_beta: float = 2.0**-6  # a walk whose step had to shrink below this is stuck: it fails
 
 
 @dataclass
@@ -242,5 +243,8 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         beta[rej] *= 0.5
         if cfg.smbs and cfg.tir:
             pending[act[(new.status == TIR) & ~accept]] = TRIG_TIR
+        stuck = rej[beta[rej] < cfg.min_beta]  # the step had to shrink too far: give up
+        outcome[stuck] = MAX_ITER
+        act = np.setdiff1d(act, stuck, assume_unique=True)
     outcome[converged] = OK
     return WalkResult(chain=chain, converged=converged, outcome=outcome, mutations=mutations, large=large_counts)

@@ -99,16 +99,17 @@ def point_through_water(rho, intensity, h_light, h_water, eta):
     return intensity * T * math.sin(ti) / (rho * drho)
 
 
-def glass_sphere_scene(resolution=(64, 48), ior=1.5, light_size=0.5, power=200.0):
-    """A glass ball (radius 0.5, centre 0.6 above the floor) under a square area
-    light: the classic refractive caustic through two refractions (TT)."""
+def glass_sphere_scene(resolution=(64, 48), ior=1.5, light_size=1.0, power=400.0, height=1.2):
+    """A glass ball (radius 0.5, centre 1.2 above the floor, so the floor lies
+    beyond the ball's focus) under a square area light: the refractive caustic
+    through two refractions (TT) plus the faint reflection (R)."""
     b = SceneBuilder("glass sphere")
     floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
     glass = b.material("glass", "dielectric", color=(1, 1, 1), ior=ior)
     b.plane("Floor", (0, 0, 0), 10, floor)
-    b.uv_sphere("Ball", (0, 0, 0.6), 0.5, glass, segments=64, rings=32)
-    b.light("Area", "AREA", location=(0.3, 0.2, 4.0), target=(0.3, 0.2, 0), power=power, size=light_size)
-    b.set_camera((0, -2.2, 2.2), (0, 0, 0.2), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
+    b.uv_sphere("Ball", (0, 0, height), 0.5, glass, segments=64, rings=32)
+    b.light("Area", "AREA", location=(0.3, 0.2, 5.0), target=(0.3, 0.2, 0), power=power, size=light_size)
+    b.set_camera((0, -2.0, 3.0), (0, 0, 0.0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
     return b.build()
 
 
@@ -128,4 +129,37 @@ def ring_scene(resolution=(64, 48)):
     b.mesh("Ring", V, F, metal, normals=N)
     b.light("Area", "AREA", location=(-4, 0, 1.6), target=(0, 0, 0), power=800, size=0.3)
     b.set_camera((0, 0, 3.2), (0, 0, 0), lens=40, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
+
+
+def wavy_mirror_scene(resolution=(64, 48), amplitude=0.04, wavelength=0.3, n=96):
+    """A bumpy metal sheet (smooth-shaded height field) tilted over the floor
+    under an area light: many seeds land on facets that face away from the
+    light (back-lit), where small Newton steps get stuck."""
+    b = SceneBuilder("wavy mirror")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    metal = b.material("metal", "conductor", color=(0.95, 0.9, 0.8))
+    b.plane("Floor", (0, 0, 0), 12, floor)
+    u = np.linspace(-1, 1, n + 1)
+    X, Y = np.meshgrid(u, u, indexing="ij")
+    k = 2 * math.pi / wavelength
+    Z = amplitude * np.sin(k * X) * np.sin(k * Y)
+    dzdx = amplitude * k * np.cos(k * X) * np.sin(k * Y)
+    dzdy = amplitude * k * np.sin(k * X) * np.cos(k * Y)
+    Nl = np.stack([-dzdx, -dzdy, np.ones_like(Z)], -1)
+    Nl /= np.linalg.norm(Nl, axis=-1, keepdims=True)
+    # local frame: the sheet faces down-left, 1.5 above the origin
+    tilt = math.radians(45)
+    R = np.array([[math.cos(tilt), 0, math.sin(tilt)], [0, 1, 0], [-math.sin(tilt), 0, math.cos(tilt)]])
+    R = R @ np.diag([1.0, 1.0, 1.0])
+    P = np.stack([X, Y, Z], -1).reshape(-1, 3)
+    flip = np.diag([1.0, 1.0, -1.0])  # make the bumpy side face down
+    V = (P @ flip.T) @ R.T + np.array([0, 0, 1.5])
+    N = (Nl.reshape(-1, 3) @ flip.T) @ R.T
+    idx = np.arange((n + 1) * (n + 1)).reshape(n + 1, n + 1)
+    F = np.stack([idx[:-1, :-1], idx[:-1, 1:], idx[1:, 1:], idx[1:, :-1]], -1).reshape(-1, 4)
+    F = F[:, ::-1]  # winding: geometric normals down, with the shading normals
+    b.mesh("Sheet", V, F, metal, normals=N)
+    b.light("Area", "AREA", location=(-3, 0, 1.5 - 0.0), target=(0, 0, 1.5), power=600, size=0.4)
+    b.set_camera((0, -5, 4), (0.2, 0, 0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
     return b.build()

@@ -1,0 +1,109 @@
+"""Where can caustics land? A cheap photon pre-pass that steers the walks.
+
+Before the manifold pass, a few photons per light are traced through the
+specular chains (the same sampler as the reference) and the screen tiles their
+first diffuse hit projects to are marked, per light and per chain type. A
+receiver in an unmarked tile is walked only with probability Q (and weighted by
+1/Q, Russian roulette), so the estimate stays unbiased while most walks that
+could never converge (receivers outside every caustic) are never started.
+Receivers seen through mirrors or glass are always walked (their screen
+position says nothing about where they are).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from . import scene as S
+from .lights import emit
+from .reference import scatter_specular
+
+TILE = 4  # pixels per tile side
+Q = 0.125  # walk probability in tiles no photon reached
+
+
+def _code(types: str) -> int:
+    c = 0
+    for ch in types:
+        c = c * 3 + (1 if ch == "R" else 2)
+    return c
+
+
+def photon_budget(cam) -> int:
+    x0, x1, y0, y1 = cam.region
+    tiles = ((x1 - x0) // TILE + 1) * ((y1 - y0) // TILE + 1)
+    return int(min(2_000_000, max(50_000, 16 * tiles)))
+
+
+class Guide:
+    def __init__(self, cam, masks: dict, stats: dict):
+        self.cam, self.masks, self.stats = cam, masks, stats
+        x0, x1, y0, y1 = cam.region
+        self.tx0, self.ty0 = x0 - TILE, y0 - TILE
+
+    def keep_probability(self, li, types, rx, ry, eye_specular):
+        """Per receiver: 1 inside the marked tiles (or when not guidable), Q elsewhere."""
+        m = self.masks.get((li, types))
+        p = np.ones(len(rx))
+        if m is None:
+            return p
+        tx = np.floor((rx - self.tx0) / TILE).astype(np.int64)
+        ty = np.floor((ry - self.ty0) / TILE).astype(np.int64)
+        inside = (tx >= 0) & (ty >= 0) & (tx < m.shape[1]) & (ty < m.shape[0])
+        hit = np.zeros(len(rx), bool)
+        hit[inside] = m[ty[inside], tx[inside]]
+        return np.where(hit | (eye_specular > 0), 1.0, Q)
+
+
+def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, max_bounces=16):
+    """Trace photons_per_light photons per planned light and mark tiles per chain type."""
+    x0, x1, y0, y1 = cam.region
+    nx = (x1 - x0 + 2 * TILE) // TILE + 2
+    ny = (y1 - y0 + 2 * TILE) // TILE + 2
+    want = {t: i for i, t in enumerate(types_list)}
+    masks = {}
+    stats = {"photons": 0, "rays": 0}
+    for lp in plan.lights:
+        marks = {t: np.zeros((ny, nx), bool) for t in types_list}
+        ph = emit(scene, lp.index, lp.targets, photons_per_light, rng)
+        o, d, beta = ph.o, ph.d, ph.w
+        sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
+        stats["photons"] += len(o)
+        for bounce in range(max_bounces + 1):
+            if len(o) == 0:
+                break
+            h = tracer.intersect(o, d)
+            stats["rays"] += len(o)
+            idx = np.flatnonzero(h.hit)
+            o, d, beta, sig = o[idx], d[idx], beta[idx], sig[idx]
+            prim = h.prim[idx]
+            mat = scene.tri_material[prim]
+            kind = scene.mat_kind[mat]
+            obj = scene.tri_object[prim]
+            spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
+            if bounce == 0:
+                spec &= plan.casters[obj]
+            diff = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj] & (bounce > 0))
+            if diff.size:
+                rx, ry, _, _, _, valid = cam.project(h.p[idx][diff])
+                tx = np.floor((rx - (x0 - TILE)) / TILE).astype(np.int64)
+                ty = np.floor((ry - (y0 - TILE)) / TILE).astype(np.int64)
+                ok = valid & (tx >= 1) & (ty >= 1) & (tx < nx - 1) & (ty < ny - 1)
+                for t in types_list:
+                    sel = ok & (sig[diff] == _code(t[::-1]))  # photons list vertices from the light
+                    if sel.any():
+                        m = marks[t]
+                        for dy in (-1, 0, 1):  # dilate by one tile
+                            for dx in (-1, 0, 1):
+                                m[ty[sel] + dy, tx[sel] + dx] = True
+            si = np.flatnonzero(spec)
+            if si.size == 0 or bounce == max_bounces:
+                break
+            p, ng, ns = h.p[idx][si], h.ng[idx][si], h.ns[idx][si]
+            d_new, beta, keep = scatter_specular(scene, rng, -d[si], ns, ng, mat[si], kind[si], beta[si])
+            refl = np.einsum("ij,ij->i", -d[si][keep], ng[keep]) * np.einsum("ij,ij->i", d_new, ng[keep]) > 0
+            sig = sig[si][keep] * 3 + np.where(refl, 1, 2)
+            o = tracer.spawn(p[keep], ng[keep], d_new)
+            d = d_new
+        for t in types_list:
+            masks[(lp.index, t)] = marks[t]
+    return masks, stats
