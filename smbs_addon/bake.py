@@ -36,6 +36,7 @@ class BakeSettings:
     threads: int = 0  # 0: all cores
     use_cycles_flags: str = "AUTO"  # AUTO, ON, OFF
     guide: bool = True  # photon pre-pass: walk rarely (Russian roulette) where no caustic lands
+    time_budget: float = 0.0  # seconds; > 0: keep adding batches (of spp / batches each) until spent
     estimator: str = "unbiased"  # manifold methods: unbiased (Bernoulli trials) or biased (unique solutions)
     trials: int = 4  # biased estimator: walks per receiver, light and chain type
     max_trials: int = 10000  # unbiased estimator: cap on the Bernoulli count
@@ -60,6 +61,8 @@ class BakeSettings:
                 raise SceneError(f"{name} must be a positive whole number, not {v!r}")
         if self.seed < 0:
             raise SceneError(f"seed must not be negative, not {self.seed}")
+        if not (self.time_budget >= 0 and math.isfinite(self.time_budget)):
+            raise SceneError(f"time_budget must be a non-negative number of seconds, not {self.time_budget}")
         if not (0 < self.tau < 1):
             raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
         if not (self.solver_threshold > 0 and self.uniqueness > 0):
@@ -208,6 +211,8 @@ def _summarise_walks(st: dict) -> None:
     walks = st.get("walks", 0)
     st["success_rate"] = st.get("successes", 0) / walks if walks else 0.0
     st["mutations_per_path"] = st.get("mutations", 0) / walks if walks else 0.0
+    succ = st.get("successes", 0)
+    st["mutations_per_success"] = st.get("mutations", 0) / succ if succ else 0.0
     lanes = st.get("bernoulli_lanes", 0)
     st["trials"] = {"mean": st.get("bernoulli_trials", 0) / lanes if lanes else 0.0,
                     "max": st.get("bernoulli_max", 0), "capped": st.get("capped", 0)}
@@ -266,10 +271,18 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             guide = Guide(cam, masks, gstats)
             extra["guide"] = gstats
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
-        for b in range(settings.batches):
+        b = 0
+        while True:
             _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
                             eye_stats, prog, guide)
             film.end_batch()
+            b += 1
+            if settings.time_budget > 0:  # at least two batches, then until the budget is spent
+                if b >= 2 and time.perf_counter() - t0 >= settings.time_budget:
+                    break
+            elif b >= settings.batches:
+                break
+        extra["batches_done"] = b
         for st in light_stats.values():
             _summarise_walks(st)
         rays = (sum(st["rays"] for st in light_stats.values()) + eye_stats["rays_eye"]
@@ -282,6 +295,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         })
         extra["success_rate"] = extra["successes"] / walks if walks else 0.0
         extra["mutations_per_path"] = extra["mutations"] / walks if walks else 0.0
+        extra["mutations_per_success"] = extra["mutations"] / extra["successes"] if extra["successes"] else 0.0
     image = film.image
     variance = film.variance
     if not (np.all(np.isfinite(image)) and np.all(np.isfinite(variance))):
