@@ -20,24 +20,23 @@ class _Parser(argparse.ArgumentParser):
         self.exit(EXIT_USAGE, f"smbs_addon: error: {message}\n")
 
 
-def _positive_int(s):
+def _whole(s, least: int):
     try:
         v = int(s)
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{s}' is not a whole number") from None
-    if v < 1:
-        raise argparse.ArgumentTypeError(f"must be at least 1, not {v}")
+    if v < least:
+        raise argparse.ArgumentTypeError(f"must be at least {least}, not {v}" if least else
+                                         f"must not be negative, not {v}")
     return v
+
+
+def _positive_int(s):
+    return _whole(s, 1)
 
 
 def _seed(s):
-    try:
-        v = int(s)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}' is not a whole number") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"must not be negative, not {v}")
-    return v
+    return _whole(s, 0)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -148,12 +147,20 @@ def main(argv=None) -> int:
         _check_writable(stats_path)
         scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
 
+        tty = sys.stderr.isatty()
+        last = [""]
+
         def progress(frac, msg):
-            if not args.quiet:
+            if args.quiet:
+                return
+            if tty:
                 print(f"\r{frac:6.1%} {msg}", end="", file=sys.stderr, flush=True)
+            elif msg != last[0]:  # logs (render farms): one line per stage
+                print(f"{frac:6.1%} {msg}", file=sys.stderr, flush=True)
+                last[0] = msg
 
         result = bake(scene, settings, progress=progress)
-        if not args.quiet:
+        if not args.quiet and tty:
             print(file=sys.stderr)
         meta = {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
                 "time_s": result.stats["time_s"], "rays": result.stats["rays"],

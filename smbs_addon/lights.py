@@ -59,6 +59,17 @@ def area_light_shape(scene, li: int):
     return m[:3, 3].copy(), ax[:, 0], ax[:, 1], -ax[:, 2], 0.5 * sx, 0.5 * sy, area
 
 
+def area_light_points(scene, li: int, n: int, rng) -> np.ndarray:
+    """Points uniform in area on an area light's square, rectangle, disk or ellipse."""
+    cen, ex, ey, _, hx, hy, _ = area_light_shape(scene, li)
+    u1, u2 = rng.random(n), rng.random(n)
+    if scene.light_shape[li] in (S.DISK, S.ELLIPSE):
+        a, b = concentric_disk(u1, u2)
+    else:
+        a, b = 2 * u1 - 1, 2 * u2 - 1
+    return cen + (a * hx)[:, None] * ex + (b * hy)[:, None] * ey
+
+
 def _cone_mixture(origin, targets, n, rng, grow=0.0):
     """Directions from origin(s) towards a mixture of target spheres.
 
@@ -113,12 +124,7 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
         return Photons(o, d, w)
     if typ == S.AREA:
         cen, ex, ey, nrm, hx, hy, area = area_light_shape(scene, li)
-        u1, u2 = rng.random(n), rng.random(n)
-        if scene.light_shape[li] in (S.DISK, S.ELLIPSE):
-            a, b = concentric_disk(u1, u2)
-        else:
-            a, b = 2 * u1 - 1, 2 * u2 - 1
-        o = cen + (a * hx)[:, None] * ex + (b * hy)[:, None] * ey
+        o = area_light_points(scene, li, n, rng)
         d, pdf = _cone_mixture(o, targets, n, rng)
         cos_l = np.maximum(0.0, dot(d, nrm))
         radiance = color / (math.pi * area)

@@ -19,7 +19,7 @@ from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .estimators import chain_throughput, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
-from .lights import area_light_shape
+from .lights import area_light_points
 from .vec import dot, normalize, uniform_cone, frame, to_world
 from .walk import OK, OCCLUDED, OUTCOMES, SEED_OBJECT, TRIGGERS, WalkConfig, newton_walk, propagate
 
@@ -122,16 +122,7 @@ def sample_light(scene, li, n, rng) -> LightEnd:
             to_sun = to_world(uniform_cone(rng.random(n), rng.random(n), math.cos(half)), s, t, to_sun)
         return LightEnd(True, to_sun, z, z.copy())
     if typ == S.AREA:
-        cen, ex, ey, nrm, hx, hy, _ = area_light_shape(scene, li)
-        u1, u2 = rng.random(n), rng.random(n)
-        if scene.light_shape[li] in (S.DISK, S.ELLIPSE):
-            from .vec import concentric_disk
-
-            a, b = concentric_disk(u1, u2)
-        else:
-            a, b = 2 * u1 - 1, 2 * u2 - 1
-        y = cen + (a * hx)[:, None] * ex + (b * hy)[:, None] * ey
-        return LightEnd(False, y, z, z.copy())
+        return LightEnd(False, area_light_points(scene, li, n, rng), z, z.copy())
     c = m[:3, 3]
     r = float(scene.light_radius[li])
     if r > 0:
