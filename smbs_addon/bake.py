@@ -35,6 +35,7 @@ class BakeSettings:
     batches: int = 8  # independent batches for the noise estimate
     threads: int = 0  # 0: all cores
     use_cycles_flags: str = "AUTO"  # AUTO, ON, OFF
+    radiance: str = "cycles"  # cycles: like Cycles, no eta^2 radiance change at refractions; physical: with it
     guide: bool = True  # photon pre-pass: walk rarely (Russian roulette) where no caustic lands
     time_budget: float = 0.0  # seconds; > 0: keep adding batches (of spp / batches each) until spent
     estimator: str = "unbiased"  # manifold methods: unbiased (Bernoulli trials) or biased (unique solutions)
@@ -53,6 +54,8 @@ class BakeSettings:
     def validate(self) -> None:
         if self.method not in METHODS:
             raise SceneError(f"unknown method '{self.method}' (choose from {', '.join(METHODS)})")
+        if self.radiance not in ("cycles", "physical"):
+            raise SceneError(f"radiance must be 'cycles' or 'physical', not '{self.radiance}'")
         if self.estimator not in ESTIMATORS:
             raise SceneError(f"unknown estimator '{self.estimator}' (choose from {', '.join(ESTIMATORS)})")
         for name in ("spp", "batches", "trials", "max_trials", "max_iterations", "max_chain"):
@@ -81,7 +84,8 @@ class BakeSettings:
                           slow=self.large_mutation_slow, tau=self.tau)
         return ManifoldOptions(method=self.method, estimator=self.estimator, trials=self.trials,
                                max_trials=self.max_trials, uniqueness=self.uniqueness,
-                               chains=tuple(self.chains), max_chain=self.max_chain, walk=walk)
+                               chains=tuple(self.chains), max_chain=self.max_chain, walk=walk,
+                               physical=self.radiance == "physical")
 
 
 @dataclass
@@ -180,7 +184,8 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
             rng = _rng(settings.seed, 0, lp.index, b, c)
             ph = emit(scene, lp.index, lp.targets, n, rng)
             ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
-            reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st)
+            reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st,
+                                    physical=settings.radiance == "physical")
             prog.step(f"light '{lp.name}', batch {b + 1}/{settings.batches}")
         st["time_s"] += time.perf_counter() - t_light
     eye_per_batch = _eye_per_batch(cam, film, settings) if eye_stats["enabled"] else 0
@@ -190,7 +195,7 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
         prog.check()
         n = min(CHUNK, eye_per_batch - start)
         reference.trace_eye(scene, tracer, cam, film, plan, light_ids, start, n, eye_per_batch,
-                            _rng(settings.seed, 1, 0, b, c), eye_stats)
+                            _rng(settings.seed, 1, 0, b, c), eye_stats, physical=settings.radiance == "physical")
         prog.step(f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
     eye_stats["time_s"] += time.perf_counter() - t_eye
 

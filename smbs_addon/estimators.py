@@ -9,7 +9,8 @@ sun), computed from the block-tridiagonal Jacobian (Jakob & Marschner 2012):
 solving J X = -D_k gives dx1/dy in orthonormal tangent coordinates, so
 dw0/dA_y = |cos theta_1| / |x1 - x0|^2 * |det dx1/dy|. T multiplies each
 vertex's Fresnel term and colour, and the radiance change (eta_to/eta_from)^2
-at refractions.
+at refractions in physical units (Cycles leaves radiance unscaled, and so do
+we by default: the layer is added to a Cycles render).
 
 Estimators over M trials of the stochastic walk:
 - unbiased: 1/p of the found solution by geometric Bernoulli trials (repeat the
@@ -24,14 +25,11 @@ import numpy as np
 
 from . import scene as S
 from .constraints import ANGLE_DIFF, LightEnd, block_solve, blocks
-from .lights import spot_mask
+from .lights import soft_falloff_factor, spot_mask
 from .optics import fresnel_dielectric, fresnel_schlick
 from .vec import dot, frame, normalize
 
-RADIANCE_SCALING = True  # (eta_to / eta_from)^2 at refractions: physically correct radiance
-
-
-def chain_throughput(scene, types, x0, verts, light_point, directional):
+def chain_throughput(scene, types, x0, verts, light_point, directional, physical=False):
     """Product over the chain of the specular weights, (N,3)."""
     n = len(x0)
     T = np.ones((n, 3))
@@ -51,7 +49,7 @@ def chain_throughput(scene, types, x0, verts, light_point, directional):
             T *= np.where((kind == S.CONDUCTOR)[:, None], cond, diel)
         else:
             w = (1.0 - F)[:, None] * color
-            if RADIANCE_SCALING:  # light arrives from the w_o side and leaves on the w_i side
+            if physical:  # light arrives from the w_o side and leaves on the w_i side
                 inside_i = dot(wi, v.ng) < 0
                 ratio = np.where(inside_i, eta, 1.0 / eta)  # eta(w_i side) / eta(w_o side)
                 w = w * (ratio**2)[:, None]
@@ -89,6 +87,8 @@ def light_end_at_solution(scene, li, light: LightEnd, xk):
     ys, yt = frame(nrm)
     if typ == S.SPOT:
         e = e * spot_mask(scene, li, normalize(xk - c))[:, None]
+    if r > 0 and scene.light_soft_falloff[li]:
+        e = e * soft_falloff_factor(c, r, xk)[:, None]
     return LightEnd(False, light.y, ys, yt), e
 
 

@@ -51,7 +51,7 @@ def film_samples(cam, film, start, n, n_batch, rng):
 
 
 def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
-                  max_bounces=32) -> Receivers:
+                  max_bounces=32, scale_eta=False) -> Receivers:
     """Trace n eye samples to their first diffuse receiver, keeping those with at
     least min_specular specular vertices on the way (glass by Fresnel choice)."""
     from .reference import scatter_specular
@@ -81,7 +81,8 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
         si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
         if si.size == 0:
             break
-        d, beta, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], mat[si], kind[si], beta[si])
+        d, beta, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], mat[si], kind[si], beta[si],
+                                         scale_eta=scale_eta)
         o = tracer.spawn(h.p[si][keep], h.ng[si][keep], d)
         lane = lane[si][keep]
         depth += 1

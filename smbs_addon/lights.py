@@ -28,11 +28,22 @@ class Photons:
     o: np.ndarray  # (N,3) origins
     d: np.ndarray  # (N,3) unit directions
     w: np.ndarray  # (N,3) flux carried by each photon (already divided by N)
+    soft_center: np.ndarray | None = None  # soft-falloff point/spot light: its centre and radius;
+    soft_radius: float = 0.0  # the first hit's weight takes soft_falloff_factor()
 
 
 def _smoothstep(x):
     x = np.clip(x, 0.0, 1.0)
     return x * x * (3.0 - 2.0 * x)
+
+
+def soft_falloff_factor(center, radius, x):
+    """Cycles' soft falloff (the default for point and spot lights): towards a
+    surface point x the light acts as a disk of radius r facing x, and its
+    intensity is scaled by d^2 / (d^2 + r^2), d = |x - centre| (measured
+    against Cycles, see the issue 2 note)."""
+    d2 = dot(x - center, x - center)
+    return d2 / (d2 + radius * radius)
 
 
 def spot_mask(scene, li: int, d: np.ndarray) -> np.ndarray:
@@ -121,6 +132,8 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
         w = intensity[None, :] / (pdf * n)[:, None]
         if typ == S.SPOT:
             w = w * spot_mask(scene, li, d)[:, None]
+        if scene.light_soft_falloff[li] and r > 0:
+            return Photons(o, d, w, soft_center=c.copy(), soft_radius=r)
         return Photons(o, d, w)
     if typ == S.AREA:
         cen, ex, ey, nrm, hx, hy, area = area_light_shape(scene, li)
@@ -210,6 +223,8 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
         t = _sphere_hit(o, d, m[:3, 3], r)
         val = color / (4.0 * math.pi**2 * r * r)
         L = np.where(np.isfinite(t)[:, None], val, 0.0)
+        if scene.light_soft_falloff[li]:
+            L = L * soft_falloff_factor(m[:3, 3], r, o)[:, None]
         if typ == S.SPOT:
             L = L * spot_mask(scene, li, -d)[:, None]
         return L, t

@@ -32,6 +32,7 @@ class ManifoldOptions:
     max_trials: int = 10000  # unbiased: cap of the Bernoulli count (capped lanes count, contribute 0)
     uniqueness: float = 1e-7  # |d.d' - 1| below this: the same solution
     chains: tuple = ()  # explicit chain types, e.g. ("R", "TT"); empty: from the plan
+    physical: bool = False  # eta^2 radiance change at refractions (Cycles does not apply it)
     max_chain: int = 4
     walk: WalkConfig = field(default_factory=WalkConfig)
 
@@ -48,6 +49,7 @@ class Ctx:
             if np.any(scene.tri_object == o):
                 self.obj_lo[o], self.obj_hi[o] = scene.object_bounds(o)
         self.ray_kind = "rays_walk"
+        self.physical = False
 
     def count(self, key, n):
         key = self.ray_kind if key == "rays_walk" else key
@@ -96,8 +98,11 @@ def chain_types(scene, plan, opts: ManifoldOptions) -> list:
             if _closed(scene, o):
                 types.append("TT")
                 lo, hi = scene.object_bounds(o)
-                if np.all(rec_lo <= hi) and np.all(lo <= rec_hi):  # a receiver may reach inside
-                    types.append("T")
+                inside = [scene.light_matrix[lp.index][:3, 3] for lp in plan.lights
+                          if scene.light_type[lp.index] != S.SUN]
+                lit_inside = any(np.all(lo <= y) and np.all(y <= hi) for y in inside)
+                if (np.all(rec_lo <= hi) and np.all(lo <= rec_hi)) or lit_inside:
+                    types.append("T")  # a receiver may reach inside, or a light sits inside
             else:
                 types.append("T")
     out = []
@@ -215,7 +220,8 @@ def _walk(ctx, opts, seeder, types, x0, ng0, light, rng, primary=True):
     """Seed and walk; statistics count primary walks (the paper's SR and mpp),
     Bernoulli re-walks are counted apart."""
     ch = seeder.seed(ctx, rng, types, x0, ng0, light)
-    res = newton_walk(ctx, opts.walk, types, x0, ng0, light, ch)
+    large_ok = rng.random(len(x0)) >= opts.walk.defensive if opts.walk.smbs else None
+    res = newton_walk(ctx, opts.walk, types, x0, ng0, light, ch, large_ok)
     st = ctx.stats
     if not primary:
         st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + len(x0)
@@ -247,7 +253,7 @@ def _contribution(ctx, li, types, rc, idx, light, chain):
     side = np.sign(dot(w_eye, ng0))
     cos0 = dot(d01, ns0) * side
     ok = okg & (dot(d01, ng0) * side > 0) & (cos0 > 0)
-    T = chain_throughput(scene, types, x0, verts, le.y, le.directional)
+    T = chain_throughput(scene, types, x0, verts, le.y, le.directional, ctx.physical)
     albedo = scene.mat_color[rc.mat[idx]]
     val = rc.beta[idx] * albedo / math.pi * (np.maximum(cos0, 0) * G)[:, None] * T * emit
     ok &= val.max(axis=1) > 0
@@ -371,12 +377,14 @@ class _Plan:
 def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n_batch, rng, stats_per_light,
                    eye_stats, guide=None):
     """Eye samples start..start+n of a batch: receivers, then every light x chain type."""
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats, min_specular=0)
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats, min_specular=0,
+                       scale_eta=opts.physical)
     total = np.zeros((len(rc.p), 3))
     for lp in plan.lights:
         st = stats_per_light[lp.name]
         t = time.perf_counter()
         ctx = Ctx(scene, tracer, plan, st)
+        ctx.physical = opts.physical
         for types in types_list:
             total += estimate(ctx, opts, lp.index, types, rc, rng, guide)
         st["time_s"] += time.perf_counter() - t

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import scene as S
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
-from .lights import light_radiance
+from .lights import light_radiance, soft_falloff_factor
 from .vec import cosine_hemisphere, dot, frame, normalize, to_world
 
 MAX_SPECULAR_BOUNCES = 32
@@ -59,10 +59,15 @@ def splat_to_camera(scene, tracer, cam, film, y, ng, ns, w_in, beta, albedo, sta
     stats["splats"] += int(idx.size)
 
 
-def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta):
+def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False):
     """One perfect-specular interaction per lane: mirror reflection (conductor),
     or reflection/refraction chosen by Fresnel (dielectric, Russian roulette so
     the weight is just the tint). w_in points away from the surface.
+
+    scale_eta: multiply refractions by (eta on the w_in side / eta on the other
+    side)^2 -- the radiance change along an eye path in physical units, and, for
+    photons, Cycles' convention (Cycles keeps radiance unscaled, so the flux a
+    photon delivers changes by that factor instead).
 
     Returns (new unit directions, new weights, kept lane indices): lanes whose
     scattered direction is on the wrong side of the geometric normal (a
@@ -87,6 +92,10 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta):
         choose_r |= ~t_ok
         n_out[di] = np.where(choose_r[:, None], reflect(wi, n), t)
         beta[di] *= np.where(choose_r[:, None], scene.mat_reflect_color[mat[di]], scene.mat_color[mat[di]])
+        if scale_eta:
+            inside = dot(wi, ng[di]) < 0
+            ratio = np.where(inside, eta, 1.0 / eta)  # eta(w_in side) / eta(other side)
+            beta[di] *= np.where(choose_r, 1.0, ratio**2)[:, None]
     # the geometric normal decides the side: reflection stays, refraction crosses
     cin, cout = dot(w_in, ng), dot(n_out, ng)
     is_refl = dot(w_in, ns) * dot(n_out, ns) > 0
@@ -95,11 +104,13 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta):
     return normalize(n_out[keep]), beta[keep], keep
 
 
-def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounces=MAX_SPECULAR_BOUNCES):
+def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounces=MAX_SPECULAR_BOUNCES,
+                  physical=False):
     """Follow photons through specular chains and splat at the first diffuse vertex."""
     o, d, beta = photons.o, photons.d, photons.w
     keep = beta.max(axis=1) > 0
     o, d, beta = o[keep], d[keep], beta[keep]
+    soft = photons.soft_center is not None
     stats["photons"] += int(keep.sum())
     bounces = 0
     while len(o):
@@ -110,6 +121,8 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
             break
         o, d, beta = o[idx], d[idx], beta[idx]
         p, ng, ns, prim = h.p[idx], h.ng[idx], h.ns[idx], h.prim[idx]
+        if soft and bounces == 0:
+            beta = beta * soft_falloff_factor(photons.soft_center, photons.soft_radius, p)[:, None]
         mat = scene.tri_material[prim]
         obj = scene.tri_object[prim]
         kind = scene.mat_kind[mat]
@@ -129,14 +142,15 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         si = np.flatnonzero(spec)
         if si.size == 0:
             break
-        d, beta, keep = scatter_specular(scene, rng, -d[si], ns[si], ng[si], mat[si], kind[si], beta[si])
+        d, beta, keep = scatter_specular(scene, rng, -d[si], ns[si], ng[si], mat[si], kind[si], beta[si],
+                                         scale_eta=not physical)
         stats["lost_shading_normal"] += int(si.size - keep.size)
         o = tracer.spawn(p[si][keep], ng[si][keep], d)
         bounces += 1
 
 
 def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, rng, stats,
-              max_bounces=MAX_SPECULAR_BOUNCES):
+              max_bounces=MAX_SPECULAR_BOUNCES, physical=False):
     """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse
     receiver x0 -> (specular)+ -> light, by path tracing from the eye.
 
@@ -149,13 +163,13 @@ def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, 
     from .eye import eye_receivers
 
     rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=1,
-                       max_bounces=max_bounces)
+                       max_bounces=max_bounces, scale_eta=physical)
     _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rc.rx, rc.ry, rc.weight,
-                     rc.p, rc.ng, rc.ns, rc.w_eye, rc.beta * scene.mat_color[rc.mat], max_bounces)
+                     rc.p, rc.ng, rc.ns, rc.w_eye, rc.beta * scene.mat_color[rc.mat], max_bounces, physical)
 
 
 def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, ry, weight,
-                     p, ng, ns, w_eye, beta, max_bounces):
+                     p, ng, ns, w_eye, beta, max_bounces, physical=False):
     """From receiver points x0 (reached through the eye chain), follow one
     cosine-sampled direction through specular chains to the lights; splat the
     radiance found at the eye sample's film position."""
@@ -195,7 +209,7 @@ def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, r
             break
         prim = h.prim[si]
         dd, bb, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], scene.tri_material[prim],
-                                        kind[si], beta[si])
+                                        kind[si], beta[si], scale_eta=physical)
         last_caster = plan.casters[scene.tri_object[prim]][keep]
         o = tracer.spawn(h.p[si][keep], h.ng[si][keep], dd)
         d, beta, alive = dd, bb, alive[si][keep]

@@ -47,6 +47,8 @@ class WalkConfig:
     backlit: bool = True  # SMBS trigger 2: light on the wrong side of x1 for its interaction
     slow: bool = True  # SMBS trigger 3: an accepted small step shrank the mismatch by less than tau
     tau: float = 0.85
+    defensive: float = 0.1  # SMBS: share of trials that walk as plain SMS, so every SMS-reachable
+    # solution keeps a non-zero probability and the Bernoulli estimate stays unbiased
     min_beta: float = 2.0**-6  # a walk whose step had to shrink below this is stuck: it fails
 
 
@@ -158,9 +160,11 @@ class WalkResult:
     large: dict = field(default_factory=dict)  # trigger name -> count
 
 
-def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain) -> WalkResult:
+def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
+                large_ok: np.ndarray | None = None) -> WalkResult:
     """Walk every lane's chain to the light end. Lanes whose seed failed keep
-    their seed outcome."""
+    their seed outcome. large_ok (N,) bool: lanes allowed SMBS's large mutations
+    (the rest walk as plain SMS)."""
     n = len(x0)
     k = len(types)
     chain = Chain([Vertex(*(getattr(v, f).copy() for f in v.__dataclass_fields__)) for v in chain.verts],
@@ -174,8 +178,10 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     large_counts = dict.fromkeys(TRIGGERS[1:], 0)
     etas_all = [ctx.scene.mat_ior[v.mat] for v in chain.verts]
     act = np.flatnonzero(outcome == OK)
+    if large_ok is None:
+        large_ok = np.ones(n, bool)
     if cfg.smbs and cfg.tir:  # a seed whose last refraction is TIR starts with a large mutation
-        tir_seed = np.flatnonzero(outcome == TIR)
+        tir_seed = np.flatnonzero((outcome == TIR) & large_ok)
         pending[tir_seed] = TRIG_TIR
         err[tir_seed] = np.inf
         front[tir_seed] = False
@@ -208,7 +214,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
             if cfg.backlit:
                 bl = backlit(types, x0a, ch, la) & (trig == NONE)
                 trig[bl] = TRIG_BACKLIT
-            want = trig != NONE
+            want = (trig != NONE) & large_ok[act]
             if want.any():
                 lo = ctx.obj_lo[ch.verts[0].obj]
                 hi = ctx.obj_hi[ch.verts[0].obj]
@@ -230,6 +236,13 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         e_new, f_new = end_mismatch(new, light.take(act))
         okp = new.status == OK
         accept = okp & (use_large | (e_new < err[act]))
+        # a large mutation that ends in total internal reflection still moves the chain (its last
+        # vertex is kept, as for a TIR seed): the next one bisects on from there instead of
+        # repeating the same rejected proposal until the walk counts as stuck
+        moved_tir = use_large & (new.status == TIR) & cfg.tir
+        accept |= moved_tir
+        e_new[moved_tir], f_new[moved_tir] = np.inf, False
+        pending[act[moved_tir]] = TRIG_TIR
         acc = act[accept]
         for j in range(k):
             _put(chain.verts[j], acc, new.verts[j].take(accept))

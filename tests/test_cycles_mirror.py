@@ -7,6 +7,10 @@ made by ``python tools/cycles_reference.py sample_blends/mirror.blend --spp 1638
 on - off; the scene lights the floor only through the mirror, so that is the
 caustic alone. Our layer must match it within 3% in mean over the caustic
 region, and pixel by pixel within the two estimates' combined noise.
+
+The region is chosen on one Cycles seed and the means are taken on the other:
+choosing pixels by thresholding the very image one averages keeps the pixels
+that happen to be noisy-high and biased Cycles' mean up by 2.4% (measured).
 """
 import math
 from pathlib import Path
@@ -33,12 +37,12 @@ def cycles():
     on_a = read_exr(DATA / "cycles_mirror_on_a.exr")[0][..., :3]
     on_b = read_exr(DATA / "cycles_mirror_on_b.exr")[0][..., :3]
     off = read_exr(DATA / "cycles_mirror_off.exr")[0][..., :3]
-    caustic = 0.5 * (on_a + on_b) - off
-    # per-pixel variance of the mean of two independent halves is (a - b)^2 / 4, a
-    # one-degree-of-freedom estimate; averaged over 5 x 5 neighbours it has ~25
-    var = _box5(((on_a - on_b) ** 2).mean(axis=2) / 4.0)
-    region = caustic_region(caustic)
-    return caustic.mean(axis=2), var, region, (on_a.mean(axis=2), on_b.mean(axis=2))
+    region = caustic_region(on_a - off)  # chosen on seed a ...
+    caustic_b = (on_b - off).mean(axis=2)  # ... judged on seed b
+    # per-pixel variance of one half is (a - b)^2 / 2, a one-degree-of-freedom
+    # estimate; averaged over 5 x 5 neighbours it has ~25
+    var = _box5(((on_a - on_b) ** 2).mean(axis=2) / 2.0)
+    return caustic_b, var, region, (on_a.mean(axis=2), on_b.mean(axis=2))
 
 
 @pytest.fixture(scope="module")
@@ -53,7 +57,8 @@ def test_mirror_layer_matches_cycles(cycles, scene, method, spp):
     ours = res.image.mean(axis=2)
     m_ours, se_ours = res.region_mean(region)
     m_cyc = cyc[region].mean()
-    se_cyc = 0.5 * abs(a[region].mean() - b[region].mean())  # region-mean noise of Cycles' own estimate
+    # Cycles' pixels are independent (each filter-importance sample belongs to one pixel)
+    se_cyc = math.sqrt(cyc_var[region].sum()) / region.sum()
     rel = m_ours / m_cyc - 1
     assert se_ours < 0.005 * m_cyc and se_cyc < 0.005 * m_cyc
     assert abs(rel) < 0.03, f"{method}: mean over {region.sum()} caustic pixels {m_ours:.4f} vs Cycles {m_cyc:.4f} ({rel:+.2%})"

@@ -56,27 +56,27 @@ def test_flat_mirror(method, estimator):
 # SMS loses most seeds under water to total internal reflection (the water plane
 # is kept small, 2.6 m, so that enough seeds lie inside the critical cone) and
 # needs many more samples for the same noise
-SPP = {"mnee": 8, "sms": 256, "smbs": 8}
+SPP = {"mnee": 8, "sms": 256, "smbs": 16}
 
 
 @pytest.mark.parametrize("method", ["mnee", "sms", "smbs"])
 def test_flat_water_point_light(method):
     scene = scenes.water_scene("point", resolution=32, size=2.6)
     scene.light_radius[:] = 0.0  # a point light: sampling a sphere light is unbiased but noisy
-    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=2))
+    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=2, radiance="physical"))
     check_against(res, *water_point_expected(scene), tol=0.02)
 
 
 def test_flat_water_sphere_light_of_radius():
     scene = scenes.water_scene("point", resolution=32, size=2.6)  # radius 0.05: the sphere is sampled
-    res = bake(scene, BakeSettings(method="smbs", spp=128, seed=3))
+    res = bake(scene, BakeSettings(method="smbs", spp=128, seed=3, radiance="physical"))
     check_against(res, *water_point_expected(scene), tol=0.02)
 
 
 @pytest.mark.parametrize("method", ["mnee", "sms", "smbs"])
 def test_flat_water_sun(method):
     scene = scenes.water_scene("sun", resolution=32, size=2.6)
-    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=4))
+    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=4, radiance="physical"))
     check_against(res, *water_sun_expected(scene), tol=0.02)
 
 

@@ -1,0 +1,83 @@
+"""Cycles' conventions that decide the caustic's brightness, measured with
+converged Cycles renders (bpy 5.0.1) and kept here as analytic checks:
+
+- Cycles does not apply the eta^2 radiance change at a refraction: under a flat
+  water surface its floor gets (1 - F) S cos(theta_i) / eta^2, the physical
+  value / 1.77 (sun 20 deg: measured 0.9987 +- 0.0002 of that). Our default
+  (radiance="cycles") matches it; radiance="physical" gives the physical value.
+  Through a closed glass object the two agree (the factors cancel).
+- Point and spot lights with soft falloff (the default) act, towards the first
+  surface a caustic path meets, as a disk of radius r whose intensity is scaled
+  by d^2 / (d^2 + r^2) (measured within 0.05%).
+"""
+import math
+
+import numpy as np
+import pytest
+
+import scenes
+from smbs_addon import BakeSettings, bake
+from smbs_addon import scene as S
+from test_manifold_analytic import water_sun_expected
+from test_reference_analytic import check_against, pixel_floor_points
+
+
+@pytest.mark.parametrize("method,spp", [("reference", 256), ("smbs", 8)])
+def test_water_caustic_in_cycles_units_lacks_the_eta_squared(method, spp):
+    scene = scenes.water_scene("sun", resolution=32, size=2.6)
+    expected, region = water_sun_expected(scene)
+    res = bake(scene, BakeSettings(method=method, spp=spp, seed=4))  # radiance="cycles"
+    check_against(res, expected / 1.33**2, region, tol=0.02)
+
+
+def test_closed_glass_is_the_same_in_both_units():
+    scene = scenes.glass_sphere_scene(resolution=(32, 24))
+    a = bake(scene, BakeSettings(method="sms", spp=2, seed=1, chains=("TT",)))
+    b = bake(scene, BakeSettings(method="sms", spp=2, seed=1, chains=("TT",), radiance="physical"))
+    assert np.allclose(a.image, b.image, rtol=1e-9, atol=1e-12)
+    assert a.image.max() > 0
+
+
+def test_soft_falloff_factor_at_a_solution():
+    """The manifold pass applies the same factor at the chain's last vertex."""
+    from smbs_addon.constraints import LightEnd
+    from smbs_addon.estimators import light_end_at_solution
+
+    scene = scenes.water_scene("point", resolution=8)
+    scene.light_radius[:] = 0.5
+    c = scene.light_matrix[0][:3, 3]
+    xk = np.array([[0.3, 0.1, 1.0], [2.0, -1.0, 1.0]])
+    y = c + 0.5 * (xk - c) / np.linalg.norm(xk - c, axis=1, keepdims=True)  # facing points
+    end = LightEnd(False, y, np.zeros((2, 3)), np.zeros((2, 3)))
+    scene.light_soft_falloff[:] = False
+    _, hard = light_end_at_solution(scene, 0, end, xk)
+    scene.light_soft_falloff[:] = True
+    _, soft = light_end_at_solution(scene, 0, end, xk)
+    d2 = ((xk - c) ** 2).sum(1)
+    assert np.allclose(soft, hard * (d2 / (d2 + 0.25))[:, None], rtol=1e-12)
+
+
+@pytest.mark.parametrize("method,spp", [("reference", 64)])
+def test_soft_falloff_point_light_seen_in_a_mirror(method, spp):
+    scene = scenes.mirror_scene(resolution=(120, 90))
+    scene.light_type[:] = S.POINT
+    scene.light_radius[:] = 0.5
+    scene.light_soft_falloff[:] = True
+    c = scene.light_matrix[0][:3, 3]
+    nm = np.array([-1.0, 0.0, -1.0]) / math.sqrt(2)
+    cm = np.array([0.0, 0.0, 1.5])
+    mirrored = c - 2 * np.dot(c - cm, nm) * nm
+    pts, ok = pixel_floor_points(scene)
+    region = ok & (np.hypot(pts[..., 0], pts[..., 1]) < 0.6)
+    x = pts[region]
+    v = mirrored - x
+    D = np.linalg.norm(v, axis=1)
+    t = np.dot(cm - x, nm) / (v @ nm)  # where the path meets the mirror
+    m = x + t[:, None] * v
+    d2 = ((m - c) ** 2).sum(1)
+    intensity = 100.0 / (4 * math.pi)
+    E = 0.9 * intensity * (v[:, 2] / D) / D**2 * d2 / (d2 + 0.25)
+    expected = np.zeros(region.shape)
+    expected[region] = 0.8 / math.pi * E
+    res = bake(scene, BakeSettings(method=method, spp=spp, seed=6))
+    check_against(res, expected, region, tol=0.02)
