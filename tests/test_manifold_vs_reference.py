@@ -32,10 +32,13 @@ def _compare(res, ref, region):
     return m / mr - 1, math.hypot(se, ser) / mr, float(np.mean(np.abs(z) > 3))
 
 
-@pytest.mark.parametrize("method", ["sms", "smbs"])
-def test_glass_sphere_unbiased_matches_reference(sphere, method):
+# SMBS's Bernoulli counts have the heavier tail here (large mutations make some
+# solutions rarer to re-find: max count ~700 against ~70), so it needs more samples
+@pytest.mark.slow
+@pytest.mark.parametrize("method,spp", [("sms", 96), ("smbs", 224)])
+def test_glass_sphere_unbiased_matches_reference(sphere, method, spp):
     scene, ref, region = sphere
-    res = bake(scene, BakeSettings(method=method, spp=64, seed=1))
+    res = bake(scene, BakeSettings(method=method, spp=spp, seed=1, batches=16))
     assert res.stats["chain_types"] == ["R", "TT"]
     rel, noise, beyond = _compare(res, ref, region)
     assert noise < 0.015, f"too noisy to judge: {noise:.2%}"
