@@ -49,7 +49,8 @@ def run(budget, out, ref_seconds):
     for name, sc, truth, truth_var, region in (water_case(), wavy_case(ref_seconds)):
         for method in ("sms", "smbs", "mnee"):
             t = time.perf_counter()
-            r = bake(sc, BakeSettings(method=method, spp=1, batches=1, seed=1, time_budget=budget))
+            r = bake(sc, BakeSettings(method=method, spp=1, batches=1, seed=1, time_budget=budget,
+                                      radiance="physical"))  # the truths are physical
             wall = time.perf_counter() - t
             err = (r.image.mean(axis=2) - truth)[region]
             mse = max(float(np.mean(err**2) - np.mean(truth_var[region])), 0.0)

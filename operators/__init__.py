@@ -1,7 +1,10 @@
-"""Blender operators. Each module keeps its classes in ``classes``."""
+"""Blender operators and the ``smbs_bake`` command-line command.
+
+Each operator module keeps its classes in ``classes``.
+"""
 import bpy
 
-from . import bake
+from . import bake, cli
 
 classes = (*bake.classes,)
 
@@ -9,8 +12,11 @@ classes = (*bake.classes,)
 def register():
     for cls in classes:
         bpy.utils.register_class(cls)
+    cli.register()
 
 
 def unregister():
+    bake.cancel_all()
+    cli.unregister()
     for cls in reversed(classes):
         bpy.utils.unregister_class(cls)

@@ -1,9 +1,18 @@
-"""The Bake Caustics operator: export, bake, write the EXR, composite.
+"""Bake Caustics: export, bake, write the EXR, composite, keep Cycles from counting twice.
 
-``execute()`` runs synchronously, which is what headless use needs (no window,
-no timers). The render core is imported inside ``execute()`` so that enabling
-the extension stays cheap.
+In the interface (``invoke``) the bake runs in a worker thread that touches only
+numpy: the scene is exported on the main thread first, a modal timer polls the
+job's progress (the window manager's progress and a status text), Esc or the
+panel's Cancel button stops it at the core's next check, and the results reach
+Blender on the main thread. A cancelled bake changes nothing.
+
+In background mode (``blender -b``, the ``bpy`` module) there is no event loop,
+so ``execute()`` runs the same steps synchronously and prints progress lines.
+The render core is imported inside the operators so enabling the extension
+stays cheap.
 """
+from __future__ import annotations
+
 import dataclasses
 import inspect
 import json
@@ -12,30 +21,53 @@ import time
 import traceback
 
 import bpy
+import numpy as np
 
-# Scene settings that are not bake settings.
-_NOT_BAKE_SETTINGS = {"output_path", "last_stats", "name"}
+from ..ui.properties import BAKE_FIELDS
+from . import policy
+from .job import BakeJob
+
+LAYER_NAME = "SMBS Caustics"
+
+
+def _core():
+    """The render core's entry points (imported on first use)."""
+    from types import SimpleNamespace
+
+    from ..smbs_addon import composite, export, imageio, plan
+    from ..smbs_addon.__main__ import exr_metadata
+    from ..smbs_addon.bake import BakeSettings, bake
+    from ..smbs_addon.errors import BakeCancelled, SceneError
+
+    return SimpleNamespace(BakeSettings=BakeSettings, bake=bake, BakeCancelled=BakeCancelled,
+                           SceneError=SceneError, export_scene=export.export_scene,
+                           apply_layer=composite.apply_layer, remove_layer=composite.remove_layer,
+                           has_layer=composite.has_layer, write_exr=imageio.write_exr,
+                           make_plan=plan.make_plan, exr_metadata=exr_metadata)
+
+
+def _plain(value):
+    """A property value as the core expects it: float32 properties back to the decimal typed."""
+    if isinstance(value, float):
+        # Blender stores FloatProperty in single precision: 1e-6 comes back as
+        # 9.99999997e-07. The shortest decimal that round-trips the float32 is
+        # what the user typed (and what the command line passes).
+        return float(str(np.float32(value)))
+    return value
 
 
 def bake_settings_from(props, settings_cls):
-    """Build ``settings_cls`` from the scene settings, matching names.
+    """Build ``settings_cls`` from the scene settings named in BAKE_FIELDS.
 
-    Returns (settings, ignored): ``ignored`` lists the scene settings the core's
-    BakeSettings has no field for.
+    Returns (settings, ignored): ``ignored`` lists the settings the core's
+    BakeSettings has no field for (a core older or newer than this panel).
     """
     if dataclasses.is_dataclass(settings_cls):
         fields = {f.name for f in dataclasses.fields(settings_cls) if f.init}
     else:
         fields = set(inspect.signature(settings_cls).parameters)
-    kwargs, ignored = {}, []
-    for prop in props.bl_rna.properties:
-        name = prop.identifier
-        if name in _NOT_BAKE_SETTINGS or prop.type == 'POINTER':
-            continue
-        if name in fields:
-            kwargs[name] = getattr(props, name)
-        else:
-            ignored.append(name)
+    kwargs = {name: _plain(getattr(props, name)) for name in BAKE_FIELDS if name in fields}
+    ignored = [name for name in BAKE_FIELDS if name not in fields]
     return settings_cls(**kwargs), ignored
 
 
@@ -72,7 +104,7 @@ def _json_default(value):
 
 
 class _Progress:
-    """The core's ``progress(fraction, message)`` callback.
+    """The core's ``progress(fraction, message)`` callback for synchronous bakes.
 
     Prints a line in background mode (at most one per percent or per second,
     plus every new message) and drives the window manager's progress otherwise.
@@ -97,6 +129,219 @@ class _Progress:
             self.last = (percent, message, now)
 
 
+# ---------------------------------------------------------------------------
+# The three steps: prepare (main thread), bake (any thread), finish (main thread)
+
+
+@dataclasses.dataclass
+class Prepared:
+    data: object  # smbs_addon Scene
+    settings: object  # BakeSettings
+    path: str
+    stored_path: str
+    warnings: list
+    blender_lights: list  # (name, is_portal)
+    started: float
+
+
+def prepare(context, core) -> Prepared:
+    """Export the scene and build the settings (raises SceneError)."""
+    scene = context.scene
+    props = scene.smbs_caustics
+    warnings = []
+    path, stored_path, note = resolve_output_path(props.output_path)
+    if note:
+        warnings.append(note)
+    started = time.perf_counter()
+    settings, ignored = bake_settings_from(props, core.BakeSettings)
+    if ignored:
+        print("SMBS Caustics: settings this core does not use:", ", ".join(ignored))
+    settings.validate()
+    data = core.export_scene(scene, context.evaluated_depsgraph_get(), warn=warnings.append)
+    lights = [(ob.name, bool(ob.data.type == 'AREA' and getattr(ob.data.cycles, "is_portal", False)))
+              for ob in scene.objects if ob.type == 'LIGHT' and not ob.hide_render]
+    return Prepared(data, settings, path, stored_path, warnings, lights, started)
+
+
+def finish(scene, prep: Prepared, result, core, report) -> bool:
+    """Write the EXR and statistics, add the layer, apply the Cycles policy.
+
+    ``report(level_set, text)`` as Operator.report. Returns False on failure.
+    """
+    props = scene.smbs_caustics
+    warnings = list(prep.warnings)
+    warnings.extend(str(w) for w in (getattr(result, "warnings", None) or ()))
+    stats = json.loads(json.dumps(result.stats or {}, default=_json_default))
+
+    path, stored_path = prep.path, prep.stored_path
+    try:
+        os.makedirs(os.path.dirname(path), exist_ok=True)
+        core.write_exr(path, result.image, core.exr_metadata(prep.settings, result))
+        stats_path = os.path.splitext(path)[0] + ".json"
+        tmp = os.path.join(os.path.dirname(stats_path), "." + os.path.basename(stats_path) + ".tmp")
+        with open(tmp, "w") as fh:
+            json.dump(stats, fh, indent=2)
+        os.replace(tmp, stats_path)
+    except (core.SceneError, OSError) as e:
+        # The bake is not thrown away: the layer is packed into the blend file instead.
+        warnings.append(f"Could not write '{path}' ({e}); the caustic layer is packed into the blend file")
+        stored_path = None
+    try:
+        core.apply_layer(scene, result.image, name=LAYER_NAME, filepath=stored_path)
+    except Exception as e:
+        traceback.print_exc()
+        report({'ERROR'}, f"Could not add the caustic layer to the compositor: {e}")
+        return False
+    props.last_stats = json.dumps(stats)
+
+    if hasattr(scene, "cycles"):
+        try:
+            plan = core.make_plan(prep.data, prep.settings.use_cycles_flags)
+            cov = policy.coverage(prep.data, plan, prep.settings.use_cycles_flags, prep.blender_lights)
+        except Exception as e:
+            traceback.print_exc()
+            warnings.append(f"Could not tell which caustics the layer covers ({e}); "
+                            "Cycles' own caustics are left as they are")
+        else:
+            kept_out, lines = policy.update_cycles(scene, props, cov)
+            if kept_out:
+                print("SMBS Caustics: " + " ".join(lines), flush=True)
+            else:
+                warnings.append(" ".join(lines[1:]))
+    if not scene.render.use_compositing:
+        warnings.append("Compositing is off (Output Properties > Post Processing); "
+                        "renders will not show the caustic layer")
+
+    for message in warnings:
+        report({'WARNING'}, message)
+    seconds = time.perf_counter() - prep.started
+    report({'INFO'}, f"Caustics baked in {seconds:.1f} s: {path if stored_path else 'packed'}")
+    return True
+
+
+def report_failure(error, core, warnings, report) -> None:
+    """An exception from prepare() or the bake, as operator reports."""
+    if isinstance(error, core.BakeCancelled):
+        report({'WARNING'}, "Caustics bake cancelled; nothing was changed")
+        return
+    for message in warnings:
+        report({'WARNING'}, message)
+    if isinstance(error, core.SceneError):
+        report({'ERROR'}, str(error))
+    else:
+        traceback.print_exception(error)
+        report({'ERROR'}, f"Bake failed: {type(error).__name__}: {error}")
+
+
+# ---------------------------------------------------------------------------
+# The bake that runs in the interface
+
+
+_running: dict = {}  # scene name -> ModalBake, while a bake runs
+
+
+def running_bake(scene=None):
+    """The bake running for ``scene`` (any scene if None), or None."""
+    if scene is None:
+        return next(iter(_running.values()), None)
+    return _running.get(scene.name_full)
+
+
+class ModalBake:
+    """The state of one interactive bake, driven by the modal operator's events.
+
+    Kept apart from the Operator so that it can be exercised without a window.
+    """
+
+    def __init__(self, report):
+        self.report = report
+        self.core = None
+        self.prep: Prepared | None = None
+        self.job: BakeJob | None = None
+        self.key = None
+        self.text = ""
+
+    def start(self, context) -> bool:
+        try:
+            self.core = _core()
+        except ImportError as e:
+            traceback.print_exc()
+            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
+            return False
+        scene = context.scene
+        if running_bake(scene) is not None:
+            self.report({'ERROR'}, f"A caustics bake is already running for scene '{scene.name}'")
+            return False
+        try:
+            self.prep = prepare(context, self.core)
+        except Exception as e:
+            report_failure(e, self.core, [], self.report)
+            return False
+        self.key = scene.name_full
+        self.job = BakeJob(self.core.bake, self.prep.data, self.prep.settings).start()
+        _running[self.key] = self
+        context.window_manager.progress_begin(0, 100)
+        return True
+
+    def status(self) -> tuple[float, str]:
+        return self.job.status() if self.job is not None else (0.0, "")
+
+    def cancel(self):
+        if self.job is not None:
+            self.job.cancel()
+
+    def step(self, context, event_type, event_value="NOTHING") -> set:
+        """One event: returns the modal operator's result."""
+        job = self.job
+        if event_type == 'ESC' and event_value == 'PRESS':
+            job.cancel()
+        if job.cancelled:
+            job.wait(1.0)  # the core checks between chunks; the thread is a daemon either way
+            self.stop(context)
+            self.report({'WARNING'}, "Caustics bake cancelled; nothing was changed")
+            return {'CANCELLED'}
+        if event_type != 'TIMER':
+            return {'PASS_THROUGH'}
+        if not job.done:
+            fraction, message = job.status()
+            context.window_manager.progress_update(100.0 * fraction)
+            self.text = f"SMBS Caustics: {100.0 * fraction:.0f}% {message} (Esc to cancel)"
+            self._show(context, self.text)
+            return {'PASS_THROUGH'}
+        self.stop(context)
+        if job.error is not None:
+            report_failure(job.error, self.core, self.prep.warnings, self.report)
+            return {'CANCELLED'}
+        # Look the scene up again: it may have been deleted, or reloaded by an undo, meanwhile.
+        scene = bpy.data.scenes.get(self.key)
+        if scene is None or not hasattr(scene, "smbs_caustics"):
+            self.report({'WARNING'}, f"Scene '{self.key}' is gone; the bake was not applied")
+            return {'CANCELLED'}
+        ok = finish(scene, self.prep, job.result, self.core, self.report)
+        return {'FINISHED'} if ok else {'CANCELLED'}
+
+    def stop(self, context):
+        if _running.get(self.key) is self:
+            del _running[self.key]
+        context.window_manager.progress_end()
+        self._show(context, None)
+
+    @staticmethod
+    def _show(context, text):
+        workspace = getattr(context, "workspace", None)
+        if workspace is not None:
+            workspace.status_text_set(text)
+        screen = getattr(context, "screen", None)
+        if screen is not None:
+            for area in screen.areas:
+                if area.type == 'PROPERTIES':
+                    area.tag_redraw()
+
+
+# ---------------------------------------------------------------------------
+# Operators
+
+
 class SMBS_OT_bake_caustics(bpy.types.Operator):
     """Bake the caustic layer of this scene, write it as an EXR and add it in the compositor"""
 
@@ -106,86 +351,112 @@ class SMBS_OT_bake_caustics(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return context.scene is not None and hasattr(context.scene, "smbs_caustics")
+        return (context.scene is not None and hasattr(context.scene, "smbs_caustics")
+                and running_bake(context.scene) is None)
+
+    def invoke(self, context, event):
+        if bpy.app.background or context.window is None:
+            return self.execute(context)
+        self._bake = ModalBake(self.report)
+        if not self._bake.start(context):
+            return {'CANCELLED'}
+        wm = context.window_manager
+        self._timer = wm.event_timer_add(0.1, window=context.window)
+        wm.modal_handler_add(self)
+        return {'RUNNING_MODAL'}
+
+    def modal(self, context, event):
+        result = self._bake.step(context, event.type, event.value)
+        if result & {'FINISHED', 'CANCELLED'}:
+            context.window_manager.event_timer_remove(self._timer)
+        return result
+
+    def cancel(self, context):
+        # Blender ends the modal operator (a file is loaded, the window closes).
+        self._bake.cancel()
+        self._bake.step(context, 'TIMER')
+        context.window_manager.event_timer_remove(self._timer)
 
     def execute(self, context):
-        scene = context.scene
-        props = scene.smbs_caustics
         background = bpy.app.background
         try:
-            from ..smbs_addon.bake import BakeSettings, bake
-            from ..smbs_addon.composite import apply_layer
-            from ..smbs_addon.errors import BakeCancelled, SceneError
-            from ..smbs_addon.export import export_scene
-            from ..smbs_addon.imageio import write_exr
+            core = _core()
         except ImportError as e:
             traceback.print_exc()
             self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
             return {'CANCELLED'}
-
-        warnings = []
-        warn = warnings.append
-        path, stored_path, note = resolve_output_path(props.output_path)
-        if note:
-            warn(note)
         progress = _Progress(context.window_manager, background)
-        started = time.perf_counter()
         if not background:
             context.window_manager.progress_begin(0, 100)
+        prep = None
         try:
             progress.update(0.0, "exporting the scene")
-            data = export_scene(scene, context.evaluated_depsgraph_get(), warn=warn)
-            settings, ignored = bake_settings_from(props, BakeSettings)
-            if ignored:
-                print("SMBS Caustics: settings this core does not use:", ", ".join(ignored))
-            progress.update(0.0, f"baking ({props.method}, {props.spp} spp)")
-            result = bake(data, settings, progress=progress)
-        except SceneError as e:
-            for message in warnings:
-                self.report({'WARNING'}, message)
-            self.report({'ERROR'}, str(e))
-            return {'CANCELLED'}
-        except BakeCancelled as e:
-            self.report({'WARNING'}, str(e) or "Bake cancelled")
-            return {'CANCELLED'}
+            prep = prepare(context, core)
+            s = prep.settings
+            progress.update(0.0, f"baking ({s.method}, {s.spp} spp, seed {s.seed})")
+            result = core.bake(prep.data, s, progress=progress)
         except Exception as e:
-            traceback.print_exc()
-            self.report({'ERROR'}, f"Bake failed: {type(e).__name__}: {e}")
+            report_failure(e, core, prep.warnings if prep else [], self.report)
             return {'CANCELLED'}
         finally:
             if not background:
                 context.window_manager.progress_end()
-
-        warnings.extend(str(w) for w in (getattr(result, "warnings", None) or ()))
-        stats = json.loads(json.dumps(result.stats or {}, default=_json_default))
-        props.last_stats = json.dumps(stats)
-
-        metadata = {"method": props.method, "estimator": props.estimator,
-                    "spp": props.spp, "seed": props.seed, "stats": stats}
-        try:
-            progress.update(100.0, f"writing {path}")
-            os.makedirs(os.path.dirname(path), exist_ok=True)
-            write_exr(path, result.image, metadata)
-        except (SceneError, OSError) as e:
-            # The bake is not thrown away: the layer is packed into the blend file instead.
-            warn(f"Could not write '{path}' ({e}); the caustic layer is packed into the blend file")
-            stored_path = None
-        try:
-            apply_layer(scene, result.image, filepath=stored_path)
-        except Exception as e:
-            traceback.print_exc()
-            self.report({'ERROR'}, f"Could not add the caustic layer to the compositor: {e}")
+        progress.update(100.0, f"writing {prep.path}")
+        if not finish(context.scene, prep, result, core, self.report):
             return {'CANCELLED'}
-        if not scene.render.use_compositing:
-            warn("Compositing is off (Output Properties > Post Processing); "
-                 "renders will not show the caustic layer")
-
-        for message in warnings:
-            self.report({'WARNING'}, message)
-        seconds = time.perf_counter() - started
-        progress.update(100.0, f"done in {seconds:.1f} s")
-        self.report({'INFO'}, f"Caustics baked in {seconds:.1f} s: {path if stored_path else 'packed'}")
+        progress.update(100.0, f"done in {time.perf_counter() - prep.started:.1f} s")
         return {'FINISHED'}
 
 
-classes = (SMBS_OT_bake_caustics,)
+class SMBS_OT_cancel_bake(bpy.types.Operator):
+    """Stop the caustics bake running for this scene; nothing is changed"""
+
+    bl_idname = "smbs.cancel_bake"
+    bl_label = "Cancel Bake"
+    bl_options = {'INTERNAL'}
+
+    @classmethod
+    def poll(cls, context):
+        return context.scene is not None and running_bake(context.scene) is not None
+
+    def execute(self, context):
+        running_bake(context.scene).cancel()
+        return {'FINISHED'}
+
+
+class SMBS_OT_remove_caustic_layer(bpy.types.Operator):
+    """Take the caustic layer out of the compositor and turn Cycles' own caustics back on
+    if a bake turned them off (the EXR file stays)"""
+
+    bl_idname = "smbs.remove_caustic_layer"
+    bl_label = "Remove Caustic Layer"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return (context.scene is not None and hasattr(context.scene, "smbs_caustics")
+                and running_bake(context.scene) is None)
+
+    def execute(self, context):
+        from ..smbs_addon.composite import remove_layer
+
+        scene = context.scene
+        props = scene.smbs_caustics
+        remove_layer(scene, name=LAYER_NAME)
+        restored = hasattr(scene, "cycles") and policy.restore_cycles(scene, props)
+        props.cycles_note = ""
+        self.report({'INFO'}, "Caustic layer removed" + (
+            "; Cycles' own caustics are back as they were" if restored else ""))
+        return {'FINISHED'}
+
+
+classes = (SMBS_OT_bake_caustics, SMBS_OT_cancel_bake, SMBS_OT_remove_caustic_layer)
+
+
+def cancel_all(timeout=2.0):
+    """Stop every running bake (unregister): the worker threads end at their next check."""
+    for bake in list(_running.values()):
+        bake.cancel()
+        if bake.job is not None:
+            bake.job.wait(timeout)
+    _running.clear()

@@ -92,10 +92,14 @@ def load_input(path: str, warn=print):
 
 def _check_writable(path: Path):
     parent = path.parent if str(path.parent) else Path(".")
+    if parent.exists() and not parent.is_dir():
+        raise OSError(f"output folder '{parent}' is a file")
     if not parent.is_dir():
         raise OSError(f"output folder '{parent}' does not exist")
     if not os.access(parent, os.W_OK):
         raise OSError(f"output folder '{parent}' is not writable")
+    if path.is_dir():
+        raise OSError(f"output '{path}' is a folder")
 
 
 def summary_lines(stats: dict) -> list[str]:
@@ -120,6 +124,13 @@ def summary_lines(stats: dict) -> list[str]:
     lines.append(f"  noise: mean {nz['mean']:.4g} over {nz['region_pixels']} caustic pixels, "
                  f"standard error {nz['std_error_of_mean']:.2g}, per-pixel relative noise {nz['relative_noise']:.1%}")
     return lines
+
+
+def exr_metadata(settings, result) -> dict:
+    """The EXR header entries of a bake (also written by the Blender operator)."""
+    return {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
+            "time_s": result.stats["time_s"], "rays": result.stats["rays"],
+            "noise_relative": result.stats["noise"]["relative_noise"], "stats": result.stats}
 
 
 def main(argv=None) -> int:
@@ -162,13 +173,17 @@ def main(argv=None) -> int:
         result = bake(scene, settings, progress=progress)
         if not args.quiet and tty:
             print(file=sys.stderr)
-        meta = {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
-                "time_s": result.stats["time_s"], "rays": result.stats["rays"],
-                "noise_relative": result.stats["noise"]["relative_noise"], "stats": result.stats}
-        write_exr(out, result.image, meta)
+        try:
+            write_exr(out, result.image, exr_metadata(settings, result))
+        except SceneError as e:  # an output that cannot be written is an I/O failure (exit 3)
+            raise OSError(str(e)) from None
         tmp = stats_path.with_name(f".{stats_path.name}.tmp")
-        tmp.write_text(json.dumps(result.stats, indent=2))
-        tmp.replace(stats_path)
+        try:
+            tmp.write_text(json.dumps(result.stats, indent=2))
+            tmp.replace(stats_path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
         for line in summary_lines(result.stats):
             say(line)
         say(f"wrote {out} and {stats_path}")

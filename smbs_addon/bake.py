@@ -25,6 +25,7 @@ METHODS = ("reference", "mnee", "sms", "smbs")
 ESTIMATORS = ("unbiased", "biased")
 CHUNK = 65536  # lanes per chunk (keeps temporaries in cache, see performance-anchors.md)
 WALK_CHUNK = 8192  # eye samples per manifold chunk (each fans out to lights x chain types x trials)
+MEMORY_BUDGET = 8 * 2**30  # bytes the film may take; a bigger resolution is refused before baking
 
 
 @dataclass
@@ -50,6 +51,8 @@ class BakeSettings:
     large_mutation_slow: bool = True
     max_chain: int = 4
     chains: tuple = ()  # explicit chain types ("R", "TT", ...); empty: what the scene calls for
+    clamp_g: float = 0.0  # manifold methods: cap on one solution's luminance (RGB mean), biased; 0: off.
+    # What it cuts is in the statistics per light: 'clamped' solutions, 'clamped_energy' (image units)
 
     def validate(self) -> None:
         if self.method not in METHODS:
@@ -70,6 +73,8 @@ class BakeSettings:
             raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
         if not (self.solver_threshold > 0 and self.uniqueness > 0):
             raise SceneError("solver_threshold and uniqueness must be positive")
+        if not (self.clamp_g >= 0):
+            raise SceneError(f"clamp_g must be 0 (off) or a positive luminance, not {self.clamp_g}")
         for c in self.chains:
             if not c or set(c) - {"R", "T"}:
                 raise SceneError(f"chain type '{c}' must be a string of R (reflect) and T (refract)")
@@ -85,7 +90,7 @@ class BakeSettings:
         return ManifoldOptions(method=self.method, estimator=self.estimator, trials=self.trials,
                                max_trials=self.max_trials, uniqueness=self.uniqueness,
                                chains=tuple(self.chains), max_chain=self.max_chain, walk=walk,
-                               physical=self.radiance == "physical")
+                               physical=self.radiance == "physical", clamp_g=float(self.clamp_g))
 
 
 @dataclass
@@ -224,6 +229,25 @@ def _summarise_walks(st: dict) -> None:
     st["rays"] = sum(v for k, v in st.items() if k.startswith("rays_"))
 
 
+def film_memory(width: int, height: int, batches: int) -> int:
+    """Bytes the film of a bake needs: per pixel the sum, sum of squares and current batch
+    (3 float64 each), the image and variance made from them (float64, then float32), and one
+    float32 luminance image per batch (kept, then stacked)."""
+    px = int(width) * int(height)
+    return px * (3 * 3 * 8 + 2 * 3 * 8 + 2 * 3 * 4) + 2 * int(batches) * px * 4
+
+
+def check_memory(scene, width: int, height: int, batches: int) -> None:
+    """Refuse, before anything is allocated, a film bigger than MEMORY_BUDGET."""
+    need = film_memory(width, height, batches)
+    if need > MEMORY_BUDGET:
+        raise SceneError(
+            f"scene '{scene.name}': a {width} x {height} caustic layer needs about "
+            f"{need / 2**30:.1f} GiB for its film ({batches} batches), more than the "
+            f"{MEMORY_BUDGET / 2**30:g} GiB limit; lower the resolution (or its percentage) "
+            f"or the number of batches")
+
+
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None) -> BakeResult:
     """Bake the caustic layer of a Scene.
 
@@ -235,6 +259,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     t0 = time.perf_counter()
     plan = make_plan(scene, settings.use_cycles_flags)
     cam = CameraModel(scene.camera)
+    check_memory(scene, cam.W, cam.H, settings.batches)
     film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
     tracer = Tracer(scene, threads=settings.threads or None)
     x0, x1, y0, y1 = cam.region
@@ -290,6 +315,9 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         extra["batches_done"] = b
         for st in light_stats.values():
             _summarise_walks(st)
+            if settings.clamp_g > 0:  # the clamp's bias, in image units (summed over pixels)
+                st["clamped"] = st.get("clamped", 0)
+                st["clamped_energy"] = st.get("clamped_energy", 0.0) / b
         rays = (sum(st["rays"] for st in light_stats.values()) + eye_stats["rays_eye"]
                 + extra.get("guide", {}).get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())

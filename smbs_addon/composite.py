@@ -256,6 +256,12 @@ def apply_layer(bpy_scene, image, name="SMBS Caustics", filepath=None):
     return img
 
 
+def has_layer(bpy_scene, name="SMBS Caustics") -> bool:
+    """Is there a caustic layer (our image, or our nodes in the scene's compositor)?"""
+    tree, _ = _scene_tree(bpy_scene, create=False)
+    return _find_image(name) is not None or (tree is not None and bool(_ours(tree)))
+
+
 def remove_layer(bpy_scene, name="SMBS Caustics"):
     """Take our nodes (or our whole node group) and image out again."""
     tree, owned = _scene_tree(bpy_scene, create=False)

@@ -412,6 +412,9 @@ def _default_depsgraph(bpy_scene):
         return ctx.evaluated_depsgraph_get()
     vl = bpy_scene.view_layers[0]
     dg = vl.depsgraph
+    if dg is None:  # a scene no window shows (or one linked from a library): evaluate it here
+        with ctx.temp_override(scene=bpy_scene, view_layer=vl):
+            return ctx.evaluated_depsgraph_get()
     dg.update()
     return dg
 

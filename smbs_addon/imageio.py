@@ -28,6 +28,8 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
         raise SceneError(f"output folder '{path.parent}' does not exist")
     if not os.access(path.parent, os.W_OK):
         raise SceneError(f"output folder '{path.parent}' is not writable")
+    if path.is_dir():
+        raise SceneError(f"cannot write '{path}': it is a folder")
     spec = oiio.ImageSpec(w, h, c, oiio.FLOAT)
     spec.channelnames = ("R", "G", "B", "A")[:c] if c <= 4 else tuple(f"C{i}" for i in range(c))
     spec.attribute("compression", "zip")
@@ -42,15 +44,20 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
         else:
             spec.attribute(f"smbs:{k}", v if isinstance(v, str) else json.dumps(v))
     tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp.exr")
-    out = oiio.ImageOutput.create(str(tmp))
-    if out is None or not out.open(str(tmp), spec):
-        raise SceneError(f"cannot write '{path}': {oiio.geterror()}")
     try:
-        if not out.write_image(img):
-            raise SceneError(f"cannot write '{path}': {out.geterror()}")
-    finally:
-        out.close()
-    os.replace(tmp, path)
+        out = oiio.ImageOutput.create(str(tmp))
+        if out is None or not out.open(str(tmp), spec):
+            why = (out.geterror() if out is not None else "") or oiio.geterror() or "cannot create it"
+            raise SceneError(f"cannot write '{path}': {why.replace(str(tmp), str(path))}")
+        try:
+            if not out.write_image(img):
+                raise SceneError(f"cannot write '{path}': {out.geterror()}")
+        finally:
+            out.close()
+        os.replace(tmp, path)
+    except BaseException:  # whatever failed (or interrupted) the write: no half file is left behind
+        tmp.unlink(missing_ok=True)
+        raise
     return path
 
 

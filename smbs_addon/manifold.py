@@ -33,6 +33,7 @@ class ManifoldOptions:
     uniqueness: float = 1e-7  # |d.d' - 1| below this: the same solution
     chains: tuple = ()  # explicit chain types, e.g. ("R", "TT"); empty: from the plan
     physical: bool = False  # eta^2 radiance change at refractions (Cycles does not apply it)
+    clamp_g: float = 0.0  # > 0: cap on each solution's contribution (luminance); 0: off
     max_chain: int = 4
     walk: WalkConfig = field(default_factory=WalkConfig)
 
@@ -50,6 +51,8 @@ class Ctx:
                 self.obj_lo[o], self.obj_hi[o] = scene.object_bounds(o)
         self.ray_kind = "rays_walk"
         self.physical = False
+        self.clamp = 0.0  # cap on a solution's luminance (ManifoldOptions.clamp_g); 0: off
+        self.clamp_cut = None  # per solution of the last _contribution: luminance the cap removed
 
     def count(self, key, n):
         key = self.ray_kind if key == "rays_walk" else key
@@ -193,7 +196,9 @@ class Seeder:
         if self.method == "mnee":
             if self.reflect_first:  # a mirror is not on the line to the light: aim at its box centre
                 k = rng.integers(len(self.centers), size=n) if len(self.centers) > 1 else np.zeros(n, int)
-                return normalize(self.centers[k] - x0), None
+                # the pick counts only solutions on the caster it aimed at (weight K): a seed
+                # that lands on another caster, or on a coincident copy, is that caster's
+                return normalize(self.centers[k] - x0), self.center_obj[k]
             if light.directional:
                 return light.y.copy(), None
             return normalize(light.y - x0), None
@@ -274,7 +279,24 @@ def _contribution(ctx, li, types, rc, idx, light, chain):
     finite = np.all(np.isfinite(val), axis=1)
     ctx.stats["non_finite"] = ctx.stats.get("non_finite", 0) + int((ok & ~finite).sum())
     ok &= finite
-    return np.where(ok[:, None], val, 0.0), ok
+    val = np.where(ok[:, None], val, 0.0)
+    ctx.clamp_cut = None
+    if ctx.clamp > 0:  # biased: caps the fold's (and G's) spikes; what is cut goes to the statistics
+        lum = val.mean(axis=1)
+        over = lum > ctx.clamp
+        val[over] *= (ctx.clamp / lum[over])[:, None]
+        ctx.clamp_cut = np.where(over, lum - ctx.clamp, 0.0)
+    return val, ok
+
+
+def _count_clamped(ctx, removed):
+    """Clamp statistics: solutions cut and the luminance they lost, weighted as splatted
+    (the bake divides by the number of batches, so the sum is in image units)."""
+    if removed is None:
+        return
+    st = ctx.stats
+    st["clamped"] = st.get("clamped", 0) + int((removed > 0).sum())
+    st["clamped_energy"] = st.get("clamped_energy", 0.0) + float(removed.sum())
 
 
 def estimate(ctx, opts, li, types, rc, rng, guide=None):
@@ -314,6 +336,9 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     val = val * rr_weight[owner][:, None]
     if opts.method == "mnee" and seeder.reflect_first:  # one caster picked uniformly per lane
         val = val * len(seeder.centers)
+    cut = None if ctx.clamp_cut is None else (  # what the clamp removed, with the same weights
+        ctx.clamp_cut * rr_weight[owner] * rc.weight[owner]
+        * (len(seeder.centers) if opts.method == "mnee" and seeder.reflect_first else 1))
     d1 = normalize(chain.verts[0].p - x0[owner])
     obj1 = chain.verts[0].obj
     if not unbiased:
@@ -330,6 +355,7 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
                 k2[shift:] = ~dup
                 keep[order] &= k2
         np.add.at(out, owner[keep & ok], val[keep & ok])
+        _count_clamped(ctx, None if cut is None else cut[keep & ok])
         return out
     # unbiased: 1/p by Bernoulli trials, only where the contribution is non-zero
     pend = np.flatnonzero(ok)
@@ -366,6 +392,7 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     st["bernoulli_max"] = max(st.get("bernoulli_max", 0), int(count.max()) if count.size else 0)
     w = np.where(capped, 0.0, count)
     np.add.at(out, owner[pend], val[pend] * w[:, None])
+    _count_clamped(ctx, None if cut is None else cut[pend] * w)
     return out
 
 
@@ -385,6 +412,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         t = time.perf_counter()
         ctx = Ctx(scene, tracer, plan, st)
         ctx.physical = opts.physical
+        ctx.clamp = opts.clamp_g
         for types in types_list:
             total += estimate(ctx, opts, lp.index, types, rc, rng, guide)
         st["time_s"] += time.perf_counter() - t

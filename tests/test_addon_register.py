@@ -12,8 +12,10 @@ from conftest import load_extension
 bpy = pytest.importorskip("bpy")
 
 # Operators and panels show up in bpy.types; property groups do not.
-TYPES = ("SMBS_OT_bake_caustics", "SMBS_PT_caustics", "SMBS_PT_caustics_advanced",
-         "SMBS_PT_caustics_statistics")
+TYPES = ("SMBS_OT_bake_caustics", "SMBS_OT_cancel_bake", "SMBS_OT_remove_caustic_layer",
+         "SMBS_PT_caustics", "SMBS_UL_participants", "SMBS_PT_caustics_participants",
+         "SMBS_PT_caustics_advanced", "SMBS_PT_caustics_statistics")
+OPERATORS = ("bake_caustics", "cancel_bake", "remove_caustic_layer")
 LAYER = "SMBS Caustics"
 
 
@@ -22,8 +24,8 @@ def _handlers():
             if isinstance(getattr(bpy.app.handlers, name), list)}
 
 
-def _operator_registered():
-    return "bake_caustics" in dir(bpy.ops.smbs)
+def _operators_registered():
+    return [name for name in OPERATORS if name in dir(bpy.ops.smbs)]
 
 
 def _classes(extension):
@@ -36,8 +38,9 @@ def _assert_registered(extension):
     for name in TYPES:
         assert hasattr(bpy.types, name), name
     assert "smbs_caustics" in bpy.types.Scene.bl_rna.properties
-    assert _operator_registered()
+    assert _operators_registered() == list(OPERATORS)
     assert bpy.context.scene.smbs_caustics.method == "smbs"
+    assert extension.operators.cli.registered()
 
 
 def _assert_unregistered(extension, handlers_before):
@@ -47,33 +50,88 @@ def _assert_unregistered(extension, handlers_before):
     assert not hasattr(bpy.types.Scene, "smbs_caustics")
     assert "smbs_caustics" not in bpy.types.Scene.bl_rna.properties
     assert not hasattr(bpy.context.scene, "smbs_caustics")
-    assert not _operator_registered()
+    assert not _operators_registered()
     assert _handlers() == handlers_before
+    assert not extension.operators.cli.registered()
+    assert not extension.operators.bake._running
 
 
-def test_register_unregister_leaves_nothing(empty_bpy):
+def _timers_of(extension):
+    """Functions of the extension's modules registered as bpy.app.timers (there should be none)."""
+    modules = (extension.operators.bake, extension.operators.cli, extension.operators.job,
+               extension.operators.policy, extension.ui.panels, extension.ui.properties)
+    return [f"{m.__name__}.{name}" for m in modules for name, fn in vars(m).items()
+            if callable(fn) and not isinstance(fn, type) and bpy.app.timers.is_registered(fn)]
+
+
+def _cli_command_free(capfd):
+    """True if the id 'smbs_bake' is free: registering it again prints no duplicate warning."""
+    capfd.readouterr()
+    handle = bpy.utils.register_cli_command("smbs_bake", lambda argv: 0)
+    bpy.utils.unregister_cli_command(handle)
+    out, err = capfd.readouterr()
+    return "duplicate" not in out + err
+
+
+def test_register_unregister_leaves_nothing(empty_bpy, tmp_path, capfd):
+    """Register, bake, unregister, re-register, twice: nothing is left behind."""
     extension = load_extension()
-    handlers = _handlers()
     assert not hasattr(bpy.types, "SMBS_OT_bake_caustics")
-    for _ in range(2):  # a second round proves unregister really cleaned up
+    assert _cli_command_free(capfd)
+    for round_ in range(2):  # a second round proves unregister really cleaned up
+        bpy.ops.wm.read_factory_settings(use_empty=True)  # (adds Blender's own handlers)
+        handlers = _handlers()
         extension.register()
         try:
             _assert_registered(extension)
+            assert not _cli_command_free(capfd), "smbs_bake is not registered"
+            scene = _mirror_scene(12, 8)
+            s = scene.smbs_caustics
+            s.method, s.spp, s.batches = "reference", 1, 2
+            s.output_path = str(tmp_path / f"layer{round_}.exr")
+            assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
+            assert _timers_of(extension) == []
         finally:
             extension.unregister()
         _assert_unregistered(extension, handlers)
+        assert _cli_command_free(capfd), "smbs_bake still registered"
+        assert _timers_of(extension) == []
+
+
+def test_ui_settings_are_the_core_settings(empty_bpy, addon):
+    """Every bake setting in the panel is a BakeSettings field of the same name, with the same
+    default as the core (and so as the command line), once float32 storage is undone."""
+    import dataclasses
+
+    bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
+    core = importlib.import_module(addon.__name__ + ".smbs_addon.bake")
+    fields = {f.name: f.default for f in dataclasses.fields(core.BakeSettings)}
+    props = bpy.context.scene.smbs_caustics
+    names = addon.ui.properties.BAKE_FIELDS
+    assert set(names) <= set(fields), set(names) - set(fields)
+    # the only core field without a UI setting is the explicit chain list (empty: from the scene)
+    assert set(fields) - set(names) == {"chains"}
+    settings, ignored = bake_op.bake_settings_from(props, core.BakeSettings)
+    assert ignored == []
+    assert settings == core.BakeSettings()
+    props.solver_threshold, props.tau, props.spp, props.method = 3e-7, 0.9, 5, "mnee"
+    settings, _ = bake_op.bake_settings_from(props, core.BakeSettings)
+    assert (settings.solver_threshold, settings.tau, settings.spp, settings.method) == (3e-7, 0.9, 5, "mnee")
 
 
 def test_settings_defaults(empty_bpy, addon):
     s = bpy.context.scene.smbs_caustics
     assert (s.method, s.estimator, s.spp, s.output_path) == ("smbs", "unbiased", 16, "//caustics.exr")
     assert (s.max_iterations, s.max_chain, s.use_cycles_flags) == (20, 4, "AUTO")
-    assert s.solver_threshold == pytest.approx(1e-5)
+    assert (s.trials, s.max_trials, s.batches, s.threads, s.guide) == (4, 10000, 8, 0, True)
+    assert s.solver_threshold == pytest.approx(1e-6)
     assert s.tau == pytest.approx(0.85)
     assert s.large_mutation_tir and s.large_mutation_backlit and s.large_mutation_slow
     assert s.time_budget == 0.0 and s.last_stats == ""
+    assert s.keep_out_of_cycles and not s.cycles_kept_out and s.cycles_note == ""
     assert bpy.types.SMBS_PT_caustics.bl_context == "render"
     assert bpy.ops.smbs.bake_caustics.poll()
+    assert not bpy.ops.smbs.cancel_bake.poll()  # nothing is running
 
 
 def test_statistics_summary(addon):
@@ -90,8 +148,42 @@ def test_statistics_summary(addon):
     assert panels.parse_stats("not json") == {}
 
 
+def test_statistics_of_a_manifold_bake(addon):
+    """The per-light statistics the core writes for SMBS (see smbs_addon.bake) all reach the panel."""
+    panels = importlib.import_module("smbs_caustics.ui.panels")
+    light = {"time_s": 5.13, "walks": 65202, "successes": 21703, "success_rate": 0.3329,
+             "mutations_per_path": 11.16, "large_mutations": {"tir": 0, "backlit": 3, "slow": 72753},
+             "trials": {"mean": 1.00005, "max": 2, "capped": 0}, "rays": 898133,
+             "rays_seed": 86907, "rays_walk": 789523}
+    stats = {"method": "smbs", "resolution": [160, 120], "batches_done": 8, "time_s": 5.65,
+             "rays": 1138192, "walks": 65202, "success_rate": 0.3329, "mutations_per_path": 11.16,
+             "lights": {"Light": light}, "skipped": [],
+             "noise": {"region_pixels": 4021, "relative_noise": 0.181, "mean": 0.51}}
+    assert panels.bake_header(stats) == "SMBS, 160 x 120, 8 batches"
+    assert dict(panels.summarize_stats(stats)) == {
+        "Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2", "Rays": "1.1 M",
+        "Time": "5.65 s", "Relative Noise": "18.1%"}
+    ((name, rows),) = panels.per_light_stats(stats)
+    assert name == "Light"
+    assert dict(rows) == {"Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2",
+                          "Large Mutations": "TIR 0, back-lit 3, slow 72.8 k",
+                          "Bernoulli Trials": "mean 1.00, max 2, capped 0", "Rays": "898.1 k",
+                          "Time": "5.13 s"}
+
+
+_ICONS = None
+
+
+def _valid_icon(icon):
+    global _ICONS
+    if _ICONS is None:
+        _ICONS = set(bpy.types.UILayout.bl_rna.functions["prop"].parameters["icon"].enum_items.keys())
+    return icon in _ICONS
+
+
 class _Layout:
-    """Stands in for UILayout when calling a panel's draw(): checks every prop() and operator()."""
+    """Stands in for UILayout when calling a panel's draw(): checks every prop(), operator(),
+    icon and list it is given."""
 
     def __init__(self, drawn):
         self.drawn = drawn
@@ -101,33 +193,89 @@ class _Layout:
 
     column = row = split = box = _sub
 
+    def _icon(self, kwargs):
+        assert _valid_icon(kwargs.get("icon", "NONE")), f"no icon {kwargs['icon']!r}"
+
     def prop(self, data, name, **kwargs):
         assert name in data.bl_rna.properties, f"no property {name!r}"
+        self._icon(kwargs)
         self.drawn.append(name)
 
     def operator(self, idname, **kwargs):
         module, name = idname.split(".")
         assert name in dir(getattr(bpy.ops, module)), f"no operator {idname!r}"
+        self._icon(kwargs)
         self.drawn.append(idname)
 
     def label(self, text="", **kwargs):
+        self._icon(kwargs)
         self.drawn.append(text)
+
+    def progress(self, factor=0.0, type='BAR', text=""):
+        assert 0.0 <= factor <= 1.0
+        self.drawn.append(("progress", text))
+
+    def template_list(self, list_type, list_id, dataptr, propname, active_dataptr, active_propname,
+                      **kwargs):
+        assert hasattr(bpy.types, list_type), f"no UIList {list_type!r}"
+        assert propname in dataptr.bl_rna.properties
+        assert active_propname in active_dataptr.bl_rna.properties
+        self.drawn.append(list_type)
+
+
+def _draw_all(addon, scene, drawn):
+    from types import SimpleNamespace
+
+    context = SimpleNamespace(scene=scene, region=None, preferences=bpy.context.preferences)
+    for panel in addon.ui.panels.classes:
+        if issubclass(panel, bpy.types.Panel):
+            panel.draw(SimpleNamespace(layout=_Layout(drawn)), context)
+    return context
 
 
 @pytest.mark.parametrize("last_stats", ["", '{"time_s": 2.0, "lights": {"Key": {"rays": 10}}}'])
 def test_panels_draw(empty_bpy, addon, last_stats):
-    from types import SimpleNamespace
-
     scene = bpy.context.scene
     scene.smbs_caustics.last_stats = last_stats
-    context = SimpleNamespace(scene=scene)
     drawn = []
-    for panel in addon.ui.panels.classes:
-        panel.draw(SimpleNamespace(layout=_Layout(drawn)), context)
-    assert {"method", "spp", "output_path", "smbs.bake_caustics", "tau", "max_chain"} <= set(drawn)
+    _draw_all(addon, scene, drawn)
+    assert {"method", "estimator", "max_trials", "spp", "time_budget", "seed", "use_cycles_flags",
+            "keep_out_of_cycles", "output_path", "smbs.bake_caustics", "batches", "threads", "guide",
+            "radiance",
+            "max_iterations", "solver_threshold", "uniqueness", "tau", "max_chain",
+            "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
+            "SMBS_UL_participants"} <= set(drawn)
     assert ("No bake yet" in drawn) == (not last_stats)
     if last_stats:
         assert {"Time", "2.00 s", "Key", "Rays"} <= set(drawn)
+    scene.smbs_caustics.estimator = "biased"
+    scene.smbs_caustics.cycles_note = "The layer holds ...\nCycles' own caustics are off"
+    drawn = []
+    _draw_all(addon, scene, drawn)
+    assert "trials" in drawn and "max_trials" not in drawn
+    assert "The layer holds ..." in drawn and "Cycles' own caustics are off" in drawn
+
+
+def test_participants_list_shows_cycles_flags(empty_bpy, addon):
+    """The list holds the scene's renderable objects and lights, each with Cycles' own flags."""
+    from types import SimpleNamespace
+
+    scene = _mirror_scene()
+    hidden = bpy.data.objects.new("Hidden", bpy.data.meshes.new("Hidden"))
+    hidden.hide_render = True
+    scene.collection.objects.link(hidden)
+    ul = bpy.types.SMBS_UL_participants
+    fake = SimpleNamespace(bitflag_filter_item=1 << 30, filter_name="",  # UILST_FLT_ITEM
+                           use_filter_sort_alpha=False)
+    flags, order = ul.filter_items(fake, bpy.context, scene, "objects")
+    shown = {ob.name for ob, f in zip(scene.objects, flags) if f}
+    assert shown == {"Floor", "Mirror", "Disk"}
+    for ob in (scene.objects[name] for name in shown):
+        drawn = []
+        ul.draw_item(None, bpy.context, _Layout(drawn), scene, ob, 0, None, "", 0)
+        expected = (["is_caustics_light"] if ob.type == 'LIGHT'
+                    else ["is_caustics_caster", "is_caustics_receiver"])
+        assert [d for d in drawn if d.startswith("is_caustics")] == expected
 
 
 # ---------------------------------------------------------------------------- compositor
@@ -329,7 +477,7 @@ def _mirror_scene(width=24, height=16):
     return scene
 
 
-def test_bake_operator_end_to_end(empty_bpy, addon, tmp_path):
+def test_bake_operator_end_to_end(empty_bpy, addon, tmp_path, capsys):
     try:
         importlib.import_module(addon.__name__ + ".smbs_addon.bake")
         importlib.import_module(addon.__name__ + ".smbs_addon.export")
@@ -340,8 +488,13 @@ def test_bake_operator_end_to_end(empty_bpy, addon, tmp_path):
     settings.method, settings.spp, settings.seed = "reference", 1, 3
     settings.output_path = str(tmp_path / "layer.exr")
 
+    capsys.readouterr()
     assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
-    assert (tmp_path / "layer.exr").is_file()
+    # background mode: synchronous, with progress lines
+    lines = [ln for ln in capsys.readouterr().out.splitlines() if ln.startswith("SMBS Caustics:")]
+    assert any("light 'Disk', batch 8/8" in ln for ln in lines), lines
+    assert lines[-1].startswith("SMBS Caustics: 100.0% done in")
+    assert (tmp_path / "layer.exr").is_file() and (tmp_path / "layer.json").is_file()
     stats = json.loads(settings.last_stats)
     assert stats and "Disk" in stats.get("lights", {"Disk": 1})
     img = bpy.data.images[LAYER]
@@ -362,3 +515,109 @@ def test_bake_operator_reports_scene_errors(empty_bpy, addon, tmp_path):
     with pytest.raises(RuntimeError, match="no camera"):  # ERROR reports raise in bpy.ops calls
         bpy.ops.smbs.bake_caustics()
     assert not (tmp_path / "layer.exr").exists()
+
+
+def test_bake_operator_error_names_the_object(empty_bpy, addon, tmp_path):
+    scene = _mirror_scene()
+    scene.camera.data.type = 'PANO'
+    scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
+    with pytest.raises(RuntimeError, match="camera 'Camera': panoramic cameras are not supported"):
+        bpy.ops.smbs.bake_caustics()
+    assert not (tmp_path / "layer.exr").exists() and not _layer_images()
+
+
+# ---------------------------------------------------------------------------- nothing counted twice
+
+
+def _flags(scene):
+    return {ob.name: ((ob.data.cycles.is_caustics_light,) if ob.type == 'LIGHT' else
+                      (ob.cycles.is_caustics_caster, ob.cycles.is_caustics_receiver))
+            for ob in scene.objects}
+
+
+def _bake(scene, tmp_path, **settings):
+    s = scene.smbs_caustics
+    s.method, s.spp, s.batches = "reference", 1, 2
+    s.output_path = str(tmp_path / "layer.exr")
+    for key, value in settings.items():
+        setattr(s, key, value)
+    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
+    return s
+
+
+def test_covered_scene_keeps_caustics_out_of_cycles(empty_bpy, addon, tmp_path):
+    """No flags (AUTO): the bake covers the mirror, the floor and the light, so Cycles' own
+    caustics go off; Remove Caustic Layer turns them back on. No flag of the user's changes."""
+    scene = _mirror_scene()
+    flags = _flags(scene)
+    cycles = scene.cycles
+    assert cycles.caustics_reflective and cycles.caustics_refractive
+    s = _bake(scene, tmp_path)
+    assert not cycles.caustics_reflective and not cycles.caustics_refractive
+    assert s.cycles_kept_out
+    assert "none is counted twice" in s.cycles_note and "'Mirror'" in s.cycles_note
+    _bake(scene, tmp_path)  # a re-bake keeps the first saved values
+    assert s.saved_caustics_reflective and s.saved_caustics_refractive
+    assert _flags(scene) == flags
+
+    assert bpy.ops.smbs.remove_caustic_layer() == {'FINISHED'}
+    assert cycles.caustics_reflective and cycles.caustics_refractive
+    assert not s.cycles_kept_out and s.cycles_note == ""
+    assert not _layer_images() and scene.compositing_node_group is None
+    assert _flags(scene) == flags
+
+
+def test_users_switches_come_back_as_they_were(empty_bpy, addon, tmp_path):
+    scene = _mirror_scene()
+    scene.cycles.caustics_reflective, scene.cycles.caustics_refractive = True, False
+    _bake(scene, tmp_path)
+    assert not scene.cycles.caustics_reflective
+    bpy.ops.smbs.remove_caustic_layer()
+    assert (scene.cycles.caustics_reflective, scene.cycles.caustics_refractive) == (True, False)
+
+
+def test_partial_plan_leaves_cycles_alone_and_says_why(empty_bpy, addon, tmp_path):
+    """A second, unflagged mirror while the first is flagged (AUTO honours caster flags): the layer
+    does not cover it, so Cycles keeps its caustics and the note says what is counted where."""
+    scene = _mirror_scene()
+    mirror = scene.objects["Mirror"]
+    other = mirror.copy()
+    other.name = "Mirror2"
+    other.location.y += 2.0
+    scene.collection.objects.link(other)
+    mirror.cycles.is_caustics_caster = True
+    flags = _flags(scene)
+
+    s = _bake(scene, tmp_path)
+    assert scene.cycles.caustics_reflective and scene.cycles.caustics_refractive
+    assert not s.cycles_kept_out
+    assert "caster 'Mirror2' (not flagged Cast Shadow Caustics)" in s.cycles_note
+    assert "counted twice" in s.cycles_note
+    assert _flags(scene) == flags
+
+    # Covering everything (flags Off) turns Cycles' caustics off; going back restores them.
+    _bake(scene, tmp_path, use_cycles_flags="OFF")
+    assert not scene.cycles.caustics_reflective and s.cycles_kept_out
+    _bake(scene, tmp_path, use_cycles_flags="AUTO")
+    assert scene.cycles.caustics_reflective and scene.cycles.caustics_refractive
+    assert not s.cycles_kept_out
+    assert _flags(scene) == flags
+
+
+def test_world_light_is_left_to_cycles(empty_bpy, addon, tmp_path):
+    scene = _mirror_scene()
+    scene.world = world = bpy.data.worlds.new("Sky")
+    world.color = (0.05, 0.05, 0.05)
+    background = world.node_tree and world.node_tree.nodes.get("Background")
+    if background:
+        background.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)
+    s = _bake(scene, tmp_path)
+    assert scene.cycles.caustics_reflective and not s.cycles_kept_out
+    assert "world lighting" in s.cycles_note
+
+
+def test_keep_out_of_cycles_off(empty_bpy, addon, tmp_path):
+    scene = _mirror_scene()
+    s = _bake(scene, tmp_path, keep_out_of_cycles=False)
+    assert scene.cycles.caustics_reflective and not s.cycles_kept_out
+    assert "Keep Out of Cycles is off" in s.cycles_note

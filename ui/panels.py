@@ -1,5 +1,7 @@
-"""Panels in Properties > Render: settings, advanced solver parameters, last bake's statistics."""
+"""Panels in Properties > Render: the bake, its participants (Cycles' own caustic
+flags), advanced solver parameters and the last bake's statistics."""
 import json
+import textwrap
 
 import bpy
 
@@ -9,6 +11,11 @@ _WALKS = ("walks_succeeded", "walks_started")
 _MUTATIONS_PER_PATH = ("mutations_per_path", "mpp")
 _TIME = ("time_s", "time")
 _PER_LIGHT = ("lights", "per_light")
+_TRIGGERS = (("tir", "TIR"), ("backlit", "back-lit"), ("slow", "slow"))
+
+# Objects that can cast or receive (as exported: anything with triangles), and lights.
+_GEOMETRY = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
+_TAG = "smbs_caustics"  # custom property on the layer's image (see smbs_addon.composite)
 
 
 def _number(value):
@@ -54,14 +61,32 @@ def _format_time(seconds):
 
 
 def summarize_stats(stats):
-    """Rows of (label, text) for a statistics dict; what is not there is left out."""
+    """Rows of (label, text) for a statistics dict (the whole bake or one light);
+    what is not there is left out."""
     rows = []
+    if _number(stats.get("walks")):
+        rows.append(("Walks", _format_count(stats["walks"])))
+    if _number(stats.get("photons")):
+        rows.append(("Light Paths", _format_count(stats["photons"])))
     rate = _success_rate(stats)
     if rate is not None:
         rows.append(("Success Rate", f"{100.0 * rate:.1f}%"))
     mpp = _first(stats, _MUTATIONS_PER_PATH)
     if mpp is not None:
         rows.append(("Mutations per Path", f"{mpp:.1f}"))
+    large = stats.get("large_mutations")
+    if isinstance(large, dict) and large:
+        known = [(label, large[key]) for key, label in _TRIGGERS if _number(large.get(key))]
+        known += [(k, v) for k, v in large.items() if k not in dict(_TRIGGERS) and _number(v)]
+        rows.append(("Large Mutations", ", ".join(f"{label} {_format_count(v)}" for label, v in known)))
+    trials = stats.get("trials")
+    if isinstance(trials, dict) and _number(trials.get("mean")):
+        text = f"mean {trials['mean']:.2f}"
+        if _number(trials.get("max")):
+            text += f", max {trials['max']:.0f}"
+        if _number(trials.get("capped")):
+            text += f", capped {trials['capped']:.0f}"
+        rows.append(("Bernoulli Trials", text))
     rays = _rays(stats)
     if rays is not None:
         rows.append(("Rays", _format_count(rays)))
@@ -84,6 +109,19 @@ def per_light_stats(stats):
     else:
         items = [(d.get("name", f"Light {i}"), d) for i, d in enumerate(lights) if isinstance(d, dict)]
     return [(str(name), summarize_stats(d)) for name, d in items if isinstance(d, dict)]
+
+
+def bake_header(stats):
+    """One line naming the bake: method, resolution, batches."""
+    parts = []
+    if isinstance(stats.get("method"), str):
+        parts.append(stats["method"].upper())
+    res = stats.get("resolution")
+    if isinstance(res, list) and len(res) == 2:
+        parts.append(f"{res[0]} x {res[1]}")
+    if _number(stats.get("batches_done")):
+        parts.append(f"{stats['batches_done']:.0f} batches")
+    return ", ".join(parts)
 
 
 def skipped_stats(stats):
@@ -113,15 +151,38 @@ def parse_stats(text):
 def _draw_rows(layout, rows):
     col = layout.column(align=True)
     for label, text in rows:
-        split = col.split(factor=0.5)
+        split = col.split(factor=0.45)
         split.alignment = 'RIGHT'
         split.label(text=label)
         split.label(text=text)
 
 
-class SMBS_PT_caustics(bpy.types.Panel):
-    bl_label = "SMBS Caustics"
-    bl_idname = "SMBS_PT_caustics"
+def _wrap(context, text):
+    """Lines of ``text`` that fit the region's width."""
+    region = getattr(context, "region", None)
+    width = getattr(region, "width", 0) or 400
+    scale = getattr(getattr(getattr(context, "preferences", None), "system", None), "ui_scale", 1.0) or 1.0
+    chars = max(24, int(width / (6.5 * scale)))
+    return textwrap.wrap(text, chars) or [""]
+
+
+def _draw_text(layout, context, text, icon='NONE'):
+    col = layout.column(align=True)
+    for i, line in enumerate(_wrap(context, text)):
+        col.label(text=line, icon=icon if i == 0 else 'BLANK1')
+
+
+def _running(scene):
+    from ..operators.bake import running_bake
+
+    return running_bake(scene)
+
+
+def _has_layer_image():
+    return any(img.get(_TAG) for img in bpy.data.images)
+
+
+class _RenderPanel:
     bl_space_type = 'PROPERTIES'
     bl_region_type = 'WINDOW'
     bl_context = "render"
@@ -130,8 +191,14 @@ class SMBS_PT_caustics(bpy.types.Panel):
     def poll(cls, context):
         return context.scene is not None and hasattr(context.scene, "smbs_caustics")
 
+
+class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
+    bl_label = "SMBS Caustics"
+    bl_idname = "SMBS_PT_caustics"
+
     def draw(self, context):
-        settings = context.scene.smbs_caustics
+        scene = context.scene
+        settings = scene.smbs_caustics
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
@@ -141,25 +208,102 @@ class SMBS_PT_caustics(bpy.types.Panel):
         sub = col.column()
         sub.active = settings.method in {"sms", "smbs"}
         sub.prop(settings, "estimator")
-        sub.prop(settings, "trials")
+        if settings.estimator == "biased":
+            sub.prop(settings, "trials")
+        else:
+            sub.prop(settings, "max_trials")
 
         col = layout.column()
         col.prop(settings, "spp")
-        col.prop(settings, "seed")
         col.prop(settings, "time_budget")
+        col.prop(settings, "seed")
+
+        col = layout.column()
         col.prop(settings, "use_cycles_flags")
+        col.prop(settings, "keep_out_of_cycles")
         col.prop(settings, "output_path")
 
-        layout.operator("smbs.bake_caustics", icon='RENDER_STILL')
+        bake = _running(scene)
+        if bake is not None:
+            fraction, message = bake.status()
+            row = layout.row(align=True)
+            row.progress(factor=fraction, type='BAR', text=f"{100.0 * fraction:.0f}% {message}")
+            row.operator("smbs.cancel_bake", text="", icon='CANCEL')
+        else:
+            row = layout.row(align=True)
+            row.scale_y = 1.4
+            row.operator("smbs.bake_caustics", icon='RENDER_STILL')
+            if settings.cycles_kept_out or _has_layer_image():
+                row.operator("smbs.remove_caustic_layer", text="", icon='TRASH')
+
+        if settings.cycles_note:
+            box = layout.box()
+            for i, line in enumerate(settings.cycles_note.splitlines()):
+                _draw_text(box, context, line, icon='INFO' if i == 0 else 'NONE')
+        elif settings.keep_out_of_cycles:
+            _draw_text(layout, context, "After a bake that covers every caster, receiver and light, "
+                       "Cycles' own caustics are turned off so that nothing is counted twice.", icon='INFO')
 
 
-class SMBS_PT_caustics_advanced(bpy.types.Panel):
+class SMBS_UL_participants(bpy.types.UIList):
+    """The scene's objects and lights with Cycles' own caustic flags."""
+
+    bl_idname = "SMBS_UL_participants"
+
+    def draw_item(self, context, layout, data, item, icon, active_data, active_propname, index=0,
+                  flt_flag=0):
+        row = layout.row(align=True)
+        if item.type == 'LIGHT':
+            row.label(text=item.name, icon='LIGHT')
+            row.prop(item.data.cycles, "is_caustics_light", text="Light", toggle=True)
+        else:
+            row.label(text=item.name, icon='OBJECT_DATA')
+            row.prop(item.cycles, "is_caustics_caster", text="Cast", toggle=True)
+            row.prop(item.cycles, "is_caustics_receiver", text="Receive", toggle=True)
+
+    def filter_items(self, context, data, propname):
+        objects = getattr(data, propname)
+        shown = self.bitflag_filter_item
+        flags = [shown if (ob.type == 'LIGHT' or ob.type in _GEOMETRY) and not ob.hide_render else 0
+                 for ob in objects]
+        if self.filter_name:
+            by_name = bpy.types.UI_UL_list.filter_items_by_name(self.filter_name, shown, objects, "name")
+            flags = [f & n for f, n in zip(flags, by_name)]
+        order = bpy.types.UI_UL_list.sort_items_by_name(objects, "name") if self.use_filter_sort_alpha else []
+        return flags, order
+
+
+class SMBS_PT_caustics_participants(_RenderPanel, bpy.types.Panel):
+    bl_label = "Casters, Receivers and Lights"
+    bl_idname = "SMBS_PT_caustics_participants"
+    bl_parent_id = "SMBS_PT_caustics"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        scene = context.scene
+        settings = scene.smbs_caustics
+        layout = self.layout
+        if not hasattr(bpy.types.Object, "cycles"):
+            layout.label(text="The Cycles add-on is off: there are no caustic flags", icon='ERROR')
+            return
+        layout.template_list("SMBS_UL_participants", "", scene, "objects", settings,
+                             "participant_index", rows=4)
+        mode = settings.use_cycles_flags
+        if mode == "OFF":
+            text = ("Cycles Flags is Off: the bake takes every specular object, diffuse object and "
+                    "light, whatever these flags say (Cycles' own shadow caustics still use them).")
+        elif mode == "AUTO":
+            text = ("These are Cycles' own flags. A kind (casters, receivers, lights) none of whose "
+                    "members is flagged takes part as a whole.")
+        else:
+            text = "These are Cycles' own flags; only flagged objects and lights take part."
+        _draw_text(layout, context, text, icon='INFO')
+
+
+class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
     bl_label = "Advanced"
     bl_idname = "SMBS_PT_caustics_advanced"
     bl_parent_id = "SMBS_PT_caustics"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "render"
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
@@ -167,12 +311,20 @@ class SMBS_PT_caustics_advanced(bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        layout.active = settings.method != "reference"
 
         col = layout.column()
+        col.prop(settings, "batches")
+        col.prop(settings, "threads")
+        col.prop(settings, "guide")
+        col.prop(settings, "radiance")
+
+        col = layout.column(heading="Solver")
+        col.active = settings.method != "reference"
         col.prop(settings, "max_iterations")
         col.prop(settings, "solver_threshold")
+        col.prop(settings, "uniqueness")
         col.prop(settings, "max_chain")
+        col.prop(settings, "clamp_g")
 
         col = layout.column(heading="Large Mutations")
         col.active = settings.method == "smbs"
@@ -180,17 +332,14 @@ class SMBS_PT_caustics_advanced(bpy.types.Panel):
         col.prop(settings, "large_mutation_backlit")
         col.prop(settings, "large_mutation_slow")
         sub = col.column()
-        sub.active = settings.large_mutation_slow
+        sub.active = settings.method == "smbs" and settings.large_mutation_slow
         sub.prop(settings, "tau")
 
 
-class SMBS_PT_caustics_statistics(bpy.types.Panel):
+class SMBS_PT_caustics_statistics(_RenderPanel, bpy.types.Panel):
     bl_label = "Statistics"
     bl_idname = "SMBS_PT_caustics_statistics"
     bl_parent_id = "SMBS_PT_caustics"
-    bl_space_type = 'PROPERTIES'
-    bl_region_type = 'WINDOW'
-    bl_context = "render"
     bl_options = {'DEFAULT_CLOSED'}
 
     def draw(self, context):
@@ -199,6 +348,9 @@ class SMBS_PT_caustics_statistics(bpy.types.Panel):
         if not stats:
             layout.label(text="No bake yet")
             return
+        header = bake_header(stats)
+        if header:
+            layout.label(text=header)
         rows = summarize_stats(stats)
         if rows:
             _draw_rows(layout, rows)
@@ -212,7 +364,8 @@ class SMBS_PT_caustics_statistics(bpy.types.Panel):
             layout.label(text=line, icon='INFO')
 
 
-classes = (SMBS_PT_caustics, SMBS_PT_caustics_advanced, SMBS_PT_caustics_statistics)
+classes = (SMBS_PT_caustics, SMBS_UL_participants, SMBS_PT_caustics_participants,
+           SMBS_PT_caustics_advanced, SMBS_PT_caustics_statistics)
 
 
 def register():

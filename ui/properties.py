@@ -1,7 +1,9 @@
 """Bake settings stored on each scene as ``scene.smbs_caustics``.
 
-Property names match the fields of ``smbs_addon.bake.BakeSettings`` wherever the
-core has the same setting; the operator copies them across by name.
+The properties named in ``BAKE_FIELDS`` are the fields of
+``smbs_addon.bake.BakeSettings`` with the same names and the same defaults; the
+operator copies them across by name. The rest are the layer's file, the
+Cycles policy and what the last bake left behind for the panels.
 """
 import bpy
 from bpy.props import (
@@ -11,6 +13,14 @@ from bpy.props import (
     IntProperty,
     PointerProperty,
     StringProperty,
+)
+
+# Properties passed to BakeSettings by name (each must be a BakeSettings field).
+BAKE_FIELDS = (
+    "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
+    "time_budget", "use_cycles_flags", "radiance", "guide", "max_iterations", "solver_threshold",
+    "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
+    "max_chain", "clamp_g",
 )
 
 METHOD_ITEMS = (
@@ -37,15 +47,24 @@ ESTIMATOR_ITEMS = (
 
 CYCLES_FLAGS_ITEMS = (
     ("AUTO", "Auto",
-     "Use the Cycles shadow-caustics flags (caster, receiver, light) if the scene sets "
-     "any of them; otherwise every specular object casts, every diffuse one receives "
-     "and every light takes part"),
+     "Use the Cycles shadow-caustics flags of a kind (casters, receivers, lights) as soon "
+     "as one object of that kind is flagged; otherwise every specular object casts, every "
+     "diffuse one receives and every light takes part"),
     ("ON", "On",
      "Only objects marked Cast or Receive Shadow Caustics and lights marked Shadow "
      "Caustics take part, as in Cycles"),
     ("OFF", "Off",
      "Ignore the Cycles flags: every specular object casts, every diffuse one receives "
      "and every light takes part"),
+)
+
+
+RADIANCE_ITEMS = (
+    ("cycles", "Like Cycles",
+     "Radiance keeps its value through refractions, as in Cycles (the layer then adds up "
+     "with Cycles' render)"),
+    ("physical", "Physical",
+     "Radiance scales with the square of the ratio of the indices of refraction at each refraction"),
 )
 
 
@@ -61,33 +80,61 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         description="How the solutions of SMS and SMBS are weighted",
     )
     trials: IntProperty(
-        name="Trials", default=32, min=1, soft_max=1000, max=1_000_000,
-        description="Biased: seeds tried per light sample. Unbiased: the most "
-                    "Bernoulli trials spent on one inverse-probability estimate",
+        name="Trials", default=4, min=1, soft_max=256, max=1_000_000,
+        description="Biased estimator: Newton walks per receiver point, light and chain type",
+    )
+    max_trials: IntProperty(
+        name="Max Trials", default=10000, min=1, soft_max=100_000, max=100_000_000,
+        description="Unbiased estimator: most Bernoulli trials spent on one inverse-probability "
+                    "estimate (a lane that reaches it counts as zero)",
     )
     spp: IntProperty(
         name="Samples", default=16, min=1, soft_max=1024, max=1_000_000,
-        description="Samples per pixel",
+        description="Samples per pixel (reference: light paths per pixel and light). With a "
+                    "time limit, each batch takes Samples / Batches",
     )
     seed: IntProperty(
         name="Seed", default=0, min=0,
         description="Random seed; the same seed and settings give the same image",
     )
+    batches: IntProperty(
+        name="Batches", default=8, min=1, soft_max=64, max=10_000,
+        description="Independent batches; their spread gives the noise estimate",
+    )
+    threads: IntProperty(
+        name="Threads", default=0, min=0, soft_max=64, max=1024,
+        description="Worker threads for ray tracing (0: all cores). The image does not depend on it",
+    )
     time_budget: FloatProperty(
         name="Time Limit", default=0.0, min=0.0, soft_max=3600.0,
         unit='TIME_ABSOLUTE', subtype='TIME_ABSOLUTE',
-        description="Stop after this many seconds, keeping the samples finished so "
-                    "far (0 = no limit)",
-    )
-    output_path: StringProperty(
-        name="Output", default="//caustics.exr", subtype='FILE_PATH',
-        description="Where the caustic layer is written as an OpenEXR file "
-                    "(// means relative to the blend file)",
+        description="Keep adding batches until this many seconds have passed (at least two "
+                    "batches; 0 = no limit, bake Samples per pixel)",
     )
     use_cycles_flags: EnumProperty(
         name="Cycles Flags", items=CYCLES_FLAGS_ITEMS, default="AUTO",
         description="Whether the Cycles shadow-caustics flags choose which objects "
                     "and lights take part",
+    )
+    radiance: EnumProperty(
+        name="Radiance", items=RADIANCE_ITEMS, default="cycles",
+        description="How radiance changes when light refracts",
+    )
+    guide: BoolProperty(
+        name="Photon Guide", default=True,
+        description="A photon pre-pass finds where caustics land; walks elsewhere are "
+                    "thinned out by Russian roulette (unbiased)",
+    )
+    output_path: StringProperty(
+        name="Output", default="//caustics.exr", subtype='FILE_PATH',
+        description="Where the caustic layer is written as an OpenEXR file, with the bake's "
+                    "statistics beside it as JSON (// means relative to the blend file)",
+    )
+    keep_out_of_cycles: BoolProperty(
+        name="Keep Out of Cycles", default=True,
+        description="When the layer covers every caster, receiver and light, turn off "
+                    "Cycles' own caustics (Light Paths > Caustics) so that nothing is counted "
+                    "twice. Remove Caustic Layer turns them back on",
     )
 
     # Advanced solver parameters.
@@ -96,10 +143,15 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         description="Newton steps (small and large mutations) before a walk gives up",
     )
     solver_threshold: FloatProperty(
-        name="Threshold", default=1e-5, min=1e-12, soft_min=1e-8, max=1e-1,
-        precision=6, step=0.001,
-        description="A walk has converged when its distance to the light sample is "
-                    "below this fraction of the path length",
+        name="Threshold", default=1e-6, min=1e-12, soft_min=1e-9, max=1e-1,
+        precision=7, step=0.0001,
+        description="A walk has converged when its direction towards the light sample is "
+                    "off by less than this angle (radians)",
+    )
+    uniqueness: FloatProperty(
+        name="Uniqueness", default=1e-7, min=1e-12, soft_min=1e-10, max=1e-1,
+        precision=8, step=0.0001,
+        description="Two solutions are the same when their directions differ by less than this",
     )
     tau: FloatProperty(
         name="Tau", default=0.85, min=0.01, max=0.999, subtype='FACTOR',
@@ -124,12 +176,29 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         description="Most specular interactions (reflections and refractions) on one "
                     "caustic path",
     )
+    clamp_g: FloatProperty(
+        name="Clamp", default=0.0, min=0.0, soft_max=100.0,
+        description="Largest luminance one manifold solution may add (0: no clamp). Clamping "
+                    "tames the spikes at caustic folds but loses energy; the statistics show "
+                    "how much",
+    )
 
-    # Written by the bake operator, shown by the statistics panel.
+    # The participants list (UI only).
+    participant_index: IntProperty(name="Active Participant", default=0, min=0, options={'HIDDEN'})
+
+    # Written by the bake operator, shown by the panels.
     last_stats: StringProperty(
-        name="Last Bake Statistics", default="",
+        name="Last Bake Statistics", default="", options={'HIDDEN'},
         description="Statistics of the last bake, as JSON",
     )
+    cycles_note: StringProperty(
+        name="Cycles Note", default="", options={'HIDDEN'},
+        description="What the last bake left to Cycles and what it turned off, one line each",
+    )
+    # Cycles' own caustic switches as they were before a bake turned them off.
+    cycles_kept_out: BoolProperty(name="Cycles Caustics Turned Off", default=False, options={'HIDDEN'})
+    saved_caustics_reflective: BoolProperty(default=True, options={'HIDDEN'})
+    saved_caustics_refractive: BoolProperty(default=True, options={'HIDDEN'})
 
 
 classes = (SMBSCausticsSettings,)

@@ -1,0 +1,161 @@
+"""Nothing counted twice: who renders which caustic, the layer or Cycles.
+
+The layer holds every path camera -> (mirror or glass)* -> diffuse -> (mirror or
+glass)+ -> light for the casters, receivers and lights of the bake's plan.
+Cycles renders the same paths itself unless its Light Paths > Caustics switches
+(``caustics_reflective``, ``caustics_refractive``) are off; with them off it
+drops glossy and transmission after a diffuse bounce, which also switches its
+shadow caustics (MNEE) off. Those switches are global, so:
+
+- the plan covers every caster, receiver and light of the scene (and there is
+  no world light or emissive material, which the layer does not handle): a
+  bake turns both switches off, remembering how they were; Remove Caustic
+  Layer puts them back;
+- otherwise Cycles is left as it is, and the note says what is counted where.
+
+The user's caster / receiver / light flags are never changed.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Coverage:
+    covered: bool
+    casters: list = field(default_factory=list)  # names in the layer
+    receivers: list = field(default_factory=list)
+    lights: list = field(default_factory=list)
+    left_to_cycles: list = field(default_factory=list)  # what only Cycles renders, with why
+
+
+def _names(names, mask):
+    return [names[i] for i in np.flatnonzero(mask)]
+
+
+def _short(names, most=4):
+    quoted = [f"'{n}'" for n in names]
+    return ", ".join(quoted) if len(quoted) <= most else ", ".join(quoted[:most]) + f" and {len(quoted) - most} more"
+
+
+def coverage(data, plan, flags_mode: str, blender_lights=()) -> Coverage:
+    """What the layer covers, from the exported scene ``data`` and its ``plan``.
+
+    blender_lights: (name, is_portal) of the scene's renderable light objects,
+    to find lights the export could not represent.
+    """
+    from ..smbs_addon import scene as S
+
+    O = len(data.object_names)
+    kind = data.mat_kind[data.tri_material] if data.n_tris else np.zeros(0, np.int32)
+    has_spec = np.bincount(data.tri_object[(kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)], minlength=O) > 0
+    has_diff = np.bincount(data.tri_object[kind == S.DIFFUSE], minlength=O) > 0
+    left = []
+    for name in _names(data.object_names, has_spec & ~plan.casters):
+        left.append(f"caster '{name}' (not flagged Cast Shadow Caustics)")
+    for name in _names(data.object_names, has_diff & ~plan.receivers):
+        left.append(f"receiver '{name}' (not flagged Receive Shadow Caustics)")
+
+    planned = {lp.index for lp in plan.lights}
+    light_flags_used = flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.light_caustics)))
+    for li, name in enumerate(data.light_names):
+        if li in planned or not (data.light_color[li].max() > 0):
+            continue  # in the layer, or dark
+        if light_flags_used and not data.light_caustics[li]:
+            left.append(f"light '{name}' (not flagged Shadow Caustics)")
+        # a lit light outside the plan otherwise reaches no caster: it makes no caustic
+    exported = set(data.light_names)
+    for name, portal in blender_lights:
+        if portal:
+            continue
+        if not any(e == name or e.endswith("/" + name) or e.startswith(name + ".") for e in exported):
+            left.append(f"light '{name}' (a kind the layer cannot bake)")
+
+    if np.max(data.world_color, initial=0.0) > 0:
+        left.append("world lighting (the layer has no world light)")
+    used = np.unique(data.tri_material) if data.n_tris else np.zeros(0, int)
+    for m in used:
+        if data.mat_kind[m] == S.EMITTER:
+            left.append(f"emission of material '{data.mat_names[m]}' (the layer has no mesh lights)")
+
+    return Coverage(covered=not left,
+                    casters=_names(data.object_names, plan.casters),
+                    receivers=_names(data.object_names, plan.receivers),
+                    lights=[lp.name for lp in plan.lights],
+                    left_to_cycles=left)
+
+
+def mnee_active(bpy_scene) -> bool:
+    """Does Cycles switch on its shadow caustics (a flagged caster, receiver and light)?"""
+    obs = [ob for ob in bpy_scene.objects if not ob.hide_render]
+    caster = any(ob.cycles.is_caustics_caster for ob in obs if ob.type != 'LIGHT')
+    receiver = any(ob.cycles.is_caustics_receiver for ob in obs if ob.type != 'LIGHT')
+    world = bpy_scene.world
+    light = any(ob.data.cycles.is_caustics_light for ob in obs if ob.type == 'LIGHT') or bool(
+        world is not None and getattr(world.cycles, "is_caustics_light", False))
+    return caster and receiver and light
+
+
+def _switches(bpy_scene):
+    c = bpy_scene.cycles
+    return bool(c.caustics_reflective), bool(c.caustics_refractive)
+
+
+def restore_cycles(bpy_scene, props) -> bool:
+    """Put Cycles' caustic switches back as they were before a bake turned them off."""
+    if not props.cycles_kept_out:
+        return False
+    c = bpy_scene.cycles
+    c.caustics_reflective = props.saved_caustics_reflective
+    c.caustics_refractive = props.saved_caustics_refractive
+    props.cycles_kept_out = False
+    return True
+
+
+def update_cycles(bpy_scene, props, cov: Coverage) -> tuple[bool, list[str]]:
+    """Apply the policy after a bake. Returns (Cycles' caustics are off, note lines).
+
+    The lines are also stored in ``props.cycles_note`` for the panel.
+    """
+    layer = (f"The layer holds the caustics of {_short(cov.casters)} on {_short(cov.receivers)} "
+             f"from {_short(cov.lights)}.")
+    if cov.covered and props.keep_out_of_cycles:
+        if not props.cycles_kept_out:  # remember the user's switches once, before the first change
+            props.saved_caustics_reflective, props.saved_caustics_refractive = _switches(bpy_scene)
+            props.cycles_kept_out = True
+        bpy_scene.cycles.caustics_reflective = False
+        bpy_scene.cycles.caustics_refractive = False
+        lines = [layer,
+                 "Cycles' own caustics are off (Light Paths > Caustics), so none is counted twice. "
+                 "Remove Caustic Layer turns them back on.",
+                 "Neither renders light that meets mirrors or glass after a diffuse bounce and then "
+                 "lights another diffuse surface (diffuse light through mirrors and glass)."]
+        kept_out = True
+    else:
+        restore_cycles(bpy_scene, props)
+        refl, refr = _switches(bpy_scene)
+        lines = [layer]
+        if cov.left_to_cycles:
+            lines.append("Only Cycles renders the caustics of: " + "; ".join(cov.left_to_cycles) + ".")
+        if not (refl or refr):
+            if cov.left_to_cycles:
+                lines.append("Cycles' own caustics are off (Light Paths > Caustics), so those are "
+                             "rendered by neither.")
+        elif mnee_active(bpy_scene):
+            lines.append("Cycles' shadow caustics (MNEE) are on: Cycles also renders the refractive "
+                         "caustics of flagged glass on flagged receivers (counted twice with the layer) "
+                         "and drops its path-traced caustics of flagged casters.")
+        else:
+            lines.append("Cycles' own caustics are on: it also path traces the caustics of the layer's "
+                         "casters (counted twice).")
+        if refl or refr:
+            if not props.keep_out_of_cycles:
+                lines.append("Keep Out of Cycles is off: Cycles' caustic switches are left alone.")
+            elif cov.left_to_cycles:
+                lines.append("To keep the layer's paths out of Cycles, let the bake cover everything "
+                             "above (flag it, or set Cycles Flags to Off).")
+        kept_out = False
+    props.cycles_note = "\n".join(lines)
+    return kept_out, lines
