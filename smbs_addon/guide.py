@@ -54,8 +54,9 @@ class Guide:
         return np.where(hit | (eye_specular > 0), 1.0, Q)
 
 
-def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, max_bounces=16):
-    """Trace photons_per_light photons per planned light and mark tiles per chain type."""
+def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, max_bounces=16, check=None):
+    """Trace photons_per_light photons per planned light and mark tiles per chain type.
+    check() is called between bounces (it raises to cancel)."""
     x0, x1, y0, y1 = cam.region
     nx = (x1 - x0 + 2 * TILE) // TILE + 2
     ny = (y1 - y0 + 2 * TILE) // TILE + 2
@@ -69,6 +70,8 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
         sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
         stats["photons"] += len(o)
         for bounce in range(max_bounces + 1):
+            if check is not None:
+                check()
             if len(o) == 0:
                 break
             h = tracer.intersect(o, d)
