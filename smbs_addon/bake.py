@@ -296,7 +296,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
 
             t_g = time.perf_counter()
             masks, gstats = build_guide(scene, tracer, cam, plan, types, _rng(settings.seed, 3, 0),
-                                        photon_budget(cam))
+                                        photon_budget(cam), check=_Progress(1, None, cancel).check)
             gstats["time_s"] = time.perf_counter() - t_g
             guide = Guide(cam, masks, gstats)
             extra["guide"] = gstats
