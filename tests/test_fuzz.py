@@ -12,7 +12,9 @@ vectorised ``newton_walk`` call; the properties hold lane by lane:
   finite and positive -- or ends with a named outcome (``walk.OUTCOMES``);
 - no NaN or infinity anywhere in the chains, the mismatches, the geometric
   terms or the contributions (``manifold._contribution``), and no negative
-  energy.
+  energy;
+- the optional clamp caps each contribution at its level (here the median),
+  never below zero, and the cut it reports plus what is left is the original.
 
 Hypothesis is derandomised (fixed examples, no example database), so CI sees
 the same walks every run. The totals (walks, outcomes, non-finite values) are
@@ -26,11 +28,9 @@ from collections import Counter
 from types import SimpleNamespace
 
 import numpy as np
-import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
-from smbs_addon import scene as S
 from smbs_addon.builder import SceneBuilder, look_at
 from smbs_addon.estimators import geometric_term, light_end_at_solution
 from smbs_addon.manifold import Ctx, Seeder, _contribution, sample_light
@@ -160,7 +160,9 @@ def walk_example(cfg, totals):
                           smbs=cfg["method"] == "smbs")
     seeder = Seeder(scene, plan, types, cfg["method"])
     chain = seeder.seed(ctx, rng, types, x0, ng0, light)
-    res = newton_walk(ctx, walk_cfg, types, x0, ng0, light, chain)
+    # as manifold._walk does: a share of SMBS lanes walks as plain SMS (the defensive mixture)
+    large_ok = rng.random(n) >= walk_cfg.defensive if walk_cfg.smbs else None
+    res = newton_walk(ctx, walk_cfg, types, x0, ng0, light, chain, large_ok)
 
     # every lane: a named outcome, and converged exactly when the outcome says so
     assert res.outcome.shape == (n,) and res.converged.shape == (n,)
@@ -191,6 +193,14 @@ def walk_example(cfg, totals):
         non_finite += int((~np.isfinite(val)).sum())
         assert np.all(val >= 0), val.min()
         assert np.all(val[~ok] == 0)
+        lum = val.mean(axis=1)
+        if ok.any():  # the clamp: capped at its level, never negative, and it says what it cut
+            level = ctx.clamp = float(np.median(lum[ok]))
+            capped, ok2 = _contribution(ctx, 0, types, rc, conv, lt, ch)
+            ctx.clamp = 0.0
+            assert np.array_equal(ok, ok2) and np.all(capped >= 0) and np.all(capped <= val)
+            assert np.all(capped.mean(axis=1) <= level * (1 + 1e-12))
+            assert np.allclose(ctx.clamp_cut + capped.mean(axis=1), lum, rtol=1e-12, atol=0)
     assert stats.get("non_finite", 0) == 0
     codes = np.bincount(res.outcome, minlength=len(OUTCOMES))
     totals["walks"] += n
