@@ -223,6 +223,27 @@ def build_glass_sphere(out):
     save(out / "glass_sphere.blend")
 
 
+def build_glass_spot(out):
+    """A glass ball lit by a spot light whose cone is narrower than the ball: the
+    floor gets light only through the ball, so Cycles' caustics on - off is the
+    caustic alone (no floor -> ball -> floor light from a directly lit floor)."""
+    scene = reset()
+    scene.name = "GlassSpot"
+    render_settings(scene, 160, 120)
+    black_world(scene)
+    floor_mat = material("Floor", "diffuse", (0.8, 0.8, 0.8))
+    glass = material("Glass", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.45)
+    v, f = grid(10, 10)
+    mesh_object(scene, "Floor", v, f, floor_mat, receiver=True)
+    v, f = uv_sphere(0.5, 64, 32)
+    mesh_object(scene, "Sphere", v, f, glass, smooth=True, location=(0, 0, 1.0), caster=True)
+    # the ball subtends 9.6 deg (half-angle) from the light; the cone's half-angle is 8 deg
+    add_light(scene, "Spot", "SPOT", (0, 0, 4), energy=2000.0, shadow_soft_size=0.3,
+              spot_size=math.radians(16.0), spot_blend=0.0)
+    add_camera(scene, (0, -3.2, 2.6), (0, 0, 0.2), lens=50)
+    save(out / "glass_spot.blend")
+
+
 def build_water(out):
     scene = reset()
     scene.name = "Water"
@@ -281,6 +302,7 @@ def main(argv=None):
     out.mkdir(parents=True, exist_ok=True)
     build_mirror(out)
     build_glass_sphere(out)
+    build_glass_spot(out)
     build_water(out)
     build_pool(out)
 
