@@ -206,9 +206,10 @@ def build_mirror(out):
     save(out / "mirror.blend")
 
 
-def build_glass_sphere(out):
+def _glass_ball_scene(name, height):
+    """A floor and a glass ball (radius 0.5, IOR 1.45) whose centre is height above it."""
     scene = reset()
-    scene.name = "GlassSphere"
+    scene.name = name
     render_settings(scene, 160, 120)
     black_world(scene)
     floor_mat = material("Floor", "diffuse", (0.8, 0.8, 0.8))
@@ -216,7 +217,12 @@ def build_glass_sphere(out):
     v, f = grid(10, 10)
     mesh_object(scene, "Floor", v, f, floor_mat, receiver=True)
     v, f = uv_sphere(0.5, 64, 32)
-    mesh_object(scene, "Sphere", v, f, glass, smooth=True, location=(0, 0, 0.6), caster=True)
+    mesh_object(scene, "Sphere", v, f, glass, smooth=True, location=(0, 0, height), caster=True)
+    return scene
+
+
+def build_glass_sphere(out):
+    scene = _glass_ball_scene("GlassSphere", 0.6)
     add_light(scene, "Light", "AREA", (0, 0, 4), energy=200.0, shape="SQUARE", size=0.5,
               spread=math.pi)
     add_camera(scene, (0, -4, 3), (0, 0, 0.3), lens=50)
@@ -227,16 +233,7 @@ def build_glass_spot(out):
     """A glass ball lit by a spot light whose cone is narrower than the ball: the
     floor gets light only through the ball, so Cycles' caustics on - off is the
     caustic alone (no floor -> ball -> floor light from a directly lit floor)."""
-    scene = reset()
-    scene.name = "GlassSpot"
-    render_settings(scene, 160, 120)
-    black_world(scene)
-    floor_mat = material("Floor", "diffuse", (0.8, 0.8, 0.8))
-    glass = material("Glass", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.45)
-    v, f = grid(10, 10)
-    mesh_object(scene, "Floor", v, f, floor_mat, receiver=True)
-    v, f = uv_sphere(0.5, 64, 32)
-    mesh_object(scene, "Sphere", v, f, glass, smooth=True, location=(0, 0, 1.0), caster=True)
+    scene = _glass_ball_scene("GlassSpot", 1.0)
     # the ball subtends 9.6 deg (half-angle) from the light; the cone's half-angle is 8 deg
     add_light(scene, "Spot", "SPOT", (0, 0, 4), energy=2000.0, shadow_soft_size=0.3,
               spot_size=math.radians(16.0), spot_blend=0.0)
