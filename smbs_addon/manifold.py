@@ -71,12 +71,12 @@ def _closed(scene, obj) -> bool:
     return bool(np.all(counts == 2))
 
 
-def _planar(scene, obj) -> bool:
+def _plane(scene, obj):
+    """(unit normal, centre) of an object whose vertices all lie in one plane, else None."""
     pts = scene.tri_vertices[scene.tri_object == obj].reshape(-1, 3)
-    if len(pts) < 4:
-        return True
-    _, sv, _ = np.linalg.svd(pts - pts.mean(axis=0), full_matrices=False)
-    return bool(sv[-1] <= 1e-9 * max(sv[0], 1e-300))
+    c = pts.mean(axis=0)
+    _, sv, vt = np.linalg.svd(pts - c, full_matrices=False)
+    return (vt[-1], c) if sv[-1] <= 1e-9 * max(sv[0], 1e-300) else None
 
 
 def chain_types(scene, plan, opts: ManifoldOptions) -> list:
@@ -95,7 +95,7 @@ def chain_types(scene, plan, opts: ManifoldOptions) -> list:
         k = kinds[scene.tri_object == o]
         if np.any(k == S.CONDUCTOR) or np.any(k == S.DIELECTRIC):
             types.append("R")
-        if o in conductors and (len(conductors) > 1 or not _planar(scene, o)):
+        if o in conductors and (len(conductors) > 1 or _plane(scene, o) is None):
             types.append("RR")  # a curved mirror (a ring, a bowl) or two mirrors see each other
         if np.any(k == S.DIELECTRIC):
             if _closed(scene, o):
@@ -147,11 +147,11 @@ class Seeder:
     that caster), or MNEE's straight line towards the light (towards the
     caster's box centre for a reflection first)."""
 
-    def __init__(self, scene, plan, types, method):
+    def __init__(self, scene, casters, types, method):
         self.method = method
         kinds = scene.mat_kind[scene.tri_material]
         ok_kind = (kinds == S.DIELECTRIC) if types[0] == "T" else ((kinds == S.CONDUCTOR) | (kinds == S.DIELECTRIC))
-        self.tris = np.flatnonzero(plan.casters[scene.tri_object] & ok_kind)
+        self.tris = np.flatnonzero(casters[scene.tri_object] & ok_kind)
         v = scene.tri_vertices[self.tris]
         area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
         self.cdf = np.cumsum(area)
@@ -162,17 +162,10 @@ class Seeder:
         self.types = types
         # planar casters: a one-vertex chain needs the receiver and the light on the
         # same side (R) or on opposite sides (T) of the plane, which culls lanes up front
-        self.planes = []
+        self.planes = None
         if len(types) == 1:
-            for o in np.unique(self.obj):
-                pts = scene.tri_vertices[scene.tri_object == o].reshape(-1, 3)
-                c = pts.mean(axis=0)
-                _, sv, vt = np.linalg.svd(pts - c, full_matrices=False)
-                if sv[-1] <= 1e-9 * max(sv[0], 1e-300):
-                    self.planes.append((vt[-1], c))
-                else:
-                    self.planes = None
-                    break
+            planes = [_plane(scene, o) for o in np.unique(self.obj)]
+            self.planes = None if any(p is None for p in planes) else planes
         objs = np.unique(self.obj)
         self.centers = np.array([np.mean(scene.object_bounds(o), axis=0) for o in objs]).reshape(-1, 3)
         self.center_obj = objs
@@ -305,7 +298,7 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     out = np.zeros((n, 3))
     if n == 0:
         return out
-    seeder = Seeder(ctx.scene, _Plan(ctx.casters), types, opts.method)
+    seeder = Seeder(ctx.scene, ctx.casters, types, opts.method)
     if seeder.total <= 0:
         return out
     light = sample_light(ctx.scene, li, n, rng)
@@ -394,11 +387,6 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     np.add.at(out, owner[pend], val[pend] * w[:, None])
     _count_clamped(ctx, None if cut is None else cut[pend] * w)
     return out
-
-
-class _Plan:
-    def __init__(self, casters):
-        self.casters = casters
 
 
 def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n_batch, rng, stats_per_light,

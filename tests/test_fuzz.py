@@ -158,7 +158,7 @@ def walk_example(cfg, totals):
     light = sample_light(scene, 0, n, rng)
     walk_cfg = WalkConfig(form="hv" if cfg["method"] == "mnee" else "ad", threshold=cfg["threshold"],
                           smbs=cfg["method"] == "smbs")
-    seeder = Seeder(scene, plan, types, cfg["method"])
+    seeder = Seeder(scene, plan.casters, types, cfg["method"])
     chain = seeder.seed(ctx, rng, types, x0, ng0, light)
     # as manifold._walk does: a share of SMBS lanes walks as plain SMS (the defensive mixture)
     large_ok = rng.random(n) >= walk_cfg.defensive if walk_cfg.smbs else None
