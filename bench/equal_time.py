@@ -3,8 +3,10 @@
     .venv/bin/python bench/equal_time.py [--budget 20] [--out bench/results]
 
 Scenes (tests/scenes.py): under water with a sun (most SMS seeds die of total
-internal reflection) and a bumpy mirror sheet (many seeds land on back-lit
-facets). Each method gets the same wall-clock budget (BakeSettings.time_budget);
+internal reflection); three back-lit reflection scenes: a bumpy mirror sheet
+(many seeds land on facets facing away from the light), the same sheet flat
+but normal-mapped (the paper's Figure 12 kind), and the ring (half its wall is
+lit from behind). Each method gets the same wall-clock budget (BakeSettings.time_budget);
 RMSE is against the closed form (water) or a long light-tracing reference whose
 own noise is subtracted in quadrature. Writes a Markdown table and a CSV; timing
 lives here, never in a pass/fail test.
@@ -37,16 +39,24 @@ def water_case():
     return "water, sun (TIR)", sc, np.full(region.shape, value), np.zeros(region.shape), region
 
 
-def wavy_case(ref_seconds):
-    sc = scenes.wavy_mirror_scene(resolution=(48, 36))
-    ref = bake(sc, BakeSettings(method="reference", spp=64, seed=99, time_budget=ref_seconds, batches=8))
+def reference_case(name, sc, ref_seconds):
+    ref = bake(sc, BakeSettings(method="reference", spp=64, seed=99, time_budget=ref_seconds, batches=8,
+                                radiance="physical"))
     region = ref.image.mean(axis=2) > 0
-    return "bumpy mirror (back-lit)", sc, ref.image.mean(axis=2), ref.variance.mean(axis=2), region
+    return name, sc, ref.image.mean(axis=2), ref.variance.mean(axis=2), region
+
+
+def cases(ref_seconds):
+    yield water_case()
+    yield reference_case("bumpy mirror (back-lit)", scenes.wavy_mirror_scene(resolution=(48, 36)), ref_seconds)
+    yield reference_case("normal-mapped mirror", scenes.wavy_mirror_scene(resolution=(48, 36), normal_mapped=True),
+                         ref_seconds)
+    yield reference_case("ring (back-lit wall)", scenes.ring_scene(resolution=(48, 36)), ref_seconds)
 
 
 def run(budget, out, ref_seconds):
     rows = []
-    for name, sc, truth, truth_var, region in (water_case(), wavy_case(ref_seconds)):
+    for name, sc, truth, truth_var, region in cases(ref_seconds):
         for method in ("sms", "smbs", "mnee"):
             t = time.perf_counter()
             r = bake(sc, BakeSettings(method=method, spp=1, batches=1, seed=1, time_budget=budget,
@@ -61,6 +71,8 @@ def run(budget, out, ref_seconds):
                 "mpp": round(st["mutations_per_path"], 2),
                 "mut/success": round(st["mutations_per_success"], 2),
                 "large": sum(sum(l.get("large_mutations", {}).values()) for l in st["lights"].values()),
+                "chains": "+".join(st["chain_types"]),
+                "to photons": ",".join(t.split(": ")[1] for t in st.get("guide", {}).get("left_to_photons", [])),
                 "RMSE": round(math.sqrt(mse), 5), "mean/truth": round(float(r.image.mean(axis=2)[region].mean()
                                                                           / truth[region].mean()), 4),
             })

@@ -222,7 +222,7 @@ def _glass_ball_scene(name, height):
 
 
 def build_glass_sphere(out):
-    scene = _glass_ball_scene("GlassSphere", 0.6)
+    scene = _glass_ball_scene("GlassSphere", 1.0)
     add_light(scene, "Light", "AREA", (0, 0, 4), energy=200.0, shape="SQUARE", size=0.5,
               spread=math.pi)
     add_camera(scene, (0, -4, 3), (0, 0, 0.3), lens=50)

@@ -14,6 +14,7 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from . import reference
+from . import scene as S
 from .camera import CameraModel
 from .errors import BakeCancelled, SceneError
 from .film import Film
@@ -53,6 +54,9 @@ class BakeSettings:
     chains: tuple = ()  # explicit chain types ("R", "TT", ...); empty: what the scene calls for
     clamp_g: float = 0.0  # manifold methods: cap on one solution's luminance (RGB mean), biased; 0: off.
     # What it cuts is in the statistics per light: 'clamped' solutions, 'clamped_energy' (image units)
+    handoff: float = 4.0  # manifold methods: paths that focus light more than this many times (folds,
+    # foci) are left to a light-tracing pass of spp photons per pixel and light, which is efficient
+    # exactly there; the two partition path space, so the sum stays unbiased. 0: walks only
 
     def validate(self) -> None:
         if self.method not in METHODS:
@@ -73,6 +77,8 @@ class BakeSettings:
             raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
         if not (self.solver_threshold > 0 and self.uniqueness > 0):
             raise SceneError("solver_threshold and uniqueness must be positive")
+        if not (self.handoff >= 0 and math.isfinite(self.handoff)):
+            raise SceneError(f"handoff must be 0 (off) or a positive concentration, not {self.handoff}")
         if not (self.clamp_g >= 0):
             raise SceneError(f"clamp_g must be 0 (off) or a positive luminance, not {self.clamp_g}")
         for c in self.chains:
@@ -90,7 +96,8 @@ class BakeSettings:
         return ManifoldOptions(method=self.method, estimator=self.estimator, trials=self.trials,
                                max_trials=self.max_trials, uniqueness=self.uniqueness,
                                chains=tuple(self.chains), max_chain=self.max_chain, walk=walk,
-                               physical=self.radiance == "physical", clamp_g=float(self.clamp_g))
+                               physical=self.radiance == "physical", clamp_g=float(self.clamp_g),
+                               handoff=0.0 if self.method == "mnee" else float(self.handoff))
 
 
 @dataclass
@@ -217,6 +224,31 @@ def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, pe
         prog.step(f"{settings.method}, batch {b + 1}/{settings.batches}")
 
 
+def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
+                   guide=None):
+    """The photons' share of a manifold bake: the paths focusing more than opts.handoff,
+    and every path of a chain type the guide found too weak to be worth walks."""
+    if opts.handoff <= 0 or not types:
+        return
+    per_batch = max(1, per_light // settings.batches)
+    for lp in plan.lights:
+        st = light_stats[lp.name]
+        hs = st.setdefault("handoff", dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats",
+                                                     "handoff_paths", "truncated", "lost_shading_normal"), 0))
+        t_light = time.perf_counter()
+        tau = {t: 0.0 if guide is not None and guide.is_weak(lp.index, t) else opts.handoff for t in types}
+        handoff = reference.Handoff(tau, bool(scene.light_type[lp.index] == S.SUN))
+        for c, start in enumerate(range(0, per_batch, CHUNK)):
+            prog.check()
+            n = min(CHUNK, per_batch - start)
+            rng = _rng(settings.seed, 4, lp.index, b, c)
+            ph = emit(scene, lp.index, lp.targets, n, rng)
+            ph.w *= n / per_batch
+            reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, hs,
+                                    physical=settings.radiance == "physical", handoff=handoff)
+        st["time_s"] += time.perf_counter() - t_light
+
+
 def _summarise_walks(st: dict) -> None:
     walks = st.get("walks", 0)
     st["success_rate"] = st.get("successes", 0) / walks if walks else 0.0
@@ -227,6 +259,9 @@ def _summarise_walks(st: dict) -> None:
     st["trials"] = {"mean": st.get("bernoulli_trials", 0) / lanes if lanes else 0.0,
                     "max": st.get("bernoulli_max", 0), "capped": st.get("capped", 0)}
     st["rays"] = sum(v for k, v in st.items() if k.startswith("rays_"))
+    hs = st.get("handoff")
+    if hs:
+        st["rays"] += hs["rays_photon"] + hs["rays_camera"]
 
 
 def film_memory(width: int, height: int, batches: int) -> int:
@@ -295,16 +330,20 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             from .guide import Guide, build_guide, photon_budget
 
             t_g = time.perf_counter()
-            masks, gstats = build_guide(scene, tracer, cam, plan, types, _rng(settings.seed, 3, 0),
-                                        photon_budget(cam), check=_Progress(1, None, cancel).check)
+            masks, gstats, weak = build_guide(scene, tracer, cam, plan, types, _rng(settings.seed, 3, 0),
+                                              photon_budget(cam), check=_Progress(1, None, cancel).check)
             gstats["time_s"] = time.perf_counter() - t_g
-            guide = Guide(cam, masks, gstats)
+            # weak chain types go to the photon hand-off (which the user may turn off: then walk them)
+            guide = Guide(cam, masks, gstats, weak if opts.handoff > 0 else frozenset())
+            gstats["left_to_photons"] = sorted(f"{scene.light_names[li]}: {t}" for li, t in guide.weak)
             extra["guide"] = gstats
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
         b = 0
         while True:
             _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
                             eye_stats, prog, guide)
+            _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
+                           guide)
             film.end_batch()
             b += 1
             if settings.time_budget > 0:  # at least two batches, then until the budget is spent

@@ -109,6 +109,32 @@ def geometric_term(types, x0, verts, etas, light_end: LightEnd):
     return np.where(ok, g, 0.0), ok
 
 
+def concentration(types, x0, verts, etas, y, directional):
+    """How strongly the chain focuses light onto x0, a function of the path alone:
+    G of the path with its light end taken as a point at y (tangent plane facing
+    the chain) times the squared unfolded length, |d w0 / d w_y| for a sun. An
+    unfocused chain (a flat mirror) gives 1; it grows without bound at a fold.
+    The manifold pass and the photon hand-off both evaluate it, on the same
+    paths, so a threshold on it partitions path space exactly between them."""
+    n = len(x0)
+    if directional:
+        ys, yt = frame(y)
+        g, ok = geometric_term(types, x0, verts, etas, LightEnd(True, y, ys, yt))
+        return np.where(ok, g, np.inf)
+    last = verts[len(types) - 1].p
+    ys, yt = frame(normalize(last - y))
+    g, ok = geometric_term(types, x0, verts, etas, LightEnd(False, y, ys, yt))
+    length = np.zeros(n)
+    prev = x0
+    for v in verts:
+        d = v.p - prev
+        length += np.sqrt(dot(d, d))
+        prev = v.p
+    d = y - prev
+    length += np.sqrt(dot(d, d))
+    return np.where(ok, g * length**2, np.inf)
+
+
 def same_solution(d_a, d_b, obj_a, obj_b, threshold):
     """Two solutions are the same when the first segment's direction agrees and
     the first vertex lies on the same object."""

@@ -19,6 +19,13 @@ from .reference import scatter_specular
 
 TILE = 4  # pixels per tile side
 Q = 0.125  # walk probability in tiles no photon reached
+# A chain type is left to the photons (bake's hand-off) when it brings less than WEAK_SHARE of a
+# light's flux onto the receivers in frame, or when its brightest tile gets less than WEAK_PEAK of
+# the brightest tile of any chain type of that light: a faint glow, whose noise hardly shows, for
+# which light tracing costs a fraction of the walks (e.g. a glass ball's reflection, next to its
+# refracted focus)
+WEAK_SHARE = 0.02
+WEAK_PEAK = 0.05
 
 
 def _code(types: str) -> int:
@@ -35,10 +42,14 @@ def photon_budget(cam) -> int:
 
 
 class Guide:
-    def __init__(self, cam, masks: dict, stats: dict):
+    def __init__(self, cam, masks: dict, stats: dict, weak=frozenset()):
         self.cam, self.masks, self.stats = cam, masks, stats
+        self.weak = weak  # {(light index, chain type)} whose direct receivers the photons serve
         x0, x1, y0, y1 = cam.region
         self.tx0, self.ty0 = x0 - TILE, y0 - TILE
+
+    def is_weak(self, li, types) -> bool:
+        return (li, types) in self.weak
 
     def keep_probability(self, li, types, rx, ry, eye_specular):
         """Per receiver: 1 inside the marked tiles (or when not guidable), Q elsewhere."""
@@ -62,9 +73,11 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
     ny = (y1 - y0 + 2 * TILE) // TILE + 2
     want = {t: i for i, t in enumerate(types_list)}
     masks = {}
-    stats = {"photons": 0, "rays": 0}
+    stats = {"photons": 0, "rays": 0, "flux_share": {}, "peak_share": {}}
+    weak = set()
     for lp in plan.lights:
         marks = {t: np.zeros((ny, nx), bool) for t in types_list}
+        flux = {t: np.zeros((ny, nx)) for t in types_list}  # arriving on receivers in the frame
         ph = emit(scene, lp.index, lp.targets, photons_per_light, rng)
         o, d, beta = ph.o, ph.d, ph.w
         sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
@@ -94,6 +107,7 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
                 for t in types_list:
                     sel = ok & (sig[diff] == _code(t[::-1]))  # photons list vertices from the light
                     if sel.any():
+                        np.add.at(flux[t], (ty[sel], tx[sel]), beta[diff][sel].mean(axis=1))
                         m = marks[t]
                         for dy in (-1, 0, 1):  # dilate by one tile
                             for dx in (-1, 0, 1):
@@ -109,4 +123,11 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
             d = d_new
         for t in types_list:
             masks[(lp.index, t)] = marks[t]
-    return masks, stats
+        total = sum(float(f.sum()) for f in flux.values())
+        top = max(float(f.max()) for f in flux.values()) if flux else 0.0
+        share = {t: (float(f.sum()) / total if total > 0 else 0.0) for t, f in flux.items()}
+        peak = {t: (float(f.max()) / top if top > 0 else 0.0) for t, f in flux.items()}
+        stats["flux_share"][lp.name] = share
+        stats["peak_share"][lp.name] = peak
+        weak |= {(lp.index, t) for t in types_list if total > 0 and (share[t] < WEAK_SHARE or peak[t] < WEAK_PEAK)}
+    return masks, stats, frozenset(weak)

@@ -46,9 +46,13 @@ def ray_box(o, d, lo, hi):
     return (tmax >= np.maximum(tmin, 0.0))
 
 
-def get_ratio(x0, v1, target, lo, hi):
-    """Algorithm 4: the interpolation weight a between v1 (current) and target (-v2')."""
+def get_ratio(x0, v1, target, lo, hi, scale=None):
+    """Algorithm 4: the interpolation weight a between v1 (current) and target (-v2').
+    scale (N,) <= 1 continues the bisection where an earlier large mutation from
+    the same vertex missed the caster itself (the box test cannot see that)."""
     a = np.where(dot(v1, target) < 0, 1.0, 0.5)
+    if scale is not None:
+        a = a * scale
     found = np.zeros(len(a), bool)
     for _ in range(MAX_HALVINGS + 1):
         d = normalize(a[:, None] * target + (1.0 - a)[:, None] * v1)
@@ -58,12 +62,12 @@ def get_ratio(x0, v1, target, lo, hi):
     return np.where(found, a, 0.0)
 
 
-def large_direction(types, verts, etas, light, x0, obj_lo, obj_hi):
+def large_direction(types, verts, etas, light, x0, obj_lo, obj_hi, scale=None):
     """The SMBS proposal direction from x0 and whether it could be built."""
     v2, ok = get_next_dir(types, verts, etas, light)
     v1 = normalize(verts[0].p - x0)
     target = -v2
-    a = get_ratio(x0, v1, target, obj_lo, obj_hi)
+    a = get_ratio(x0, v1, target, obj_lo, obj_hi, scale)
     d = normalize(a[:, None] * target + (1.0 - a)[:, None] * v1)
     ok &= dot(d, d) > 0.5
     return d, ok

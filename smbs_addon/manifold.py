@@ -17,7 +17,7 @@ import numpy as np
 
 from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
-from .estimators import chain_throughput, geometric_term, light_end_at_solution, same_solution
+from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
 from .lights import area_light_points
 from .vec import dot, normalize, uniform_cone, frame, to_world
@@ -34,6 +34,7 @@ class ManifoldOptions:
     chains: tuple = ()  # explicit chain types, e.g. ("R", "TT"); empty: from the plan
     physical: bool = False  # eta^2 radiance change at refractions (Cycles does not apply it)
     clamp_g: float = 0.0  # > 0: cap on each solution's contribution (luminance); 0: off
+    handoff: float = 0.0  # > 0: paths focusing more than this (estimators.concentration) go to photons
     max_chain: int = 4
     walk: WalkConfig = field(default_factory=WalkConfig)
 
@@ -310,6 +311,10 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     feasible = seeder.feasible(x0, light, 1e-9 * ctx.scene.scale)
     ctx.stats["culled_lanes"] = ctx.stats.get("culled_lanes", 0) + int((~feasible).sum())
     rr_weight = np.ones(n)
+    if guide is not None and guide.is_weak(li, types):  # the photon hand-off serves direct receivers
+        weak = feasible & (rc.eye_specular == 0)
+        ctx.stats["weak_skips"] = ctx.stats.get("weak_skips", 0) + int(weak.sum())
+        feasible &= ~weak
     if guide is not None:  # Russian roulette outside the tiles the photon pre-pass reached
         q = guide.keep_probability(li, types, rc.rx, rc.ry, rc.eye_specular)
         survive = rng.random(n) < q
@@ -326,6 +331,21 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     chain = res.chain.take(conv)
     owner = lanes[conv]
     val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain)
+    if opts.handoff > 0:
+        # the fold's paths belong to the photon hand-off (bake._handoff_batch), which reaches
+        # only receivers the camera sees directly; what it takes, this pass drops
+        direct = ok & (rc.eye_specular[owner] == 0)
+        if direct.any():
+            di = np.flatnonzero(direct)
+            ch_d = chain.take(di)
+            etas = [ctx.scene.mat_ior[v.mat] for v in ch_d.verts]
+            c = concentration(types, x0[owner[di]], ch_d.verts, etas, light.y[owner[di]], light.directional)
+            handed = di[c > opts.handoff]
+            ok[handed] = False
+            val[handed] = 0.0
+            if ctx.clamp_cut is not None:
+                ctx.clamp_cut[handed] = 0.0
+            ctx.stats["handed_off"] = ctx.stats.get("handed_off", 0) + int(handed.size)
     val = val * rr_weight[owner][:, None]
     if opts.method == "mnee" and seeder.reflect_first:  # one caster picked uniformly per lane
         val = val * len(seeder.centers)

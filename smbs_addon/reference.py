@@ -13,12 +13,15 @@ splatted here (the connection to the camera is blocked); see the bake notes.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
 from . import scene as S
 from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
 from .lights import light_radiance, soft_falloff_factor
+from .estimators import concentration
+from .geometry import vertex_from_hits
 from .vec import cosine_hemisphere, dot, frame, normalize, to_world
 
 MAX_SPECULAR_BOUNCES = 32
@@ -104,15 +107,79 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False)
     return normalize(n_out[keep]), beta[keep], keep
 
 
+@dataclass
+class Handoff:
+    """The manifold pass hands the paths that focus more than ``tau`` to the photons.
+
+    Photons then splat only where their chain (read from the receiver's side) is
+    one of ``types``, every vertex lies on a planned caster, and the chain's
+    concentration exceeds tau: exactly the paths the manifold pass drops
+    (manifold.estimate), so the two add up to the whole layer, each where it is
+    efficient: the light tracer where light piles up (folds, foci), the walks
+    elsewhere."""
+
+    tau: dict  # chain type -> concentration threshold; 0: the whole chain type (a weak one)
+    directional: bool  # the light is a sun: the light end is the photon's direction
+
+    @property
+    def types(self):
+        return tuple(self.tau)
+
+    @property
+    def max_chain(self):
+        return max(len(t) for t in self.types)
+
+
+def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caster, y):
+    """Which photons arriving at x0 after kb bounces (history per bounce, light side
+    first) carry a handed-off path."""
+    take = np.zeros(len(x0), bool)
+    K = handoff.max_chain
+    ok = (kb >= 1) & (kb <= K)
+    for k in np.unique(kb[ok]):
+        lanes = np.flatnonzero(ok & (kb == k))
+        lanes = lanes[np.all(caster[lanes, :k], axis=1)]
+        # chain letters from the receiver's side: the photon's last bounce comes first
+        codes = np.zeros(lanes.size, np.int64)
+        for j in range(k):
+            codes = codes * 2 + refl[lanes, k - 1 - j]
+        for code in np.unique(codes):
+            types = "".join("R" if (code >> (k - 1 - j)) & 1 else "T" for j in range(k))
+            if types not in handoff.types:
+                continue
+            g = lanes[codes == code]
+            verts = [vertex_from_hits(scene, tracer, prim[g, k - 1 - j], pts[g, k - 1 - j], bary[g, k - 1 - j])
+                     for j in range(k)]
+            etas = [scene.mat_ior[v.mat] for v in verts]
+            tau = handoff.tau[types]
+            if tau <= 0:
+                take[g] = True
+                continue
+            c = concentration(types, x0[g], verts, etas, y[g], handoff.directional)
+            take[g[c > tau]] = True
+    return take
+
+
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounces=MAX_SPECULAR_BOUNCES,
-                  physical=False):
-    """Follow photons through specular chains and splat at the first diffuse vertex."""
+                  physical=False, handoff: Handoff | None = None):
+    """Follow photons through specular chains and splat at the first diffuse vertex
+    (with a hand-off: only the paths it names)."""
     o, d, beta = photons.o, photons.d, photons.w
     keep = beta.max(axis=1) > 0
     o, d, beta = o[keep], d[keep], beta[keep]
     soft = photons.soft_center is not None
     stats["photons"] += int(keep.sum())
     bounces = 0
+    if handoff is not None:  # per photon: each bounce's triangle, barycentrics, kind, caster flag
+        K = handoff.max_chain
+        max_bounces = min(max_bounces, K)
+        lane = np.arange(len(o))
+        y_end = -d if handoff.directional else o.copy()
+        h_prim = np.zeros((len(o), K), np.int64)
+        h_p = np.zeros((len(o), K, 3))
+        h_bary = np.zeros((len(o), K, 2))
+        h_refl = np.zeros((len(o), K), np.int64)
+        h_cast = np.zeros((len(o), K), bool)
     while len(o):
         h = tracer.intersect(o, d)
         stats["rays_photon"] += len(o)
@@ -121,6 +188,9 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
             break
         o, d, beta = o[idx], d[idx], beta[idx]
         p, ng, ns, prim = h.p[idx], h.ng[idx], h.ns[idx], h.prim[idx]
+        if handoff is not None:
+            lane = lane[idx]
+            bary = h.b[idx]
         if soft and bounces == 0:
             beta = beta * soft_falloff_factor(photons.soft_center, photons.soft_radius, p)[:, None]
         mat = scene.tri_material[prim]
@@ -132,6 +202,13 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         if bounces == 0:
             spec &= plan.casters[obj]
         diffuse = (kind == S.DIFFUSE) & plan.receivers[obj] & (bounces > 0)
+        if handoff is not None and diffuse.any():
+            di = np.flatnonzero(diffuse)
+            ln = lane[di]
+            take = _handoff_select(scene, tracer, handoff, p[di], np.full(di.size, bounces), h_prim[ln],
+                                   h_p[ln], h_bary[ln], h_refl[ln], h_cast[ln], y_end[ln])
+            diffuse[di[~take]] = False
+            stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(take.sum())
         if diffuse.any():
             di = np.flatnonzero(diffuse)
             splat_to_camera(scene, tracer, cam, film, p[di], ng[di], ns[di], w_in[di], beta[di],
@@ -142,9 +219,19 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         si = np.flatnonzero(spec)
         if si.size == 0:
             break
+        d_in = d[si]
         d, beta, keep = scatter_specular(scene, rng, -d[si], ns[si], ng[si], mat[si], kind[si], beta[si],
                                          scale_eta=not physical)
         stats["lost_shading_normal"] += int(si.size - keep.size)
+        if handoff is not None:
+            sk = si[keep]
+            ln = lane[sk]
+            h_prim[ln, bounces] = prim[sk]
+            h_p[ln, bounces] = p[sk]
+            h_bary[ln, bounces] = bary[sk]
+            h_refl[ln, bounces] = (dot(d_in[keep], ns[sk]) * dot(d, ns[sk]) < 0).astype(np.int64)
+            h_cast[ln, bounces] = plan.casters[obj[sk]]
+            lane = ln
         o = tracer.spawn(p[si][keep], ng[si][keep], d)
         bounces += 1
 

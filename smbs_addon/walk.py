@@ -28,9 +28,9 @@ from .vec import dot, normalize
 
 # walk outcome codes
 (OK, MISS, NOT_CASTER, WRONG_MATERIAL, TIR, SIDE, SEED_OBJECT, SINGULAR, MAX_ITER, WRONG_END, OCCLUDED,
- TIR_INNER) = range(12)
+ TIR_INNER, SIDE_INNER) = range(13)
 OUTCOMES = ("converged", "miss", "not_caster", "wrong_material", "tir", "side", "seed_object",
-            "singular", "max_iterations", "wrong_end", "occluded", "tir_inner")
+            "singular", "max_iterations", "wrong_end", "occluded", "tir_inner", "side_inner")
 # large-mutation triggers
 NONE, TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW = 0, 1, 2, 3
 TRIGGERS = ("none", "tir", "backlit", "slow")
@@ -114,11 +114,18 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
         bad[(~okm) & (bad == OK)] = TIR if j == k - 1 else TIR_INNER
         cin, cout = dot(w_in, v.ng), dot(w_out, v.ng)
         side_ok = (cin * cout > 0) if kind == "R" else (cin * cout < 0)
-        bad[(~side_ok) & (bad == OK)] = SIDE
+        bad[(~side_ok) & (bad == OK)] = SIDE if j == k - 1 else SIDE_INNER
         status[act] = bad
         good = bad == OK
-        if j == k - 1:  # keep the last vertex of a chain whose exit is TIR: SMBS can mutate from it
+        if j == k - 1:
+            # keep the last vertex of a chain whose exit is TIR: SMBS can mutate from it; and of
+            # one whose exit dips below the geometric surface (a shading normal leaning away, as
+            # on a normal-mapped mirror): every walk goes on from it, as SMS does from any seed
+            # on the caster, and converges only once the exit is valid
             _put(verts[j], act[bad == TIR], v.take(bad == TIR))
+            side = bad == SIDE
+            _put(verts[j], act[side], v.take(side))
+            out[act[side]] = normalize(w_out[side])
         _put(verts[j], act[good], v.take(good))
         act = act[good]
         w_out = normalize(w_out[good])
@@ -175,8 +182,14 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     beta = np.ones(n)
     err, front = end_mismatch(chain, light)
     pending = np.zeros(n, np.int64)  # SMBS: trigger for the next step
+    # SMBS: GetRatio's bisection, carried on across iterations: a large mutation whose ray missed
+    # the caster (or failed otherwise) would repeat itself exactly from the same vertex, so the
+    # next one from there starts at half the weight; an accepted one resets it
+    lscale = np.ones(n)
     large_counts = dict.fromkeys(TRIGGERS[1:], 0)
     etas_all = [ctx.scene.mat_ior[v.mat] for v in chain.verts]
+    valid = outcome == OK  # a lane converges only from a valid chain
+    outcome[outcome == SIDE] = OK  # an exit below the surface is walkable, not yet valid
     act = np.flatnonzero(outcome == OK)
     if large_ok is None:
         large_ok = np.ones(n, bool)
@@ -191,7 +204,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     for it in range(cfg.max_iterations + 1):
         if act.size == 0:
             break
-        done = (err[act] < cfg.threshold) & front[act]
+        done = (err[act] < cfg.threshold) & front[act] & valid[act]
         converged[act[done]] = True
         act = act[~done]
         if it == cfg.max_iterations or act.size == 0:
@@ -218,7 +231,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
             if want.any():
                 lo = ctx.obj_lo[ch.verts[0].obj]
                 hi = ctx.obj_hi[ch.verts[0].obj]
-                dl, okl = large_direction(types, ch.verts, etas, la, x0a, lo, hi)
+                dl, okl = large_direction(types, ch.verts, etas, la, x0a, lo, hi, lscale[act])
                 use_large = want & okl
                 d = np.where(use_large[:, None], dl, d)
                 for t_id in (TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW):
@@ -234,7 +247,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         mutations[act] += 1
         new = propagate(ctx, x0[act], ng0[act], d, types, target=p)
         e_new, f_new = end_mismatch(new, light.take(act))
-        okp = new.status == OK
+        okp = (new.status == OK) | (new.status == SIDE)
         accept = okp & (use_large | (e_new < err[act]))
         # a large mutation that ends in total internal reflection still moves the chain (its last
         # vertex is kept, as for a TIR seed): the next one bisects on from there instead of
@@ -251,7 +264,11 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
             slow = accept & ~use_large & (e_new > cfg.tau * err[act])
             pending[act[slow]] = TRIG_SLOW
         err[acc], front[acc] = e_new[accept], f_new[accept]
+        valid[acc] = new.status[accept] == OK
         beta[acc] = np.minimum(1.0, 2.0 * beta[acc])
+        beta[act[accept & use_large]] = 1.0  # Algorithm 2, line 7: a large mutation restarts the step
+        lscale[act[accept & use_large]] = 1.0
+        lscale[act[use_large & ~accept]] *= 0.5
         rej = act[~accept]
         beta[rej] *= 0.5
         if cfg.smbs and cfg.tir:

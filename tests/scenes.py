@@ -132,7 +132,7 @@ def ring_scene(resolution=(64, 48)):
     return b.build()
 
 
-def wavy_mirror_scene(resolution=(64, 48), amplitude=0.04, wavelength=0.3, n=96):
+def wavy_mirror_scene(resolution=(64, 48), amplitude=0.04, wavelength=0.3, n=96, normal_mapped=False):
     """A bumpy metal sheet (smooth-shaded height field) tilted over the floor
     under an area light: many seeds land on facets that face away from the
     light (back-lit), where small Newton steps get stuck."""
@@ -152,7 +152,9 @@ def wavy_mirror_scene(resolution=(64, 48), amplitude=0.04, wavelength=0.3, n=96)
     tilt = math.radians(45)
     R = np.array([[math.cos(tilt), 0, math.sin(tilt)], [0, 1, 0], [-math.sin(tilt), 0, math.cos(tilt)]])
     R = R @ np.diag([1.0, 1.0, 1.0])
-    P = np.stack([X, Y, Z], -1).reshape(-1, 3)
+    # normal_mapped: flat geometry, bumpy shading normals only (a normal map sampled
+    # at the vertices), the paper's Figure 12 kind of caster
+    P = np.stack([X, Y, np.zeros_like(Z) if normal_mapped else Z], -1).reshape(-1, 3)
     flip = np.diag([1.0, 1.0, -1.0])  # make the bumpy side face down
     V = (P @ flip.T) @ R.T + np.array([0, 0, 1.5])
     N = (Nl.reshape(-1, 3) @ flip.T) @ R.T

@@ -71,20 +71,33 @@ def _fold_mask(ref_lum, region, pct=97, grow=2):
     return out
 
 
-@pytest.mark.parametrize("method", ["sms", "smbs"])
-def test_ring_unbiased_matches_reference_off_the_folds(method):
-    """The cardioid inside a gold ring (R and RR chains). Where the manifold's
-    Jacobian vanishes (the cusp and the bright edges) G grows without bound and
-    the manifold estimate has an infinite-variance tail: at finite sample counts
-    its mean there runs 8-11% low (measured at 32 spp) while the light tracer's
-    does not. Off those fold pixels (about a fifth of the region) the two agree."""
+@pytest.fixture(scope="module")
+def ring():
+    """The ring with two independent references: the region and the folds are chosen on
+    one and the estimates judged against the other (choosing pixels on the image one
+    then averages favours its noisy-high pixels; at the folds that made every
+    estimator look 8-11% low)."""
     scene = scenes.ring_scene()
-    ref = bake(scene, BakeSettings(method="reference", spp=512, seed=9))
-    region = caustic_region(ref.image)
-    cool = region & ~_fold_mask(ref.image.mean(axis=2), region)
-    assert cool.sum() > 0.7 * region.sum()
-    res = bake(scene, BakeSettings(method=method, spp=32, seed=1))
-    rel, noise, beyond = _compare(res, ref, cool)
-    assert noise < 0.015, f"too noisy to judge: {noise:.2%}"
-    assert abs(rel) < 0.03, f"{method}: {rel:+.2%} off the folds (noise {noise:.2%})"
+    pick = bake(scene, BakeSettings(method="reference", spp=1024, seed=9))
+    judge = bake(scene, BakeSettings(method="reference", spp=1024, seed=10))
+    region = caustic_region(pick.image)
+    fold = region & _fold_mask(pick.image.mean(axis=2), region)
+    return scene, judge, region, fold
+
+
+@pytest.mark.parametrize("method", ["sms", "smbs"])
+def test_ring_unbiased_matches_reference(ring, method):
+    """The cardioid inside a gold ring (R and RR chains), folds included. Where the
+    manifold's Jacobian vanishes (the cusp and the bright edges) G grows without bound
+    and the walks' estimate has an infinite-variance tail; the photon hand-off takes
+    the paths that focus more than 4x, so the sum is unbiased with a finite variance."""
+    scene, ref, region, fold = ring
+    res = bake(scene, BakeSettings(method=method, spp=64, seed=1))
+    assert res.stats["lights"]["Area"]["handoff"]["handoff_paths"] > 0
+    rel, noise, beyond = _compare(res, ref, region)
+    # measured: SMS +0.2% +- 1.7%, SMBS -1.6% +- 1.1% (SMS's Bernoulli counts have the longer tail)
+    assert noise < 0.02, f"too noisy to judge: {noise:.2%}"
+    assert abs(rel) < 0.03, f"{method}: {rel:+.2%} over the caustic (noise {noise:.2%})"
     assert beyond < 0.05, f"{beyond:.1%} of pixels beyond 3 sigma"
+    rel_f, noise_f, _ = _compare(res, ref, fold)
+    assert abs(rel_f) < 3 * noise_f + 0.01, f"{method}: {rel_f:+.2%} on the folds (noise {noise_f:.2%})"

@@ -87,6 +87,9 @@ def summarize_stats(stats):
         if _number(trials.get("capped")):
             text += f", capped {trials['capped']:.0f}"
         rows.append(("Bernoulli Trials", text))
+    handoff = stats.get("handoff")
+    if isinstance(handoff, dict) and _number(handoff.get("handoff_paths")):
+        rows.append(("Photon Hand-off", f"{_format_count(handoff['handoff_paths'])} paths"))
     rays = _rays(stats)
     if rays is not None:
         rows.append(("Rays", _format_count(rays)))
@@ -325,6 +328,7 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         col.prop(settings, "uniqueness")
         col.prop(settings, "max_chain")
         col.prop(settings, "clamp_g")
+        col.prop(settings, "handoff")
 
         col = layout.column(heading="Large Mutations")
         col.active = settings.method == "smbs"

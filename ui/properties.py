@@ -20,7 +20,7 @@ BAKE_FIELDS = (
     "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
     "time_budget", "use_cycles_flags", "radiance", "guide", "max_iterations", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
-    "max_chain", "clamp_g",
+    "max_chain", "clamp_g", "handoff",
 )
 
 METHOD_ITEMS = (
@@ -181,6 +181,13 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         description="Largest luminance one manifold solution may add (0: no clamp). Clamping "
                     "tames the spikes at caustic folds but loses energy; the statistics show "
                     "how much",
+    )
+
+    handoff: FloatProperty(
+        name="Photon Hand-off", default=4.0, min=0.0, soft_max=64.0,
+        description="Caustic paths that focus light more than this many times (foci, the "
+                    "bright folds) are traced from the light instead of walked, which is much "
+                    "faster and less noisy there; the result stays unbiased. 0: walks only",
     )
 
     # The participants list (UI only).
