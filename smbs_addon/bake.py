@@ -185,21 +185,28 @@ class _Progress:
             self.progress(min(1.0, self.done / self.total), message)
 
 
+def _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, st, prog, stream, handoff=None,
+                 step=True):
+    """per_batch photons of light lp in chunks, each chunk with its own random stream."""
+    t_light = time.perf_counter()
+    for c, start in enumerate(range(0, per_batch, CHUNK)):
+        prog.check()
+        n = min(CHUNK, per_batch - start)
+        rng = _rng(settings.seed, stream, lp.index, b, c)
+        ph = emit(scene, lp.index, lp.targets, n, rng)
+        ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
+        reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st,
+                                physical=settings.radiance == "physical", handoff=handoff)
+        if step:
+            prog.step(f"light '{lp.name}', batch {b + 1}/{settings.batches}")
+    return time.perf_counter() - t_light
+
+
 def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog):
     per_batch = max(1, per_light // settings.batches)
     for lp in plan.lights:
         st = light_stats[lp.name]
-        t_light = time.perf_counter()
-        for c, start in enumerate(range(0, per_batch, CHUNK)):
-            prog.check()
-            n = min(CHUNK, per_batch - start)
-            rng = _rng(settings.seed, 0, lp.index, b, c)
-            ph = emit(scene, lp.index, lp.targets, n, rng)
-            ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
-            reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st,
-                                    physical=settings.radiance == "physical")
-            prog.step(f"light '{lp.name}', batch {b + 1}/{settings.batches}")
-        st["time_s"] += time.perf_counter() - t_light
+        st["time_s"] += _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, st, prog, 0)
     eye_per_batch = _eye_per_batch(cam, film, settings) if eye_stats["enabled"] else 0
     t_eye = time.perf_counter()
     light_ids = [lp.index for lp in plan.lights]
@@ -235,18 +242,10 @@ def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per
         st = light_stats[lp.name]
         hs = st.setdefault("handoff", dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats",
                                                      "handoff_paths", "truncated", "lost_shading_normal"), 0))
-        t_light = time.perf_counter()
         tau = {t: 0.0 if guide is not None and guide.is_weak(lp.index, t) else opts.handoff for t in types}
         handoff = reference.Handoff(tau, bool(scene.light_type[lp.index] == S.SUN))
-        for c, start in enumerate(range(0, per_batch, CHUNK)):
-            prog.check()
-            n = min(CHUNK, per_batch - start)
-            rng = _rng(settings.seed, 4, lp.index, b, c)
-            ph = emit(scene, lp.index, lp.targets, n, rng)
-            ph.w *= n / per_batch
-            reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, hs,
-                                    physical=settings.radiance == "physical", handoff=handoff)
-        st["time_s"] += time.perf_counter() - t_light
+        st["time_s"] += _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, hs, prog, 4,
+                                     handoff, step=False)
 
 
 def _summarise_walks(st: dict) -> None:
