@@ -50,6 +50,9 @@ class Ctx:
         for o in range(O):
             if np.any(scene.tri_object == o):
                 self.obj_lo[o], self.obj_hi[o] = scene.object_bounds(o)
+        cast = [o for o in np.flatnonzero(plan.casters) if np.any(scene.tri_object == o)]
+        self.caster_lo = self.obj_lo[cast].min(axis=0) if cast else np.zeros(3)
+        self.caster_hi = self.obj_hi[cast].max(axis=0) if cast else np.zeros(3)
         self.ray_kind = "rays_walk"
         self.physical = False
         self.clamp = 0.0  # cap on a solution's luminance (ManifoldOptions.clamp_g); 0: off
@@ -116,9 +119,31 @@ def chain_types(scene, plan, opts: ManifoldOptions) -> list:
     return out
 
 
-def sample_light(scene, li, n, rng) -> LightEnd:
-    """One light sample per lane: a point on the light (uniform in area), or a
-    sun direction (uniform in its cone). Tangents are set at the solution."""
+def sphere_cap(scene, li, lo, hi):
+    """The part of a sphere light (point or spot with a radius) that can shine on
+    anything in the box [lo, hi] (every caster): (unit axis, cos of the half-angle),
+    or None for the whole sphere. A point y = c + r u faces a point x only if
+    (x - c).u > r; over a ball of radius R around the box's centre at distance d that
+    needs u.axis > (r - R) / d, so outside this cap every sample contributes nothing."""
+    if scene.light_type[li] not in (S.POINT, S.SPOT):
+        return None
+    r = float(scene.light_radius[li])
+    c = scene.light_matrix[li][:3, 3]
+    cen = 0.5 * (lo + hi)
+    R = 0.5 * float(np.linalg.norm(hi - lo))
+    d = float(np.linalg.norm(cen - c))
+    if r <= 0 or d <= 0 or not np.all(np.isfinite([R, d])):
+        return None
+    cos_t = (r - R) / d
+    if not (-1.0 < cos_t < 1.0):
+        return None
+    return (cen - c) / d, cos_t
+
+
+def sample_light(scene, li, n, rng, cap=None) -> LightEnd:
+    """One light sample per lane: a point on the light (uniform in area; on a sphere
+    light, uniform over ``cap`` when given), or a sun direction (uniform in its cone).
+    Tangents are set at the solution."""
     typ = scene.light_type[li]
     m = scene.light_matrix[li]
     z = np.zeros((n, 3))
@@ -135,10 +160,17 @@ def sample_light(scene, li, n, rng) -> LightEnd:
     c = m[:3, 3]
     r = float(scene.light_radius[li])
     if r > 0:
-        zc = 1.0 - 2.0 * rng.random(n)
+        if cap is None:
+            zc = 1.0 - 2.0 * rng.random(n)
+        else:
+            zc = 1.0 - (1.0 - cap[1]) * rng.random(n)
         phi = 2 * math.pi * rng.random(n)
         rr = np.sqrt(np.maximum(0.0, 1 - zc * zc))
         u = np.stack([rr * np.cos(phi), rr * np.sin(phi), zc], -1)
+        if cap is not None:
+            axis = np.broadcast_to(cap[0], (n, 3))
+            s, t = frame(axis)
+            u = to_world(u, s, t, axis)
         return LightEnd(False, c + r * u, z, z.copy())
     return LightEnd(False, np.broadcast_to(c, (n, 3)).copy(), z, z.copy())
 
@@ -237,14 +269,16 @@ def _walk(ctx, opts, seeder, types, x0, ng0, light, rng, primary=True):
     return res
 
 
-def _contribution(ctx, li, types, rc, idx, light, chain):
-    """Radiance estimate (without estimator weight) of converged lanes, and visibility."""
+def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
+    """Radiance estimate (without estimator weight) of converged lanes, and visibility.
+    emit_scale: the light sample's pdf relative to uniform over the light."""
     scene, tracer = ctx.scene, ctx.tracer
     x0 = rc.p[idx]
     verts = chain.verts
     k = len(types)
     xk = verts[k - 1].p
     le, emit = light_end_at_solution(scene, li, light, xk)
+    emit = emit * emit_scale
     etas = [scene.mat_ior[v.mat] for v in verts]
     G, okg = geometric_term(types, x0, verts, etas, le)
     d01 = normalize(verts[0].p - x0)
@@ -302,7 +336,9 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     seeder = Seeder(ctx.scene, ctx.casters, types, opts.method)
     if seeder.total <= 0:
         return out
-    light = sample_light(ctx.scene, li, n, rng)
+    cap = sphere_cap(ctx.scene, li, ctx.caster_lo, ctx.caster_hi)
+    light = sample_light(ctx.scene, li, n, rng, cap)
+    emit_scale = 1.0 if cap is None else 0.5 * (1.0 - cap[1])  # the cap's share of the sphere's area
     x0, ng0 = rc.p, rc.ng
     # the eye side of x0 must see the light side: offset origins towards the receiver's eye side
     ng_eye = ng0 * np.sign(dot(rc.w_eye, ng0))[:, None]
@@ -330,7 +366,7 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
         return out
     chain = res.chain.take(conv)
     owner = lanes[conv]
-    val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain)
+    val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain, emit_scale)
     if opts.handoff > 0:
         # the fold's paths belong to the photon hand-off (bake._handoff_batch), which reaches
         # only receivers the camera sees directly; what it takes, this pass drops

@@ -90,3 +90,30 @@ def test_smbs_rescues_walks_that_sms_loses_to_total_internal_reflection():
     assert sms["lights"][light]["outcomes"].get("tir", 0) > 0.5 * sms["walks"] / len(sms["chain_types"])
     assert smbs["lights"][light]["large_mutations"]["tir"] > 0
     assert smbs["success_rate"] >= 2 * sms["success_rate"]
+
+
+def test_sphere_light_samples_only_the_cap_that_can_shine():
+    """A sphere light's points outside sphere_cap face away from every caster: the cap is
+    exact (no point left out could contribute), and smaller than the sphere."""
+    from smbs_addon.manifold import sphere_cap
+    from smbs_addon.plan import make_plan
+
+    scene = scenes.water_scene("point", size=2.6)
+    scene.light_radius[:] = 0.5  # a big sphere, 3.5 above the water: a cap well short of the whole
+    plan = make_plan(scene)
+    cast = np.flatnonzero(plan.casters)
+    lo = np.min([scene.object_bounds(o)[0] for o in cast], axis=0)
+    hi = np.max([scene.object_bounds(o)[1] for o in cast], axis=0)
+    axis, cos_t = sphere_cap(scene, 0, lo, hi)
+    assert 0.6 < 0.5 * (1 - cos_t) < 0.8  # 0.72: the water sheet is wide (2.6 m, 3 m below)
+    rng = np.random.default_rng(0)
+    u = rng.normal(size=(200000, 3))
+    u /= np.linalg.norm(u, axis=1, keepdims=True)
+    out = u[u @ axis < cos_t]
+    c = scene.light_matrix[0][:3, 3]
+    y = c + 0.5 * out
+    corners = np.array([[x, yy, z] for x in (lo[0], hi[0]) for yy in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    pts = np.concatenate([corners, lo + (hi - lo) * rng.random((2000, 3))])
+    # the most any caster point leans towards each outside sample's normal: never in front
+    lean = np.max((pts @ out.T) - np.sum(y * out, axis=1), axis=0)
+    assert lean.max() <= 0.0
