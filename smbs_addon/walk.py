@@ -261,7 +261,10 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
             _put(chain.verts[j], acc, new.verts[j].take(accept))
         chain.out_dir[acc] = new.out_dir[accept]
         if cfg.smbs and cfg.slow:
-            slow = accept & ~use_large & (e_new > cfg.tau * err[act])
+            # trigger 3 on the last small mutation's proposal, kept or not: a rejected one
+            # (the mismatch grew, ratio > 1 > tau) is the slowest progress of all; waiting for
+            # beta to shrink below min_beta instead lost 9-13% of all walks to local minima
+            slow = okp & ~use_large & (e_new > cfg.tau * err[act])
             pending[act[slow]] = TRIG_SLOW
         err[acc], front[acc] = e_new[accept], f_new[accept]
         valid[acc] = new.status[accept] == OK
