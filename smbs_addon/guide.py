@@ -116,7 +116,8 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
             if si.size == 0 or bounce == max_bounces:
                 break
             p, ng, ns = h.p[idx][si], h.ng[idx][si], h.ns[idx][si]
-            d_new, beta, keep = scatter_specular(scene, rng, -d[si], ns, ng, mat[si], kind[si], beta[si])
+            d_new, beta, keep = scatter_specular(scene, rng, -d[si], ns, ng, mat[si], kind[si], beta[si],
+                                                 adjoint=True)
             refl = np.einsum("ij,ij->i", -d[si][keep], ng[keep]) * np.einsum("ij,ij->i", d_new, ng[keep]) > 0
             sig = sig[si][keep] * 3 + np.where(refl, 1, 2)
             o = tracer.spawn(p[keep], ng[keep], d_new)

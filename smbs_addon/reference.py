@@ -62,7 +62,7 @@ def splat_to_camera(scene, tracer, cam, film, y, ng, ns, w_in, beta, albedo, sta
     stats["splats"] += int(idx.size)
 
 
-def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False):
+def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False, adjoint=False):
     """One perfect-specular interaction per lane: mirror reflection (conductor),
     or reflection/refraction chosen by Fresnel (dielectric, Russian roulette so
     the weight is just the tint). w_in points away from the surface.
@@ -71,6 +71,11 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False)
     side)^2 -- the radiance change along an eye path in physical units, and, for
     photons, Cycles' convention (Cycles keeps radiance unscaled, so the flux a
     photon delivers changes by that factor instead).
+
+    adjoint: the lanes carry light (photons), not radiance: with a shading normal the
+    BSDF is not symmetric, and the photon's weight takes Veach's correction (thesis
+    sec. 5.3) |w_in.ns| |w_out.ng| / (|w_in.ng| |w_out.ns|), so that light tracing
+    agrees with the radiance view (Cycles, the walks) on bumpy or normal-mapped casters.
 
     Returns (new unit directions, new weights, kept lane indices): lanes whose
     scattered direction is on the wrong side of the geometric normal (a
@@ -101,6 +106,10 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False)
             beta[di] *= np.where(choose_r, 1.0, ratio**2)[:, None]
     # the geometric normal decides the side: reflection stays, refraction crosses
     cin, cout = dot(w_in, ng), dot(n_out, ng)
+    if adjoint:
+        num = np.abs(dot(w_in, ns) * cout)
+        den = np.abs(cin * dot(n_out, ns))
+        beta *= np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
     is_refl = dot(w_in, ns) * dot(n_out, ns) > 0
     ok = np.where(is_refl, cin * cout > 0, cin * cout < 0) & (beta.max(axis=1) > 0)
     keep = np.flatnonzero(ok)
@@ -221,7 +230,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
             break
         d_in = d[si]
         d, beta, keep = scatter_specular(scene, rng, -d[si], ns[si], ng[si], mat[si], kind[si], beta[si],
-                                         scale_eta=not physical)
+                                         scale_eta=not physical, adjoint=True)
         stats["lost_shading_normal"] += int(si.size - keep.size)
         if handoff is not None:
             sk = si[keep]
