@@ -342,6 +342,12 @@ class ModalBake:
 # Operators
 
 
+def _idle(context):
+    """A scene with the add-on's settings and no bake running on it."""
+    return (context.scene is not None and hasattr(context.scene, "smbs_caustics")
+            and running_bake(context.scene) is None)
+
+
 class SMBS_OT_bake_caustics(bpy.types.Operator):
     """Bake the caustic layer of this scene, write it as an EXR and add it in the compositor"""
 
@@ -351,8 +357,7 @@ class SMBS_OT_bake_caustics(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return (context.scene is not None and hasattr(context.scene, "smbs_caustics")
-                and running_bake(context.scene) is None)
+        return _idle(context)
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
@@ -434,8 +439,7 @@ class SMBS_OT_remove_caustic_layer(bpy.types.Operator):
 
     @classmethod
     def poll(cls, context):
-        return (context.scene is not None and hasattr(context.scene, "smbs_caustics")
-                and running_bake(context.scene) is None)
+        return _idle(context)
 
     def execute(self, context):
         from ..smbs_addon.composite import remove_layer

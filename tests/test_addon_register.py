@@ -444,26 +444,10 @@ def _mirror_scene(width=24, height=16):
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
 
-    def material(name, node_type, color):
-        mat = bpy.data.materials.new(name)
-        nodes = mat.node_tree.nodes
-        nodes.clear()
-        bsdf, out = nodes.new(node_type), nodes.new("ShaderNodeOutputMaterial")
-        bsdf.inputs["Color"].default_value = (*color, 1.0)
-        mat.node_tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
-        return mat
+    from blend_helpers import material, plane
 
-    def plane(name, size, mat, location, rotation):
-        s = size / 2
-        me = bpy.data.meshes.new(name)
-        me.from_pydata([(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [], [(0, 1, 2, 3)])
-        me.materials.append(mat)
-        ob = bpy.data.objects.new(name, me)
-        ob.location, ob.rotation_euler = location, rotation
-        scene.collection.objects.link(ob)
-
-    plane("Floor", 10, material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0), (0, 0, 0))
-    plane("Mirror", 1.5, material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3),
+    plane(scene, "Floor", 10, material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0), (0, 0, 0))
+    plane(scene, "Mirror", 1.5, material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3),
           (0, 0, 1.5), (0, math.radians(-135), 0))
     light = bpy.data.lights.new("Disk", 'AREA')
     light.shape, light.size, light.energy = 'DISK', 0.5, 100.0

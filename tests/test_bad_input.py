@@ -282,28 +282,7 @@ def test_rebake_on_the_command_line_replaces(npz, tmp_path):
 bpy = pytest.importorskip("bpy")
 
 
-def _material(name, node_type, color=None, **inputs):
-    mat = bpy.data.materials.new(name)
-    nodes = mat.node_tree.nodes
-    nodes.clear()
-    node, out = nodes.new(node_type), nodes.new("ShaderNodeOutputMaterial")
-    if color is not None:
-        node.inputs["Color"].default_value = (*color, 1.0)
-    for k, v in inputs.items():
-        node.inputs[k].default_value = v
-    mat.node_tree.links.new(node.outputs[0], out.inputs["Surface"])
-    return mat
-
-
-def _plane(scene, name, size, mat, location, rotation=(0, 0, 0)):
-    s = size / 2
-    me = bpy.data.meshes.new(name)
-    me.from_pydata([(-s, -s, 0), (s, -s, 0), (s, s, 0), (-s, s, 0)], [], [(0, 1, 2, 3)])
-    me.materials.append(mat)
-    ob = bpy.data.objects.new(name, me)
-    ob.location, ob.rotation_euler = location, rotation
-    scene.collection.objects.link(ob)
-    return ob
+from blend_helpers import material as _material, plane as _plane  # noqa: E402
 
 
 def blender_mirror_scene(light=True, camera=True, width=24, height=16):
