@@ -282,6 +282,14 @@ def check_memory(scene, width: int, height: int, batches: int) -> None:
             f"or the number of batches")
 
 
+def _enough(settings: BakeSettings, b: int, t0: float) -> bool:
+    """After b batches: stop? With a time budget, at least two batches, then until it is
+    spent; without one, after settings.batches."""
+    if settings.time_budget > 0:
+        return b >= 2 and time.perf_counter() - t0 >= settings.time_budget
+    return b >= settings.batches
+
+
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None) -> BakeResult:
     """Bake the caustic layer of a Scene.
 
@@ -312,9 +320,14 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         eye_chunks = math.ceil(_eye_per_batch(cam, film, settings) / CHUNK) if eye_stats["enabled"] else 0
         prog = _Progress(settings.batches * (len(plan.lights) * math.ceil(per_batch / CHUNK) + eye_chunks),
                          progress, cancel)
-        for b in range(settings.batches):
+        b = 0
+        while True:
             _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog)
             film.end_batch()
+            b += 1
+            if _enough(settings, b, t0):
+                break
+        extra["batches_done"] = b
         rays = sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values()) + eye_stats["rays_eye"]
         extra["eye_pass"] = eye_stats
     else:
@@ -345,10 +358,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                            guide)
             film.end_batch()
             b += 1
-            if settings.time_budget > 0:  # at least two batches, then until the budget is spent
-                if b >= 2 and time.perf_counter() - t0 >= settings.time_budget:
-                    break
-            elif b >= settings.batches:
+            if _enough(settings, b, t0):
                 break
         extra["batches_done"] = b
         for st in light_stats.values():

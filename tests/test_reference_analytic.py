@@ -82,3 +82,17 @@ def test_same_seed_same_image_bit_for_bit():
     assert a.image.tobytes() == b.image.tobytes()
     assert a.variance.tobytes() == b.variance.tobytes()
     assert a.image.tobytes() != c.image.tobytes()
+
+
+@pytest.mark.parametrize("method", ["reference", "smbs"])
+def test_time_budget_adds_batches_for_every_method(method):
+    """A time budget keeps adding batches after the first two, for the light tracer too (it
+    used to ignore the budget and stop after `batches`); without one, exactly `batches` run.
+    A budget of 1 ns is spent by then, so exactly two batches run: no timing is asserted."""
+    scene = scenes.mirror_scene(resolution=(16, 12))
+    plain = bake(scene, BakeSettings(method=method, spp=3, batches=3, seed=1))
+    budget = bake(scene, BakeSettings(method=method, spp=3, batches=3, seed=1, time_budget=1e-9))
+    assert plain.stats["batches_done"] == 3 and plain.batch_luminance.shape[0] == 3
+    assert budget.stats["batches_done"] == 2 and budget.batch_luminance.shape[0] == 2
+    # the same random streams per batch: two batches are the first two of three
+    assert np.allclose(budget.batch_luminance, plain.batch_luminance[:2])
