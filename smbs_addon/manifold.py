@@ -256,6 +256,7 @@ def _walk(ctx, opts, seeder, types, x0, ng0, light, rng, primary=True):
     st = ctx.stats
     if not primary:
         st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + len(x0)
+        st["bernoulli_mutations"] = st.get("bernoulli_mutations", 0) + int(res.mutations.sum())
         return res
     st["walks"] = st.get("walks", 0) + len(x0)
     st["successes"] = st.get("successes", 0) + int(res.converged.sum())

@@ -165,3 +165,11 @@ def wavy_mirror_scene(resolution=(64, 48), amplitude=0.04, wavelength=0.3, n=96,
     b.light("Area", "AREA", location=(-3, 0, 1.5 - 0.0), target=(0, 0, 1.5), power=600, size=0.4)
     b.set_camera((0, -5, 4), (0.2, 0, 0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
     return b.build()
+
+
+def hammered_mirror_scene(resolution=(48, 36)):
+    """The paper's Figure 12 kind of caster, closer than wavy_mirror_scene(normal_mapped=True):
+    a flat metal sheet whose normal map is fine and gentle, like hammered metal (20 bumps
+    across, normals tilted up to 32 degrees, sampled on a 257 x 257 grid). Far from the
+    mirror solution every bump is a local minimum of the walk."""
+    return wavy_mirror_scene(resolution, amplitude=0.01, wavelength=0.1, n=256, normal_mapped=True)

@@ -152,20 +152,22 @@ def test_statistics_of_a_manifold_bake(addon):
     """The per-light statistics the core writes for SMBS (see smbs_addon.bake) all reach the panel."""
     panels = importlib.import_module("smbs_caustics.ui.panels")
     light = {"time_s": 5.13, "walks": 65202, "successes": 21703, "success_rate": 0.3329,
-             "mutations_per_path": 11.16, "large_mutations": {"tir": 0, "backlit": 3, "slow": 72753},
+             "mutations_per_path": 11.16, "mutations_per_success": 33.52, "large_mutations": {"tir": 0, "backlit": 3, "slow": 72753},
              "trials": {"mean": 1.00005, "max": 2, "capped": 0}, "rays": 898133,
              "rays_seed": 86907, "rays_walk": 789523}
     stats = {"method": "smbs", "resolution": [160, 120], "batches_done": 8, "time_s": 5.65,
              "rays": 1138192, "walks": 65202, "success_rate": 0.3329, "mutations_per_path": 11.16,
-             "lights": {"Light": light}, "skipped": [],
+             "mutations_per_success": 33.52, "lights": {"Light": light}, "skipped": [],
              "noise": {"region_pixels": 4021, "relative_noise": 0.181, "mean": 0.51}}
     assert panels.bake_header(stats) == "SMBS, 160 x 120, 8 batches"
     assert dict(panels.summarize_stats(stats)) == {
-        "Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2", "Rays": "1.1 M",
+        "Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2",
+        "Mutations per Solution": "33.5", "Rays": "1.1 M",
         "Time": "5.65 s", "Relative Noise": "18.1%"}
     ((name, rows),) = panels.per_light_stats(stats)
     assert name == "Light"
     assert dict(rows) == {"Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2",
+                          "Mutations per Solution": "33.5",
                           "Large Mutations": "TIR 0, back-lit 3, slow 72.8 k",
                           "Bernoulli Trials": "mean 1.00, max 2, capped 0", "Rays": "898.1 k",
                           "Time": "5.13 s"}

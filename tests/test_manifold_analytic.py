@@ -92,6 +92,22 @@ def test_smbs_rescues_walks_that_sms_loses_to_total_internal_reflection():
     assert smbs["success_rate"] >= 2 * sms["success_rate"]
 
 
+def test_smbs_finds_twice_the_paths_on_a_fine_normal_map():
+    """The paper's Figure 12 case: on a flat sheet with a fine, gentle normal map every bump
+    is a local minimum where SMS's Newton walk stalls; SMBS's slow-progress trigger jumps
+    out. Measured at this seed and size (4525 walks each): SR 0.242 vs 0.578 (ratio
+    2.39 +- 0.07), mutations per solution found 52.8 vs 22.3 (the paper: 26% vs 60%,
+    69 vs 33 mpp). No timing."""
+    scene = scenes.hammered_mirror_scene(resolution=(32, 24))
+    kw = dict(spp=1, seed=6, estimator="biased", trials=1, handoff=0, chains=("R",))
+    sms = bake(scene, BakeSettings(method="sms", **kw)).stats["lights"]["Area"]
+    smbs = bake(scene, BakeSettings(method="smbs", **kw)).stats["lights"]["Area"]
+    assert sms["walks"] == smbs["walks"] > 3000  # the same lanes: the walks alone differ
+    assert smbs["success_rate"] >= 2 * sms["success_rate"]
+    assert smbs["mutations_per_success"] <= 0.6 * sms["mutations_per_success"]
+    assert smbs["large_mutations"]["slow"] > smbs["walks"]  # the trigger that does it
+
+
 def test_sphere_light_samples_only_the_cap_that_can_shine():
     """A sphere light's points outside sphere_cap face away from every caster: the cap is
     exact (no point left out could contribute), and smaller than the sphere."""

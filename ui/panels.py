@@ -9,6 +9,7 @@ import bpy
 _SUCCESS_RATE = ("success_rate",)
 _WALKS = ("walks_succeeded", "walks_started")
 _MUTATIONS_PER_PATH = ("mutations_per_path", "mpp")
+_MUTATIONS_PER_SOLUTION = ("mutations_per_success",)  # the paper's mpp: mutations to find one path
 _TIME = ("time_s", "time")
 _PER_LIGHT = ("lights", "per_light")
 _TRIGGERS = (("tir", "TIR"), ("backlit", "back-lit"), ("slow", "slow"))
@@ -74,6 +75,9 @@ def summarize_stats(stats):
     mpp = _first(stats, _MUTATIONS_PER_PATH)
     if mpp is not None:
         rows.append(("Mutations per Path", f"{mpp:.1f}"))
+    mps = _first(stats, _MUTATIONS_PER_SOLUTION)
+    if mps is not None:
+        rows.append(("Mutations per Solution", f"{mps:.1f}"))
     large = stats.get("large_mutations")
     if isinstance(large, dict) and large:
         known = [(label, large[key]) for key, label in _TRIGGERS if _number(large.get(key))]
