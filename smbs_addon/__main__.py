@@ -102,6 +102,11 @@ def _check_writable(path: Path):
         raise OSError(f"output '{path}' is a folder")
 
 
+def _cap_note(trials: dict) -> str:
+    share = trials.get("capped_share_min", 0.0)
+    return f" (at least {share:.1%} of the layer missing: raise max_trials)" if trials.get("capped") else ""
+
+
 def summary_lines(stats: dict) -> list[str]:
     lines = [f"scene '{stats['scene']}': {stats['method']}, {stats['resolution'][0]}x{stats['resolution'][1]}, "
              f"{stats['time_s']:.2f} s, {stats['rays']:,} rays"]
@@ -114,7 +119,8 @@ def summary_lines(stats: dict) -> list[str]:
             lm = ", ".join(f"{k} {v:,}" for k, v in s.get("large_mutations", {}).items())
             lines.append(f"  light '{name}': {s['walks']:,} walks, success {s['success_rate']:.1%}, "
                          f"{s['mutations_per_path']:.2f} mutations/path ({s['mutations_per_success']:.1f}/solution), large mutations ({lm}), "
-                         f"trials mean {s['trials']['mean']:.2f} max {s['trials']['max']} capped {s['trials']['capped']}, "
+                         f"trials mean {s['trials']['mean']:.2f} max {s['trials']['max']} capped {s['trials']['capped']}"
+                         f"{_cap_note(s['trials'])}, "
                          f"{s['rays']:,} rays, {s['time_s']:.2f} s")
         else:
             lines.append(f"  light '{name}': {s['photons']:,} light paths, {s['splats']:,} reached the camera, "

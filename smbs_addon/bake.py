@@ -366,6 +366,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             if settings.clamp_g > 0:  # the clamp's bias, in image units (summed over pixels)
                 st["clamped"] = st.get("clamped", 0)
                 st["clamped_energy"] = st.get("clamped_energy", 0.0) / b
+            st["trials"]["capped_energy_min"] = st.pop("capped_energy_min", 0.0) / b
         rays = (sum(st["rays"] for st in light_stats.values()) + eye_stats["rays_eye"]
                 + extra.get("guide", {}).get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())
@@ -387,6 +388,10 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         variance = variance[y0:y1, x0:x1]
         batch_lum = batch_lum[:, y0:y1, x0:x1]
     elapsed = time.perf_counter() - t0
+    layer = float(image.mean(axis=2).sum())
+    for st in light_stats.values():  # the trial cap's bias, at least, as a share of the layer
+        if "trials" in st:
+            st["trials"]["capped_share_min"] = st["trials"]["capped_energy_min"] / layer if layer > 0 else 0.0
     stats = {
         "method": settings.method,
         "settings": asdict(settings),

@@ -440,6 +440,11 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     st["bernoulli_lanes"] = st.get("bernoulli_lanes", 0) + int(pend.size)
     st["bernoulli_trials"] = st.get("bernoulli_trials", 0) + int(count.sum())
     st["bernoulli_max"] = max(st.get("bernoulli_max", 0), int(count.max()) if count.size else 0)
+    # what the cap leaves out: a capped lane's weight would have exceeded max_trials, so
+    # max_trials times its value is a lower bound on its share (luminance, as splatted)
+    cp = pend[capped]
+    st["capped_energy_min"] = st.get("capped_energy_min", 0.0) + float(
+        (val[cp].mean(axis=1) * rc.weight[owner[cp]]).sum() * opts.max_trials)
     w = np.where(capped, 0.0, count)
     np.add.at(out, owner[pend], val[pend] * w[:, None])
     _count_clamped(ctx, None if cut is None else cut[pend] * w)

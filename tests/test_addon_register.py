@@ -173,6 +173,15 @@ def test_statistics_of_a_manifold_bake(addon):
                           "Time": "5.13 s"}
 
 
+def test_capped_trials_show_what_they_leave_out(addon):
+    panels = importlib.import_module("smbs_caustics.ui.panels")
+    trials = {"mean": 2.36, "max": 8, "capped": 50, "capped_energy_min": 6.1, "capped_share_min": 0.104}
+    assert dict(panels.summarize_stats({"trials": trials}))["Bernoulli Trials"] == (
+        "mean 2.36, max 8, capped 50 (at least 10.4% of the layer missing)")
+    trials.update(capped=0, capped_energy_min=0.0, capped_share_min=0.0)
+    assert dict(panels.summarize_stats({"trials": trials}))["Bernoulli Trials"] == "mean 2.36, max 8, capped 0"
+
+
 _ICONS = None
 
 

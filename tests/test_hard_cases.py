@@ -569,3 +569,22 @@ def test_clamp_removes_exactly_what_it_reports(lens_scene, method, estimator):
     assert lost < float(free.image.mean(axis=2).sum())
     for name, st in lights.items():  # the walks themselves are untouched
         assert st["outcomes"] == free.stats["lights"][name]["outcomes"]
+
+
+def test_trial_cap_reports_at_least_what_it_leaves_out():
+    """Unbiased estimator: a lane whose Bernoulli count passes max_trials contributes nothing.
+    Its weight would have been more than max_trials, so max_trials times its value bounds
+    the loss from below; the statistics report that bound. Ring, SMS, max_trials 4 against
+    the default cap on the same seed: bound 29.6, loss 108 (the bound is loose, and only a
+    bound)."""
+    scene = scenes.ring_scene(resolution=(32, 24))
+    kw = dict(method="sms", spp=2, seed=1, handoff=0.0)
+    full = bake(scene, BakeSettings(**kw))
+    low = bake(scene, BakeSettings(max_trials=4, **kw))
+    (tf,), (tl,) = ([st["trials"] for st in r.stats["lights"].values()] for r in (full, low))
+    assert tf["capped"] == 0 and tf["capped_energy_min"] == 0 and tf["capped_share_min"] == 0
+    layer = float(low.image.astype(np.float64).mean(axis=2).sum())
+    loss = float(full.image.astype(np.float64).mean(axis=2).sum()) - layer
+    assert tl["capped"] > 50
+    assert 0 < tl["capped_energy_min"] < loss
+    assert tl["capped_share_min"] == pytest.approx(tl["capped_energy_min"] / layer, rel=1e-6)

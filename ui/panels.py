@@ -90,6 +90,9 @@ def summarize_stats(stats):
             text += f", max {trials['max']:.0f}"
         if _number(trials.get("capped")):
             text += f", capped {trials['capped']:.0f}"
+            share = trials.get("capped_share_min")
+            if trials["capped"] > 0 and _number(share):
+                text += f" (at least {100.0 * share:.1f}% of the layer missing)"
         rows.append(("Bernoulli Trials", text))
     handoff = stats.get("handoff")
     if isinstance(handoff, dict) and _number(handoff.get("handoff_paths")):
