@@ -113,12 +113,14 @@ def summary_lines(stats: dict) -> list[str]:
     if "walks" in stats:
         lines.append(f"  manifold walks: {stats['walks']:,}, success rate {stats['success_rate']:.1%}, "
                      f"{stats['mutations_per_path']:.2f} mutations per path "
-                     f"({stats['mutations_per_success']:.1f} per solution found), chains {', '.join(stats['chain_types'])}")
+                     f"({stats['mutations_per_success']:.1f} per solution found), "
+                     f"chains {', '.join(stats['chain_types'])}")
     for name, s in stats["lights"].items():
         if "walks" in s:
             lm = ", ".join(f"{k} {v:,}" for k, v in s.get("large_mutations", {}).items())
             lines.append(f"  light '{name}': {s['walks']:,} walks, success {s['success_rate']:.1%}, "
-                         f"{s['mutations_per_path']:.2f} mutations/path ({s['mutations_per_success']:.1f}/solution), large mutations ({lm}), "
+                         f"{s['mutations_per_path']:.2f} mutations/path ({s['mutations_per_success']:.1f}/solution), "
+                         f"large mutations ({lm}), "
                          f"trials mean {s['trials']['mean']:.2f} max {s['trials']['max']} capped {s['trials']['capped']}"
                          f"{_cap_note(s['trials'])}, "
                          f"{s['rays']:,} rays, {s['time_s']:.2f} s")
