@@ -44,15 +44,10 @@ class Ctx:
 
     def __init__(self, scene, tracer, plan, stats):
         self.scene, self.tracer, self.casters, self.stats = scene, tracer, plan.casters, stats
-        O = len(scene.object_names)
-        self.obj_lo = np.zeros((O, 3))
-        self.obj_hi = np.zeros((O, 3))
-        for o in range(O):
-            if np.any(scene.tri_object == o):
-                self.obj_lo[o], self.obj_hi[o] = scene.object_bounds(o)
-        cast = [o for o in np.flatnonzero(plan.casters) if np.any(scene.tri_object == o)]
-        self.caster_lo = self.obj_lo[cast].min(axis=0) if cast else np.zeros(3)
-        self.caster_hi = self.obj_hi[cast].max(axis=0) if cast else np.zeros(3)
+        self.obj_lo, self.obj_hi = tracer.obj_lo, tracer.obj_hi  # built once per bake
+        cast = np.flatnonzero(plan.casters & tracer.obj_has_tris)
+        self.caster_lo = self.obj_lo[cast].min(axis=0) if cast.size else np.zeros(3)
+        self.caster_hi = self.obj_hi[cast].max(axis=0) if cast.size else np.zeros(3)
         self.ray_kind = "rays_walk"
         self.physical = False
         self.clamp = 0.0  # cap on a solution's luminance (ManifoldOptions.clamp_g); 0: off

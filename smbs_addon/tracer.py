@@ -51,6 +51,15 @@ class Tracer:
         self.ng = normalize(n_raw)
         self.degenerate = ~(self.area2 > 1e-14 * max(scene.scale, 1e-30) ** 2)
         self.ns_corner = scene.tri_normals.astype(np.float64)
+        # every object's bounding box in one pass (zeros for an object without triangles):
+        # SMBS's GetRatio and the sphere-light cap read them for every chunk and light
+        O = len(scene.object_names)
+        lo_o, hi_o = np.full((O, 3), np.inf), np.full((O, 3), -np.inf)
+        np.minimum.at(lo_o, scene.tri_object, self.v.min(axis=1))
+        np.maximum.at(hi_o, scene.tri_object, self.v.max(axis=1))
+        self.obj_has_tris = np.isfinite(lo_o[:, 0])
+        self.obj_lo = np.where(self.obj_has_tris[:, None], lo_o, 0.0)
+        self.obj_hi = np.where(self.obj_has_tris[:, None], hi_o, 0.0)
         lo, hi = scene.bounds()
         extent = float(max(np.abs(lo).max(initial=0), np.abs(hi).max(initial=0)))
         # self-intersection offset: a few float32 ulps of the largest coordinate
