@@ -188,16 +188,22 @@ def classify_material(mat, warn) -> dict:
             if metallic >= 0.5:
                 return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK)
             if trans >= 0.5:
-                return dict(kind=S.DIELECTRIC, color=base, reflect_color=np.ones(3), ior=ior,
-                            roughness=rough)
+                # Cycles' Principled glass tints transmission by sqrt(base colour) at every
+                # refraction and leaves reflection white (its Specular Tint scales f0 instead)
+                tint = _const(node, "Specular Tint") if node.inputs.get("Specular Tint") else np.ones(3)
+                if not np.allclose(tint, 1.0):
+                    warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
+                return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)),
+                            reflect_color=np.ones(3), ior=ior, roughness=rough)
             return dict(kind=S.DIFFUSE, color=base, roughness=rough)
         if t == "BSDF_GLASS":
             c = _const(node, "Color")
             return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
                         ior=_const(node, "IOR"), roughness=_const(node, "Roughness"))
-        if t == "BSDF_REFRACTION":
+        if t == "BSDF_REFRACTION":  # Cycles: transmits Color, no Fresnel term, no reflection
             return dict(kind=S.DIELECTRIC, color=_const(node, "Color"), reflect_color=np.zeros(3),
-                        ior=_const(node, "IOR"), roughness=_const(node, "Roughness"))
+                        ior=_const(node, "IOR"), roughness=_const(node, "Roughness"),
+                        fresnel=S.REFRACTION_ONLY)
         if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
             if node.inputs.get("Anisotropy") is not None and (
                     _linked(node, "Anisotropy") or float(node.inputs["Anisotropy"].default_value) != 0):

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from . import scene as S
 from .vec import dot
 
 
@@ -57,3 +58,44 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     """Schlick's approximation, (N,) cosines and (N,3) or (3,) F0 -> (N,3)."""
     m = np.clip(1.0 - np.abs(cos_i), 0.0, 1.0)[..., None]
     return f0 + (1.0 - f0) * m**5
+
+
+def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
+    """Weights (R, T), each (N,3), of the mirror and refraction lobes of materials mat
+    for incidence cos_i = w_i . n (its sign tells the side; Cycles' conventions):
+
+    - conductor: R = colour (Glossy BSDF) or Schlick from F0 = colour (Principled
+      metallic); T = 0;
+    - glass: R = F * reflection tint, T = (1 - F) * transmission tint, F the dielectric
+      Fresnel term (1 under total internal reflection);
+    - Refraction BSDF: R = 0, T = colour, and T = 0 under total internal reflection.
+
+    Radiance is not scaled by eta^2 here (Cycles does not); callers that need the
+    physical convention scale refractions themselves."""
+    kind = scene.mat_kind[mat]
+    color = scene.mat_color[mat]
+    fres = scene.mat_fresnel[mat]
+    n = len(mat)
+    R = np.zeros((n, 3))
+    T = np.zeros((n, 3))
+    cond = kind == S.CONDUCTOR
+    if cond.any():
+        c = np.flatnonzero(cond)
+        R[c] = np.where((fres[c] == S.FRESNEL_SCHLICK)[:, None], fresnel_schlick(cos_i[c], color[c]), color[c])
+    diel = kind == S.DIELECTRIC
+    if diel.any():
+        d = np.flatnonzero(diel)
+        F = fresnel_dielectric(cos_i[d], scene.mat_ior[mat[d]])
+        only_t = fres[d] == S.REFRACTION_ONLY
+        R[d] = np.where(only_t, 0.0, F)[:, None] * scene.mat_reflect_color[mat[d]]
+        T[d] = np.where(only_t, (F < 1.0).astype(float), 1.0 - F)[:, None] * color[d]
+    return R, T
+
+
+def has_reflection(scene, mat) -> bool:
+    """Can material mat reflect specularly at all (a mirror, or glass with a reflection tint)?"""
+    if scene.mat_kind[mat] == S.CONDUCTOR:
+        return bool(np.any(scene.mat_color[mat] > 0))
+    if scene.mat_kind[mat] == S.DIELECTRIC:
+        return scene.mat_fresnel[mat] != S.REFRACTION_ONLY and bool(np.any(scene.mat_reflect_color[mat] > 0))
+    return False

@@ -23,9 +23,12 @@ FORMAT_VERSION = 1
 # Material classes (Scene.mat_kind)
 DIFFUSE, CONDUCTOR, DIELECTRIC, EMITTER = 0, 1, 2, 3
 MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
-# Conductor Fresnel models (Scene.mat_fresnel): Glossy BSDF (constant colour),
-# Principled metallic (Schlick from F0 = base colour towards white).
-FRESNEL_NONE, FRESNEL_SCHLICK = 0, 1
+# Fresnel models (Scene.mat_fresnel). Conductors: Glossy BSDF (constant colour, NONE) or
+# Principled metallic (Schlick from F0 = base colour towards white). Dielectrics: glass
+# (NONE: the dielectric Fresnel term splits reflection and refraction) or Cycles' Refraction
+# BSDF (REFRACTION_ONLY: transmits its colour with no Fresnel term and no reflection; total
+# internal reflection absorbs).
+FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY = 0, 1, 2
 
 # Light types (Scene.light_type), as Cycles defines them
 POINT, SPOT, AREA, SUN = 0, 1, 2, 3
@@ -100,7 +103,7 @@ class Scene:
     mat_ior: np.ndarray  # (M,)
     mat_roughness: np.ndarray  # (M,)
     mat_strength: np.ndarray  # (M,) emission strength (radiance, W/m^2/sr)
-    mat_fresnel: np.ndarray  # (M,) conductor Fresnel model
+    mat_fresnel: np.ndarray  # (M,) Fresnel model (FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY)
     # lights
     light_names: list
     light_type: np.ndarray  # (L,) POINT, SPOT, AREA, SUN
