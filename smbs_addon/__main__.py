@@ -56,6 +56,8 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--threads", type=_positive_int, default=None, help="worker threads (default: all cores)")
     b.add_argument("--flags", choices=("AUTO", "ON", "OFF"), default="AUTO",
                    help="honour Cycles' caustic caster/receiver/light flags")
+    b.add_argument("--no-indirect", dest="indirect", action="store_false",
+                   help="leave out caustics seen after further diffuse bounces (first-order only)")
     b.add_argument("--out", default=None, help="output EXR (default: IN with .caustics.exr)")
     b.add_argument("--stats", default=None, help="statistics JSON (default: beside the EXR)")
     b.add_argument("--quiet", action="store_true")
@@ -159,7 +161,8 @@ def main(argv=None) -> int:
 
         settings = BakeSettings(method=args.method, spp=args.spp, seed=args.seed, batches=args.batches,
                                 threads=args.threads or 0, use_cycles_flags=args.flags,
-                                estimator=args.estimator, trials=args.trials)
+                                estimator=args.estimator, trials=args.trials,
+                                indirect=args.indirect)
         settings.validate()
         out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
         stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")

@@ -54,6 +54,8 @@ class BakeSettings:
     chains: tuple = ()  # explicit chain types ("R", "TT", ...); empty: what the scene calls for
     clamp_g: float = 0.0  # manifold methods: cap on one solution's luminance (RGB mean), biased; 0: off.
     # What it cuts is in the statistics per light: 'clamped' solutions, 'clamped_energy' (image units)
+    indirect: bool = True  # caustic light that meets more than one diffuse surface (floor -> glass ->
+    # floor; a pool's floor -> water's underside -> floor), as Cycles counts it (indirect.py)
     handoff: float = 4.0  # manifold methods: paths that focus light more than this many times (folds,
     # foci) are left to a light-tracing pass of spp photons per pixel and light, which is efficient
     # exactly there; the two partition path space, so the sum stays unbiased. 0: walks only
@@ -202,6 +204,31 @@ def _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, st,
     return time.perf_counter() - t_light
 
 
+def _indirect_lights(plan, settings):
+    return list(plan.indirect_lights) if settings.indirect else []
+
+
+def _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog):
+    """Light tracing of the caustic light that meets more than one diffuse surface, for the
+    receivers the camera sees directly (indirect.trace_photons): photons over the whole
+    scene, spp per pixel and light."""
+    from .indirect import trace_photons
+
+    per_batch = max(1, per_light // settings.batches)
+    for li in _indirect_lights(plan, settings):
+        st = indirect_stats.setdefault(scene.light_names[li], {"photons": 0, "rays_photon": 0, "rays_camera": 0,
+                                                                "splats": 0, "time_s": 0.0})
+        t = time.perf_counter()
+        for c, start in enumerate(range(0, per_batch, CHUNK)):
+            prog.check()
+            n = min(CHUNK, per_batch - start)
+            rng = _rng(settings.seed, 5, li, b, c)
+            ph = emit(scene, li, plan.scene_sphere, n, rng)
+            ph.w *= n / per_batch
+            trace_photons(scene, tracer, cam, film, plan, ph, rng, st, physical=settings.radiance == "physical")
+        st["time_s"] += time.perf_counter() - t
+
+
 def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog):
     per_batch = max(1, per_light // settings.batches)
     for lp in plan.lights:
@@ -214,7 +241,8 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
         prog.check()
         n = min(CHUNK, eye_per_batch - start)
         reference.trace_eye(scene, tracer, cam, film, plan, light_ids, start, n, eye_per_batch,
-                            _rng(settings.seed, 1, 0, b, c), eye_stats, physical=settings.radiance == "physical")
+                            _rng(settings.seed, 1, 0, b, c), eye_stats, physical=settings.radiance == "physical",
+                            lights_direct=_indirect_lights(plan, settings))
         prog.step(f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
     eye_stats["time_s"] += time.perf_counter() - t_eye
 
@@ -227,7 +255,8 @@ def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, pe
         prog.check()
         n = min(WALK_CHUNK, per_batch - start)
         manifold_chunk(scene, tracer, cam, film, plan, opts, types, start, n, per_batch,
-                       _rng(settings.seed, 2, 0, b, c), light_stats, eye_stats, guide)
+                       _rng(settings.seed, 2, 0, b, c), light_stats, eye_stats, guide,
+                       lights_direct=_indirect_lights(plan, settings))
         prog.step(f"{settings.method}, batch {b + 1}/{settings.batches}")
 
 
@@ -243,7 +272,9 @@ def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per
         hs = st.setdefault("handoff", dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats",
                                                      "handoff_paths", "truncated", "lost_shading_normal"), 0))
         tau = {t: 0.0 if guide is not None and guide.is_weak(lp.index, t) else opts.handoff for t in types}
-        handoff = reference.Handoff(tau, bool(scene.light_type[lp.index] == S.SUN))
+        # the photons also take every path the walks cannot (a chain type they do not walk), so
+        # that nothing the camera sees directly is dropped
+        handoff = reference.Handoff(tau, bool(scene.light_type[lp.index] == S.SUN), others=True)
         st["time_s"] += _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, hs, prog, 4,
                                      handoff, step=False)
 
@@ -254,6 +285,9 @@ def _summarise_walks(st: dict) -> None:
     st["mutations_per_path"] = st.get("mutations", 0) / walks if walks else 0.0
     succ = st.get("successes", 0)
     st["mutations_per_success"] = st.get("mutations", 0) / succ if succ else 0.0
+    for bc in st.get("by_chain", {}).values():
+        bc["success_rate"] = bc["successes"] / bc["walks"] if bc["walks"] else 0.0
+        bc["mutations_per_success"] = bc["mutations"] / bc["successes"] if bc["successes"] else 0.0
     lanes = st.get("bernoulli_lanes", 0)
     st["trials"] = {"mean": st.get("bernoulli_trials", 0) / lanes if lanes else 0.0,
                     "max": st.get("bernoulli_max", 0), "capped": st.get("capped", 0)}
@@ -310,6 +344,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     light_stats = {lp.name: {"time_s": 0.0, "casters": [scene.object_names[o] for o in lp.caster_objects]}
                    for lp in plan.lights}
     extra = {}
+    indirect_stats = {}  # per light: the photons of indirect.trace_photons
     if settings.method == "reference":
         for st in light_stats.values():
             st.update(dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats", "truncated",
@@ -323,12 +358,14 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         b = 0
         while True:
             _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog)
+            _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
             film.end_batch()
             b += 1
             if _enough(settings, b, t0):
                 break
         extra["batches_done"] = b
-        rays = sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values()) + eye_stats["rays_eye"]
+        rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
+                + sum(v for k, v in eye_stats.items() if k.startswith("rays_")))
         extra["eye_pass"] = eye_stats
     else:
         from .manifold import chain_types
@@ -345,6 +382,14 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             masks, gstats, weak = build_guide(scene, tracer, cam, plan, types, _rng(settings.seed, 3, 0),
                                               photon_budget(cam), check=_Progress(1, None, cancel).check)
             gstats["time_s"] = time.perf_counter() - t_g
+            # chain types that brought no light at all in the pre-pass are not walked (internal
+            # reflections a closed glass shape does not produce for these lights)
+            lit = [t for t in types if any(sh.get(t, 0.0) > 0 for sh in gstats["flux_share"].values())]
+            if lit and len(lit) < len(types):
+                gstats["not_walked"] = [t for t in types if t not in lit]
+                masks = {k: v for k, v in masks.items() if k[1] in lit}
+                weak = frozenset(w for w in weak if w[1] in lit)
+                types = lit
             # weak chain types go to the photon hand-off (which the user may turn off: then walk them)
             guide = Guide(cam, masks, gstats, weak if opts.handoff > 0 else frozenset())
             gstats["left_to_photons"] = sorted(f"{scene.light_names[li]}: {t}" for li, t in guide.weak)
@@ -356,6 +401,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                             eye_stats, prog, guide)
             _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
                            guide)
+            _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
             film.end_batch()
             b += 1
             if _enough(settings, b, t0):
@@ -367,7 +413,8 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                 st["clamped"] = st.get("clamped", 0)
                 st["clamped_energy"] = st.get("clamped_energy", 0.0) / b
             st["trials"]["capped_energy_min"] = st.pop("capped_energy_min", 0.0) / b
-        rays = (sum(st["rays"] for st in light_stats.values()) + eye_stats["rays_eye"]
+        rays = (sum(st["rays"] for st in light_stats.values())
+                + sum(v for k, v in eye_stats.items() if k.startswith("rays_"))
                 + extra.get("guide", {}).get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())
         extra.update({
@@ -378,6 +425,9 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         extra["success_rate"] = extra["successes"] / walks if walks else 0.0
         extra["mutations_per_path"] = extra["mutations"] / walks if walks else 0.0
         extra["mutations_per_success"] = extra["mutations"] / extra["successes"] if extra["successes"] else 0.0
+    if indirect_stats:
+        extra["indirect"] = indirect_stats
+        rays += sum(st["rays_photon"] + st["rays_camera"] for st in indirect_stats.values())
     image = film.image
     variance = film.variance
     if not (np.all(np.isfinite(image)) and np.all(np.isfinite(variance))):

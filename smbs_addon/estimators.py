@@ -26,32 +26,25 @@ import numpy as np
 from . import scene as S
 from .constraints import ANGLE_DIFF, LightEnd, block_solve, blocks
 from .lights import soft_falloff_factor, spot_mask
-from .optics import fresnel_dielectric, fresnel_schlick
+from .optics import specular_weights
 from .vec import dot, frame, normalize
 
 def chain_throughput(scene, types, x0, verts, light_point, directional, physical=False):
-    """Product over the chain of the specular weights, (N,3)."""
+    """Product over the chain of the specular weights (optics.specular_weights), (N,3)."""
     n = len(x0)
     T = np.ones((n, 3))
-    k = len(types)
-    for j in range(k):
+    for j, kind in enumerate(types):
         v = verts[j]
         prev = x0 if j == 0 else verts[j - 1].p
         wi = normalize(prev - v.p)
-        kind = scene.mat_kind[v.mat]
-        color = scene.mat_color[v.mat]
-        eta = scene.mat_ior[v.mat]
-        F = fresnel_dielectric(dot(wi, v.n), eta)
-        if types[j] == "R":
-            schlick = fresnel_schlick(dot(wi, v.n), color)
-            cond = np.where((scene.mat_fresnel[v.mat] == S.FRESNEL_SCHLICK)[:, None], schlick, color)
-            diel = F[:, None] * scene.mat_reflect_color[v.mat]
-            T *= np.where((kind == S.CONDUCTOR)[:, None], cond, diel)
+        R, Tr = specular_weights(scene, v.mat, dot(wi, v.n))
+        if kind == "R":
+            T *= R
         else:
-            w = (1.0 - F)[:, None] * color
+            w = Tr
             if physical:  # light arrives from the w_o side and leaves on the w_i side
-                inside_i = dot(wi, v.ng) < 0
-                ratio = np.where(inside_i, eta, 1.0 / eta)  # eta(w_i side) / eta(w_o side)
+                eta = scene.mat_ior[v.mat]
+                ratio = np.where(dot(wi, v.ng) < 0, eta, 1.0 / eta)  # eta(w_i side) / eta(w_o side)
                 w = w * (ratio**2)[:, None]
             T *= w
     return T

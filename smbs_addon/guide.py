@@ -73,7 +73,9 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
     ny = (y1 - y0 + 2 * TILE) // TILE + 2
     want = {t: i for i, t in enumerate(types_list)}
     masks = {}
-    stats = {"photons": 0, "rays": 0, "flux_share": {}, "peak_share": {}}
+    stats = {"photons": 0, "rays": 0, "flux_share": {}, "peak_share": {}, "other_share": {},
+             "beyond_max_chain_share": {}}
+    max_chain = max((len(t) for t in types_list), default=0)
     weak = set()
     for lp in plan.lights:
         marks = {t: np.zeros((ny, nx), bool) for t in types_list}
@@ -81,6 +83,8 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
         ph = emit(scene, lp.index, lp.targets, photons_per_light, rng)
         o, d, beta = ph.o, ph.d, ph.w
         sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
+        length = np.zeros(len(o), np.int64)
+        other = np.zeros(2)  # flux in frame of chains not in types_list: [all of them, those longer than max_chain]
         stats["photons"] += len(o)
         for bounce in range(max_bounces + 1):
             if check is not None:
@@ -90,7 +94,7 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
             h = tracer.intersect(o, d)
             stats["rays"] += len(o)
             idx = np.flatnonzero(h.hit)
-            o, d, beta, sig = o[idx], d[idx], beta[idx], sig[idx]
+            o, d, beta, sig, length = o[idx], d[idx], beta[idx], sig[idx], length[idx]
             prim = h.prim[idx]
             mat = scene.tri_material[prim]
             kind = scene.mat_kind[mat]
@@ -104,6 +108,12 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
                 tx = np.floor((rx - (x0 - TILE)) / TILE).astype(np.int64)
                 ty = np.floor((ry - (y0 - TILE)) / TILE).astype(np.int64)
                 ok = valid & (tx >= 1) & (ty >= 1) & (tx < nx - 1) & (ty < ny - 1)
+                known = np.zeros(diff.size, bool)
+                for t in types_list:
+                    known |= sig[diff] == _code(t[::-1])
+                lum = beta[diff].mean(axis=1)
+                other[0] += float(lum[ok & ~known].sum())
+                other[1] += float(lum[ok & ~known & (length[diff] > max_chain)].sum())
                 for t in types_list:
                     sel = ok & (sig[diff] == _code(t[::-1]))  # photons list vertices from the light
                     if sel.any():
@@ -120,15 +130,20 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
                                                  adjoint=True)
             refl = np.einsum("ij,ij->i", -d[si][keep], ng[keep]) * np.einsum("ij,ij->i", d_new, ng[keep]) > 0
             sig = sig[si][keep] * 3 + np.where(refl, 1, 2)
+            length = length[si][keep] + 1
             o = tracer.spawn(p[keep], ng[keep], d_new)
             d = d_new
         for t in types_list:
             masks[(lp.index, t)] = marks[t]
-        total = sum(float(f.sum()) for f in flux.values())
+        walked = sum(float(f.sum()) for f in flux.values())
+        total = walked + other[0]  # shares are of all the light the pre-pass brought into the frame
         top = max(float(f.max()) for f in flux.values()) if flux else 0.0
         share = {t: (float(f.sum()) / total if total > 0 else 0.0) for t, f in flux.items()}
+        stats["other_share"][lp.name] = other[0] / total if total > 0 else 0.0
+        stats["beyond_max_chain_share"][lp.name] = other[1] / total if total > 0 else 0.0
         peak = {t: (float(f.max()) / top if top > 0 else 0.0) for t, f in flux.items()}
         stats["flux_share"][lp.name] = share
         stats["peak_share"][lp.name] = peak
-        weak |= {(lp.index, t) for t in types_list if total > 0 and (share[t] < WEAK_SHARE or peak[t] < WEAK_PEAK)}
+        weak |= {(lp.index, t) for t in types_list
+                 if walked > 0 and (share[t] * total / walked < WEAK_SHARE or peak[t] < WEAK_PEAK)}
     return masks, stats, frozenset(weak)

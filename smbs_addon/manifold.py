@@ -20,6 +20,7 @@ from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
 from .lights import area_light_points
+from .optics import has_reflection
 from .vec import dot, normalize, uniform_cone, frame, to_world
 from .walk import OK, OCCLUDED, OUTCOMES, SEED_OBJECT, TRIGGERS, WalkConfig, newton_walk, propagate
 
@@ -39,6 +40,11 @@ class ManifoldOptions:
     walk: WalkConfig = field(default_factory=WalkConfig)
 
 
+# At receivers seen through mirrors or glass the hand-off goes to cosine sampling, weaker than
+# light tracing: only paths focusing more than this (the default hand-off) go there
+SEEN_HANDOFF_MIN = 4.0
+
+
 class Ctx:
     """What the walk needs: scene, tracer, caster mask, object boxes, counters."""
 
@@ -52,6 +58,8 @@ class Ctx:
         self.physical = False
         self.clamp = 0.0  # cap on a solution's luminance (ManifoldOptions.clamp_g); 0: off
         self.clamp_cut = None  # per solution of the last _contribution: luminance the cap removed
+        self.handoff_seen = False  # hand off focusing paths at receivers seen through mirrors or glass too
+        self.first_order = False  # walking from receivers the camera sees (not later diffuse vertices)
 
     def count(self, key, n):
         key = self.ray_kind if key == "rays_walk" else key
@@ -92,13 +100,17 @@ def chain_types(scene, plan, opts: ManifoldOptions) -> list:
                    if np.any(kinds[scene.tri_object == o] == S.CONDUCTOR)]
     for o in np.flatnonzero(plan.casters):
         k = kinds[scene.tri_object == o]
-        if np.any(k == S.CONDUCTOR) or np.any(k == S.DIELECTRIC):
-            types.append("R")
+        if any(has_reflection(scene, m) for m in np.unique(scene.tri_material[scene.tri_object == o])):
+            types.append("R")  # not for Cycles' Refraction BSDF, which never reflects
         if o in conductors and (len(conductors) > 1 or _plane(scene, o) is None):
             types.append("RR")  # a curved mirror (a ring, a bowl) or two mirrors see each other
         if np.any(k == S.DIELECTRIC):
             if _closed(scene, o):
                 types.append("TT")
+                # light reflected inside closed glass (a cube's faces, a prism's hypotenuse by total
+                # internal reflection): T R..R T up to max_chain; the photon pre-pass drops the
+                # ones that carry no light
+                types += ["T" + "R" * r + "T" for r in range(1, opts.max_chain - 1)]
                 lo, hi = scene.object_bounds(o)
                 inside = [scene.light_matrix[lp.index][:3, 3] for lp in plan.lights
                           if scene.light_type[lp.index] != S.SUN]
@@ -262,6 +274,13 @@ def _walk(ctx, opts, seeder, types, x0, ng0, light, rng, primary=True):
     oc = st.setdefault("outcomes", {})
     for code, cnt in zip(*np.unique(res.outcome, return_counts=True)):
         oc[OUTCOMES[code]] = oc.get(OUTCOMES[code], 0) + int(cnt)
+    # the same per chain type: internal reflections (T R T) behave unlike a lens's T T
+    bc = st.setdefault("by_chain", {}).setdefault(types, {"walks": 0, "successes": 0, "mutations": 0,
+                                                          "large_mutations": 0})
+    bc["walks"] += len(x0)
+    bc["successes"] += int(res.converged.sum())
+    bc["mutations"] += int(res.mutations.sum())
+    bc["large_mutations"] += int(sum(res.large.values()))
     return res
 
 
@@ -364,15 +383,21 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     owner = lanes[conv]
     val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain, emit_scale)
     if opts.handoff > 0:
-        # the fold's paths belong to the photon hand-off (bake._handoff_batch), which reaches
-        # only receivers the camera sees directly; what it takes, this pass drops
-        direct = ok & (rc.eye_specular[owner] == 0)
-        if direct.any():
-            di = np.flatnonzero(direct)
+        # the fold's paths belong to the photon hand-off (bake._handoff_batch) at receivers the
+        # camera sees directly, and to indirect.handoff_gather at those it sees through mirrors
+        # or glass once an earlier chunk found such focusing paths there (ctx.handoff_seen);
+        # what they take, this pass drops
+        seen = rc.eye_specular[owner] > 0
+        cand = ok & (~seen | ctx.first_order)
+        if cand.any():
+            di = np.flatnonzero(cand)
             ch_d = chain.take(di)
             etas = [ctx.scene.mat_ior[v.mat] for v in ch_d.verts]
             c = concentration(types, x0[owner[di]], ch_d.verts, etas, light.y[owner[di]], light.directional)
-            handed = di[c > opts.handoff]
+            seen_tau = max(opts.handoff, SEEN_HANDOFF_MIN)
+            seen_focus = seen[di] & (c > seen_tau)
+            ctx.stats["seen_focus"] = ctx.stats.get("seen_focus", 0) + int(seen_focus.sum())
+            handed = di[(~seen[di] & (c > opts.handoff)) | (seen_focus & ctx.handoff_seen)]
             ok[handed] = False
             val[handed] = 0.0
             if ctx.clamp_cut is not None:
@@ -447,19 +472,75 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
 
 
 def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n_batch, rng, stats_per_light,
-                   eye_stats, guide=None):
-    """Eye samples start..start+n of a batch: receivers, then every light x chain type."""
+                   eye_stats, guide=None, lights_direct=()):
+    """Eye samples start..start+n of a batch: receivers, then every light x chain type;
+    for receivers seen through mirrors or glass, also the caustic light that meets more
+    diffuse surfaces (indirect.gather, with these walks at every diffuse vertex);
+    lights_direct: the lights whose direct light counts there (empty: none of it)."""
     rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats, min_specular=0,
                        scale_eta=opts.physical)
-    total = np.zeros((len(rc.p), 3))
+    ctxs = {}
     for lp in plan.lights:
-        st = stats_per_light[lp.name]
-        t = time.perf_counter()
-        ctx = Ctx(scene, tracer, plan, st)
+        ctx = Ctx(scene, tracer, plan, stats_per_light[lp.name])
         ctx.physical = opts.physical
         ctx.clamp = opts.clamp_g
-        for types in types_list:
-            total += estimate(ctx, opts, lp.index, types, rc, rng, guide)
-        st["time_s"] += time.perf_counter() - t
+        ctxs[lp.index] = ctx
+
+    def caustic(receivers):
+        total = np.zeros((len(receivers.p), 3))
+        for lp in plan.lights:
+            t = time.perf_counter()
+            for types in types_list:
+                total += estimate(ctxs[lp.index], opts, lp.index, types, receivers, rng, guide)
+            stats_per_light[lp.name]["time_s"] += time.perf_counter() - t
+        return total
+
+    # at receivers seen through mirrors or glass, paths focusing more than opts.handoff go to
+    # cosine sampling from x0 (indirect.handoff_gather) for the lights it can hit
+    handoffs = {}
+    if opts.handoff > 0 and types_list:
+        from .reference import Handoff
+
+        handoffs = {lp.index: Handoff({t: max(opts.handoff, SEEN_HANDOFF_MIN) for t in types_list},
+                                      bool(scene.light_type[lp.index] == S.SUN))
+                    for lp in plan.lights if light_can_be_hit(scene, lp.index)}
+    # per light, only once an earlier chunk's walks found paths focusing past the threshold at
+    # such receivers (a decision on independent samples: each chunk stays unbiased, and chunks
+    # run in order, so the image does not depend on the thread count)
+    handoffs = {li: h for li, h in handoffs.items() if ctxs[li].stats.get("seen_focus", 0) > 0}
+    for li, ctx in ctxs.items():
+        ctx.handoff_seen = li in handoffs
+        ctx.first_order = True
+    total = caustic(rc)
+    for ctx in ctxs.values():  # the walks at later diffuse vertices (indirect.gather) keep every path
+        ctx.handoff_seen = ctx.first_order = False
     hit = np.flatnonzero(total.max(axis=1) > 0)
     film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None])
+    seen = np.flatnonzero(rc.eye_specular > 0)
+    if seen.size and handoffs:
+        from .indirect import handoff_gather
+
+        handoff_gather(scene, tracer, film, plan, _take_receivers(rc, seen), rng, eye_stats, handoffs,
+                       physical=opts.physical)
+    if lights_direct and seen.size:
+        from .indirect import gather
+
+        gather(scene, tracer, film, plan, _take_receivers(rc, seen), rng, eye_stats, lights_direct,
+               physical=opts.physical, connect=caustic)
+
+
+def light_can_be_hit(scene, li) -> bool:
+    """Whether a ray can hit light li: an area light, a sun with an angle, a point or spot
+    light with a radius (delta lights can only be connected to, by the walks)."""
+    typ = scene.light_type[li]
+    if typ == S.AREA:
+        return True
+    if typ == S.SUN:
+        return bool(scene.light_angle[li] > 0)
+    return bool(scene.light_radius[li] > 0)
+
+
+def _take_receivers(rc, idx):
+    from .eye import Receivers
+
+    return Receivers(**{f: getattr(rc, f)[idx] for f in rc.__dataclass_fields__})

@@ -33,6 +33,10 @@ class Plan:
     lights: list
     skipped: list = field(default_factory=list)  # (kind, name, reason)
     notes: list = field(default_factory=list)
+    # lights that may light a diffuse surface whose light then meets a caster (caustic light
+    # through more than one diffuse vertex, indirect.py): any planned light with power
+    indirect_lights: list = field(default_factory=list)
+    scene_sphere: np.ndarray = field(default_factory=lambda: np.zeros((1, 4)))  # (1,4) the whole scene
 
 
 def _use_flags(mode: str, flags: np.ndarray) -> bool:
@@ -85,6 +89,7 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         spheres[o] = np.concatenate([(lo + hi) / 2, [max(np.linalg.norm(hi - lo) / 2, 1e-9 * scene.scale)]])
     use_light_flags = _use_flags(flags, scene.light_caustics)
     lights = []
+    indirect = []
     for li in range(scene.n_lights):
         name = scene.light_names[li]
         if use_light_flags and not scene.light_caustics[li]:
@@ -96,6 +101,7 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         if scene.light_type[li] == S.AREA and not (scene.light_size[li].min() > 0):
             skipped.append(("light", name, "zero size"))
             continue
+        indirect.append(li)
         objs = [o for o, sp in spheres.items() if light_covers(scene, li, sp[:3], sp[3])]
         if not objs:
             skipped.append(("light", name, "reaches no caustic caster"))
@@ -104,4 +110,7 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     if not lights:
         reasons = "; ".join(f"'{n}': {r}" for k, n, r in skipped if k == "light")
         raise SceneError(f"scene '{scene.name}': no light can cast caustics ({reasons})")
-    return Plan(casters=casters, receivers=receivers, lights=lights, skipped=skipped)
+    lo, hi = scene.bounds()
+    sphere = np.concatenate([(lo + hi) / 2, [max(np.linalg.norm(hi - lo) / 2, 1e-9)]])[None, :]
+    return Plan(casters=casters, receivers=receivers, lights=lights, skipped=skipped, indirect_lights=indirect,
+                scene_sphere=sphere)

@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import scene as S
-from .optics import fresnel_dielectric, fresnel_schlick, reflect, refract
-from .lights import light_radiance, soft_falloff_factor
+from .optics import reflect, refract, specular_weights
+from .lights import soft_falloff_factor
 from .estimators import concentration
 from .geometry import vertex_from_hits
-from .vec import cosine_hemisphere, dot, frame, normalize, to_world
+from .vec import dot, normalize
 
 MAX_SPECULAR_BOUNCES = 32
 
@@ -63,55 +63,50 @@ def splat_to_camera(scene, tracer, cam, film, y, ng, ns, w_in, beta, albedo, sta
 
 
 def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False, adjoint=False):
-    """One perfect-specular interaction per lane: mirror reflection (conductor),
-    or reflection/refraction chosen by Fresnel (dielectric, Russian roulette so
-    the weight is just the tint). w_in points away from the surface.
+    """One perfect-specular interaction per lane, as Cycles makes it: the geometric
+    normal decides the side (a back-facing hit flips both normals and inverts the IOR);
+    a lane whose shading normal faces away from w_in dies; a mirror reflects, glass
+    reflects or refracts, chosen in proportion to the lobes' weights
+    (optics.specular_weights), so the lane's weight is the lobe's weight over its
+    probability; the new direction must leave on the side the interaction calls for,
+    by the geometric and the shading normal alike. w_in points away from the surface.
 
-    scale_eta: multiply refractions by (eta on the w_in side / eta on the other
-    side)^2 -- the radiance change along an eye path in physical units, and, for
-    photons, Cycles' convention (Cycles keeps radiance unscaled, so the flux a
-    photon delivers changes by that factor instead).
+    scale_eta: multiply refractions by (eta on the w_in side / eta on the other side)^2
+    -- the radiance change along an eye path in physical units, and, for photons,
+    Cycles' convention (Cycles keeps radiance unscaled, so the flux a photon delivers
+    changes by that factor instead).
 
     adjoint: the lanes carry light (photons), not radiance: with a shading normal the
     BSDF is not symmetric, and the photon's weight takes Veach's correction (thesis
     sec. 5.3) |w_in.ns| |w_out.ng| / (|w_in.ng| |w_out.ns|), so that light tracing
     agrees with the radiance view (Cycles, the walks) on bumpy or normal-mapped casters.
 
-    Returns (new unit directions, new weights, kept lane indices): lanes whose
-    scattered direction is on the wrong side of the geometric normal (a
-    shading-normal artefact) or whose weight is zero are dropped."""
-    n_out = np.zeros_like(w_in)
-    beta = beta.copy()
-    cond = kind == S.CONDUCTOR
-    if cond.any():
-        ci = np.flatnonzero(cond)
-        f = np.where((scene.mat_fresnel[mat[ci]] == S.FRESNEL_SCHLICK)[:, None],
-                     fresnel_schlick(dot(w_in[ci], ns[ci]), scene.mat_color[mat[ci]]),
-                     scene.mat_color[mat[ci]])
-        n_out[ci] = reflect(w_in[ci], ns[ci])
-        beta[ci] *= f
-    diel = kind == S.DIELECTRIC
-    if diel.any():
-        di = np.flatnonzero(diel)
-        eta = scene.mat_ior[mat[di]]
-        wi, n = w_in[di], ns[di]
-        choose_r = rng.random(di.size) < fresnel_dielectric(dot(wi, n), eta)
-        t, t_ok = refract(wi, n, eta)
-        choose_r |= ~t_ok
-        n_out[di] = np.where(choose_r[:, None], reflect(wi, n), t)
-        beta[di] *= np.where(choose_r[:, None], scene.mat_reflect_color[mat[di]], scene.mat_color[mat[di]])
-        if scale_eta:
-            inside = dot(wi, ng[di]) < 0
-            ratio = np.where(inside, eta, 1.0 / eta)  # eta(w_in side) / eta(other side)
-            beta[di] *= np.where(choose_r, 1.0, ratio**2)[:, None]
-    # the geometric normal decides the side: reflection stays, refraction crosses
-    cin, cout = dot(w_in, ng), dot(n_out, ng)
+    Returns (new unit directions, new weights, kept lane indices)."""
+    ns = ns * np.where(dot(ns, ng) < 0, -1.0, 1.0)[:, None]  # a shading normal on the geometric one's side
+    cin = dot(w_in, ng)
+    cs = dot(w_in, ns)
+    front = cs * np.sign(cin) > 0  # Cycles: N.wi <= 0 after the flip -> no scattering
+    R, T = specular_weights(scene, mat, cs)
+    r_lum, t_lum = R.sum(axis=1), T.sum(axis=1)
+    tot = r_lum + t_lum
+    p_r = np.divide(r_lum, tot, out=np.zeros_like(tot), where=tot > 0)
+    choose_r = rng.random(len(w_in)) < p_r
+    t_dir, t_ok = refract(w_in, ns, scene.mat_ior[mat])
+    n_out = np.where(choose_r[:, None], reflect(w_in, ns), t_dir)
+    p_sel = np.where(choose_r, p_r, 1.0 - p_r)
+    w = np.where(choose_r[:, None], R, T) / np.where(p_sel > 0, p_sel, 1.0)[:, None]
+    beta = beta * w
+    if scale_eta:
+        eta = scene.mat_ior[mat]
+        ratio = np.where(cin < 0, eta, 1.0 / eta)  # eta(w_in side) / eta(other side)
+        beta = beta * np.where(choose_r | (kind != S.DIELECTRIC), 1.0, ratio**2)[:, None]
+    cout = dot(n_out, ng)
     if adjoint:
-        num = np.abs(dot(w_in, ns) * cout)
+        num = np.abs(cs * cout)
         den = np.abs(cin * dot(n_out, ns))
         beta *= np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
-    is_refl = dot(w_in, ns) * dot(n_out, ns) > 0
-    ok = np.where(is_refl, cin * cout > 0, cin * cout < 0) & (beta.max(axis=1) > 0)
+    side = np.where(choose_r, cin * cout > 0, (cin * cout < 0) & t_ok)
+    ok = front & side & (p_sel > 0) & (beta.max(axis=1) > 0)
     keep = np.flatnonzero(ok)
     return normalize(n_out[keep]), beta[keep], keep
 
@@ -129,6 +124,9 @@ class Handoff:
 
     tau: dict  # chain type -> concentration threshold; 0: the whole chain type (a weak one)
     directional: bool  # the light is a sun: the light end is the photon's direction
+    others: bool = False  # also every path the walks cannot take: a chain type they do not walk
+    # (longer than max_chain, or mixing mirrors and glass), or one through a specular vertex that
+    # is not a planned caster
 
     @property
     def types(self):
@@ -145,9 +143,14 @@ def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caste
     take = np.zeros(len(x0), bool)
     K = handoff.max_chain
     ok = (kb >= 1) & (kb <= K)
+    if handoff.others:
+        take[kb > K] = True
     for k in np.unique(kb[ok]):
         lanes = np.flatnonzero(ok & (kb == k))
-        lanes = lanes[np.all(caster[lanes, :k], axis=1)]
+        on_casters = np.all(caster[lanes, :k], axis=1)
+        if handoff.others:
+            take[lanes[~on_casters]] = True
+        lanes = lanes[on_casters]
         # chain letters from the receiver's side: the photon's last bounce comes first
         codes = np.zeros(lanes.size, np.int64)
         for j in range(k):
@@ -155,6 +158,8 @@ def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caste
         for code in np.unique(codes):
             types = "".join("R" if (code >> (k - 1 - j)) & 1 else "T" for j in range(k))
             if types not in handoff.types:
+                if handoff.others:
+                    take[lanes[codes == code]] = True
                 continue
             g = lanes[codes == code]
             verts = [vertex_from_hits(scene, tracer, prim[g, k - 1 - j], pts[g, k - 1 - j], bary[g, k - 1 - j])
@@ -181,7 +186,8 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
     bounces = 0
     if handoff is not None:  # per photon: each bounce's triangle, barycentrics, kind, caster flag
         K = handoff.max_chain
-        max_bounces = min(max_bounces, K)
+        if not handoff.others:
+            max_bounces = min(max_bounces, K)
         lane = np.arange(len(o))
         y_end = -d if handoff.directional else o.copy()
         h_prim = np.zeros((len(o), K), np.int64)
@@ -235,82 +241,34 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         if handoff is not None:
             sk = si[keep]
             ln = lane[sk]
+            lane = ln
+        if handoff is not None and bounces < K:  # past K the path is no walked chain: no history needed
             h_prim[ln, bounces] = prim[sk]
             h_p[ln, bounces] = p[sk]
             h_bary[ln, bounces] = bary[sk]
             h_refl[ln, bounces] = (dot(d_in[keep], ns[sk]) * dot(d, ns[sk]) < 0).astype(np.int64)
             h_cast[ln, bounces] = plan.casters[obj[sk]]
-            lane = ln
         o = tracer.spawn(p[si][keep], ng[si][keep], d)
         bounces += 1
 
 
 def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, rng, stats,
-              max_bounces=MAX_SPECULAR_BOUNCES, physical=False):
-    """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse
-    receiver x0 -> (specular)+ -> light, by path tracing from the eye.
+              max_bounces=MAX_SPECULAR_BOUNCES, physical=False, lights_direct=()):
+    """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse receiver
+    x0 -> ... -> light, by path tracing from the eye.
 
-    The light tracer cannot connect such x0 to the camera (the connection
-    passes a delta BSDF), so this estimator covers exactly the paths whose eye
-    chain has at least one specular vertex; together they partition the
-    caustic layer. From x0 a cosine-sampled direction must find a finite light
-    through a specular chain whose last vertex is a caster: unbiased, noisy for
-    small lights, blind to point lights of radius 0 and suns of angle 0."""
+    The light tracer cannot connect such x0 to the camera (the connection passes a
+    delta BSDF), so this estimator covers exactly the paths whose eye chain has at
+    least one specular vertex; together they partition the caustic layer. From x0,
+    cosine-sampled paths must find a finite light right after a specular vertex on a
+    caster (x0's own caustic, or that of a later diffuse vertex), or light a later
+    diffuse vertex directly once a specular vertex lies behind (indirect.gather):
+    unbiased, noisy for small lights, blind to point lights of radius 0 and suns of
+    angle 0."""
     from .eye import eye_receivers
+    from .indirect import gather
 
     rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=1,
                        max_bounces=max_bounces, scale_eta=physical)
-    _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rc.rx, rc.ry, rc.weight,
-                     rc.p, rc.ng, rc.ns, rc.w_eye, rc.beta * scene.mat_color[rc.mat], max_bounces, physical)
-
-
-def _shade_receivers(scene, tracer, film, plan, light_indices, rng, stats, rx, ry, weight,
-                     p, ng, ns, w_eye, beta, max_bounces, physical=False):
-    """From receiver points x0 (reached through the eye chain), follow one
-    cosine-sampled direction through specular chains to the lights; splat the
-    radiance found at the eye sample's film position."""
-    if len(p) == 0:
-        return
-
-    side = np.where(dot(w_eye, ng) >= 0, 1.0, -1.0)[:, None]
-    nn = ns * side
-    s, t = frame(nn)
-    d = to_world(cosine_hemisphere(rng.random(len(p)), rng.random(len(p))), s, t, nn)
-    ok = dot(d, ng * side) > 0  # cosine lobe below the geometric surface: no light
-    rx, ry, weight = rx[ok], ry[ok], weight[ok]
-    p, ng, beta, d = p[ok], ng[ok], beta[ok], d[ok]  # f cos / pdf = albedo
-    o = tracer.spawn(p, ng, d)
-    radiance = np.zeros((len(o), 3))
-    alive = np.arange(len(o))
-    last_caster = np.zeros(len(o), bool)
-    bounces = 0
-    while len(o):
-        h = tracer.intersect(o, d)
-        stats["rays_eye"] += len(o)
-        if bounces > 0:  # a light seen after at least one specular vertex, itself a caster
-            tsurf = np.where(h.hit, h.t, np.inf)
-            best_t = tsurf.copy()
-            best_L = np.zeros((len(o), 3))
-            for li in light_indices:
-                L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
-                closer = tl < best_t
-                best_t = np.where(closer, tl, best_t)
-                best_L = np.where(closer[:, None], L, best_L)
-            radiance[alive] += beta * best_L * last_caster[:, None]
-        if bounces >= max_bounces:
-            break
-        kind = np.where(h.hit, scene.mat_kind[scene.tri_material[np.maximum(h.prim, 0)]], -1)
-        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
-        if si.size == 0:
-            break
-        prim = h.prim[si]
-        dd, bb, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], scene.tri_material[prim],
-                                        kind[si], beta[si], scale_eta=physical)
-        last_caster = plan.casters[scene.tri_object[prim]][keep]
-        o = tracer.spawn(h.p[si][keep], h.ng[si][keep], dd)
-        d, beta, alive = dd, bb, alive[si][keep]
-        bounces += 1
-    hit = np.flatnonzero(radiance.max(axis=1) > 0)
-    if hit.size:
-        film.splat(rx[hit], ry[hit], radiance[hit] * weight[hit, None])
-        stats["eye_splats"] += int(hit.size)
+    gather(scene, tracer, film, plan, rc, rng, stats, lights_direct, physical=physical,
+           lights_hit=light_indices, count_first=True)

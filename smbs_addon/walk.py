@@ -113,7 +113,11 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
         w_out, okm = specular_map(kind, w_in, v.n, scene.mat_ior[mat])
         bad[(~okm) & (bad == OK)] = TIR if j == k - 1 else TIR_INNER
         cin, cout = dot(w_in, v.ng), dot(w_out, v.ng)
-        side_ok = (cin * cout > 0) if kind == "R" else (cin * cout < 0)
+        # Cycles: the geometric normal picks the side, the shading normal (oriented to the
+        # geometric one: v.n's sign is free here) must face w_in on it, and the new direction
+        # must leave on the side the interaction calls for
+        side_ok = ((cin * cout > 0) if kind == "R" else (cin * cout < 0)) & \
+            (dot(w_in, v.n) * dot(v.n, v.ng) * cin > 0)
         bad[(~side_ok) & (bad == OK)] = SIDE if j == k - 1 else SIDE_INNER
         status[act] = bad
         good = bad == OK

@@ -26,7 +26,7 @@ from test_reference_analytic import check_against, pixel_floor_points
 def test_water_caustic_in_cycles_units_lacks_the_eta_squared(method, spp):
     scene = scenes.water_scene("sun", resolution=32, size=2.6)
     expected, region = water_sun_expected(scene)
-    res = bake(scene, BakeSettings(method=method, spp=spp, seed=4))  # radiance="cycles"
+    res = bake(scene, BakeSettings(method=method, spp=spp, seed=4, indirect=False))  # radiance="cycles"
     check_against(res, expected / 1.33**2, region, tol=0.02)
 
 
@@ -79,5 +79,5 @@ def test_soft_falloff_point_light_seen_in_a_mirror(method, spp):
     E = 0.9 * intensity * (v[:, 2] / D) / D**2 * d2 / (d2 + 0.25)
     expected = np.zeros(region.shape)
     expected[region] = 0.8 / math.pi * E
-    res = bake(scene, BakeSettings(method=method, spp=spp, seed=6))
+    res = bake(scene, BakeSettings(method=method, spp=spp, seed=6, indirect=False))
     check_against(res, expected, region, tol=0.02)

@@ -68,8 +68,9 @@ def near_focus():
     """A glass ball whose focus lies just above the floor, under an area light: most
     of the caustic's light arrives along paths near the focus, where G is huge."""
     scene = scenes.glass_sphere_scene(resolution=(64, 48), height=0.85)
-    pick = bake(scene, BakeSettings(method="reference", spp=512, seed=9))
-    judge = bake(scene, BakeSettings(method="reference", spp=1024, seed=10))
+    # first-order caustics only: the hand-off is the subject, and the indirect ones add noise
+    pick = bake(scene, BakeSettings(method="reference", spp=512, seed=9, indirect=False))
+    judge = bake(scene, BakeSettings(method="reference", spp=1024, seed=10, indirect=False))
     return scene, judge, caustic_region(pick.image)
 
 
@@ -79,7 +80,7 @@ def test_walks_plus_photons_match_the_reference_near_a_focus(near_focus, tau):
     tracer within 3% (measured: walks alone are -24% +- 7% and +7% +- 29% at this
     sample count, their infinite-variance tail)."""
     scene, ref, region = near_focus
-    res = bake(scene, BakeSettings(method="smbs", spp=16, seed=1, handoff=tau))
+    res = bake(scene, BakeSettings(method="smbs", spp=16, seed=1, handoff=tau, indirect=False))
     st = res.stats["lights"]["Area"]
     assert st["handoff"]["handoff_paths"] > 0 and st["handed_off"] > 0
     rel, noise, beyond = _compare(res, ref, region)
@@ -89,14 +90,17 @@ def test_walks_plus_photons_match_the_reference_near_a_focus(near_focus, tau):
 
 def test_faint_chain_types_are_left_to_photons(near_focus):
     """The ball's reflection (R) is a faint glow next to its refracted focus (TT): the
-    guide leaves it to the photons, so no receiver seen directly walks an R chain."""
+    guide leaves it to the photons, so no receiver seen directly walks an R chain; so are the
+    internal reflections that stay faint (a sphere's T R R T), never the focus itself."""
     scene, ref, region = near_focus
     res = bake(scene, BakeSettings(method="smbs", spp=8, seed=2))
-    assert res.stats["guide"]["left_to_photons"] == ["Area: R"]
+    left = res.stats["guide"]["left_to_photons"]
+    assert "Area: R" in left and "Area: TT" not in left
     st = res.stats["lights"]["Area"]
     assert st["weak_skips"] > 0
     peak = res.stats["guide"]["peak_share"]["Area"]
-    assert peak["TT"] == 1.0 and peak["R"] < 0.05
+    assert peak["TT"] == 1.0
+    assert all(peak[name.split(": ")[1]] < 0.05 for name in left), peak
 
 
 def test_handoff_off_walks_everything():

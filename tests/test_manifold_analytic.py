@@ -48,7 +48,7 @@ def water_sun_expected(scene):
 @pytest.mark.parametrize("estimator", ["unbiased", "biased"])
 def test_flat_mirror(method, estimator):
     scene = scenes.mirror_scene(resolution=(120, 90))
-    res = bake(scene, BakeSettings(method=method, estimator=estimator, trials=2, spp=8, seed=1))
+    res = bake(scene, BakeSettings(method=method, estimator=estimator, trials=2, spp=8, seed=1, indirect=False))
     check_against(res, *mirror_expected(scene), tol=0.02)
     assert res.stats["chain_types"] == ["R"]
 
@@ -63,20 +63,20 @@ SPP = {"mnee": 8, "sms": 256, "smbs": 16}
 def test_flat_water_point_light(method):
     scene = scenes.water_scene("point", resolution=32, size=2.6)
     scene.light_radius[:] = 0.0  # a point light: sampling a sphere light is unbiased but noisy
-    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=2, radiance="physical"))
+    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=2, radiance="physical", indirect=False))
     check_against(res, *water_point_expected(scene), tol=0.02)
 
 
 def test_flat_water_sphere_light_of_radius():
     scene = scenes.water_scene("point", resolution=32, size=2.6)  # radius 0.05: the sphere is sampled
-    res = bake(scene, BakeSettings(method="smbs", spp=128, seed=3, radiance="physical"))
+    res = bake(scene, BakeSettings(method="smbs", spp=128, seed=3, radiance="physical", indirect=False))
     check_against(res, *water_point_expected(scene), tol=0.02)
 
 
 @pytest.mark.parametrize("method", ["mnee", "sms", "smbs"])
 def test_flat_water_sun(method):
     scene = scenes.water_scene("sun", resolution=32, size=2.6)
-    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=4, radiance="physical"))
+    res = bake(scene, BakeSettings(method=method, spp=SPP[method], seed=4, radiance="physical", indirect=False))
     check_against(res, *water_sun_expected(scene), tol=0.02)
 
 
@@ -99,7 +99,7 @@ def test_smbs_finds_twice_the_paths_on_a_fine_normal_map():
     2.39 +- 0.07), mutations per solution found 52.8 vs 22.3 (the paper: 26% vs 60%,
     69 vs 33 mpp). No timing."""
     scene = scenes.hammered_mirror_scene(resolution=(32, 24))
-    kw = dict(spp=1, seed=6, estimator="biased", trials=1, handoff=0, chains=("R",))
+    kw = dict(spp=1, seed=6, estimator="biased", trials=1, handoff=0, chains=("R",), indirect=False)
     sms = bake(scene, BakeSettings(method="sms", **kw)).stats["lights"]["Area"]
     smbs = bake(scene, BakeSettings(method="smbs", **kw)).stats["lights"]["Area"]
     assert sms["walks"] == smbs["walks"] > 3000  # the same lanes: the walks alone differ

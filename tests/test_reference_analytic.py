@@ -37,7 +37,7 @@ def check_against(result, expected, region, tol):
 
 def test_flat_mirror_matches_mirrored_disk_light():
     scene = scenes.mirror_scene()
-    res = bake(scene, BakeSettings(method="reference", spp=64, seed=3))
+    res = bake(scene, BakeSettings(method="reference", spp=64, seed=3, indirect=False))
     pts, ok = pixel_floor_points(scene)
     r = np.hypot(pts[..., 0], pts[..., 1])
     region = ok & (r < 0.45)
@@ -52,7 +52,7 @@ def test_flat_mirror_matches_mirrored_disk_light():
 
 def test_flat_water_point_light_matches_snell_and_fresnel():
     scene = scenes.water_scene("point")
-    res = bake(scene, BakeSettings(method="reference", spp=512, seed=5, radiance="physical"))
+    res = bake(scene, BakeSettings(method="reference", spp=512, seed=5, radiance="physical", indirect=False))
     pts, ok = pixel_floor_points(scene)
     rho = np.hypot(pts[..., 0], pts[..., 1])
     region = ok & (rho < 0.9)
@@ -65,7 +65,7 @@ def test_flat_water_point_light_matches_snell_and_fresnel():
 
 def test_flat_water_sun_matches_snell_and_fresnel():
     scene = scenes.water_scene("sun", sun_tilt_deg=30.0)
-    res = bake(scene, BakeSettings(method="reference", spp=256, seed=7, radiance="physical"))
+    res = bake(scene, BakeSettings(method="reference", spp=256, seed=7, radiance="physical", indirect=False))
     region = np.ones(res.image.shape[:2], bool)
     region[:3], region[-3:], region[:, :3], region[:, -3:] = False, False, False, False
     c = math.cos(math.radians(30))

@@ -326,6 +326,7 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         col.prop(settings, "batches")
         col.prop(settings, "threads")
         col.prop(settings, "guide")
+        col.prop(settings, "indirect")
         col.prop(settings, "radiance")
 
         col = layout.column(heading="Solver")

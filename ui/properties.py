@@ -20,7 +20,7 @@ BAKE_FIELDS = (
     "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
     "time_budget", "use_cycles_flags", "radiance", "guide", "max_iterations", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
-    "max_chain", "clamp_g", "handoff",
+    "max_chain", "clamp_g", "handoff", "indirect",
 )
 
 METHOD_ITEMS = (
@@ -124,6 +124,12 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         name="Photon Guide", default=True,
         description="A photon pre-pass finds where caustics land; walks elsewhere are "
                     "thinned out by Russian roulette (unbiased)",
+    )
+    indirect: BoolProperty(
+        name="Indirect Caustics", default=True,
+        description="Also bake caustics that reach the camera through further diffuse "
+                    "bounces (light focused on the floor, bounced onto a wall), as Cycles' "
+                    "caustics on/off difference includes them",
     )
     output_path: StringProperty(
         name="Output", default="//caustics.exr", subtype='FILE_PATH',

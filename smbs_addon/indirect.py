@@ -1,0 +1,339 @@
+"""Caustic light that meets more than one diffuse surface.
+
+The caustic layer is what Cycles adds when caustics are on: every path camera ->
+(specular)* -> diffuse x0 -> ... -> light with at least one specular vertex on
+the light's side of x0. The manifold pass and the light tracer's first pass take
+the paths with x0 the only diffuse vertex (x0 -> specular+ -> light). This module
+takes the rest, the paths with at least one more diffuse vertex: a floor lit
+directly that lights a glass ball, which focuses that light back onto the floor
+(camera -> floor -> glass -> floor -> light), or water whose caustic on a pool's
+floor rises, reflects off the water's underside (total internal reflection) and
+lands on the floor again (camera -> water -> floor -> water -> floor -> water ->
+sun). On a pool with a floor of albedo 0.8 that is a third of the layer.
+
+Two estimators, split by how the camera sees x0:
+- directly: light tracing (``trace_photons``). Photons leave the lights in every
+  direction, bounce off diffuse surfaces (cosine, Russian roulette on the
+  albedo) and through specular ones, and splat at each receiver the camera sees
+  once their history holds a specular vertex and a diffuse one;
+- through mirrors or glass (the camera cannot be reached from x0 by a photon):
+  path tracing from x0 (``gather``): cosine bounces through specular chains to
+  the next diffuse vertices x1, x2, ..., where direct light counts once a
+  specular vertex lies behind, and the caustic at xi (xi -> specular+ -> light)
+  is estimated by the caller's ``connect`` (the manifold walks), or, for the
+  light tracer, by lights hit after a specular vertex.
+Diffuse vertices are counted as Cycles counts diffuse bounces (Light Paths >
+Diffuse, 4 by default): a path is kept while it needs at most ``max_diffuse``.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from . import scene as S
+from .eye import Receivers
+from .lights import light_radiance, soft_falloff_factor, spot_mask, area_light_shape
+from .reference import scatter_specular, splat_to_camera
+from .vec import cosine_hemisphere, dot, frame, normalize, to_world
+
+MAX_DIFFUSE = 4  # Cycles' default Light Paths > Diffuse bounces
+MAX_SPECULAR = 32
+HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
+HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
+
+
+def _albedo(scene, mat):
+    return scene.mat_color[mat]
+
+
+def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
+    """Cosine-sampled bounce off a diffuse vertex (about the shading normal on w_in's side),
+    with Russian roulette on the albedo. Returns (directions, weights, kept lanes)."""
+    n = len(w_in)
+    side = np.where(dot(w_in, ng) >= 0, 1.0, -1.0)[:, None]
+    nn = ns * side
+    s, t = frame(nn)
+    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), s, t, nn)
+    q = np.clip(albedo.max(axis=1), 0.0, 1.0)
+    survive = rng.random(n) < q
+    beta = beta * (albedo / np.where(q > 0, q, 1.0)[:, None])  # f cos / pdf = albedo
+    cout = dot(d, ng * side)
+    if adjoint:  # Veach's shading-normal correction for light carried from w_in to d
+        num = np.abs(dot(w_in, ns) * cout)
+        den = np.abs(dot(w_in, ng) * dot(d, ns))
+        beta = beta * np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
+    ok = survive & (cout > 0) & (dot(w_in, nn) > 0) & (beta.max(axis=1) > 0)
+    keep = np.flatnonzero(ok)
+    return d[keep], beta[keep], keep
+
+
+def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False, max_diffuse=MAX_DIFFUSE):
+    """Light tracing of the layer's paths through two or more diffuse vertices, splatted
+    at the receivers the camera sees directly (photons from lights.emit over the whole
+    scene, not only towards the casters)."""
+    o, d, beta = photons.o, photons.d, photons.w
+    keep = beta.max(axis=1) > 0
+    o, d, beta = o[keep], d[keep], beta[keep]
+    n = len(o)
+    has_s = np.zeros(n, bool)  # a specular vertex on a planned caster so far
+    n_diff = np.zeros(n, np.int64)  # diffuse vertices so far
+    # Seen from the camera, the path takes a diffuse bounce at every diffuse vertex but the
+    # one nearest the light, and at that one too when the light is reached through a
+    # specular vertex (found by sampling, not by a light sample)
+    extra = np.zeros(n, np.int64)
+    first = True
+    soft = photons.soft_center is not None
+    stats["photons"] = stats.get("photons", 0) + n
+    for _ in range(MAX_SPECULAR + max_diffuse + 1):
+        if len(o) == 0:
+            break
+        h = tracer.intersect(o, d)
+        stats["rays_photon"] = stats.get("rays_photon", 0) + len(o)
+        idx = np.flatnonzero(h.hit)
+        o, d, beta, has_s, n_diff, extra = o[idx], d[idx], beta[idx], has_s[idx], n_diff[idx], extra[idx]
+        p, ng, ns, prim = h.p[idx], h.ng[idx], h.ns[idx], h.prim[idx]
+        mat = scene.tri_material[prim]
+        obj = scene.tri_object[prim]
+        kind = scene.mat_kind[mat]
+        if first:
+            if soft:
+                beta = beta * soft_falloff_factor(photons.soft_center, photons.soft_radius, p)[:, None]
+            extra = (kind != S.DIFFUSE).astype(np.int64)
+        first = False
+        w_in = -d
+        diffuse = kind == S.DIFFUSE
+        # splat where the camera's first diffuse vertex would be: the history holds both kinds
+        sp = np.flatnonzero(diffuse & plan.receivers[obj] & has_s & (n_diff >= 1) & (n_diff + extra <= max_diffuse))
+        if sp.size:
+            splat_to_camera(scene, tracer, cam, film, p[sp], ng[sp], ns[sp], w_in[sp], beta[sp],
+                            _albedo(scene, mat[sp]), stats)
+        # go on: diffuse bounces while the path can still take one, specular always
+        di = np.flatnonzero(diffuse & (n_diff + 1 + extra <= max_diffuse))
+        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+        d_d, b_d, k_d = _diffuse_bounce(rng, w_in[di], ng[di], ns[di], beta[di], _albedo(scene, mat[di]), True)
+        d_s, b_s, k_s = scatter_specular(scene, rng, w_in[si], ns[si], ng[si], mat[si], kind[si], beta[si],
+                                         scale_eta=not physical, adjoint=True)
+        dd, ss = di[k_d], si[k_s]
+        new_p = np.concatenate([p[dd], p[ss]])
+        new_ng = np.concatenate([ng[dd], ng[ss]])
+        d = np.concatenate([d_d, d_s])
+        beta = np.concatenate([b_d, b_s])
+        n_diff = np.concatenate([n_diff[dd] + 1, n_diff[ss]])
+        extra = np.concatenate([extra[dd], extra[ss]])
+        has_s = np.concatenate([has_s[dd], has_s[ss] | plan.casters[obj[ss]]])
+        o = tracer.spawn(new_p, new_ng, d)
+
+
+def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
+    """Direct light of light li at diffuse points (one light sample each), as outgoing
+    radiance towards w_eye divided by the albedo: cos * L_e * G / (pi p)."""
+    from .manifold import sample_light
+    from .estimators import light_end_at_solution
+
+    n = len(p)
+    out = np.zeros((n, 3))
+    if n == 0:
+        return out
+    light = sample_light(scene, li, n, rng)
+    _, e = light_end_at_solution(scene, li, light, p)
+    typ = scene.light_type[li]
+    if light.directional:
+        dirs, dist = light.y, np.full(n, np.inf)
+        g = np.ones(n)
+    else:
+        to = light.y - p
+        dist = np.sqrt(dot(to, to))
+        dirs = to / np.maximum(dist, 1e-300)[:, None]
+        if typ == S.AREA:
+            nrm = area_light_shape(scene, li)[3]
+            cos_y = np.maximum(0.0, -dot(dirs, nrm))
+        elif scene.light_radius[li] > 0:
+            cos_y = np.maximum(0.0, -dot(dirs, normalize(light.y - scene.light_matrix[li][:3, 3])))
+        else:
+            cos_y = np.ones(n)
+        g = cos_y / np.maximum(dist, 1e-300) ** 2
+    side = np.sign(dot(w_eye, ng))
+    cos_x = dot(dirs, ns) * side
+    ok = (cos_x > 0) & (dot(dirs, ng) * side > 0) & (g > 0) & (e.max(axis=1) > 0)
+    idx = np.flatnonzero(ok)
+    if idx.size:
+        o = tracer.spawn(p[idx], ng[idx], dirs[idx])
+        tmax = np.where(np.isfinite(dist[idx]), dist[idx] * (1 - 1e-7) - tracer.eps, np.inf)
+        blocked = tracer.occluded(o, dirs[idx], tmax)
+        stats["rays_direct"] = stats.get("rays_direct", 0) + int(idx.size)
+        idx = idx[~blocked]
+        out[idx] = (cos_x[idx] * g[idx] / math.pi)[:, None] * e[idx]
+    return out
+
+
+def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
+           lights_hit=(), count_first=False, max_diffuse=MAX_DIFFUSE):
+    """Path tracing from receivers x0 (seen through mirrors or glass) for the layer's paths
+    with more diffuse vertices; splats the radiance found at the eye samples' film positions.
+
+    Generations of diffuse vertices x0, x1, x2, ...: from each, one cosine bounce (Russian
+    roulette on the albedo) through specular vertices to the next diffuse vertex, where
+    - direct light of lights_direct counts once a specular vertex on a caster lies
+      between x0 and there;
+    - connect(receivers) -> (M,3), the caller's estimate of the caustic at planned
+      receivers (x_i -> specular+ -> light, throughput included: the manifold walks), counts
+      always; without connect, lights_hit seen right after a specular vertex on a caster
+      count instead (the light tracer's way), x0's own caustic only when count_first.
+    A bounce from x_k is Cycles' diffuse bounce k + 1, allowed up to max_diffuse."""
+    n = len(rc.p)
+    if n == 0:
+        return
+    radiance = np.zeros((n, 3))
+    # the frontier: diffuse vertices to bounce from
+    f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
+    f_beta, f_mat = rc.beta, rc.mat
+    f_has_s, f_depth = np.zeros(n, bool), np.zeros(n, np.int64)
+    while len(f_lane):
+        go = np.flatnonzero(f_depth + 1 <= max_diffuse)
+        d, beta, k = _diffuse_bounce(rng, f_w[go], f_ng[go], f_ns[go], f_beta[go], _albedo(scene, f_mat[go]), False)
+        sel = go[k]
+        lane, has_s, depth = f_lane[sel], f_has_s[sel], f_depth[sel]
+        o = tracer.spawn(f_p[sel], f_ng[sel], d)
+        last_caster = np.zeros(len(lane), bool)
+        nxt = []
+        for bounce in range(MAX_SPECULAR + 1):
+            if len(lane) == 0:
+                break
+            h = tracer.intersect(o, d)
+            stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
+            if connect is None and bounce > 0 and len(lights_hit):
+                best_t = np.where(h.hit, h.t, np.inf)
+                best_l = np.zeros((len(o), 3))
+                for li in lights_hit:
+                    L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
+                    closer = tl < best_t
+                    best_t = np.where(closer, tl, best_t)
+                    best_l = np.where(closer[:, None], L, best_l)
+                count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (best_l.max(axis=1) > 0))
+                np.add.at(radiance, lane[count], beta[count] * best_l[count])
+            prim = np.where(h.hit, h.prim, 0)
+            hmat = scene.tri_material[prim]
+            kind = np.where(h.hit, scene.mat_kind[hmat], -1)
+            diff = np.flatnonzero(kind == S.DIFFUSE)
+            if diff.size:  # the next diffuse vertex
+                g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
+                         mat=hmat[diff], has_s=has_s[diff], depth=depth[diff] + 1)
+                alb = _albedo(scene, g["mat"])
+                lit = np.flatnonzero(g["has_s"])
+                for li in lights_direct:
+                    if lit.size:
+                        rad = direct_light(scene, tracer, li, g["p"][lit], g["ng"][lit], g["ns"][lit], g["w"][lit],
+                                           rng, stats)
+                        np.add.at(radiance, g["lane"][lit], g["beta"][lit] * alb[lit] * rad)
+                if connect is not None:
+                    rec = np.flatnonzero(plan.receivers[scene.tri_object[prim[diff]]] & (g["depth"] + 1 <= max_diffuse))
+                    if rec.size:
+                        ln = g["lane"][rec]
+                        sub = Receivers(rx=rc.rx[ln], ry=rc.ry[ln], p=g["p"][rec], ng=g["ng"][rec], ns=g["ns"][rec],
+                                        w_eye=g["w"][rec], beta=g["beta"][rec], mat=g["mat"][rec],
+                                        eye_specular=np.maximum(rc.eye_specular[ln], 1), weight=rc.weight[ln])
+                        np.add.at(radiance, ln, connect(sub))
+                nxt.append(g)
+            spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+            if spec.size == 0 or bounce == MAX_SPECULAR:
+                break
+            dd, bb, keep = scatter_specular(scene, rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
+                                            beta[spec], scale_eta=physical)
+            sk = spec[keep]
+            last_caster = plan.casters[scene.tri_object[prim[sk]]]
+            lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
+            o = tracer.spawn(h.p[sk], h.ng[sk], d)
+        if not nxt:
+            break
+        cat = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
+        f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
+        f_beta, f_mat, f_has_s, f_depth = cat["beta"], cat["mat"], cat["has_s"], cat["depth"]
+    hit = np.flatnonzero(radiance.max(axis=1) > 0)
+    if hit.size:
+        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
+        stats["eye_splats"] = stats.get("eye_splats", 0) + int(hit.size)
+
+
+def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
+                   samples=HANDOFF_SAMPLES):
+    """The hand-off for receivers seen through mirrors or glass (rc), where no photon can
+    reach the camera: one cosine bounce from x0 through up to K specular vertices, counting
+    a light hit only when reference._handoff_select gives that path to the photons (its
+    chain a walked type on casters, focusing more than tau). The manifold pass drops
+    exactly those paths at these receivers, so the two add up; near a focus, where the
+    walks' estimate is heavy-tailed, the light seen from x0 through the caster is large
+    and cosine sampling finds it easily.
+
+    handoffs: light index -> reference.Handoff (its ``others`` is ignored here); samples:
+    cosine directions per receiver (rays are cheap next to the walks they replace, and a
+    focus's light is a small target)."""
+    from .reference import Handoff, _handoff_select
+
+    n = len(rc.p)
+    if n == 0 or not handoffs:
+        return
+    step = max(1, HANDOFF_LANES // samples)  # bounded memory: at most HANDOFF_LANES rays in flight
+    if n > step:
+        for s0 in range(0, n, step):
+            sub = Receivers(**{f: getattr(rc, f)[s0:s0 + step] for f in rc.__dataclass_fields__})
+            handoff_gather(scene, tracer, film, plan, sub, rng, stats, handoffs, physical, samples)
+        return
+    K = max(h.max_chain for h in handoffs.values())
+    src = np.repeat(np.arange(n), samples)
+    d, beta, k = _diffuse_bounce(rng, rc.w_eye[src], rc.ng[src], rc.ns[src], rc.beta[src] / samples,
+                                 _albedo(scene, rc.mat[src]), False)
+    lane = src[k]
+    o = tracer.spawn(rc.p[lane], rc.ng[lane], d)
+    m = len(lane)
+    h_prim = np.zeros((m, K), np.int64)
+    h_p = np.zeros((m, K, 3))
+    h_bary = np.zeros((m, K, 2))
+    h_refl = np.zeros((m, K), np.int64)
+    h_cast = np.zeros((m, K), bool)
+    row = np.arange(m)  # each lane's row in the history
+    radiance = np.zeros((n, 3))
+    for bounce in range(K + 1):
+        if len(lane) == 0:
+            break
+        h = tracer.intersect(o, d)
+        stats["rays_handoff"] = stats.get("rays_handoff", 0) + len(o)
+        if bounce > 0:
+            best_t = np.where(h.hit, h.t, np.inf)
+            for li, ho in handoffs.items():
+                L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
+                seen = np.flatnonzero((tl < best_t) & (L.max(axis=1) > 0))
+                if seen.size == 0:
+                    continue
+                y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]
+                r = row[seen]
+                # _handoff_select reads the history light side first: reverse the bounces
+                rev = np.arange(bounce)[::-1]
+                take = _handoff_select(scene, tracer, Handoff(ho.tau, ho.directional), rc.p[lane[seen]],
+                                       np.full(seen.size, bounce), h_prim[r][:, rev], h_p[r][:, rev],
+                                       h_bary[r][:, rev], h_refl[r][:, rev], h_cast[r][:, rev], y)
+                t = seen[take]
+                np.add.at(radiance, lane[t], beta[t] * L[t])
+                stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size)
+        if bounce == K:
+            break
+        prim = np.where(h.hit, h.prim, 0)
+        hmat = scene.tri_material[prim]
+        kind = np.where(h.hit, scene.mat_kind[hmat], -1)
+        spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+        if spec.size == 0:
+            break
+        dd, bb, keep = scatter_specular(scene, rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
+                                        beta[spec], scale_eta=physical)
+        sk = spec[keep]
+        r = row[sk]
+        h_prim[r, bounce] = prim[sk]
+        h_p[r, bounce] = h.p[sk]
+        h_bary[r, bounce] = h.b[sk]
+        h_refl[r, bounce] = (dot(d[sk], h.ns[sk]) * dot(dd, h.ns[sk]) < 0).astype(np.int64)
+        h_cast[r, bounce] = plan.casters[scene.tri_object[prim[sk]]]
+        lane, row, beta, d = lane[sk], r, bb, dd
+        o = tracer.spawn(h.p[sk], h.ng[sk], d)
+    hit = np.flatnonzero(radiance.max(axis=1) > 0)
+    if hit.size:
+        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
