@@ -1,0 +1,140 @@
+"""The conformance suite, whole: every scene x method against its Cycles reference.
+
+    .venv/bin/python bench/conformance.py [--scenes a,b] [--methods sms,smbs] [--out bench/results]
+
+Each scene of ``sample_blends/conformance_scenes.py`` is exported the way the add-on exports
+(cached in .cache/conformance/), baked with each method at a fixed sample count per method and
+scene (below; chosen so the bake's own noise is a few per cent), and judged with
+``tools/conformance.py``'s ``judge``: our mean over the caustic region / Cycles' mean, the region
+chosen on one half of the reference and the mean taken on the other. A row passes when
+|ratio - 1| <= 3% + 3 sigma, sigma combining our standard error (from the independent batches)
+and the reference's (from its two halves). MNEE is biased (it finds one solution per light
+sample): it may be lower than Cycles, never higher, and its rows say so.
+
+Writes ``conformance.md`` (and a CSV) to --out. Timing lives here and in the table, never in a
+pass/fail test; the fast subset of this suite is tests/test_conformance.py.
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import sys
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+sys.path.insert(0, str(ROOT / "sample_blends"))
+sys.path.insert(0, str(ROOT))
+
+import conformance as conf  # noqa: E402
+import conformance_scenes as scenes  # noqa: E402
+from smbs_addon import BakeSettings, bake  # noqa: E402
+
+METHODS = ("reference", "sms", "smbs", "mnee")
+BIASED = {"mnee"}
+
+# Samples per pixel and light for each method, by scene where the default is too noisy or slow.
+SPP = {"reference": 256, "sms": 4, "smbs": 4, "mnee": 16}
+SPP_BY_SCENE = {
+    "through_glass_disk": {"reference": 512, "sms": 16, "smbs": 16},
+}
+
+# (scene, method) pairs that cannot work, and why: shown in the table instead of a number.
+NOT_APPLICABLE = {
+    ("water_flat_sun0", "reference"):
+        "a sun of angle 0 seen through water: no light path reaches it (Cycles' own path tracing "
+        "cannot either; its reference is MNEE)",
+}
+
+
+def spp_for(scene: str, method: str) -> int:
+    return SPP_BY_SCENE.get(scene, {}).get(method, SPP[method])
+
+
+def run(scene: str, method: str, seed: int) -> dict:
+    sc = conf.scene_arrays(scene)
+    ref = conf.load_reference(scene)
+    t = time.perf_counter()
+    r = bake(sc, BakeSettings(method=method, spp=spp_for(scene, method), seed=seed))
+    secs = time.perf_counter() - t
+    j = conf.judge(r.batch_luminance, ref)
+    biased = method in BIASED
+    ok = j["ratio"] <= 1.0 + 0.03 + 3.0 * j["sigma"] if biased else j["within"]
+    return {"scene": scene, "method": method, "spp": spp_for(scene, method), "seconds": round(secs, 1),
+            "ratio": j["ratio"], "se_ours": j["se_ours"], "se_ref": j["se_ref"], "sigma": j["sigma"],
+            "ok": ok, "biased": biased, "rays": r.stats.get("rays", 0),
+            "ref_spp": int(ref["spp_half"]) * 2, "ref_method": ref["meta"]["method"]}
+
+
+def _cell(row: dict) -> str:
+    mark = "" if row["ok"] else " **FAIL**"
+    b = " (biased)" if row["biased"] else ""
+    return (f"{row['ratio']:.3f} ± {3 * row['se_ours']:.3f} / {3 * row['se_ref']:.3f}{b}{mark} "
+            f"<br>{row['spp']} spp, {row['seconds']:.0f} s")
+
+
+def write(rows: list[dict], out: Path, command: str, names: list[str], methods: list[str]) -> None:
+    out.mkdir(parents=True, exist_ok=True)
+    with open(out / "conformance.csv", "w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    by = {(r["scene"], r["method"]): r for r in rows}
+    lines = [
+        "# Conformance: our caustic layer against Cycles",
+        "",
+        f"Made by `{command}` (2 cores). Each cell: our mean over the caustic region / Cycles' mean,",
+        "± three standard errors, ours / the reference's; then the bake's samples per pixel and",
+        "light and its wall time. A cell passes when |ratio − 1| ≤ 3% + 3σ (σ both errors combined);",
+        "MNEE is biased (one solution per light sample) and passes when it is not higher than that.",
+        "",
+        "| scene | what it covers | Cycles reference | " + " | ".join(methods) + " |",
+        "|---|---|---|" + "---|" * len(methods),
+    ]
+    for name in names:
+        ref = conf.load_reference(name)
+        s = conf.summary(name)
+        cells = []
+        for m in methods:
+            if (name, m) in NOT_APPLICABLE:
+                cells.append("n/a¹")
+            elif (name, m) in by:
+                cells.append(_cell(by[(name, m)]))
+            else:
+                cells.append("")
+        lines.append(f"| {name} | {scenes.SCENES[name][1]} | {ref['meta']['method'].replace('Cycles ', '')}, "
+                     f"{s['spp']} spp, σ {s['relative_se']:.1%} | " + " | ".join(cells) + " |")
+    fails = [r for r in rows if not r["ok"]]
+    lines += ["", "¹ " + next(iter(NOT_APPLICABLE.values())), "",
+              f"{len(rows) - len(fails)} of {len(rows)} cells pass."]
+    if fails:
+        lines.append("Failing: " + ", ".join(f"{r['scene']} / {r['method']} ({r['ratio']:.3f})" for r in fails) + ".")
+    (out / "conformance.md").write_text("\n".join(lines) + "\n")
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", default="all", help="comma-separated scene names (default: all)")
+    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--out", default=str(ROOT / "bench" / "results"))
+    args = ap.parse_args(argv)
+    names = list(scenes.SCENES) if args.scenes == "all" else args.scenes.split(",")
+    methods = args.methods.split(",")
+    rows = []
+    for name in names:
+        for m in methods:
+            if (name, m) in NOT_APPLICABLE:
+                continue
+            row = run(name, m, args.seed)
+            rows.append(row)
+            print(f"{name:24s} {m:9s} {row['ratio']:.3f} ± {3 * row['sigma']:.3f}  "
+                  f"{'ok' if row['ok'] else 'FAIL'}  {row['seconds']:.0f} s", flush=True)
+    command = "python bench/conformance.py" + ("" if argv is None and len(sys.argv) == 1 else
+                                               " " + " ".join(sys.argv[1:] if argv is None else argv))
+    write(rows, Path(args.out), command, names, methods)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,381 @@
+"""The conformance suite's scenes: small scenes where Cycles is the judge.
+
+    python sample_blends/conformance_scenes.py OUTDIR [NAME ...]     (default: every scene)
+
+Each scene is built from nothing with the bpy data API (deterministic: the same
+bpy gives the same file), at 96 x 72 pixels with a black world and Cycles set
+up for comparing caustics (no clamping, no Filter Glossy, no denoising, enough
+bounces). ``SCENES`` says what each one covers; together they cover the
+materials (Glass BSDF, Principled glass white and tinted, Refraction BSDF,
+Glossy BSDF, Principled metallic; IOR 1.33 and 1.5), the lights (point with and
+without soft falloff, spot, square and disk area lights, suns of angle 0, 2 and
+4 degrees), the geometry (flat, wavy, spheres, a lens, bevelled cubes with
+internal reflection, a prism, open and closed glass) and how a receiver is seen
+(directly, through glass or water, in a mirror).
+
+Floors are diffuse with albedo 0.8 and lit directly where the scene allows, so
+Cycles' caustic component (caustics on - off) holds light that crosses more than
+one diffuse surface (floor -> glass -> floor, water -> floor -> water -> floor),
+as it does in users' scenes. ``tools/conformance.py reference NAME``
+renders a scene's reference into ``tests/data/conformance/``.
+"""
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+import bpy
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import build as B  # noqa: E402  (the sample scenes' helpers)
+
+WIDTH, HEIGHT = 96, 72
+
+
+# ----------------------------------------------------------------------------- helpers
+def _scene(name):
+    scene = B.reset()
+    scene.name = name
+    B.render_settings(scene, WIDTH, HEIGHT)
+    B.black_world(scene)
+    return scene
+
+
+def _floor(scene, size=10.0, albedo=0.8, z=0.0):
+    mat = B.material("Floor", "diffuse", (albedo,) * 3)
+    v, f = B.grid(size, size)
+    return B.mesh_object(scene, "Floor", v, f, mat, location=(0, 0, z), receiver=True)
+
+
+def principled(name, base=(1.0, 1.0, 1.0), metallic=0.0, transmission=0.0, ior=1.5):
+    m = bpy.data.materials.new(name)
+    p = m.node_tree.nodes["Principled BSDF"]
+    p.inputs["Base Color"].default_value = (*base, 1.0)
+    p.inputs["Metallic"].default_value = metallic
+    p.inputs["Transmission Weight"].default_value = transmission
+    p.inputs["Roughness"].default_value = 0.0
+    p.inputs["IOR"].default_value = ior
+    return m
+
+
+def refraction(name, color, ior):
+    m = bpy.data.materials.new(name)
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    node = nt.nodes.new("ShaderNodeBsdfRefraction")
+    node.inputs["Color"].default_value = (*color, 1.0)
+    node.inputs["Roughness"].default_value = 0.0
+    node.inputs["IOR"].default_value = ior
+    nt.links.new(node.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _sphere(scene, name, mat, radius, location, segments=96, rings=48):
+    v, f = B.uv_sphere(radius, segments, rings)
+    return B.mesh_object(scene, name, v, f, mat, smooth=True, location=location, caster=True)
+
+
+def _box(hx, hy, hz):
+    v = [(x, y, z) for x in (-hx, hx) for y in (-hy, hy) for z in (-hz, hz)]
+    f = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    return v, f
+
+
+def _bevelled_cube(scene, name, mat, size, location, rotation):
+    v, f = _box(size / 2, size / 2, size / 2)
+    ob = B.mesh_object(scene, name, v, f, mat, smooth=True, location=location, rotation=rotation,
+                       caster=True)
+    mod = ob.modifiers.new("Bevel", "BEVEL")
+    mod.segments = 6
+    mod.width = 0.08 * size
+    return ob
+
+
+def _lens(radius_of_curvature, aperture, rim, segments=96, rings=24):
+    """A biconvex lens: two spherical caps joined by a thin cylindrical rim band
+    (so that smooth shading does not bend the caps' normals at their edge)."""
+    R, a = radius_of_curvature, aperture
+    sag = R - math.sqrt(R * R - a * a)
+    verts = [(0.0, 0.0, rim + sag)]
+    for r in range(1, rings + 1):
+        rr = a * r / rings
+        z = rim + math.sqrt(R * R - rr * rr) - (R - sag)
+        for s in range(segments):
+            ph = 2 * math.pi * s / segments
+            verts.append((rr * math.cos(ph), rr * math.sin(ph), z))
+    top_rim = 1 + (rings - 1) * segments
+    bottom_start = len(verts)
+    for r in range(rings, 0, -1):
+        rr = a * r / rings
+        z = -(rim + math.sqrt(R * R - rr * rr) - (R - sag))
+        for s in range(segments):
+            ph = 2 * math.pi * s / segments
+            verts.append((rr * math.cos(ph), rr * math.sin(ph), z))
+    verts.append((0.0, 0.0, -(rim + sag)))
+    faces = []
+    for s in range(segments):  # top fan
+        faces.append((0, 1 + s, 1 + (s + 1) % segments))
+    for r in range(rings - 1):  # top rings
+        a0, b0 = 1 + r * segments, 1 + (r + 1) * segments
+        for s in range(segments):
+            s1 = (s + 1) % segments
+            faces.append((a0 + s, b0 + s, b0 + s1, a0 + s1))
+    for s in range(segments):  # the rim band
+        s1 = (s + 1) % segments
+        faces.append((top_rim + s, bottom_start + s, bottom_start + s1, top_rim + s1))
+    for r in range(rings - 1):  # bottom rings, outside in
+        a0, b0 = bottom_start + r * segments, bottom_start + (r + 1) * segments
+        for s in range(segments):
+            s1 = (s + 1) % segments
+            faces.append((a0 + s, b0 + s, b0 + s1, a0 + s1))
+    last = len(verts) - 1
+    base = bottom_start + (rings - 1) * segments
+    for s in range(segments):  # bottom fan
+        faces.append((base + (s + 1) % segments, base + s, last))
+    return verts, faces
+
+
+def _open_cylinder(radius, height, segments=128):
+    verts, faces = [], []
+    for s in range(segments):
+        ph = 2 * math.pi * s / segments
+        verts += [(radius * math.cos(ph), radius * math.sin(ph), 0.0),
+                  (radius * math.cos(ph), radius * math.sin(ph), height)]
+    for s in range(segments):
+        s1 = (s + 1) % segments
+        faces.append((2 * s, 2 * s1, 2 * s1 + 1, 2 * s + 1))
+    return verts, faces
+
+
+def _water_wave(x, y):
+    return 0.05 * math.sin(2.1 * x + 0.3) * math.cos(1.7 * y) + 0.03 * math.sin(3.3 * (x + 0.5 * y))
+
+
+def _sheet_wave(x, y):
+    return 0.03 * math.sin(4.0 * x) * math.cos(3.0 * y)
+
+
+# ------------------------------------------------------------------------------ scenes
+def lens_area():
+    """Biconvex Glass BSDF lens (IOR 1.5) 1.6 m above the floor, 0.4 m square area light."""
+    scene = _scene("lens_area")
+    _floor(scene)
+    glass = B.material("LensGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    v, f = _lens(1.2, 0.5, 0.01)
+    B.mesh_object(scene, "Lens", v, f, glass, smooth=True, location=(0, 0, 1.6), caster=True)
+    B.add_light(scene, "Key", "AREA", (0.3, 0.2, 4.0), energy=150.0, shape="SQUARE", size=0.4)
+    B.add_camera(scene, (0, -4.0, 3.2), (0, 0, 0.2), lens=40)
+    return scene
+
+
+def gold_cylinder():
+    """Open Principled-metallic gold cylinder on the floor, disk area light from the side."""
+    scene = _scene("gold_cylinder")
+    _floor(scene)
+    gold = principled("Gold", base=(1.0, 0.766, 0.336), metallic=1.0)
+    v, f = _open_cylinder(0.6, 0.4)
+    B.mesh_object(scene, "Ring", v, f, gold, smooth=True, caster=True)
+    # local -Z towards the ring: from (-2.4, 0, 1.4) aimed at the ring's centre
+    B.add_light(scene, "Side", "AREA", (-2.4, 0.3, 1.4), (0.0, math.radians(-58), math.radians(7)),
+                energy=300.0, shape="DISK", size=0.5)
+    B.add_camera(scene, (0.4, -2.6, 2.6), (0.1, 0, 0.1), lens=35)
+    return scene
+
+
+def pool_sun4():
+    """Wavy water (Glass BSDF, IOR 1.33, smooth 120 x 120 grid of 6 x 6 m) 1 m above the
+    floor, sun of strength 3 and angle 4 deg; the camera looks down through the water."""
+    scene = _scene("pool_sun4")
+    _floor(scene, size=8.0)
+    water = B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33)
+    v, f = B.grid(6, 6, 120, 120, _water_wave)
+    B.mesh_object(scene, "Water", v, f, water, smooth=True, location=(0, 0, 1.0), caster=True)
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(20), math.radians(10), 0), energy=3.0,
+                angle=math.radians(4.0))
+    B.add_camera(scene, (0, 0, 6), (0, 0, 0), lens=80)
+    return scene
+
+
+def cube_grey():
+    """Bevelled (6 segments), smooth-shaded cube of Principled glass (Transmission 1, Base
+    Color 0.8, IOR 1.5), tilted 35/20 deg just above the floor, 0.5 m area light."""
+    scene = _scene("cube_grey")
+    _floor(scene)
+    glass = principled("GreyGlass", base=(0.8, 0.8, 0.8), transmission=1.0, ior=1.5)
+    _bevelled_cube(scene, "Cube", glass, 1.2, (0, 0, 0.95), (math.radians(35), math.radians(20), 0))
+    B.add_light(scene, "Key", "AREA", (0.6, -0.4, 4.0), energy=300.0, shape="SQUARE", size=0.5)
+    B.add_camera(scene, (0, -5.5, 4.5), (0, 0, 0.4), lens=40)
+    return scene
+
+
+def sphere_point_soft():
+    """Principled white glass sphere (IOR 1.5) under a point light of radius 0.25 with
+    soft falloff (Blender's default)."""
+    scene = _scene("sphere_point_soft")
+    _floor(scene)
+    glass = principled("WhiteGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
+    _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
+    B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
+                use_soft_falloff=True)
+    B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
+    return scene
+
+
+def sphere_refraction_spot():
+    """Refraction BSDF sphere (tinted, IOR 1.33) under a spot light of radius 0.2."""
+    scene = _scene("sphere_refraction_spot")
+    _floor(scene)
+    mat = refraction("Refractor", (0.85, 0.9, 1.0), 1.33)
+    _sphere(scene, "Ball", mat, 0.45, (0, 0, 0.8))
+    B.add_light(scene, "Spot", "SPOT", (-0.5, 0.3, 3.0), (math.radians(-6), math.radians(-9), 0),
+                energy=1500.0, shadow_soft_size=0.2, use_soft_falloff=False,
+                spot_size=math.radians(50), spot_blend=0.3)
+    B.add_camera(scene, (0, -3.4, 2.6), (0, 0, 0.2), lens=40)
+    return scene
+
+
+def mirror_point_hard():
+    """Flat Glossy BSDF mirror standing on the floor, a point light of radius 0.2 without
+    soft falloff; the camera sees the reflected light on the floor directly and in the
+    mirror."""
+    scene = _scene("mirror_point_hard")
+    _floor(scene)
+    mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9))
+    v, f = B.grid(1.6, 1.0)
+    # local +Z -> -X: the mirror stands at x = 1.2 and faces the light and the camera
+    B.mesh_object(scene, "Mirror", v, f, mirror, location=(1.2, 0, 0.55),
+                  rotation=(0, math.radians(-90), 0), caster=True)
+    B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
+                use_soft_falloff=False)
+    B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
+    return scene
+
+
+def water_flat_sun0():
+    """Flat water (Glass BSDF, IOR 1.33, an open plane) 0.5 m above the floor under a sun of
+    angle 0; the camera looks down through the water. Path tracing cannot find a
+    point-like sun behind glass: the reference is Cycles' MNEE, exact here (one solution)."""
+    scene = _scene("water_flat_sun0")
+    _floor(scene, size=8.0)
+    water = B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33)
+    v, f = B.grid(6, 6)
+    B.mesh_object(scene, "Water", v, f, water, smooth=True, location=(0, 0, 0.5), caster=True)
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(25), 0, 0), energy=2.0, angle=0.0)
+    B.add_camera(scene, (0, 0, 5), (0, 0, 0), lens=80)
+    return scene
+
+
+def wavy_mirror_sun2():
+    """Wavy Glossy BSDF sheet (tinted) under a sun of angle 2 deg."""
+    scene = _scene("wavy_mirror_sun2")
+    _floor(scene)
+    mat = B.material("WavyMirror", "glossy", (0.95, 0.85, 0.7))
+    v, f = B.grid(1.6, 1.6, 64, 64, _sheet_wave)
+    # nearly upright, facing +x and tilted 7 deg down
+    B.mesh_object(scene, "Sheet", v, f, mat, smooth=True, location=(-0.9, 0, 0.9),
+                  rotation=(0, math.radians(97), 0), caster=True)
+    # sunlight travels towards -x, 40 deg below the horizon; the sheet sends it back down
+    # towards +x, onto the floor in front of it
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(50), 0), energy=3.0,
+                angle=math.radians(2.0))
+    B.add_camera(scene, (0.3, -3.2, 2.4), (-0.3, 0, 0.3), lens=35)
+    return scene
+
+
+def through_glass_disk():
+    """A tinted Glass BSDF ball (IOR 1.33) under a disk area light, seen through a pane
+    of glass (a closed 3 cm slab, IOR 1.5) standing between it and the camera."""
+    scene = _scene("through_glass_disk")
+    _floor(scene)
+    tinted = B.material("TintedGlass", "glass", (0.95, 0.8, 0.6), ior=1.33)
+    _sphere(scene, "Ball", tinted, 0.45, (0, 0, 0.75))
+    pane_glass = B.material("Pane", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    v, f = _box(1.2, 0.015, 0.7)
+    B.mesh_object(scene, "Pane", v, f, pane_glass, location=(0, -1.6, 0.7), caster=True)
+    B.add_light(scene, "Key", "AREA", (0.3, 0.4, 3.2), energy=250.0, shape="DISK", size=0.5)
+    B.add_camera(scene, (0, -3.4, 1.5), (0, 0, 0.2), lens=40)
+    return scene
+
+
+def prism_tir():
+    """A right-angle glass prism (Glass BSDF, IOR 1.5, flat shaded) whose hypotenuse
+    reflects by total internal reflection: light enters one leg face, reflects inside
+    (T R T) and leaves through the other towards the floor."""
+    scene = _scene("prism_tir")
+    _floor(scene)
+    glass = B.material("PrismGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    h, L = 0.35, 0.5  # legs along +x and +z, length 2h; extrusion along y
+    v = [(-h, -L, -h), (h, -L, -h), (-h, -L, h), (-h, L, -h), (h, L, -h), (-h, L, h)]
+    f = [(0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (0, 3, 5, 2), (1, 2, 5, 4)]
+    B.mesh_object(scene, "Prism", v, f, glass, location=(0, 0, 1.0),
+                  rotation=(0, math.radians(-20), 0), caster=True)
+    # light from above-left: enters through the top leg face, reflects off the hypotenuse
+    B.add_light(scene, "Key", "AREA", (-2.0, 0.0, 3.0), (0, math.radians(-35), 0), energy=400.0,
+                shape="SQUARE", size=0.4)
+    B.add_camera(scene, (0.6, -3.6, 2.8), (0.6, 0, 0.2), lens=35)
+    return scene
+
+
+def cube_white_rect():
+    """Bevelled smooth-shaded cube of Principled white glass (IOR 1.5) under a
+    rectangular area light, tilted so that light reflects inside it (T R T, T R R T)."""
+    scene = _scene("cube_white_rect")
+    _floor(scene)
+    glass = principled("ClearGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
+    _bevelled_cube(scene, "Cube", glass, 0.9, (0.1, 0, 0.8), (math.radians(20), math.radians(40), 0))
+    B.add_light(scene, "Key", "AREA", (-0.5, 0.3, 3.5), (0, math.radians(-10), 0), energy=250.0,
+                shape="RECTANGLE", size=0.6, size_y=0.3)
+    B.add_camera(scene, (0.2, -4.2, 3.4), (0.1, 0, 0.3), lens=40)
+    return scene
+
+
+SCENES = {
+    # name: (builder, what it covers)
+    "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
+    "gold_cylinder": (gold_cylinder, "Principled metallic, disk area, curved mirror (R, R R), open"),
+    "pool_sun4": (pool_sun4, "Glass BSDF 1.33, sun 4 deg, wavy open water, seen through water"),
+    "cube_grey": (cube_grey, "Principled glass Base Color 0.8, bevelled cube, internal reflection"),
+    "sphere_point_soft": (sphere_point_soft, "Principled glass white, point light with soft falloff"),
+    "sphere_refraction_spot": (sphere_refraction_spot, "Refraction BSDF 1.33, spot light"),
+    "mirror_point_hard": (mirror_point_hard, "Glossy BSDF flat mirror, point light without soft "
+                          "falloff, receiver seen in the mirror"),
+    "water_flat_sun0": (water_flat_sun0, "flat open water 1.33, sun angle 0 (Cycles MNEE reference)"),
+    "wavy_mirror_sun2": (wavy_mirror_sun2, "Glossy BSDF wavy sheet, sun 2 deg"),
+    "through_glass_disk": (through_glass_disk, "Glass BSDF tinted 1.33, disk area, seen through glass"),
+    "prism_tir": (prism_tir, "Glass BSDF 1.5 prism, flat, total internal reflection (T R T)"),
+    "cube_white_rect": (cube_white_rect, "Principled glass white, bevelled cube, rectangle area, "
+                        "T R T and T R R T"),
+}
+# scenes whose reference is Cycles' MNEE (the light cannot be found by path tracing)
+MNEE_REFERENCE = {"water_flat_sun0"}
+
+
+def build(name: str, out: Path) -> Path:
+    """Build one scene and save it as OUT/NAME.blend."""
+    SCENES[name][0]()
+    path = Path(out) / f"{name}.blend"
+    B.save(path)
+    return path
+
+
+def main(argv=None):
+    argv = sys.argv[1:] if argv is None else argv
+    if not argv:
+        print(__doc__.splitlines()[2].strip())
+        return 2
+    out = Path(argv[0]).resolve()
+    out.mkdir(parents=True, exist_ok=True)
+    names = argv[1:] or list(SCENES)
+    unknown = [n for n in names if n not in SCENES]
+    if unknown:
+        print(f"unknown scene(s): {', '.join(unknown)}; known: {', '.join(SCENES)}", file=sys.stderr)
+        return 2
+    for name in names:
+        build(name, out)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

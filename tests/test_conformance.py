@@ -1,0 +1,69 @@
+"""The fast subset of the conformance suite: our layer against Cycles' own caustics.
+
+Each scene (sample_blends/conformance_scenes.py) is built with the bpy module and exported the
+way the add-on exports; its reference is Cycles' caustic component (caustics on minus off, two
+independent halves, tests/data/conformance/). The judge (tools/conformance.py) compares the
+means over the caustic region, chosen on one half of the reference and averaged on the other,
+and passes within 3% + 3 sigma (our standard error from the independent batches and the
+reference's from its halves combined). The whole suite, every scene x method, is
+``bench/conformance.py`` (results in bench/results/conformance.md).
+"""
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+
+import conformance as conf  # noqa: E402
+from smbs_addon import BakeSettings, bake  # noqa: E402
+
+pytestmark = pytest.mark.bpy
+
+# (scene, method, spp): a few seconds each on 2 cores, covering the light tracer and the walks,
+# a receiver seen directly, in a mirror and through water, and Cycles' MNEE as the judge
+CASES = [
+    ("mirror_point_hard", "reference", 64),
+    ("mirror_point_hard", "sms", 4),
+    ("mirror_point_hard", "smbs", 4),
+    ("lens_area", "reference", 32),
+    ("sphere_refraction_spot", "reference", 32),
+    ("sphere_refraction_spot", "smbs", 4),
+    ("pool_sun4", "smbs", 4),
+    ("water_flat_sun0", "smbs", 4),
+]
+
+
+def _judge(name, method, spp, seed=1):
+    res = bake(conf.scene_arrays(name), BakeSettings(method=method, spp=spp, seed=seed))
+    return res, conf.judge(res.batch_luminance, conf.load_reference(name))
+
+
+@pytest.mark.parametrize("name,method,spp", CASES, ids=[f"{n}-{m}" for n, m, _ in CASES])
+def test_matches_cycles(name, method, spp):
+    res, j = _judge(name, method, spp)
+    assert np.isfinite(res.image).all()
+    assert j["sigma"] < 0.05, f"too noisy to judge: sigma {j['sigma']:.1%}"
+    assert j["within"], (f"{name} / {method}: {j['ratio']:.3f} of Cycles, 3 sigma = {3 * j['sigma']:.3f} "
+                         f"(ours {j['se_ours']:.2%}, reference {j['se_ref']:.2%})")
+
+
+def test_mnee_is_never_brighter_than_cycles():
+    """MNEE finds one solution per light sample: on a sphere (two solutions or more) it is
+    biased low, and it must never be high."""
+    _, j = _judge("sphere_refraction_spot", "mnee", 8)
+    assert j["ratio"] < 0.9 and j["sigma"] < 0.05, j
+    _, j = _judge("water_flat_sun0", "mnee", 8)  # one solution: exact
+    assert abs(j["ratio"] - 1.0) <= 0.03 + 3 * j["sigma"], j
+
+
+def test_the_judge_sees_a_five_percent_error():
+    """The same bake scaled by 0.95 fails the judge where the noise is small: the suite's
+    tolerance is tight enough to catch the errors it is there for."""
+    res, j = _judge("water_flat_sun0", "mnee", 8)
+    assert j["within"] and 3 * j["sigma"] < 0.01
+    scaled = conf.judge(res.batch_luminance * 0.95, conf.load_reference("water_flat_sun0"))
+    assert not scaled["within"]
+    assert scaled["ratio"] == pytest.approx(0.95 * j["ratio"], rel=1e-6)

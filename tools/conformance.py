@@ -1,0 +1,230 @@
+"""The conformance suite: Cycles references of the scenes in sample_blends/conformance_scenes.py,
+and the one way we judge a bake against them.
+
+    python tools/conformance.py reference NAME [NAME ...] --spp 8192   # add a round
+    python tools/conformance.py status                                 # what is stored
+
+A reference is Cycles' caustic component, caustics on minus off, rendered with the
+bpy module (CPU, 2 threads) in two independent halves A and B (different seeds),
+stored in ``tests/data/conformance/NAME.npz`` (float32 A - off and B - off, their
+sample counts) with a JSON note beside it. Each ``reference`` call renders one more
+round of ``--spp`` samples per half (seeds 2k+1 and 2k+2 in round k) and merges it
+into the stored halves, so a noisy reference can be refined later. The "off" render
+(direct light only) converges fast and is rendered once.
+
+Where path tracing cannot find the light (a sun of angle 0 behind water), the "on"
+render is Cycles' MNEE (the scene's caustic flags as saved) and "off" clears them.
+
+Judging (``judge``): the region is chosen on one half, blurred (5 x 5), where it
+exceeds 5% of its 99.5th percentile, and the means are taken on the other half, and
+the other way round; the two ratios are averaged. Choosing pixels on the very image
+one averages keeps the pixels that happen to be noisy-high: on a glass cube at
+2 x 4096 spp that alone moved the ratio by 10%.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = ROOT / "tests" / "data" / "conformance"
+sys.path.insert(0, str(ROOT / "sample_blends"))
+sys.path.insert(0, str(ROOT / "tools"))
+sys.path.insert(0, str(ROOT))
+
+
+CACHE = ROOT / ".cache" / "conformance"
+
+
+def scene_arrays(name: str):
+    """The exported scene (smbs_addon.Scene) of conformance scene NAME: built with the bpy
+    module and exported the way the add-on exports, cached by the builder's source."""
+    import hashlib
+
+    from smbs_addon.scene import Scene
+
+    src = (ROOT / "sample_blends" / "conformance_scenes.py").read_bytes() + \
+        (ROOT / "sample_blends" / "build.py").read_bytes() + (ROOT / "smbs_addon" / "export.py").read_bytes()
+    key = hashlib.sha1(src).hexdigest()[:12]
+    path = CACHE / f"{name}-{key}.npz"
+    if path.exists():
+        return Scene.load(path)
+    import conformance_scenes as scenes
+    from smbs_addon.__main__ import load_input
+
+    CACHE.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory() as tmp:
+        blend = scenes.build(name, Path(tmp))
+        scene = load_input(str(blend), warn=lambda m: None)
+    scene.save(path)
+    return scene
+
+
+def reference_path(name: str) -> Path:
+    return DATA / f"{name}.npz"
+
+
+def load_reference(name: str) -> dict:
+    with np.load(reference_path(name), allow_pickle=False) as z:
+        ref = {k: z[k] for k in z.files}
+    ref["meta"] = json.loads(str(ref["meta"]))
+    return ref
+
+
+def _box5(x):
+    p = np.pad(x, 2, mode="edge")
+    return sum(p[i:i + x.shape[0], j:j + x.shape[1]] for i in range(5) for j in range(5)) / 25.0
+
+
+def region_of(lum: np.ndarray, frac: float = 0.05) -> np.ndarray:
+    s = _box5(lum)
+    top = float(np.percentile(s, 99.5))
+    return s > frac * top if top > 0 else np.zeros(lum.shape, bool)
+
+
+def judge(batch_luminance: np.ndarray, ref: dict) -> dict:
+    """Our mean over the caustic region relative to Cycles', with standard errors.
+
+    batch_luminance: (B,H,W) our independent batches (BakeResult.batch_luminance)."""
+    A, Bh = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
+    var_half = ((A - Bh) ** 2) / 2.0  # per-pixel variance of one half (Cycles' pixels are independent)
+    ours_img = batch_luminance.mean(axis=0)
+    nb = len(batch_luminance)
+    ratios, se_refs, se_ours, pix = [], [], [], []
+    for sel, judge_img in ((A, Bh), (Bh, A)):
+        region = region_of(sel)
+        n = int(region.sum())
+        m_ref = float(judge_img[region].mean())
+        se_ref = math.sqrt(float(var_half[region].sum())) / n
+        means = batch_luminance[:, region].mean(axis=1)
+        m_ours = float(means.mean())
+        se_o = float(means.std(ddof=1) / math.sqrt(nb)) if nb > 1 else float("inf")
+        ratios.append(m_ours / m_ref)
+        se_refs.append(se_ref / m_ref)
+        se_ours.append(se_o / m_ref)
+        pix.append(n)
+    ratio = float(np.mean(ratios))
+    se_ref = float(np.mean(se_refs)) / math.sqrt(2.0)  # the two halves judge independently
+    se_o = float(np.mean(se_ours))
+    sigma = math.sqrt(se_ref ** 2 + se_o ** 2)
+    return {"ratio": ratio, "se_ours": se_o, "se_ref": se_ref, "sigma": sigma,
+            "pixels": int(np.mean(pix)), "whole_image_ratio": float(ours_img.sum() / (0.5 * (A + Bh)).sum()),
+            "within": abs(ratio - 1.0) <= 0.03 + 3.0 * sigma}
+
+
+# ------------------------------------------------------------------------- rendering
+def _render(blend, spp, seed, caustics, mnee, path, threads=2):
+    import bpy
+    from cycles_reference import _set_render
+
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    scene = bpy.context.scene
+    _set_render(scene, spp, seed, caustics, threads, keep_mnee=mnee)
+    scene.render.filepath = str(path)
+    t = time.perf_counter()
+    bpy.ops.render.render(write_still=True)
+    return time.perf_counter() - t
+
+
+def add_round(name: str, spp: int, off_spp: int = 1024, threads: int = 2) -> dict:
+    """Render one more round of the reference of scene NAME and merge it in."""
+    import conformance_scenes as scenes
+    from cycles_reference import _read_exr
+
+    mnee = name in scenes.MNEE_REFERENCE
+    DATA.mkdir(parents=True, exist_ok=True)
+    old = load_reference(name) if reference_path(name).exists() else None
+    k = 0 if old is None else int(old["rounds"])
+    with tempfile.TemporaryDirectory() as tmp:
+        blend = scenes.build(name, Path(tmp))
+        secs = {}
+        imgs = {}
+        for tag, seed in (("a", 2 * k + 1), ("b", 2 * k + 2)):
+            p = Path(tmp) / f"on_{tag}.exr"
+            secs[tag] = _render(blend, spp, seed, True, mnee, p, threads)
+            imgs[tag] = _read_exr(p)
+        if old is None:
+            p = Path(tmp) / "off.exr"
+            secs["off"] = _render(blend, off_spp, 1000, False, False, p, threads)
+            off = _read_exr(p)
+        else:
+            off = old["off"]
+    a_new, b_new = imgs["a"] - off, imgs["b"] - off
+    if old is None:
+        a, b, n = a_new, b_new, spp
+        meta = {"scene": name, "method": "Cycles MNEE (shadow caustics)" if mnee else "Cycles path tracing",
+                "off_spp": off_spp, "seconds": 0.0, "rounds_spp": []}
+    else:
+        n0 = int(old["spp_half"])
+        n = n0 + spp
+        a = (old["a"] * n0 + a_new * spp) / n
+        b = (old["b"] * n0 + b_new * spp) / n
+        meta = old["meta"]
+    meta["seconds"] = round(meta["seconds"] + sum(secs.values()), 1)
+    meta["rounds_spp"].append(spp)
+    import bpy
+
+    meta.update(blender=bpy.app.version_string, threads=threads, device="CPU",
+                how="a, b: two independent halves of Cycles' caustics on - off (seeds 2k+1, 2k+2 in "
+                    "round k); clamps, Filter Glossy, denoising and adaptive sampling off")
+    np.savez_compressed(reference_path(name), a=a.astype(np.float32), b=b.astype(np.float32),
+                        off=off.astype(np.float32), spp_half=np.asarray(n), rounds=np.asarray(k + 1),
+                        meta=np.asarray(json.dumps(meta)))
+    s = summary(name)
+    meta["summary"] = s
+    (DATA / f"{name}.json").write_text(json.dumps(meta, indent=2) + "\n")
+    return s
+
+
+def summary(name: str) -> dict:
+    ref = load_reference(name)
+    A, Bh = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
+    region = region_of(0.5 * (A + Bh))
+    n = int(region.sum())
+    mean = float((0.5 * (A + Bh))[region].mean())
+    se = math.sqrt(float((((A - Bh) ** 2) / 4.0)[region].sum())) / n  # of the mean of both halves
+    return {"spp": 2 * int(ref["spp_half"]), "region_pixels": n, "mean": mean,
+            "relative_se": se / mean if mean > 0 else float("inf"),
+            "halves_ratio": float(A[region].mean() / Bh[region].mean())}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    sub = ap.add_subparsers(dest="cmd", required=True)
+    r = sub.add_parser("reference", help="render one more round of references")
+    r.add_argument("names", nargs="+")
+    r.add_argument("--spp", type=int, required=True, help="samples per half in this round")
+    r.add_argument("--off-spp", type=int, default=1024)
+    r.add_argument("--threads", type=int, default=2)
+    sub.add_parser("status", help="print what is stored")
+    args = ap.parse_args(argv)
+    import conformance_scenes as scenes
+
+    if args.cmd == "reference":
+        names = list(scenes.SCENES) if args.names == ["all"] else args.names
+        for name in names:
+            if name not in scenes.SCENES:
+                ap.error(f"unknown scene '{name}'")
+            s = add_round(name, args.spp, args.off_spp, args.threads)
+            print(f"{name}: {s['spp']} spp, relative standard error {s['relative_se']:.2%}, "
+                  f"halves {s['halves_ratio']:.3f}", flush=True)
+    else:
+        for name in scenes.SCENES:
+            if reference_path(name).exists():
+                s = summary(name)
+                meta = load_reference(name)["meta"]
+                print(f"{name:24s} {s['spp']:7d} spp  se {s['relative_se']:6.2%}  halves "
+                      f"{s['halves_ratio']:.3f}  {meta['seconds']:7.0f} s  {meta['method']}")
+            else:
+                print(f"{name:24s} (no reference)")
+
+
+if __name__ == "__main__":
+    main()
