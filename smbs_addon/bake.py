@@ -279,6 +279,11 @@ def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per
                                      handoff, step=False)
 
 
+def _rays(st: dict) -> int:
+    """All rays a statistics dict counts (its rays_* entries)."""
+    return sum(v for k, v in st.items() if k.startswith("rays_"))
+
+
 def _summarise_walks(st: dict) -> None:
     walks = st.get("walks", 0)
     st["success_rate"] = st.get("successes", 0) / walks if walks else 0.0
@@ -291,7 +296,7 @@ def _summarise_walks(st: dict) -> None:
     lanes = st.get("bernoulli_lanes", 0)
     st["trials"] = {"mean": st.get("bernoulli_trials", 0) / lanes if lanes else 0.0,
                     "max": st.get("bernoulli_max", 0), "capped": st.get("capped", 0)}
-    st["rays"] = sum(v for k, v in st.items() if k.startswith("rays_"))
+    st["rays"] = _rays(st)
     hs = st.get("handoff")
     if hs:
         st["rays"] += hs["rays_photon"] + hs["rays_camera"]
@@ -365,7 +370,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                 break
         extra["batches_done"] = b
         rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
-                + sum(v for k, v in eye_stats.items() if k.startswith("rays_")))
+                + _rays(eye_stats))
         extra["eye_pass"] = eye_stats
     else:
         from .manifold import chain_types
@@ -414,8 +419,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                 st["clamped_energy"] = st.get("clamped_energy", 0.0) / b
             st["trials"]["capped_energy_min"] = st.pop("capped_energy_min", 0.0) / b
         rays = (sum(st["rays"] for st in light_stats.values())
-                + sum(v for k, v in eye_stats.items() if k.startswith("rays_"))
-                + extra.get("guide", {}).get("rays", 0))
+                + _rays(eye_stats) + extra.get("guide", {}).get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())
         extra.update({
             "chain_types": types, "eye_pass": eye_stats, "walks": walks,

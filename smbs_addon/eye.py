@@ -28,6 +28,16 @@ class Receivers:
     eye_specular: np.ndarray  # (M,) specular vertices between the camera and x0
     weight: np.ndarray  # (M,) splat weight of the eye sample
 
+    def take(self, idx) -> "Receivers":
+        return Receivers(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+
+def surface_at(scene, h):
+    """(triangle, material, kind) of each hit; misses get triangle 0 and kind -1."""
+    prim = np.maximum(h.prim, 0)
+    mat = scene.tri_material[prim]
+    return prim, mat, np.where(h.hit, scene.mat_kind[mat], -1)
+
 
 def film_cells(cam, film) -> int:
     x0, x1, y0, y1 = cam.region
@@ -67,9 +77,7 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     while len(o):
         h = tracer.intersect(o, d)
         stats["rays_eye"] = stats.get("rays_eye", 0) + len(o)
-        prim = np.maximum(h.prim, 0)
-        mat = scene.tri_material[prim]
-        kind = np.where(h.hit, scene.mat_kind[mat], -1)
+        prim, mat, kind = surface_at(scene, h)
         if depth >= min_specular:
             r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[scene.tri_object[prim]])
             for key, val in (("lane", lane[r]), ("p", h.p[r]), ("ng", h.ng[r]), ("ns", h.ns[r]),

@@ -32,7 +32,7 @@ import math
 import numpy as np
 
 from . import scene as S
-from .eye import Receivers
+from .eye import Receivers, surface_at
 from .lights import light_radiance, soft_falloff_factor, spot_mask, area_light_shape
 from .reference import scatter_specular, splat_to_camera
 from .vec import cosine_hemisphere, dot, frame, normalize, to_world
@@ -212,9 +212,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                     best_l = np.where(closer[:, None], L, best_l)
                 count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (best_l.max(axis=1) > 0))
                 np.add.at(radiance, lane[count], beta[count] * best_l[count])
-            prim = np.where(h.hit, h.prim, 0)
-            hmat = scene.tri_material[prim]
-            kind = np.where(h.hit, scene.mat_kind[hmat], -1)
+            prim, hmat, kind = surface_at(scene, h)
             diff = np.flatnonzero(kind == S.DIFFUSE)
             if diff.size:  # the next diffuse vertex
                 g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
@@ -276,8 +274,8 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     step = max(1, HANDOFF_LANES // samples)  # bounded memory: at most HANDOFF_LANES rays in flight
     if n > step:
         for s0 in range(0, n, step):
-            sub = Receivers(**{f: getattr(rc, f)[s0:s0 + step] for f in rc.__dataclass_fields__})
-            handoff_gather(scene, tracer, film, plan, sub, rng, stats, handoffs, physical, samples)
+            handoff_gather(scene, tracer, film, plan, rc.take(slice(s0, s0 + step)), rng, stats, handoffs,
+                           physical, samples)
         return
     K = max(h.max_chain for h in handoffs.values())
     src = np.repeat(np.arange(n), samples)
@@ -317,9 +315,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
                 stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size)
         if bounce == K:
             break
-        prim = np.where(h.hit, h.prim, 0)
-        hmat = scene.tri_material[prim]
-        kind = np.where(h.hit, scene.mat_kind[hmat], -1)
+        prim, hmat, kind = surface_at(scene, h)
         spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
         if spec.size == 0:
             break

@@ -497,17 +497,17 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
 
     # at receivers seen through mirrors or glass, paths focusing more than opts.handoff go to
     # cosine sampling from x0 (indirect.handoff_gather) for the lights it can hit
+    # per light, only once an earlier chunk's walks found paths focusing past the threshold at
+    # such receivers (a decision on independent samples: each chunk stays unbiased, and chunks
+    # run in order, so the image does not depend on the thread count)
     handoffs = {}
     if opts.handoff > 0 and types_list:
         from .reference import Handoff
 
         handoffs = {lp.index: Handoff({t: max(opts.handoff, SEEN_HANDOFF_MIN) for t in types_list},
                                       bool(scene.light_type[lp.index] == S.SUN))
-                    for lp in plan.lights if light_can_be_hit(scene, lp.index)}
-    # per light, only once an earlier chunk's walks found paths focusing past the threshold at
-    # such receivers (a decision on independent samples: each chunk stays unbiased, and chunks
-    # run in order, so the image does not depend on the thread count)
-    handoffs = {li: h for li, h in handoffs.items() if ctxs[li].stats.get("seen_focus", 0) > 0}
+                    for lp in plan.lights
+                    if light_can_be_hit(scene, lp.index) and ctxs[lp.index].stats.get("seen_focus", 0) > 0}
     for li, ctx in ctxs.items():
         ctx.handoff_seen = li in handoffs
         ctx.first_order = True
@@ -517,15 +517,17 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     hit = np.flatnonzero(total.max(axis=1) > 0)
     film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None])
     seen = np.flatnonzero(rc.eye_specular > 0)
-    if seen.size and handoffs:
+    if seen.size == 0:
+        return
+    rc_seen = rc.take(seen)
+    if handoffs:
         from .indirect import handoff_gather
 
-        handoff_gather(scene, tracer, film, plan, _take_receivers(rc, seen), rng, eye_stats, handoffs,
-                       physical=opts.physical)
-    if lights_direct and seen.size:
+        handoff_gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, handoffs, physical=opts.physical)
+    if lights_direct:
         from .indirect import gather
 
-        gather(scene, tracer, film, plan, _take_receivers(rc, seen), rng, eye_stats, lights_direct,
+        gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, lights_direct,
                physical=opts.physical, connect=caustic)
 
 
@@ -539,8 +541,3 @@ def light_can_be_hit(scene, li) -> bool:
         return bool(scene.light_angle[li] > 0)
     return bool(scene.light_radius[li] > 0)
 
-
-def _take_receivers(rc, idx):
-    from .eye import Receivers
-
-    return Receivers(**{f: getattr(rc, f)[idx] for f in rc.__dataclass_fields__})

@@ -39,6 +39,11 @@ class Plan:
     scene_sphere: np.ndarray = field(default_factory=lambda: np.zeros((1, 4)))  # (1,4) the whole scene
 
 
+def _bounding_sphere(lo, hi, scene) -> np.ndarray:
+    """(4,) centre and radius of the sphere around a box (never of radius 0)."""
+    return np.concatenate([(lo + hi) / 2, [max(np.linalg.norm(hi - lo) / 2, 1e-9 * scene.scale)]])
+
+
 def _use_flags(mode: str, flags: np.ndarray) -> bool:
     if mode == "ON":
         return True
@@ -86,7 +91,7 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     spheres = {}
     for o in np.flatnonzero(casters):
         lo, hi = scene.object_bounds(o)
-        spheres[o] = np.concatenate([(lo + hi) / 2, [max(np.linalg.norm(hi - lo) / 2, 1e-9 * scene.scale)]])
+        spheres[o] = _bounding_sphere(lo, hi, scene)
     use_light_flags = _use_flags(flags, scene.light_caustics)
     lights = []
     indirect = []
@@ -110,7 +115,6 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     if not lights:
         reasons = "; ".join(f"'{n}': {r}" for k, n, r in skipped if k == "light")
         raise SceneError(f"scene '{scene.name}': no light can cast caustics ({reasons})")
-    lo, hi = scene.bounds()
-    sphere = np.concatenate([(lo + hi) / 2, [max(np.linalg.norm(hi - lo) / 2, 1e-9)]])[None, :]
+    sphere = _bounding_sphere(*scene.bounds(), scene)[None, :]
     return Plan(casters=casters, receivers=receivers, lights=lights, skipped=skipped, indirect_lights=indirect,
                 scene_sphere=sphere)
