@@ -12,7 +12,6 @@ ratio (with three standard errors) and the relative RMSE per pixel over the caus
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 import time
 from pathlib import Path
@@ -27,15 +26,6 @@ import conformance as conf  # noqa: E402
 from smbs_addon import BakeSettings, bake  # noqa: E402
 
 
-def rel_rmse(image_lum, ref):
-    A, B = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
-    truth = 0.5 * (A + B)
-    region = conf.region_of(truth)
-    ref_var = ((A - B) ** 2 / 4.0)[region].mean()  # the mean-of-halves' per-pixel variance
-    mse = float(((image_lum - truth)[region] ** 2).mean() - ref_var)
-    return math.sqrt(max(mse, 0.0)) / float(truth[region].mean())
-
-
 def run(name, method, budget, seed):
     sc = conf.scene_arrays(name)
     ref = conf.load_reference(name)
@@ -47,7 +37,7 @@ def run(name, method, budget, seed):
     (light,) = st["lights"].values()
     chains = {k: v for k, v in light.get("by_chain", {}).items()}
     return {"scene": name, "method": method, "wall": wall, "batches": st["batches_done"],
-            "ratio": j["ratio"], "sigma": j["sigma"], "rmse": rel_rmse(r.image.mean(axis=2), ref),
+            "ratio": j["ratio"], "sigma": j["sigma"], "rmse": conf.relative_rmse(r.image.mean(axis=2), ref),
             "SR": st["success_rate"], "mps": st["mutations_per_success"],
             "large": light.get("large_mutations", {}), "trials": light["trials"]["mean"], "chains": chains,
             "left": st.get("guide", {}).get("left_to_photons", []), "rays": st["rays"]}

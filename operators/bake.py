@@ -35,7 +35,7 @@ def _core():
     from types import SimpleNamespace
 
     from ..smbs_addon import composite, export, imageio, plan
-    from ..smbs_addon.__main__ import exr_metadata
+    from ..smbs_addon.__main__ import exr_channels, exr_metadata
     from ..smbs_addon.bake import BakeSettings, bake
     from ..smbs_addon.errors import BakeCancelled, SceneError
 
@@ -43,7 +43,7 @@ def _core():
                            SceneError=SceneError, export_scene=export.export_scene,
                            apply_layer=composite.apply_layer, remove_layer=composite.remove_layer,
                            has_layer=composite.has_layer, write_exr=imageio.write_exr,
-                           make_plan=plan.make_plan, exr_metadata=exr_metadata)
+                           make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels)
 
 
 def _plain(value):
@@ -68,6 +68,13 @@ def bake_settings_from(props, settings_cls):
         fields = set(inspect.signature(settings_cls).parameters)
     kwargs = {name: _plain(getattr(props, name)) for name in BAKE_FIELDS if name in fields}
     ignored = [name for name in BAKE_FIELDS if name not in fields]
+    rule = getattr(props, "stop_rule", "SAMPLES")
+    if rule != "NOISE" and "noise_target" in kwargs:
+        kwargs["noise_target"] = 0.0
+    if rule == "SAMPLES" and "time_budget" in kwargs:
+        kwargs["time_budget"] = 0.0
+    if rule in ("TIME", "NOISE") and "spp" in kwargs and "batches" in kwargs:
+        kwargs["spp"] = kwargs["batches"]  # a pass of one sample per pixel per batch
     return settings_cls(**kwargs), ignored
 
 
@@ -176,7 +183,7 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     path, stored_path = prep.path, prep.stored_path
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        core.write_exr(path, result.image, core.exr_metadata(prep.settings, result))
+        core.write_exr(path, result.image, core.exr_metadata(prep.settings, result), core.exr_channels(result))
         stats_path = os.path.splitext(path)[0] + ".json"
         tmp = os.path.join(os.path.dirname(stats_path), "." + os.path.basename(stats_path) + ".tmp")
         with open(tmp, "w") as fh:

@@ -39,6 +39,26 @@ def _seed(s):
     return _whole(s, 0)
 
 
+def _seconds(s):
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a number of seconds") from None
+    if not (v > 0 and v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a positive number of seconds, not {s}")
+    return v
+
+
+def _target(s):
+    try:
+        v = float(s.rstrip("%")) / (100.0 if s.endswith("%") else 1.0)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a relative error (0.05 or 5%)") from None
+    if not (0 < v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be a positive relative error such as 0.05 or 5%, not {s}")
+    return v
+
+
 def build_parser() -> argparse.ArgumentParser:
     from .bake import METHODS
 
@@ -50,7 +70,15 @@ def build_parser() -> argparse.ArgumentParser:
                    help="smbs (default), sms, mnee, or the brute-force light-tracing reference")
     b.add_argument("--estimator", choices=("unbiased", "biased"), default="unbiased")
     b.add_argument("--trials", type=_positive_int, default=4, help="biased estimator: walks per lane")
-    b.add_argument("--spp", type=_positive_int, default=16, help="light paths per pixel and light")
+    b.add_argument("--spp", type=_positive_int, default=None,
+                   help="samples per pixel (default 16); with --time or --noise, per pass of --batches "
+                        "batches (default: one per pixel per batch)")
+    b.add_argument("--time", type=_seconds, default=None, metavar="SECONDS",
+                   help="bake until this many seconds have passed (the whole bake: plan, pre-pass, walks), "
+                        "refining the image in passes")
+    b.add_argument("--noise", type=_target, default=None, metavar="TARGET",
+                   help="bake until the estimated relative error of the layer (relative_error) is at or "
+                        "below TARGET, e.g. 0.05 or 5%%; with --time too, whichever comes first")
     b.add_argument("--seed", type=_seed, default=0)
     b.add_argument("--batches", type=_positive_int, default=8, help="independent batches for the noise estimate")
     b.add_argument("--threads", type=_positive_int, default=None, help="worker threads (default: all cores)")
@@ -134,14 +162,57 @@ def summary_lines(stats: dict) -> list[str]:
     nz = stats["noise"]
     lines.append(f"  noise: mean {nz['mean']:.4g} over {nz['region_pixels']} caustic pixels, "
                  f"standard error {nz['std_error_of_mean']:.2g}, per-pixel relative noise {nz['relative_noise']:.1%}")
+    lines.extend(error_lines(stats))
     return lines
+
+
+def error_lines(stats: dict) -> list[str]:
+    """The bake's error bar and its price, in words (CLI and panel)."""
+    err, halve = stats.get("relative_error"), stats.get("seconds_to_halve_error")
+    conv = stats.get("convergence", {})
+    if not stats["noise"]["region_pixels"]:
+        return ["  error: no caustic in the image, nothing to measure"]
+    if err is None:
+        return ["  error: unknown (one batch: no spread to measure; bake at least two)"]
+    line = f"  error: +-{err:.1%} relative RMS per caustic pixel"
+    if halve:
+        line += (f"; halving it would take about {_duration(halve)} more "
+                 f"({conv.get('seconds_per_batch', 0.0):.2f} s per batch, 4x the batches)")
+    out = [line]
+    if conv.get("heavy_tail"):
+        out.append("  warning: the error is not yet falling as the batches add up (rare bright paths "
+                   "still turn up), so it and the time to halve it are optimistic")
+    stop = stats.get("stopped_by")
+    if stop in ("time", "noise"):
+        out.append(f"  stopped by the {stop} rule after {stats.get('batches_done', 0)} batches")
+    return out
+
+
+def _duration(s: float) -> str:
+    if s < 90:
+        return f"{s:.0f} s" if s >= 10 else f"{s:.1f} s"
+    if s < 5400:
+        return f"{s / 60:.0f} min"
+    return f"{s / 3600:.1f} h"
 
 
 def exr_metadata(settings, result) -> dict:
     """The EXR header entries of a bake (also written by the Blender operator)."""
-    return {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
-            "time_s": result.stats["time_s"], "rays": result.stats["rays"],
-            "noise_relative": result.stats["noise"]["relative_noise"], "stats": result.stats}
+    st = result.stats
+    meta = {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
+            "time_s": st["time_s"], "rays": st["rays"],
+            "noise_relative": st["noise"]["relative_noise"], "stats": st}
+    for key in ("relative_error", "seconds_to_halve_error"):  # absent (None): not measurable
+        if st.get(key) is not None:
+            meta[key] = float(st[key])
+    return meta
+
+
+def exr_channels(result) -> dict:
+    """The EXR's channels beside the colour: ``std``, each pixel's standard deviation of
+    the mean luminance (where the noise is, for a compositor)."""
+    std = getattr(result, "std", None)
+    return {} if std is None else {"std": std}
 
 
 def main(argv=None) -> int:
@@ -159,10 +230,13 @@ def main(argv=None) -> int:
         from .bake import BakeSettings, bake
         from .imageio import write_exr
 
-        settings = BakeSettings(method=args.method, spp=args.spp, seed=args.seed, batches=args.batches,
+        stop_rule = args.time is not None or args.noise is not None
+        spp = args.spp if args.spp is not None else (args.batches if stop_rule else 16)
+        settings = BakeSettings(method=args.method, spp=spp, seed=args.seed, batches=args.batches,
                                 threads=args.threads or 0, use_cycles_flags=args.flags,
                                 estimator=args.estimator, trials=args.trials,
-                                indirect=args.indirect)
+                                indirect=args.indirect, time_budget=args.time or 0.0,
+                                noise_target=args.noise or 0.0)
         settings.validate()
         out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
         stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
@@ -186,7 +260,7 @@ def main(argv=None) -> int:
         if not args.quiet and tty:
             print(file=sys.stderr)
         try:
-            write_exr(out, result.image, exr_metadata(settings, result))
+            write_exr(out, result.image, exr_metadata(settings, result), exr_channels(result))
         except SceneError as e:  # an output that cannot be written is an I/O failure (exit 3)
             raise OSError(str(e)) from None
         tmp = stats_path.with_name(f".{stats_path.name}.tmp")

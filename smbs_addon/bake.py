@@ -13,7 +13,7 @@ from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from . import reference
+from . import convergence, reference
 from . import scene as S
 from .camera import CameraModel
 from .errors import BakeCancelled, SceneError
@@ -27,6 +27,8 @@ ESTIMATORS = ("unbiased", "biased")
 CHUNK = 65536  # lanes per chunk (keeps temporaries in cache, see performance-anchors.md)
 WALK_CHUNK = 8192  # eye samples per manifold chunk (each fans out to lights x chain types x trials)
 MEMORY_BUDGET = 8 * 2**30  # bytes the film may take; a bigger resolution is refused before baking
+NOISE_MIN_BATCHES = 4  # a noise target is checked from this many batches on (a spread of fewer lies)
+MAX_BATCHES = 1 << 20  # a stop rule that is never met (a noise target under a heavy tail) ends here
 
 
 @dataclass
@@ -39,7 +41,10 @@ class BakeSettings:
     use_cycles_flags: str = "AUTO"  # AUTO, ON, OFF
     radiance: str = "cycles"  # cycles: like Cycles, no eta^2 radiance change at refractions; physical: with it
     guide: bool = True  # photon pre-pass: walk rarely (Russian roulette) where no caustic lands
-    time_budget: float = 0.0  # seconds; > 0: keep adding batches (of spp / batches each) until spent
+    time_budget: float = 0.0  # seconds; > 0: keep adding batches (of spp / batches each) until the
+    # whole bake (plan, pre-pass, walks) has taken this long, within half a batch
+    noise_target: float = 0.0  # > 0: keep adding batches until the estimated relative_error is below
+    # it (after at least NOISE_MIN_BATCHES); with a time_budget too, whichever comes first
     estimator: str = "unbiased"  # manifold methods: unbiased (Bernoulli trials) or biased (unique solutions)
     trials: int = 4  # biased estimator: walks per receiver, light and chain type
     max_trials: int = 10000  # unbiased estimator: cap on the Bernoulli count
@@ -75,6 +80,9 @@ class BakeSettings:
             raise SceneError(f"seed must not be negative, not {self.seed}")
         if not (self.time_budget >= 0 and math.isfinite(self.time_budget)):
             raise SceneError(f"time_budget must be a non-negative number of seconds, not {self.time_budget}")
+        if not (self.noise_target >= 0 and math.isfinite(self.noise_target)):
+            raise SceneError(f"noise_target must be 0 (off) or a positive relative error such as 0.05, "
+                             f"not {self.noise_target}")
         if not (0 < self.tau < 1):
             raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
         if not (self.solver_threshold > 0 and self.uniqueness > 0):
@@ -108,6 +116,8 @@ class BakeResult:
     variance: np.ndarray  # (H,W,3) float32, variance of the image estimate
     stats: dict = field(default_factory=dict)
     batch_luminance: np.ndarray | None = None  # (B,H,W) float32, one image per independent batch
+    # (or per group of equal batches, film.MAX_GROUPS at most)
+    std: np.ndarray | None = None  # (H,W) float32, standard deviation of each pixel's mean luminance
 
     def region_mean(self, region: np.ndarray) -> tuple[float, float]:
         """Mean luminance over a pixel mask and its standard error, from the spread
@@ -124,9 +134,7 @@ def region_mean_error(batch_luminance, region) -> tuple[float, float]:
 
 def caustic_region(image: np.ndarray, frac: float = 0.05) -> np.ndarray:
     """Pixels where the caustic is clearly non-zero: luminance above frac of its 99.5th percentile."""
-    lum = image.mean(axis=2)
-    top = np.percentile(lum, 99.5) if lum.size else 0.0
-    return lum > frac * top if top > 0 else np.zeros(lum.shape, bool)
+    return convergence.caustic_region(image.mean(axis=2), frac)
 
 
 def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None) -> dict:
@@ -147,6 +155,10 @@ def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None)
         "pixel_rms_noise": float(math.sqrt(var.mean())),
         "relative_noise": float(math.sqrt(var.mean()) / mean) if mean > 0 else 0.0,
     }
+
+
+def _finite_or_none(x: float):
+    return float(x) if math.isfinite(x) else None  # JSON has no infinity
 
 
 def _rng(seed, *key):
@@ -176,6 +188,7 @@ def _specular_visible(scene, tracer, cam) -> bool:
 class _Progress:
     def __init__(self, total, progress, cancel):
         self.total, self.done, self.progress, self.cancel = max(total, 1), 0, progress, cancel
+        self.fraction = None  # stop rules by time or noise: () -> fraction done, instead of the count
 
     def check(self):
         if self.cancel is not None and self.cancel():
@@ -184,7 +197,8 @@ class _Progress:
     def step(self, message):
         self.done += 1
         if self.progress is not None:
-            self.progress(min(1.0, self.done / self.total), message)
+            f = self.done / self.total if self.fraction is None else self.fraction()
+            self.progress(min(1.0, f), message)
 
 
 def _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, st, prog, stream, handoff=None,
@@ -321,12 +335,54 @@ def check_memory(scene, width: int, height: int, batches: int) -> None:
             f"or the number of batches")
 
 
-def _enough(settings: BakeSettings, b: int, t0: float) -> bool:
-    """After b batches: stop? With a time budget, at least two batches, then until it is
-    spent; without one, after settings.batches."""
-    if settings.time_budget > 0:
-        return b >= 2 and time.perf_counter() - t0 >= settings.time_budget
-    return b >= settings.batches
+class _Stop:
+    """The stop rule: samples (settings.batches batches), time, noise, or time and noise.
+
+    Time: at least two batches, then another one only while it would end nearer the
+    budget than stopping now (a batch is predicted to take as long as the last one), so
+    the whole bake ends within half a batch of the budget. Noise: from NOISE_MIN_BATCHES
+    on, stop once the estimated relative_error is at or below the target."""
+
+    def __init__(self, settings: BakeSettings, film: Film, t0: float):
+        self.s, self.film, self.t0 = settings, film, t0
+        self.reason = "samples"
+        self.last_error = math.inf
+
+    def _error(self) -> float:
+        groups = np.stack(self.film.batch_luminance) if len(self.film.batch_luminance) >= 2 else None
+        if groups is None:
+            return math.inf
+        lum = self.film.image.mean(axis=2)
+        return convergence.relative_error(groups, convergence.caustic_region(lum))
+
+    def fraction(self) -> float:
+        """Progress of a time or noise rule (noise: error ~ t^-1/2, so (target / error)^2)."""
+        f = 0.0
+        if self.s.time_budget > 0:
+            f = (time.perf_counter() - self.t0) / self.s.time_budget
+        if self.s.noise_target > 0 and math.isfinite(self.last_error) and self.last_error > 0:
+            f = max(f, min(0.99, (self.s.noise_target / self.last_error) ** 2))
+        return min(f, 0.99)
+
+    def __call__(self, b: int, last_batch_s: float) -> bool:
+        """After b batches (the last took last_batch_s): stop?"""
+        s = self.s
+        if s.time_budget <= 0 and s.noise_target <= 0:
+            return b >= s.batches
+        if s.noise_target > 0 and b >= NOISE_MIN_BATCHES:
+            self.last_error = self._error()
+            if self.last_error <= s.noise_target:
+                self.reason = "noise"
+                return True
+        if s.time_budget > 0 and b >= 2:
+            now = time.perf_counter() - self.t0
+            if now + 0.5 * last_batch_s >= s.time_budget:
+                self.reason = "time"
+                return True
+        if b >= MAX_BATCHES:
+            self.reason = "max_batches"
+            return True
+        return False
 
 
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None) -> BakeResult:
@@ -360,13 +416,17 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         eye_chunks = math.ceil(_eye_per_batch(cam, film, settings) / CHUNK) if eye_stats["enabled"] else 0
         prog = _Progress(settings.batches * (len(plan.lights) * math.ceil(per_batch / CHUNK) + eye_chunks),
                          progress, cancel)
+        stop = _Stop(settings, film, t0)
+        prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
+        t_first = time.perf_counter() - t0
         b = 0
         while True:
+            t_b = time.perf_counter()
             _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
-            film.end_batch()
+            film.end_batch(time.perf_counter() - t0)
             b += 1
-            if _enough(settings, b, t0):
+            if stop(b, time.perf_counter() - t_b):
                 break
         extra["batches_done"] = b
         rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
@@ -400,16 +460,20 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             gstats["left_to_photons"] = sorted(f"{scene.light_names[li]}: {t}" for li, t in guide.weak)
             extra["guide"] = gstats
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
+        stop = _Stop(settings, film, t0)
+        prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
+        t_first = time.perf_counter() - t0
         b = 0
         while True:
+            t_b = time.perf_counter()
             _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
                             eye_stats, prog, guide)
             _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
                            guide)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
-            film.end_batch()
+            film.end_batch(time.perf_counter() - t0)
             b += 1
-            if _enough(settings, b, t0):
+            if stop(b, time.perf_counter() - t_b):
                 break
         extra["batches_done"] = b
         for st in light_stats.values():
@@ -441,6 +505,10 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         image = image[y0:y1, x0:x1]
         variance = variance[y0:y1, x0:x1]
         batch_lum = batch_lum[:, y0:y1, x0:x1]
+    region = caustic_region(image)
+    conv = convergence.convergence(batch_lum, np.array(film.batch_end), t_first, region,
+                                   film.group_size * len(batch_lum))
+    std = convergence.pixel_std(batch_lum)
     elapsed = time.perf_counter() - t0
     layer = float(image.mean(axis=2).sum())
     for st in light_stats.values():  # the trial cap's bias, at least, as a share of the layer
@@ -457,6 +525,12 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         **extra,
         "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
         "noise": noise_summary(image, variance, batch_lum),
+        # an error bar and a price (convergence.py): noise only, a biased estimator's bias is not in it
+        "relative_error": _finite_or_none(convergence.relative_error(batch_lum, region)),
+        "seconds_to_halve_error": conv["seconds_to_halve_error"],
+        "convergence": {**conv, "setup_s": t_first, "batches_kept": int(len(batch_lum)),
+                        "batches_per_kept": film.group_size},
+        "stopped_by": stop.reason,
     }
     return BakeResult(image=image.astype(np.float32), variance=variance.astype(np.float32), stats=stats,
-                      batch_luminance=batch_lum)
+                      batch_luminance=batch_lum, std=std)

@@ -14,6 +14,7 @@ import math
 import numpy as np
 
 _BH = (0.35875, 0.48829, 0.14128, 0.01168)
+MAX_GROUPS = 64  # batch images kept (even); more batches are merged in pairs
 
 
 def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
@@ -42,7 +43,14 @@ class Film:
         self.sumsq = np.zeros((self.H * self.W, 3))
         self.batches = 0
         self._cur = np.zeros((self.H * self.W, 3))
-        self.batch_luminance = []  # per batch (H,W) float32: errors of region means
+        # per group of group_size batches, the mean (H,W) float32 luminance and the time its
+        # last batch ended: the noise estimate and the convergence fit. A long bake (stop
+        # rules by time or noise) merges neighbouring groups in pairs once MAX_GROUPS are kept,
+        # so the memory stays bounded; a group not yet full waits in _pending
+        self.batch_luminance = []
+        self.batch_end = []
+        self.group_size = 1
+        self._pending, self._pending_n = None, 0
 
     def splat(self, rx: np.ndarray, ry: np.ndarray, rgb: np.ndarray) -> None:
         """Add rgb (N,3) at raster positions (rx, ry from top) through the filter."""
@@ -68,10 +76,22 @@ class Film:
                 for c in range(3):
                     self._cur[:, c] += np.bincount(idx, weights=rgb[m, c] * wm, minlength=size)
 
-    def end_batch(self) -> None:
+    def end_batch(self, t: float = 0.0) -> None:
+        """Close the current batch (t: when it ended, seconds into the bake)."""
         self.sum += self._cur
         self.sumsq += self._cur * self._cur
-        self.batch_luminance.append(self._cur.mean(axis=1).reshape(self.H, self.W).astype(np.float32))
+        lum = self._cur.mean(axis=1).reshape(self.H, self.W)
+        self._pending = lum if self._pending is None else self._pending + lum
+        self._pending_n += 1
+        if self._pending_n == self.group_size:
+            self.batch_luminance.append((self._pending / self.group_size).astype(np.float32))
+            self.batch_end.append(float(t))
+            self._pending, self._pending_n = None, 0
+            if len(self.batch_luminance) == MAX_GROUPS:
+                g = self.batch_luminance
+                self.batch_luminance = [0.5 * (g[i] + g[i + 1]) for i in range(0, len(g), 2)]
+                self.batch_end = self.batch_end[1::2]
+                self.group_size *= 2
         self._cur[:] = 0.0
         self.batches += 1
 

@@ -15,8 +15,10 @@ import numpy as np
 from .errors import SceneError
 
 
-def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
-    """Write a linear float32 EXR (RGB or RGBA). metadata values go in the header."""
+def write_exr(path, image: np.ndarray, metadata: dict | None = None, extra: dict | None = None) -> Path:
+    """Write a linear float32 EXR (RGB or RGBA). metadata values go in the header; extra
+    maps channel names (no dots: Blender would read the file as multilayer) to (H,W)
+    images stored after the colour, e.g. the bake's per-pixel ``std``."""
     import OpenImageIO as oiio
 
     path = Path(path)
@@ -24,6 +26,13 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
     if img.ndim == 2:
         img = img[:, :, None]
     h, w, c = img.shape
+    names = ("R", "G", "B", "A")[:c] if c <= 4 else tuple(f"C{i}" for i in range(c))
+    for name, plane in (extra or {}).items():
+        if "." in name or name in names:
+            raise ValueError(f"extra channel name '{name}' must be new and without a dot")
+        img = np.concatenate([img, np.asarray(plane, np.float32).reshape(h, w, 1)], axis=2)
+        names += (name,)
+    c = img.shape[2]
     if not path.parent.exists():
         raise SceneError(f"output folder '{path.parent}' does not exist")
     if not os.access(path.parent, os.W_OK):
@@ -31,7 +40,7 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
     if path.is_dir():
         raise SceneError(f"cannot write '{path}': it is a folder")
     spec = oiio.ImageSpec(w, h, c, oiio.FLOAT)
-    spec.channelnames = ("R", "G", "B", "A")[:c] if c <= 4 else tuple(f"C{i}" for i in range(c))
+    spec.channelnames = names
     spec.attribute("compression", "zip")
     spec.attribute("oiio:ColorSpace", "lin_rec709")
     for k, v in (metadata or {}).items():
@@ -61,8 +70,10 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None) -> Path:
     return path
 
 
-def read_exr(path) -> tuple[np.ndarray, dict]:
-    """Read an image as (H, W, C) float32 plus its smbs:* header entries."""
+def read_exr(path, channel: str | None = None) -> tuple[np.ndarray, dict]:
+    """Read an image as (H, W, C) float32 plus its smbs:* header entries: its colour
+    channels (R, G, B, A, whichever it has; all channels if it has none of them), or with
+    channel, that one channel as (H, W)."""
     import OpenImageIO as oiio
 
     inp = oiio.ImageInput.open(str(path))
@@ -78,4 +89,10 @@ def read_exr(path) -> tuple[np.ndarray, dict]:
     finally:
         inp.close()
     img = np.asarray(img, np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    return img, meta
+    names = list(spec.channelnames)
+    if channel is not None:
+        if channel not in names:
+            raise SceneError(f"image '{path}' has no channel '{channel}' (it has {', '.join(names)})")
+        return img[:, :, names.index(channel)], meta
+    colour = [names.index(c) for c in ("R", "G", "B", "A") if c in names]
+    return (img[:, :, colour] if colour else img), meta

@@ -203,15 +203,15 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             h = tracer.intersect(o, d)
             stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
             if connect is None and bounce > 0 and len(lights_hit):
-                best_t = np.where(h.hit, h.t, np.inf)
-                best_l = np.zeros((len(o), 3))
+                # Cycles' lights are transparent (shade_light adds the emission and the path
+                # goes on): every light in front of the next surface counts, not the nearest
+                surf_t = np.where(h.hit, h.t, np.inf)
+                seen_l = np.zeros((len(o), 3))
                 for li in lights_hit:
                     L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
-                    closer = tl < best_t
-                    best_t = np.where(closer, tl, best_t)
-                    best_l = np.where(closer[:, None], L, best_l)
-                count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (best_l.max(axis=1) > 0))
-                np.add.at(radiance, lane[count], beta[count] * best_l[count])
+                    seen_l += np.where((tl < surf_t)[:, None], L, 0.0)
+                count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0))
+                np.add.at(radiance, lane[count], beta[count] * seen_l[count])
             prim, hmat, kind = surface_at(scene, h)
             diff = np.flatnonzero(kind == S.DIFFUSE)
             if diff.size:  # the next diffuse vertex
@@ -297,10 +297,10 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
         h = tracer.intersect(o, d)
         stats["rays_handoff"] = stats.get("rays_handoff", 0) + len(o)
         if bounce > 0:
-            best_t = np.where(h.hit, h.t, np.inf)
-            for li, ho in handoffs.items():
+            surf_t = np.where(h.hit, h.t, np.inf)
+            for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
                 L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
-                seen = np.flatnonzero((tl < best_t) & (L.max(axis=1) > 0))
+                seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
                 if seen.size == 0:
                     continue
                 y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]

@@ -45,8 +45,15 @@ class WalkConfig:
     smbs: bool = False
     tir: bool = True  # SMBS trigger 1: total internal reflection during propagation
     backlit: bool = True  # SMBS trigger 2: light on the wrong side of x1 for its interaction
-    slow: bool = True  # SMBS trigger 3: an accepted small step shrank the mismatch by less than tau
+    slow: bool = True  # SMBS trigger 3: small steps shrank the mismatch by less than tau
     tau: float = 0.85
+    slow_run: int = 2  # trigger 3 fires after this many slow small steps in a row. After one (the
+    # first reading) it derailed walks Newton would have finished: conformance lens, T T success
+    # 0.061 against SMS's 0.165 (2: 0.133, 3: 0.153); on the hammered mirror, where it is what
+    # doubles SMS's success, 1: 0.558, 2: 0.507, 3: 0.463 (SMS 0.233). bench/results/cube_tir.md
+    tir_rejected: bool = False  # trigger 1 also when a rejected small step ran into TIR. SMS
+    # recovers from that by halving its step; a large mutation there cost the lens 11% of its
+    # successes. Trigger 1 stays on for a TIR seed and a chain a large mutation left in TIR
     defensive: float = 0.1  # SMBS: share of trials that walk as plain SMS, so every SMS-reachable
     # solution keeps a non-zero probability and the Bernoulli estimate stays unbiased
     min_beta: float = 2.0**-6  # a walk whose step had to shrink below this is stuck: it fails
@@ -191,6 +198,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     # next one from there starts at half the weight; an accepted one resets it
     lscale = np.ones(n)
     large_counts = dict.fromkeys(TRIGGERS[1:], 0)
+    slow_n = np.zeros(n, np.int64)  # slow small steps in a row
     etas_all = [ctx.scene.mat_ior[v.mat] for v in chain.verts]
     valid = outcome == OK  # a lane converges only from a valid chain
     outcome[outcome == SIDE] = OK  # an exit below the surface is walkable, not yet valid
@@ -269,7 +277,10 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
             # (the mismatch grew, ratio > 1 > tau) is the slowest progress of all; waiting for
             # beta to shrink below min_beta instead lost 9-13% of all walks to local minima
             slow = okp & ~use_large & (e_new > cfg.tau * err[act])
-            pending[act[slow]] = TRIG_SLOW
+            slow_n[act] = np.where(slow, slow_n[act] + 1, 0)
+            fire = slow & (slow_n[act] >= cfg.slow_run)
+            slow_n[act[fire]] = 0
+            pending[act[fire]] = TRIG_SLOW
         err[acc], front[acc] = e_new[accept], f_new[accept]
         valid[acc] = new.status[accept] == OK
         beta[acc] = np.minimum(1.0, 2.0 * beta[acc])
@@ -278,7 +289,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         lscale[act[use_large & ~accept]] *= 0.5
         rej = act[~accept]
         beta[rej] *= 0.5
-        if cfg.smbs and cfg.tir:
+        if cfg.smbs and cfg.tir and cfg.tir_rejected:
             pending[act[(new.status == TIR) & ~accept]] = TRIG_TIR
         stuck = rej[beta[rej] < cfg.min_beta]  # the step had to shrink too far: give up
         outcome[stuck] = MAX_ITER

@@ -117,6 +117,17 @@ def test_ui_settings_are_the_core_settings(empty_bpy, addon):
     props.solver_threshold, props.tau, props.spp, props.method = 3e-7, 0.9, 5, "mnee"
     settings, _ = bake_op.bake_settings_from(props, core.BakeSettings)
     assert (settings.solver_threshold, settings.tau, settings.spp, settings.method) == (3e-7, 0.9, 5, "mnee")
+    # Stop By: samples ignores the time limit and the noise target; time and noise bake in passes
+    # of one sample per pixel per batch, noise with the time limit as a cap
+    props.time_budget, props.noise_target = 30.0, 0.08
+    settings, _ = bake_op.bake_settings_from(props, core.BakeSettings)
+    assert (settings.time_budget, settings.noise_target, settings.spp) == (0.0, 0.0, 5)
+    props.stop_rule = "TIME"
+    settings, _ = bake_op.bake_settings_from(props, core.BakeSettings)
+    assert (settings.time_budget, settings.noise_target, settings.spp) == (30.0, 0.0, settings.batches)
+    props.stop_rule = "NOISE"
+    settings, _ = bake_op.bake_settings_from(props, core.BakeSettings)
+    assert (settings.time_budget, settings.noise_target) == (30.0, 0.08)
 
 
 def test_settings_defaults(empty_bpy, addon):
@@ -158,12 +169,14 @@ def test_statistics_of_a_manifold_bake(addon):
     stats = {"method": "smbs", "resolution": [160, 120], "batches_done": 8, "time_s": 5.65,
              "rays": 1138192, "walks": 65202, "success_rate": 0.3329, "mutations_per_path": 11.16,
              "mutations_per_success": 33.52, "lights": {"Light": light}, "skipped": [],
-             "noise": {"region_pixels": 4021, "relative_noise": 0.181, "mean": 0.51}}
+             "noise": {"region_pixels": 4021, "relative_noise": 0.181, "mean": 0.51},
+             "relative_error": 0.0734, "seconds_to_halve_error": 67.8, "stopped_by": "noise"}
     assert panels.bake_header(stats) == "SMBS, 160 x 120, 8 batches"
     assert dict(panels.summarize_stats(stats)) == {
         "Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2",
         "Mutations per Solution": "33.5", "Rays": "1.1 M",
-        "Time": "5.65 s", "Relative Noise": "18.1%"}
+        "Time": "5.65 s", "Relative Noise": "18.1%", "Error": "\u00b17.3% RMS",
+        "Half the Error": "+1 min 8 s", "Stopped By": "Noise"}
     ((name, rows),) = panels.per_light_stats(stats)
     assert name == "Light"
     assert dict(rows) == {"Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2",
@@ -250,7 +263,8 @@ def test_panels_draw(empty_bpy, addon, last_stats):
     scene.smbs_caustics.last_stats = last_stats
     drawn = []
     _draw_all(addon, scene, drawn)
-    assert {"method", "estimator", "max_trials", "spp", "time_budget", "seed", "use_cycles_flags",
+    assert {"method", "estimator", "max_trials", "spp", "time_budget", "noise_target", "stop_rule", "seed",
+            "use_cycles_flags",
             "keep_out_of_cycles", "output_path", "smbs.bake_caustics", "batches", "threads", "guide",
             "radiance",
             "max_iterations", "solver_threshold", "uniqueness", "tau", "max_chain",

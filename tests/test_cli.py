@@ -190,3 +190,40 @@ def test_bake_blend(tmp_path):
     assert meta["spp"] == 1 and meta["seed"] == 0
     assert img.max() > 0 and np.all(np.isfinite(img))
     assert re.search(r"^scene '.+': smbs, \d+x\d+, ", proc.stdout, re.M), proc.stdout
+
+
+def test_error_bar_and_price_in_output_json_and_exr(baked):
+    """Every bake says how wrong it is and what half the error would cost, and the EXR
+    carries the per-pixel standard deviation as a channel of its own."""
+    proc, out = baked
+    assert re.search(r"error: \+-\d+\.\d% relative RMS per caustic pixel; halving it would take about", proc.stdout)
+    stats = json.loads(out.with_suffix(".json").read_text())
+    assert 0 < stats["relative_error"] < 10 and stats["seconds_to_halve_error"] > 0
+    _, meta = read_exr(out)
+    assert meta["relative_error"] == pytest.approx(stats["relative_error"], rel=1e-6)
+    std, _ = read_exr(out, "std")
+    assert std.shape == (24, 32) and np.isfinite(std).all() and std.max() > 0
+
+
+def test_time_and_noise_stop_rules(npz, tmp_path):
+    out = tmp_path / "t.exr"
+    proc = run("bake", npz, "--method", "reference", "--time", "0.5", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    stats = json.loads(out.with_suffix(".json").read_text())
+    assert stats["stopped_by"] == "time" and stats["settings"]["time_budget"] == 0.5
+    assert stats["settings"]["spp"] == stats["settings"]["batches"]  # one sample per pixel per batch
+    proc = run("bake", npz, "--method", "reference", "--noise", "20%", "--time", "60", "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    stats = json.loads(out.with_suffix(".json").read_text())
+    assert stats["stopped_by"] == "noise" and stats["relative_error"] <= 0.2
+    assert "stopped by the noise rule" in proc.stdout
+
+
+@pytest.mark.parametrize("args,needle", [(("--noise", "0"), "positive relative error"),
+                                         (("--noise", "abc"), "not a relative error"),
+                                         (("--time", "-1"), "positive number of seconds"),
+                                         (("--time", "inf"), "positive number of seconds")])
+def test_bad_stop_rules_are_refused(npz, args, needle):
+    proc = run("bake", npz, *args)
+    assert proc.returncode == 2
+    assert needle in one_error_line(proc)

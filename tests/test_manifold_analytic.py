@@ -95,9 +95,10 @@ def test_smbs_rescues_walks_that_sms_loses_to_total_internal_reflection():
 def test_smbs_finds_twice_the_paths_on_a_fine_normal_map():
     """The paper's Figure 12 case: on a flat sheet with a fine, gentle normal map every bump
     is a local minimum where SMS's Newton walk stalls; SMBS's slow-progress trigger jumps
-    out. Measured at this seed and size (4525 walks each): SR 0.242 vs 0.578 (ratio
-    2.39 +- 0.07), mutations per solution found 52.8 vs 22.3 (the paper: 26% vs 60%,
-    69 vs 33 mpp). No timing."""
+    out. Measured at this seed and size (4525 walks each): SR 0.233 vs 0.507 (ratio
+    2.18), mutations per solution found 26.5 for SMBS (the paper: 26% vs 60%, 69 vs 33
+    mpp). It fires after two slow steps in a row (WalkConfig.slow_run); after one, 0.558,
+    which cost the conformance lens's refraction walks too much. No timing."""
     scene = scenes.hammered_mirror_scene(resolution=(32, 24))
     kw = dict(spp=1, seed=6, estimator="biased", trials=1, handoff=0, chains=("R",), indirect=False)
     sms = bake(scene, BakeSettings(method="sms", **kw)).stats["lights"]["Area"]

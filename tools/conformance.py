@@ -89,6 +89,29 @@ def region_of(lum: np.ndarray, frac: float = 0.05) -> np.ndarray:
     return s > frac * top if top > 0 else np.zeros(lum.shape, bool)
 
 
+def noise_floor(ref: dict, region: np.ndarray | None = None) -> float:
+    """The reference's own relative RMS noise per pixel (its mean of halves) over region:
+    relative_rmse cannot resolve errors much below it."""
+    A, B = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
+    truth = 0.5 * (A + B)
+    if region is None:
+        region = region_of(truth)
+    return math.sqrt(float(((A - B) ** 2 / 4.0)[region].mean())) / float(truth[region].mean())
+
+
+def relative_rmse(lum: np.ndarray, ref: dict, region: np.ndarray | None = None) -> float:
+    """Our image's (H,W luminance) relative RMS error per pixel against the reference over
+    region (default: the reference's caustic region), with the reference's own per-pixel
+    noise taken out: the mean of its halves has variance (A - B)^2 / 4, in expectation."""
+    A, B = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
+    truth = 0.5 * (A + B)
+    if region is None:
+        region = region_of(truth)
+    ref_var = ((A - B) ** 2 / 4.0)[region].mean()
+    mse = float(((lum - truth)[region] ** 2).mean() - ref_var)
+    return math.sqrt(max(mse, 0.0)) / float(truth[region].mean())
+
+
 def judge(batch_luminance: np.ndarray, ref: dict) -> dict:
     """Our mean over the caustic region relative to Cycles', with standard errors.
 

@@ -106,6 +106,12 @@ def summarize_stats(stats):
     noise = stats.get("noise")
     if isinstance(noise, dict) and _number(noise.get("relative_noise")) and noise.get("region_pixels"):
         rows.append(("Relative Noise", f"{100.0 * noise['relative_noise']:.1f}%"))
+    if _number(stats.get("relative_error")):
+        rows.append(("Error", f"\u00b1{100.0 * stats['relative_error']:.1f}% RMS"))
+    if _number(stats.get("seconds_to_halve_error")):
+        rows.append(("Half the Error", f"+{_format_time(stats['seconds_to_halve_error'])}"))
+    if stats.get("stopped_by") in ("time", "noise"):
+        rows.append(("Stopped By", str(stats["stopped_by"]).title()))
     return rows
 
 
@@ -224,8 +230,17 @@ class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
             sub.prop(settings, "max_trials")
 
         col = layout.column()
-        col.prop(settings, "spp")
-        col.prop(settings, "time_budget")
+        col.prop(settings, "stop_rule")
+        rule = getattr(settings, "stop_rule", "SAMPLES")
+        sub = col.column()
+        sub.active = rule == "SAMPLES"
+        sub.prop(settings, "spp")
+        sub = col.column()
+        sub.active = rule in {"TIME", "NOISE"}
+        sub.prop(settings, "time_budget")
+        sub = col.column()
+        sub.active = rule == "NOISE"
+        sub.prop(settings, "noise_target")
         col.prop(settings, "seed")
 
         col = layout.column()

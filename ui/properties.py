@@ -18,7 +18,7 @@ from bpy.props import (
 # Properties passed to BakeSettings by name (each must be a BakeSettings field).
 BAKE_FIELDS = (
     "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
-    "time_budget", "use_cycles_flags", "radiance", "guide", "max_iterations", "solver_threshold",
+    "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
     "max_chain", "clamp_g", "handoff", "indirect",
 )
@@ -43,6 +43,12 @@ ESTIMATOR_ITEMS = (
     ("biased", "Biased",
      "Sum the distinct solutions found in a fixed number of trials. Less noise, "
      "but solutions that are hard to find are missed"),
+)
+
+STOP_ITEMS = (
+    ("SAMPLES", "Samples", "Bake Samples per pixel, in Batches batches"),
+    ("TIME", "Time", "Bake for Time Limit seconds, one sample per pixel per batch"),
+    ("NOISE", "Noise", "Bake until the relative error is at or below Noise Target"),
 )
 
 CYCLES_FLAGS_ITEMS = (
@@ -105,11 +111,20 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         name="Threads", default=0, min=0, soft_max=64, max=1024,
         description="Worker threads for ray tracing (0: all cores). The image does not depend on it",
     )
+    stop_rule: EnumProperty(
+        name="Stop By", items=STOP_ITEMS, default="SAMPLES",
+        description="What ends the bake: a number of samples, a time, or a noise level",
+    )
     time_budget: FloatProperty(
         name="Time Limit", default=0.0, min=0.0, soft_max=3600.0,
         unit='TIME_ABSOLUTE', subtype='TIME_ABSOLUTE',
-        description="Keep adding batches until this many seconds have passed (at least two "
-                    "batches; 0 = no limit, bake Samples per pixel)",
+        description="Stop By Time: bake (plan, pre-pass and walks) for this many seconds, refining "
+                    "the image in passes. Stop By Noise: give up after this long (0 = no limit)",
+    )
+    noise_target: FloatProperty(
+        name="Noise Target", default=0.05, min=0.001, soft_max=0.5, max=10.0, subtype='FACTOR',
+        description="Stop By Noise: bake until the estimated relative error of the layer (RMS over "
+                    "its caustic pixels, from the spread of the batches) is at or below this",
     )
     use_cycles_flags: EnumProperty(
         name="Cycles Flags", items=CYCLES_FLAGS_ITEMS, default="AUTO",

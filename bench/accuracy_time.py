@@ -1,0 +1,217 @@
+"""What accuracy costs in time: relative RMSE against the time spent, per scene and method.
+
+    .venv/bin/python bench/accuracy_time.py [--scenes lens_area,pool_sun4] [--methods reference,smbs]
+        [--budgets 2,5,12,30,60,120] [--cycles] [--out bench/results]
+
+For each conformance scene (sample_blends/conformance_scenes.py; its converged Cycles reference
+is the truth, tests/data/conformance), each method and each budget: one bake with that time
+budget (BakeSettings.time_budget: the whole bake, plan and pre-pass included; passes of one
+sample per pixel), and its relative RMS error per pixel against the truth over the reference's
+caustic region, the reference's own noise taken out (tools/conformance.relative_rmse). Beside
+it, what the bake said of itself: relative_error and seconds_to_halve_error, and how well the
+time rule kept the budget. With --cycles, Cycles renders the scene through the bpy module with
+its own time limit (path tracing, caustics on; its caustic component is that minus the
+reference's converged "off" render), measured the same way.
+
+Methods: reference (our light tracer), mnee, sms and smbs (unbiased), sms-b1, sms-b4, smbs-b1,
+smbs-b4 (biased, M walks per receiver) and default (what a bake does unless told: smbs,
+unbiased). Writes accuracy_time.md, accuracy_time.csv, accuracy_time_<scene>.png (log-log
+RMSE against time) and crops_<scene>.png (every method at one budget, side by side).
+"""
+from __future__ import annotations
+
+import argparse
+import csv
+import math
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+sys.path.insert(0, str(ROOT / "sample_blends"))
+sys.path.insert(0, str(ROOT))
+
+import conformance as conf  # noqa: E402
+from smbs_addon import BakeSettings, bake  # noqa: E402
+
+METHODS = {
+    "reference": dict(method="reference"),
+    "mnee": dict(method="mnee"),
+    "sms": dict(method="sms"),
+    "smbs": dict(method="smbs"),
+    "sms-b1": dict(method="sms", estimator="biased", trials=1),
+    "sms-b4": dict(method="sms", estimator="biased", trials=4),
+    "smbs-b1": dict(method="smbs", estimator="biased", trials=1),
+    "smbs-b4": dict(method="smbs", estimator="biased", trials=4),
+    "default": dict(),
+}
+BIASED = {"mnee", "sms-b1", "sms-b4", "smbs-b1", "smbs-b4"}
+SCENES = ("lens_area", "gold_cylinder", "pool_sun4", "mirror_point_hard", "sphere_point_soft",
+          "sphere_refraction_spot", "wavy_mirror_sun2", "water_flat_sun0", "through_glass_disk", "prism_tir",
+          "cube_grey", "cube_white_rect")
+BATCHES = 4  # per pass of BATCHES samples per pixel: one sample per pixel per batch
+
+
+def ours(scene, method, budget, seed):
+    sc = conf.scene_arrays(scene)
+    ref = conf.load_reference(scene)
+    t = time.perf_counter()
+    r = bake(sc, BakeSettings(spp=BATCHES, batches=BATCHES, seed=seed, time_budget=budget, **METHODS[method]))
+    wall = time.perf_counter() - t
+    st = r.stats
+    return {"scene": scene, "method": method, "budget": budget, "wall": wall, "spp": st["batches_done"],
+            "rays": st["rays"], "SR": st.get("success_rate"), "mps": st.get("mutations_per_success"),
+            "rmse": conf.relative_rmse(r.image.mean(axis=2), ref), "floor": conf.noise_floor(ref),
+            "est": st["relative_error"],
+            "halve": st["seconds_to_halve_error"], "image": r.image.mean(axis=2)}
+
+
+def cycles(scene, budget, seed):
+    """Cycles' caustic component in `budget` seconds of rendering: on (its time limit) - off."""
+    import bpy
+    import conformance_scenes as scenes
+    from cycles_reference import _read_exr, _set_render
+
+    ref = conf.load_reference(scene)
+    with tempfile.TemporaryDirectory() as tmp:
+        blend = scenes.build(scene, Path(tmp))
+        bpy.ops.wm.open_mainfile(filepath=str(blend))
+        s = bpy.context.scene
+        _set_render(s, 1 << 20, seed, True, 2, keep_mnee=scene in scenes.MNEE_REFERENCE)
+        s.cycles.time_limit = budget
+        s.render.filepath = str(Path(tmp) / "on.exr")
+        t = time.perf_counter()
+        bpy.ops.render.render(write_still=True)
+        wall = time.perf_counter() - t
+        img = (_read_exr(Path(tmp) / "on.exr") - ref["off"]).mean(axis=2)
+    name = "cycles-mnee" if scene in scenes.MNEE_REFERENCE else "cycles"
+    return {"scene": scene, "method": name, "budget": budget, "wall": wall, "spp": None, "rays": None, "SR": None,
+            "mps": None, "rmse": conf.relative_rmse(img, ref), "floor": conf.noise_floor(ref), "est": None, "halve": None, "image": img}
+
+
+def _rmse(r):
+    return f"< {r['floor']:.3f}" if r["rmse"] < 0.5 * r["floor"] else f"{r['rmse']:.3f}"
+
+
+def _fmt(v, f):
+    return "" if v is None else format(v, f)
+
+
+def plot(rows, scene, out):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, ax = plt.subplots(figsize=(6, 4.2))
+    for m in dict.fromkeys(r["method"] for r in rows if r["scene"] == scene):
+        pts = sorted((r["wall"], r["rmse"]) for r in rows if r["scene"] == scene and r["method"] == m)
+        ax.loglog(*zip(*pts), "o-" if m not in BIASED else "s--", label=m, ms=4)
+    ax.set_xlabel("wall time (s, 2 cores)")
+    ax.set_ylabel("relative RMSE per pixel vs Cycles")
+    ax.set_title(scene)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / f"accuracy_time_{scene}.png", dpi=110)
+    plt.close(fig)
+
+
+def crops(rows, scene, budget, out):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    ref = conf.load_reference(scene)
+    truth = 0.5 * (ref["a"] + ref["b"]).mean(axis=2)
+    sel = [r for r in rows if r["scene"] == scene and r["budget"] == budget]
+    panels = [("Cycles reference", truth, None)] + [(r["method"], r["image"], r["rmse"]) for r in sel]
+    vmax = float(np.percentile(truth, 99.5)) or 1.0
+    fig, axes = plt.subplots(1, len(panels), figsize=(2.2 * len(panels), 2.1))
+    for ax, (title, img, e) in zip(np.atleast_1d(axes), panels):
+        ax.imshow(np.clip(img / vmax, 0, 1) ** (1 / 2.2), cmap="gray", vmin=0, vmax=1)
+        ax.set_title(title if e is None else f"{title}\nRMSE {e:.2f}", fontsize=7)
+        ax.axis("off")
+    fig.suptitle(f"{scene}, {budget:g} s each", fontsize=8)
+    fig.tight_layout()
+    fig.savefig(out / f"crops_{scene}.png", dpi=110)
+    plt.close(fig)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--methods", default=",".join(METHODS))
+    ap.add_argument("--budgets", default="2,5,12,30,60,120")
+    ap.add_argument("--cycles", action="store_true", help="also Cycles path tracing at the same budgets")
+    ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
+    args = ap.parse_args(argv)
+    budgets = [float(b) for b in args.budgets.split(",")]
+    rows = []
+    for scene in args.scenes.split(","):
+        for method in args.methods.split(","):
+            if (scene, method) in NOT_APPLICABLE:
+                continue
+            for b in budgets:
+                rows.append(ours(scene, method, b, args.seed))
+                r = rows[-1]
+                print(f"{scene} {method} {b:g} s: {r['wall']:.1f} s, {r['spp']} spp, RMSE {r['rmse']:.3f}, "
+                      f"estimated {_fmt(r['est'], '.3f')}, halve {_fmt(r['halve'], '.1f')} s", flush=True)
+        if args.cycles:
+            for b in budgets:
+                rows.append(cycles(scene, b, args.seed))
+                print(f"{scene} {rows[-1]['method']} {b:g} s: {rows[-1]['wall']:.1f} s, "
+                      f"RMSE {rows[-1]['rmse']:.3f}", flush=True)
+    write(rows, args, budgets)
+
+
+NOT_APPLICABLE = {("water_flat_sun0", "reference")}  # a sun of angle 0 through water: no light path
+
+
+def write(rows, args, budgets):
+    out = args.out
+    out.mkdir(parents=True, exist_ok=True)
+    cmd = "python bench/accuracy_time.py " + " ".join(
+        f"--{k} {v}" for k, v in (("scenes", args.scenes), ("methods", args.methods), ("budgets", args.budgets)))
+    if args.cycles:
+        cmd += " --cycles"
+    lines = ["# Accuracy against time", "", f"Made by `{cmd}` (2 cores). Relative RMSE per pixel against "
+             "Cycles' converged caustic component over its caustic region, the reference's noise taken out. "
+             "`est.` is the bake's own relative_error (noise only: a biased method's bias is not in it); "
+             "`halve` its seconds_to_halve_error; `budget kept` the wall time / budget. An RMSE below the "
+             "reference's own noise (`floor`, per pixel) is not resolved: it reads `< floor`.", "",
+             "| scene | method | budget s | wall s | budget kept | spp | rays | SR | mut/sol | RMSE | floor | est. "
+             "| halve s |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        kept = r["wall"] / r["budget"]
+        lines.append(f"| {r['scene']} | {r['method']}{' (biased)' if r['method'] in BIASED else ''} | "
+                     f"{r['budget']:g} | {r['wall']:.1f} | {kept:.2f} | {_fmt(r['spp'], 'd')} | "
+                     f"{_fmt(r['rays'], ',')} | {_fmt(r['SR'], '.3f')} | {_fmt(r['mps'], '.0f')} | {_rmse(r)} | "
+                     f"{r['floor']:.3f} | "
+                     f"{_fmt(r['est'], '.3f')} | {_fmt(r['halve'], '.1f')} |")
+    lines += ["", "Equal time, best first (the largest budget):", ""]
+    top = max(budgets)
+    for scene in dict.fromkeys(r["scene"] for r in rows):
+        sel = sorted((r for r in rows if r["scene"] == scene and r["budget"] == top), key=lambda r: r["rmse"])
+        lines.append(f"- {scene}: " + ", ".join(f"{r['method']} {r['rmse']:.3f}" for r in sel))
+        plot(rows, scene, out)
+        crops(rows, scene, top, out)
+        lines.append(f"  ![{scene}](accuracy_time_{scene}.png) ![crops](crops_{scene}.png)")
+    (out / "accuracy_time.md").write_text("\n".join(lines) + "\n")
+    with open(out / "accuracy_time.csv", "w", newline="") as fh:
+        w = csv.writer(fh)
+        keys = ["scene", "method", "budget", "wall", "spp", "rays", "SR", "mps", "rmse", "floor", "est", "halve"]
+        w.writerow(keys)
+        for r in rows:
+            w.writerow([r[k] for k in keys])
+
+
+if __name__ == "__main__":
+    main()

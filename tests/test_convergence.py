@@ -1,0 +1,144 @@
+"""The error bar and the price of a bake (smbs_addon/convergence.py) and the stop rules.
+
+relative_error is judged against the truth: Cycles' converged caustic component of two
+conformance scenes (tests/data/conformance), the reference's own noise taken out.
+seconds_to_halve_error is judged against the time the error really took to halve.
+"""
+import math
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tools"))
+
+import conformance as conf  # noqa: E402
+from smbs_addon import BakeSettings, bake  # noqa: E402
+from smbs_addon.convergence import caustic_region, convergence, relative_error  # noqa: E402
+from smbs_addon.film import MAX_GROUPS, Film  # noqa: E402
+
+import scenes  # noqa: E402
+
+
+def _true_error(res, ref):
+    lum = res.image.mean(axis=2)
+    return conf.relative_rmse(lum, ref, caustic_region(lum))
+
+
+@pytest.mark.bpy
+@pytest.mark.parametrize("name,method,spp", [("lens_area", "reference", 8), ("mirror_point_hard", "sms", 8)])
+def test_relative_error_tracks_the_true_error(name, method, spp):
+    """Within a factor of 1.5 of the relative RMS error against Cycles, over the same pixels.
+    Measured, estimated / true, seeds 1-3: lens (light tracer, 8 spp) 1.01, 0.89, 1.16 at a
+    true error of 0.06-0.09 (the reference's own noise, taken out, is 0.048); mirror (SMS,
+    8 spp) 1.00, 0.98, 1.05 at 0.39-0.41."""
+    ref = conf.load_reference(name)
+    sc = conf.scene_arrays(name)
+    for seed in (1, 2):
+        res = bake(sc, BakeSettings(method=method, spp=spp, batches=spp, seed=seed))
+        est, true = res.stats["relative_error"], _true_error(res, ref)
+        assert 0.05 < true < 1.0, f"{name}: true error {true:.3f} out of the range this test is meant for"
+        assert true / 1.5 <= est <= 1.5 * true, f"{name} seed {seed}: estimated {est:.3f}, true {true:.3f}"
+
+
+@pytest.mark.bpy
+def test_seconds_to_halve_error_predicts_the_time_it_took():
+    """Bake B = 4, 8, 16 and 32 batches of one sample per pixel: the true error (against
+    Cycles) of each, fitted against the wall time in log-log, halves from its value at the
+    first bake after a time within a factor of 1.5 of what the first bake predicted. The
+    fit, not the single first error, sets the starting level: one bake's error is itself
+    noisy. The bakes run one after another in this process; the factor absorbs the load."""
+    ref = conf.load_reference("mirror_point_hard")
+    sc = conf.scene_arrays("mirror_point_hard")
+    times, errs = [], []
+    for b in (4, 8, 16, 32):
+        t = time.perf_counter()
+        res = bake(sc, BakeSettings(method="sms", spp=b, batches=b, seed=3))
+        times.append(time.perf_counter() - t)
+        errs.append(_true_error(res, ref))
+        if b == 4:
+            predicted = res.stats["seconds_to_halve_error"]
+    x, y = np.log(times), np.log(errs)
+    slope, icpt = np.polyfit(x, y, 1)
+    assert -1.0 < slope < -0.25, f"the error does not fall with time as it should: slope {slope:.2f}, {errs}"
+    took = times[0] * 2.0 ** (-1.0 / slope) - times[0]  # err(t) = err(t0) (t / t0)^slope
+    assert took / 1.5 <= predicted <= 1.5 * took, \
+        f"predicted {predicted:.2f} s, took {took:.2f} s (times {np.round(times, 2)}, errors {np.round(errs, 3)})"
+
+
+def test_noise_rule_stops_at_the_first_batch_below_target():
+    """--noise: the bake stops once relative_error is at or below the target, and not a batch
+    later (one batch fewer was still above it)."""
+    sc = scenes.glass_sphere_scene(resolution=(48, 36))
+    res = bake(sc, BakeSettings(method="reference", spp=2, batches=2, seed=4, noise_target=0.12))
+    st = res.stats
+    assert st["stopped_by"] == "noise" and st["relative_error"] <= 0.12
+    b = st["batches_done"]
+    assert b > 4, "the target is too loose to test anything"
+    lum = res.image.mean(axis=2)  # the bake judged the region on its image at that time
+    before = relative_error(res.batch_luminance[:-1], caustic_region(res.batch_luminance[:-1].mean(axis=0)))
+    assert before > 0.12, f"stopped late: {before:.3f} after {b - 1} batches"
+    assert np.isfinite(lum).all()
+
+
+def test_time_rule_adds_batches_and_counts_the_whole_bake():
+    sc = scenes.glass_sphere_scene(resolution=(48, 36))
+    res = bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4, time_budget=1e-6))
+    assert res.stats["batches_done"] == 2 and res.stats["stopped_by"] == "time"  # two at least: a spread
+    assert res.stats["relative_error"] is not None
+
+
+def test_one_batch_has_no_error_bar():
+    sc = scenes.glass_sphere_scene(resolution=(48, 36))
+    res = bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4))
+    assert res.stats["relative_error"] is None and res.stats["seconds_to_halve_error"] is None
+    assert not res.std.any()
+
+
+def test_std_channel_is_the_spread_of_the_batches():
+    sc = scenes.glass_sphere_scene(resolution=(48, 36))
+    res = bake(sc, BakeSettings(method="reference", spp=6, batches=6, seed=4))
+    expect = res.batch_luminance.astype(np.float64).std(axis=0, ddof=1) / math.sqrt(6)
+    assert res.std.shape == res.image.shape[:2]
+    np.testing.assert_allclose(res.std, expect, rtol=1e-5, atol=1e-9)
+    assert res.std.max() > 0
+
+
+def test_film_keeps_at_most_max_groups_of_equal_batches():
+    """Long bakes merge batch images in pairs: memory stays bounded, every kept group is the
+    mean of the same number of batches, and the groups' mean is the image."""
+    film = Film(4, 3)
+    rng = np.random.default_rng(0)
+    raw = []
+    for b in range(3 * MAX_GROUPS + 8):
+        v = rng.random((12, 3))
+        film._cur[:] = v
+        raw.append(v.mean(axis=1).reshape(3, 4))
+        film.end_batch(float(b + 1))
+    g = film.group_size
+    kept = np.stack(film.batch_luminance)
+    assert len(kept) <= MAX_GROUPS and g == 4 and len(kept) == (3 * MAX_GROUPS + 8) // g
+    np.testing.assert_allclose(kept[1], np.mean(raw[g:2 * g], axis=0), rtol=1e-6)
+    assert film.batch_end[1] == 2 * g  # the time its last batch ended
+    np.testing.assert_allclose(kept.mean(axis=0), np.mean(raw[:len(kept) * g], axis=0), rtol=1e-5)
+
+
+def test_convergence_of_a_synthetic_bake():
+    """Batches of pure noise around 1 at a steady cost of 0.5 s after 3 s of set-up: the error
+    is the noise / sqrt(B), halving it takes 3 B batches more, the fit finds alpha near 1/2."""
+    rng = np.random.default_rng(1)
+    B, sigma = 32, 0.4
+    groups = (1.0 + sigma * rng.standard_normal((B, 40, 50))).astype(np.float32)
+    ends = 3.0 + 0.5 * np.arange(1, B + 1)
+    region = np.ones((40, 50), bool)
+    assert relative_error(groups, region) == pytest.approx(sigma / math.sqrt(B), rel=0.05)
+    c = convergence(groups, ends, 3.0, region, B)
+    assert c["seconds_per_batch"] == pytest.approx(0.5)
+    assert c["seconds_to_halve_error"] == pytest.approx(3 * B * 0.5)
+    assert c["alpha_fit"] == pytest.approx(0.5, abs=0.05) and not c["heavy_tail"]
+    # a firefly in the last batch: the variance grows instead of falling
+    groups[-1, :, :] += 30.0 * (rng.random((40, 50)) < 0.05)
+    assert convergence(groups, ends, 3.0, region, B)["heavy_tail"]
