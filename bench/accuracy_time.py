@@ -150,6 +150,8 @@ def main(argv=None):
     ap.add_argument("--budgets", default="2,5,12,30,60,120")
     ap.add_argument("--cycles", action="store_true", help="also Cycles path tracing at the same budgets")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--noise-targets", default="0.2,0.1",
+                    help="per scene, bakes of the default method with these --noise targets (0: none)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
     args = ap.parse_args(argv)
     budgets = [float(b) for b in args.budgets.split(",")]
@@ -168,17 +170,38 @@ def main(argv=None):
                 rows.append(cycles(scene, b, args.seed))
                 print(f"{scene} {rows[-1]['method']} {b:g} s: {rows[-1]['wall']:.1f} s, "
                       f"RMSE {rows[-1]['rmse']:.3f}", flush=True)
-    write(rows, args, budgets)
+    noise = []
+    for scene in args.scenes.split(","):
+        for target in [float(x) for x in args.noise_targets.split(",") if float(x) > 0]:
+            noise.append(noise_run(scene, target, args.seed))
+            n = noise[-1]
+            print(f"{scene} --noise {target:g}: {n['wall']:.1f} s, error {n['est']:.3f}, met at {n['met']:.1f} s, "
+                  f"{n['batches']} batches, stopped by {n['stopped_by']}", flush=True)
+    write(rows, args, budgets, noise)
+
+
+def noise_run(scene, target, seed, cap=120.0):
+    """A bake with a noise target (and a time cap): how long it ran past the batch that met it."""
+    sc = conf.scene_arrays(scene)
+    t = time.perf_counter()
+    r = bake(sc, BakeSettings(spp=BATCHES, batches=BATCHES, seed=seed, noise_target=target, time_budget=cap))
+    wall = time.perf_counter() - t
+    st = r.stats
+    return {"scene": scene, "target": target, "wall": wall, "est": st["relative_error"] or 0.0,
+            "met": st["convergence"]["last_batch_end_s"], "batches": st["batches_done"],
+            "stopped_by": st["stopped_by"],
+            "rmse": conf.relative_rmse(r.image.mean(axis=2), conf.load_reference(scene))}
 
 
 NOT_APPLICABLE = {("water_flat_sun0", "reference")}  # a sun of angle 0 through water: no light path
 
 
-def write(rows, args, budgets):
+def write(rows, args, budgets, noise=()):
     out = args.out
     out.mkdir(parents=True, exist_ok=True)
     cmd = "python bench/accuracy_time.py " + " ".join(
-        f"--{k} {v}" for k, v in (("scenes", args.scenes), ("methods", args.methods), ("budgets", args.budgets)))
+        f"--{k} {v}" for k, v in (("scenes", args.scenes), ("methods", args.methods), ("budgets", args.budgets),
+                                   ("noise-targets", args.noise_targets)))
     if args.cycles:
         cmd += " --cycles"
     lines = ["# Accuracy against time", "", f"Made by `{cmd}` (2 cores). Relative RMSE per pixel against "
@@ -196,11 +219,26 @@ def write(rows, args, budgets):
                      f"{_fmt(r['rays'], ',')} | {_fmt(r['SR'], '.3f')} | {_fmt(r['mps'], '.0f')} | {_rmse(r)} | "
                      f"{r['floor']:.3f} | "
                      f"{_fmt(r['est'], '.3f')} | {_fmt(r['halve'], '.1f')} |")
+    kept = [r["wall"] / r["budget"] for r in rows if r["method"] in METHODS and r["spp"] and r["spp"] > 2]
+    if kept:
+        lines += ["", f"The time rule (`--time`): wall / budget {min(kept):.2f} to {max(kept):.2f} over the "
+                  f"{len(kept)} bakes that ran more than the two batches every bake makes (a shorter budget "
+                  "than two batches cannot be kept, and is not counted)."]
+    if noise:
+        lines += ["", "The noise rule (`--noise`, default method, a 120 s cap): how far it ran past the end of "
+                  "the batch whose error met the target (the check, the statistics and the image's "
+                  "finishing), and the true error it reached.", "",
+                  "| scene | target | wall s | met at s | past it | batches | est. error | true RMSE | stopped by |",
+                  "|---|---|---|---|---|---|---|---|---|"]
+        for n in noise:
+            lines.append(f"| {n['scene']} | {n['target']:g} | {n['wall']:.1f} | {n['met']:.1f} | "
+                         f"{n['wall'] / max(n['met'], 1e-9) - 1:+.1%} | {n['batches']} | {n['est']:.3f} | "
+                         f"{n['rmse']:.3f} | {n['stopped_by']} |")
     lines += ["", "Equal time, best first (the largest budget):", ""]
     top = max(budgets)
     for scene in dict.fromkeys(r["scene"] for r in rows):
         sel = sorted((r for r in rows if r["scene"] == scene and r["budget"] == top), key=lambda r: r["rmse"])
-        lines.append(f"- {scene}: " + ", ".join(f"{r['method']} {r['rmse']:.3f}" for r in sel))
+        lines.append(f"- {scene}: " + ", ".join(f"{r['method']} {_rmse(r)}" for r in sel))
         plot(rows, scene, out)
         crops(rows, scene, top, out)
         lines.append(f"  ![{scene}](accuracy_time_{scene}.png) ![crops](crops_{scene}.png)")

@@ -528,7 +528,8 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         # an error bar and a price (convergence.py): noise only, a biased estimator's bias is not in it
         "relative_error": _finite_or_none(convergence.relative_error(batch_lum, region)),
         "seconds_to_halve_error": conv["seconds_to_halve_error"],
-        "convergence": {**conv, "setup_s": t_first, "batches_kept": int(len(batch_lum)),
+        "convergence": {**conv, "setup_s": t_first, "last_batch_end_s": film.batch_end[-1] if film.batch_end else 0.0,
+                        "batches_kept": int(len(batch_lum)),
                         "batches_per_kept": film.group_size},
         "stopped_by": stop.reason,
     }
