@@ -1,0 +1,118 @@
+"""How fast the bake casts rays against what embree can: the measurement behind issue 11.
+
+    .venv/bin/python bench/throughput.py [--size 512] [--spp 1] [--scenes sphere,ring,hammered]
+        [--methods sms,smbs,reference] [--out bench/results]
+
+Per scene and method, in one run on the same geometry:
+- embree's own rate: incoherent rays (origins uniform in the scene's box, directions uniform on
+  the sphere), as many as the bake cast (at most 8 M), closest-hit queries split over all cores
+  on threads (one embreex ``run`` call uses one core and releases the GIL);
+- the bake's effective rate: the rays it cast / its wall time, and its Newton steps (small and
+  large mutations) per second;
+- ``ratio``: effective / raw; ``cpu/wall``: the process's CPU time over the bake's wall time
+  (2.0 means both cores busy the whole time); peak memory (the process's maximum resident set).
+
+Scenes (tests/scenes.py): the glass sphere under an area light, the gold ring lit from the side,
+the hammered mirror; at --size x --size pixels (``name:size`` for one scene: the hammered mirror's
+unbiased walks need thousands of Bernoulli trials per lane, 285 s for SMS at 128 x 128).
+Writes throughput.md.
+"""
+from __future__ import annotations
+
+import argparse
+import resource
+import sys
+import time
+from concurrent.futures import ThreadPoolExecutor
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT / "tests"))
+sys.path.insert(0, str(ROOT))
+
+import scenes  # noqa: E402
+from smbs_addon import BakeSettings, bake  # noqa: E402
+from smbs_addon.tracer import default_threads  # noqa: E402
+
+SCENES = {
+    "sphere": lambda res: scenes.glass_sphere_scene(resolution=res),
+    "ring": lambda res: scenes.ring_scene(resolution=res),
+    "hammered": lambda res: scenes.hammered_mirror_scene(resolution=res),
+}
+
+
+def raw_rate(scene, n: int, seed: int = 0) -> float:
+    """Rays per second of plain embreex on this scene's triangles, threaded over all cores."""
+    import embreex.mesh_construction as emc
+    import embreex.rtcore_scene as ers
+
+    es = ers.EmbreeScene()
+    emc.TriangleMesh(es, np.ascontiguousarray(scene.tri_vertices, dtype=np.float32))
+    lo, hi = scene.bounds()
+    rng = np.random.default_rng(seed)
+    o = (lo + (hi - lo) * rng.random((n, 3))).astype(np.float32)
+    d = rng.standard_normal((n, 3))
+    d = (d / np.linalg.norm(d, axis=1, keepdims=True)).astype(np.float32)
+    threads = default_threads()
+    bounds = np.linspace(0, n, threads * 4 + 1).astype(int)
+    slices = [slice(bounds[i], bounds[i + 1]) for i in range(len(bounds) - 1)]
+    es.run(o[:1000], d[:1000], output=1)  # warm-up
+    t = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=threads) as ex:
+        list(ex.map(lambda sl: es.run(o[sl], d[sl], output=1), slices))
+    return n / (time.perf_counter() - t)
+
+
+def measure(name: str, method: str, size: int, spp: int) -> dict:
+    sc = SCENES[name]((size, size))
+    cpu0 = time.process_time()
+    t = time.perf_counter()
+    r = bake(sc, BakeSettings(method=method, spp=spp, batches=min(spp, 2) if spp > 1 else 1, seed=1))
+    wall = time.perf_counter() - t
+    cpu = time.process_time() - cpu0
+    st = r.stats
+    rays = int(st["rays"])
+    raw = raw_rate(sc, int(min(max(rays, 100_000), 8_000_000)))
+    # Newton steps of the primary walks and of the unbiased estimator's Bernoulli re-walks
+    steps = int(st.get("mutations", 0)) + sum(int(L.get("bernoulli_mutations", 0)) for L in st["lights"].values())
+    return {"scene": name, "method": method, "size": size, "spp": spp, "wall": wall, "rays": rays,
+            "effective": rays / wall, "raw": raw, "ratio": rays / wall / raw, "steps_per_s": steps / wall,
+            "cpu_wall": cpu / wall, "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--size", type=int, default=512)
+    ap.add_argument("--spp", type=int, default=1)
+    ap.add_argument("--scenes", default=",".join(SCENES))
+    ap.add_argument("--methods", default="sms,smbs,reference")
+    ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
+    args = ap.parse_args(argv)
+    rows = []
+    for spec in args.scenes.split(","):
+        name, _, size = spec.partition(":")  # name:size overrides --size for that scene
+        for method in args.methods.split(","):
+            rows.append(measure(name, method, int(size or args.size), args.spp))
+            r = rows[-1]
+            print(f"{name} {method}: {r['wall']:.1f} s, {r['rays']:,} rays, effective {r['effective'] / 1e6:.2f} M/s, "
+                  f"raw {r['raw'] / 1e6:.2f} M/s, ratio: {r['ratio']:.3f}, steps {r['steps_per_s'] / 1e3:.0f} k/s, "
+                  f"cpu/wall: {r['cpu_wall']:.2f}, peak {r['peak_gib']:.2f} GiB", flush=True)
+    lines = ["# Throughput: the bake's ray rate against embree's", "",
+             f"Made by `python bench/throughput.py --size {args.size} --spp {args.spp} --scenes {args.scenes} "
+             f"--methods {args.methods}` (2 cores). Raw: plain embreex, incoherent closest-hit rays threaded over "
+             "all cores, as many as the bake cast. Peak memory is the process's maximum so far (it only grows "
+             "down the table).", "",
+             "| scene | method | wall s | rays | effective M rays/s | raw M rays/s | ratio | Newton steps k/s "
+             "| cpu/wall | peak GiB |", "|---|---|---|---|---|---|---|---|---|---|"]
+    for r in rows:
+        lines.append(f"| {r['scene']} {r['size']}^2 | {r['method']} | {r['wall']:.1f} | {r['rays']:,} | {r['effective'] / 1e6:.2f} | "
+                     f"{r['raw'] / 1e6:.2f} | {r['ratio']:.3f} | {r['steps_per_s'] / 1e3:.0f} | {r['cpu_wall']:.2f} | "
+                     f"{r['peak_gib']:.2f} |")
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "throughput.md").write_text("\n".join(lines) + "\n")
+
+
+if __name__ == "__main__":
+    main()
