@@ -158,7 +158,7 @@ def main(argv=None):
     rows = []
     for scene in args.scenes.split(","):
         for method in args.methods.split(","):
-            if (scene, method) in NOT_APPLICABLE:
+            if (scene, method) in conf.NOT_APPLICABLE:
                 continue
             for b in budgets:
                 rows.append(ours(scene, method, b, args.seed))
@@ -191,9 +191,6 @@ def noise_run(scene, target, seed, cap=120.0):
             "met": st["convergence"]["last_batch_end_s"], "batches": st["batches_done"],
             "stopped_by": st["stopped_by"],
             "rmse": conf.relative_rmse(r.image.mean(axis=2), conf.load_reference(scene))}
-
-
-NOT_APPLICABLE = {("water_flat_sun0", "reference")}  # a sun of angle 0 through water: no light path
 
 
 def write(rows, args, budgets, noise=()):

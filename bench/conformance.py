@@ -40,12 +40,7 @@ SPP_BY_SCENE = {
     "through_glass_disk": {"reference": 512, "sms": 16, "smbs": 16},
 }
 
-# (scene, method) pairs that cannot work, and why: shown in the table instead of a number.
-NOT_APPLICABLE = {
-    ("water_flat_sun0", "reference"):
-        "a sun of angle 0 seen through water: no light path reaches it (Cycles' own path tracing "
-        "cannot either; its reference is MNEE)",
-}
+NOT_APPLICABLE = conf.NOT_APPLICABLE
 
 
 def spp_for(scene: str, method: str) -> int:

@@ -167,7 +167,7 @@ def summary_lines(stats: dict) -> list[str]:
 
 
 def error_lines(stats: dict) -> list[str]:
-    """The bake's error bar and its price, in words (CLI and panel)."""
+    """The bake's error bar and its price, in words (the CLI's summary)."""
     err, halve = stats.get("relative_error"), stats.get("seconds_to_halve_error")
     conv = stats.get("convergence", {})
     if not stats["noise"]["region_pixels"]:

@@ -385,6 +385,22 @@ class _Stop:
         return False
 
 
+def _bake_batches(settings: BakeSettings, film: Film, t0: float, prog: _Progress, run_batch):
+    """run_batch(b) adds batch b to the film's current batch; batches go on until the stop
+    rule says enough. Returns (batches done, the stop rule, seconds before the first)."""
+    stop = _Stop(settings, film, t0)
+    prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
+    t_first = time.perf_counter() - t0
+    b = 0
+    while True:
+        t_b = time.perf_counter()
+        run_batch(b)
+        film.end_batch(time.perf_counter() - t0)
+        b += 1
+        if stop(b, time.perf_counter() - t_b):
+            return b, stop, t_first
+
+
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None) -> BakeResult:
     """Bake the caustic layer of a Scene.
 
@@ -416,18 +432,12 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         eye_chunks = math.ceil(_eye_per_batch(cam, film, settings) / CHUNK) if eye_stats["enabled"] else 0
         prog = _Progress(settings.batches * (len(plan.lights) * math.ceil(per_batch / CHUNK) + eye_chunks),
                          progress, cancel)
-        stop = _Stop(settings, film, t0)
-        prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
-        t_first = time.perf_counter() - t0
-        b = 0
-        while True:
-            t_b = time.perf_counter()
+
+        def run_batch(b):
             _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
-            film.end_batch(time.perf_counter() - t0)
-            b += 1
-            if stop(b, time.perf_counter() - t_b):
-                break
+
+        b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)
         extra["batches_done"] = b
         rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
                 + _rays(eye_stats))
@@ -460,21 +470,15 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             gstats["left_to_photons"] = sorted(f"{scene.light_names[li]}: {t}" for li, t in guide.weak)
             extra["guide"] = gstats
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
-        stop = _Stop(settings, film, t0)
-        prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
-        t_first = time.perf_counter() - t0
-        b = 0
-        while True:
-            t_b = time.perf_counter()
+
+        def run_batch(b):
             _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
                             eye_stats, prog, guide)
             _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
                            guide)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
-            film.end_batch(time.perf_counter() - t0)
-            b += 1
-            if stop(b, time.perf_counter() - t_b):
-                break
+
+        b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)
         extra["batches_done"] = b
         for st in light_stats.values():
             _summarise_walks(st)

@@ -43,6 +43,11 @@ def _prefix_variances(groups: np.ndarray) -> np.ndarray:
     return (var / k).mean(axis=1)[1:]
 
 
+def _var_of_mean(groups: np.ndarray) -> np.ndarray:
+    """(B, ...) batch values -> each element's variance of their mean (B >= 2)."""
+    return groups.astype(np.float64).var(axis=0, ddof=1) / len(groups)
+
+
 def relative_error(groups: np.ndarray, region: np.ndarray) -> float:
     """Relative RMS noise of the mean image over region; groups (B,H,W) batch luminances
     (inf with fewer than two batches: no spread, no estimate; 0 without a caustic)."""
@@ -54,16 +59,14 @@ def relative_error(groups: np.ndarray, region: np.ndarray) -> float:
     mean = float(px.mean())
     if mean <= 0:
         return 0.0
-    return math.sqrt(float(_prefix_variances(px)[-1])) / mean
+    return math.sqrt(float(_var_of_mean(px).mean())) / mean
 
 
 def pixel_std(groups: np.ndarray) -> np.ndarray:
     """(H,W) float32 standard deviation of each pixel's mean luminance (zero with < 2 batches)."""
-    b = len(groups)
-    if b < 2:
+    if len(groups) < 2:
         return np.zeros(groups.shape[1:], np.float32)
-    var = groups.astype(np.float64).var(axis=0, ddof=1) / b
-    return np.sqrt(var).astype(np.float32)
+    return np.sqrt(_var_of_mean(groups)).astype(np.float32)
 
 
 def convergence(groups: np.ndarray, ends: np.ndarray, start: float, region: np.ndarray, batches: int) -> dict:

@@ -42,6 +42,13 @@ sys.path.insert(0, str(ROOT))
 
 CACHE = ROOT / ".cache" / "conformance"
 
+# (scene, method) pairs that cannot work, and why: the benches show the reason instead of a number
+NOT_APPLICABLE = {
+    ("water_flat_sun0", "reference"):
+        "a sun of angle 0 seen through water: no light path reaches it (Cycles' own path tracing "
+        "cannot either; its reference is MNEE)",
+}
+
 
 def scene_arrays(name: str):
     """The exported scene (smbs_addon.Scene) of conformance scene NAME: built with the bpy
@@ -89,25 +96,28 @@ def region_of(lum: np.ndarray, frac: float = 0.05) -> np.ndarray:
     return s > frac * top if top > 0 else np.zeros(lum.shape, bool)
 
 
-def noise_floor(ref: dict, region: np.ndarray | None = None) -> float:
-    """The reference's own relative RMS noise per pixel (its mean of halves) over region:
-    relative_rmse cannot resolve errors much below it."""
+def _truth(ref: dict, region: np.ndarray | None):
+    """The reference's luminance (the mean of its halves), the region (default: its caustic
+    region) and the mean over it of its per-pixel variance, (A - B)^2 / 4 in expectation."""
     A, B = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
     truth = 0.5 * (A + B)
     if region is None:
         region = region_of(truth)
-    return math.sqrt(float(((A - B) ** 2 / 4.0)[region].mean())) / float(truth[region].mean())
+    return truth, region, float(((A - B) ** 2 / 4.0)[region].mean())
+
+
+def noise_floor(ref: dict, region: np.ndarray | None = None) -> float:
+    """The reference's own relative RMS noise per pixel (its mean of halves) over region:
+    relative_rmse cannot resolve errors much below it."""
+    truth, region, ref_var = _truth(ref, region)
+    return math.sqrt(ref_var) / float(truth[region].mean())
 
 
 def relative_rmse(lum: np.ndarray, ref: dict, region: np.ndarray | None = None) -> float:
     """Our image's (H,W luminance) relative RMS error per pixel against the reference over
     region (default: the reference's caustic region), with the reference's own per-pixel
-    noise taken out: the mean of its halves has variance (A - B)^2 / 4, in expectation."""
-    A, B = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
-    truth = 0.5 * (A + B)
-    if region is None:
-        region = region_of(truth)
-    ref_var = ((A - B) ** 2 / 4.0)[region].mean()
+    noise taken out."""
+    truth, region, ref_var = _truth(ref, region)
     mse = float(((lum - truth)[region] ** 2).mean() - ref_var)
     return math.sqrt(max(mse, 0.0)) / float(truth[region].mean())
 
