@@ -14,8 +14,9 @@ its own time limit (path tracing, caustics on; its caustic component is that min
 reference's converged "off" render), measured the same way.
 
 Methods: reference (our light tracer), mnee, sms and smbs (unbiased), sms-b1, sms-b4, smbs-b1,
-smbs-b4 (biased, M walks per receiver) and default (what a bake does unless told: smbs,
-unbiased). Writes accuracy_time.md, accuracy_time.csv, accuracy_time_<scene>.png (log-log
+smbs-b4 (biased, M walks per receiver), auto (per light and effect the cheapest of the
+light tracer, SMS and SMBS, by a pilot) and default (what a bake does unless told: auto since
+issue 12; smbs before). Writes accuracy_time.md, accuracy_time.csv, accuracy_time_<scene>.png (log-log
 RMSE against time) and crops_<scene>.png (every method at one budget, side by side).
 """
 from __future__ import annotations
@@ -47,6 +48,7 @@ METHODS = {
     "sms-b4": dict(method="sms", estimator="biased", trials=4),
     "smbs-b1": dict(method="smbs", estimator="biased", trials=1),
     "smbs-b4": dict(method="smbs", estimator="biased", trials=4),
+    "auto": dict(method="auto"),
     "default": dict(),
 }
 BIASED = {"mnee", "sms-b1", "sms-b4", "smbs-b1", "smbs-b4"}

@@ -222,6 +222,9 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     for message in warnings:
         report({'WARNING'}, message)
     seconds = time.perf_counter() - prep.started
+    nothing = result.stats.get("nothing_to_bake")
+    if nothing:  # not a failure: the layer is all zero, and the panel's plan says the same
+        report({'WARNING'}, f"Nothing to bake: {nothing}; the caustic layer is all zero")
     report({'INFO'}, f"Caustics baked in {seconds:.1f} s: {path if stored_path else 'packed'}")
     return True
 
@@ -461,7 +464,39 @@ class SMBS_OT_remove_caustic_layer(bpy.types.Operator):
         return {'FINISHED'}
 
 
-classes = (SMBS_OT_bake_caustics, SMBS_OT_cancel_bake, SMBS_OT_remove_caustic_layer)
+class SMBS_OT_show_plan(bpy.types.Operator):
+    """Show what a bake would trace, before baking: per light the casters whose caustic the
+    camera can see, by which chains, onto which receivers; what is skipped and why"""
+
+    bl_idname = "smbs.show_plan"
+    bl_label = "Show Plan"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context):
+        return _idle(context)
+
+    def execute(self, context):
+        from ..smbs_addon.bake import plan_words
+
+        scene = context.scene
+        props = scene.smbs_caustics
+        core = _core()
+        try:
+            settings, _ = bake_settings_from(props, core.BakeSettings)
+            settings.validate()
+            data = core.export_scene(scene, context.evaluated_depsgraph_get(), warn=lambda m: None)
+            lines = plan_words(data, settings)
+        except core.SceneError as e:
+            self.report({'ERROR'}, str(e))
+            return {'CANCELLED'}
+        props.plan_text = "\n".join(lines)
+        for line in lines:
+            self.report({'INFO'}, line)
+        return {'FINISHED'}
+
+
+classes = (SMBS_OT_bake_caustics, SMBS_OT_cancel_bake, SMBS_OT_remove_caustic_layer, SMBS_OT_show_plan)
 
 
 def cancel_all(timeout=2.0):

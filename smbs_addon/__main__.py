@@ -1,7 +1,8 @@
 """Command line: ``python -m smbs_addon bake IN [options]``.
 
 IN is a .blend file (opened with the bpy module) or an exported .npz scene.
-Exit codes a render farm can trust: 0 done, 1 the scene cannot be baked,
+Exit codes a render farm can trust: 0 done (also for a scene with no caustic to
+bake: its layer is all zero and the output says why), 1 the scene cannot be baked,
 2 bad arguments, 3 unreadable input or unwritable output, 130 cancelled.
 """
 from __future__ import annotations
@@ -66,8 +67,9 @@ def build_parser() -> argparse.ArgumentParser:
     sub = p.add_subparsers(dest="command", required=True)
     b = sub.add_parser("bake", help="bake the caustic layer to an EXR")
     b.add_argument("input", help=".blend file or exported .npz scene")
-    b.add_argument("--method", choices=METHODS, default="smbs",
-                   help="smbs (default), sms, mnee, or the brute-force light-tracing reference")
+    b.add_argument("--method", choices=METHODS, default="auto",
+                   help="auto (default: per light and effect the cheapest of reference, sms and smbs, by a "
+                        "short pilot), smbs, sms, mnee, or the brute-force light-tracing reference")
     b.add_argument("--estimator", choices=("unbiased", "biased"), default="unbiased")
     b.add_argument("--trials", type=_positive_int, default=4, help="biased estimator: walks per lane")
     b.add_argument("--spp", type=_positive_int, default=None,
@@ -80,6 +82,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="bake until the estimated relative error of the layer (relative_error) is at or "
                         "below TARGET, e.g. 0.05 or 5%%; with --time too, whichever comes first")
     b.add_argument("--seed", type=_seed, default=0)
+    b.add_argument("--pilots", type=_seed, default=4096,
+                   help="plan: pilot photons per light and caster that find where its caustic lands "
+                        "(0: plan by bounds only, bake every caster a light reaches)")
     b.add_argument("--batches", type=_positive_int, default=8, help="independent batches for the noise estimate")
     b.add_argument("--threads", type=_positive_int, default=None, help="worker threads (default: all cores)")
     b.add_argument("--flags", choices=("AUTO", "ON", "OFF"), default="AUTO",
@@ -140,6 +145,12 @@ def _cap_note(trials: dict) -> str:
 def summary_lines(stats: dict) -> list[str]:
     lines = [f"scene '{stats['scene']}': {stats['method']}, {stats['resolution'][0]}x{stats['resolution'][1]}, "
              f"{stats['time_s']:.2f} s, {stats['rays']:,} rays"]
+    if stats.get("nothing_to_bake"):
+        return lines + [f"  nothing to bake: {stats['nothing_to_bake']}; the caustic layer is all zero"]
+    plan = stats.get("plan", {})
+    if plan.get("rays"):
+        lines.append(f"  plan: {plan['rays']:,} rays ({plan.get('pilot_photons', 0):,} pilot photons), "
+                     f"{plan['time_s']:.2f} s")
     if "walks" in stats:
         lines.append(f"  manifold walks: {stats['walks']:,}, success rate {stats['success_rate']:.1%}, "
                      f"{stats['mutations_per_path']:.2f} mutations per path "
@@ -157,7 +168,7 @@ def summary_lines(stats: dict) -> list[str]:
         else:
             lines.append(f"  light '{name}': {s['photons']:,} light paths, {s['splats']:,} reached the camera, "
                          f"{s['rays_photon'] + s['rays_camera']:,} rays, {s['time_s']:.2f} s")
-    for sk in stats["skipped"]:
+    for sk in stats["skipped"]:  # also in the plan's words, printed before the bake
         lines.append(f"  skipped {sk['kind']} '{sk['name']}': {sk['reason']}")
     nz = stats["noise"]
     lines.append(f"  noise: mean {nz['mean']:.4g} over {nz['region_pixels']} caustic pixels, "
@@ -236,7 +247,7 @@ def main(argv=None) -> int:
                                 threads=args.threads or 0, use_cycles_flags=args.flags,
                                 estimator=args.estimator, trials=args.trials,
                                 indirect=args.indirect, time_budget=args.time or 0.0,
-                                noise_target=args.noise or 0.0)
+                                noise_target=args.noise or 0.0, pilots=args.pilots)
         settings.validate()
         out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
         stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
@@ -256,7 +267,16 @@ def main(argv=None) -> int:
                 print(f"{frac:6.1%} {msg}", file=sys.stderr, flush=True)
                 last[0] = msg
 
-        result = bake(scene, settings, progress=progress)
+        headed = []
+
+        def on_plan(lines):  # before any caustic is traced (auto adds its choices after its pilots)
+            if not headed:
+                say("plan:")
+                headed.append(True)
+            for line in lines:
+                say(f"  {line}")
+
+        result = bake(scene, settings, progress=progress, on_plan=on_plan)
         if not args.quiet and tty:
             print(file=sys.stderr)
         try:

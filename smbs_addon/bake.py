@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 import time
+import dataclasses
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -19,10 +20,10 @@ from .camera import CameraModel
 from .errors import BakeCancelled, SceneError
 from .film import Film
 from .lights import emit
-from .plan import make_plan
+from .plan import light_key, make_plan, refine_plan
 from .tracer import Tracer
 
-METHODS = ("reference", "mnee", "sms", "smbs")
+METHODS = ("auto", "reference", "mnee", "sms", "smbs")
 ESTIMATORS = ("unbiased", "biased")
 CHUNK = 65536  # lanes per chunk (keeps temporaries in cache, see performance-anchors.md)
 WALK_CHUNK = 8192  # eye samples per manifold chunk (each fans out to lights x chain types x trials)
@@ -33,7 +34,8 @@ MAX_BATCHES = 1 << 20  # a stop rule that is never met (a noise target under a h
 
 @dataclass
 class BakeSettings:
-    method: str = "smbs"  # reference (light tracing), mnee, sms, smbs
+    method: str = "auto"  # auto (per light and effect, the cheapest of the next three, by a pilot: auto.py),
+    # reference (light tracing), mnee, sms, smbs
     spp: int = 16  # reference: light paths per pixel and light; manifold: eye samples per pixel
     seed: int = 0
     batches: int = 8  # independent batches for the noise estimate
@@ -61,6 +63,8 @@ class BakeSettings:
     # What it cuts is in the statistics per light: 'clamped' solutions, 'clamped_energy' (image units)
     indirect: bool = True  # caustic light that meets more than one diffuse surface (floor -> glass ->
     # floor; a pool's floor -> water's underside -> floor), as Cycles counts it (indirect.py)
+    pilots: int = 4096  # plan: pilot photons per light and caster that find where its caustic lands;
+    # a caster whose pilots land on nothing the camera sees is not baked for that light. 0: bounds only
     handoff: float = 4.0  # manifold methods: paths that focus light more than this many times (folds,
     # foci) are left to a light-tracing pass of spp photons per pixel and light, which is efficient
     # exactly there; the two partition path space, so the sum stays unbiased. 0: walks only
@@ -87,6 +91,9 @@ class BakeSettings:
             raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
         if not (self.solver_threshold > 0 and self.uniqueness > 0):
             raise SceneError("solver_threshold and uniqueness must be positive")
+        if not (isinstance(self.pilots, (int, np.integer)) and not isinstance(self.pilots, bool)
+                and self.pilots >= 0):
+            raise SceneError(f"pilots must be 0 (bounds only) or a positive whole number, not {self.pilots!r}")
         if not (self.handoff >= 0 and math.isfinite(self.handoff)):
             raise SceneError(f"handoff must be 0 (off) or a positive concentration, not {self.handoff}")
         if not (self.clamp_g >= 0):
@@ -95,9 +102,13 @@ class BakeSettings:
             if not c or set(c) - {"R", "T"}:
                 raise SceneError(f"chain type '{c}' must be a string of R (reflect) and T (refract)")
 
-    def manifold_options(self):
+    def manifold_options(self, method: str | None = None):
+        """The walks' options; method overrides settings.method (auto: per light)."""
         from .manifold import ManifoldOptions
         from .walk import WalkConfig
+
+        method = method or ("smbs" if self.method == "auto" else self.method)
+        self = dataclasses.replace(self, method=method)
 
         walk = WalkConfig(form="hv" if self.method == "mnee" else "ad", max_iterations=self.max_iterations,
                           threshold=self.solver_threshold, smbs=self.method == "smbs",
@@ -161,8 +172,7 @@ def _finite_or_none(x: float):
     return float(x) if math.isfinite(x) else None  # JSON has no infinity
 
 
-def _rng(seed, *key):
-    return np.random.default_rng(np.random.SeedSequence([int(seed), *[int(k) for k in key]]))
+from .plan import _rng  # noqa: E402  (one way to key a random stream)
 
 
 def _eye_per_batch(cam, film, settings) -> int:
@@ -174,12 +184,10 @@ def _eye_per_batch(cam, film, settings) -> int:
 
 def _specular_visible(scene, tracer, cam) -> bool:
     """Does any pixel see a mirror or glass surface first? (one ray per pixel)"""
-    x0, x1, y0, y1 = cam.region
-    jj, ii = np.mgrid[y0:y1, x0:x1]
+    jj, _, o, d = cam.pixel_rays()
     if jj.size == 0:
         return False
-    o, d, tnear = cam.rays(ii.ravel() + 0.5, jj.ravel() + 0.5)
-    h = tracer.intersect(o + tnear[:, None] * d, d)
+    h = tracer.intersect(o, d)
     kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
     from . import scene as S
     return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)))
@@ -208,7 +216,7 @@ def _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, st,
     for c, start in enumerate(range(0, per_batch, CHUNK)):
         prog.check()
         n = min(CHUNK, per_batch - start)
-        rng = _rng(settings.seed, stream, lp.index, b, c)
+        rng = _rng(settings.seed, stream, lp.key, b, c)
         ph = emit(scene, lp.index, lp.targets, n, rng)
         ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
         reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st,
@@ -236,7 +244,7 @@ def _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indi
         for c, start in enumerate(range(0, per_batch, CHUNK)):
             prog.check()
             n = min(CHUNK, per_batch - start)
-            rng = _rng(settings.seed, 5, li, b, c)
+            rng = _rng(settings.seed, 5, light_key(scene.light_names[li]), b, c)
             ph = emit(scene, li, plan.scene_sphere, n, rng)
             ph.w *= n / per_batch
             trace_photons(scene, tracer, cam, film, plan, ph, rng, st, physical=settings.radiance == "physical")
@@ -262,7 +270,7 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
 
 
 def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
-                    eye_stats, prog, guide=None):
+                    eye_stats, prog, guide=None, opts_by_light=None):
     from .manifold import manifold_chunk
 
     for c, start in enumerate(range(0, per_batch, WALK_CHUNK)):
@@ -270,7 +278,7 @@ def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, pe
         n = min(WALK_CHUNK, per_batch - start)
         manifold_chunk(scene, tracer, cam, film, plan, opts, types, start, n, per_batch,
                        _rng(settings.seed, 2, 0, b, c), light_stats, eye_stats, guide,
-                       lights_direct=_indirect_lights(plan, settings))
+                       lights_direct=_indirect_lights(plan, settings), opts_by_light=opts_by_light)
         prog.step(f"{settings.method}, batch {b + 1}/{settings.batches}")
 
 
@@ -299,7 +307,10 @@ def _rays(st: dict) -> int:
 
 
 def _summarise_walks(st: dict) -> None:
-    walks = st.get("walks", 0)
+    for key in ("walks", "successes", "mutations"):  # a light auto leaves to photons walks nowhere
+        st.setdefault(key, 0)
+    st.setdefault("large_mutations", {})
+    walks = st["walks"]
     st["success_rate"] = st.get("successes", 0) / walks if walks else 0.0
     st["mutations_per_path"] = st.get("mutations", 0) / walks if walks else 0.0
     succ = st.get("successes", 0)
@@ -401,11 +412,52 @@ def _bake_batches(settings: BakeSettings, film: Film, t0: float, prog: _Progress
             return b, stop, t_first
 
 
-def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None) -> BakeResult:
+def plan_words(scene, settings: BakeSettings | None = None) -> list:
+    """The plan of a bake in words, without baking (the panel's Show Plan)."""
+    settings = settings or BakeSettings()
+    settings.validate()
+    scene.validate()
+    plan = make_plan(scene, settings.use_cycles_flags)
+    if not plan.nothing:
+        tracer = Tracer(scene, threads=settings.threads or None)
+        refine_plan(plan, scene, tracer, CameraModel(scene.camera), settings.seed, settings.pilots,
+                    indirect=settings.indirect)
+    return plan.words()
+
+
+def _plan_stats(plan) -> dict:
+    return {"words": plan.words(), "notes": list(plan.notes), "seen": dict(plan.seen), **plan.cost,
+            "nothing_to_bake": plan.nothing or None}
+
+
+def _nothing_to_bake(scene, settings, plan, cam, t0, on_plan) -> BakeResult:
+    """A scene with no caustic to bake: an all-zero layer and the plan saying why."""
+    if on_plan is not None:
+        on_plan(plan.words())
+    x0, x1, y0, y1 = cam.region
+    H, W = cam.H, cam.W
+    if scene.camera.use_border and scene.camera.use_crop_to_border:
+        H, W = max(0, y1 - y0), max(0, x1 - x0)
+    zero = np.zeros((H, W, 3), np.float32)
+    stats = {
+        "method": settings.method, "settings": asdict(settings), "scene": scene.name, "resolution": [W, H],
+        "time_s": time.perf_counter() - t0, "rays": int(plan.cost.get("rays", 0)), "lights": {},
+        "batches_done": 0, "plan": _plan_stats(plan),
+        "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
+        "noise": noise_summary(zero, zero), "relative_error": 0.0, "seconds_to_halve_error": 0.0,
+        "stopped_by": "nothing_to_bake", "nothing_to_bake": plan.nothing,
+    }
+    return BakeResult(image=zero, variance=zero.copy(), stats=stats,
+                      batch_luminance=np.zeros((1, H, W), np.float32), std=np.zeros((H, W), np.float32))
+
+
+def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None, on_plan=None) -> BakeResult:
     """Bake the caustic layer of a Scene.
 
     progress(fraction, message) is called between chunks; cancel() returning
-    True stops the bake with BakeCancelled (nothing is returned or written)."""
+    True stops the bake with BakeCancelled (nothing is returned or written);
+    on_plan(lines) gets the plan in words before any caustic is traced. A scene
+    with nothing to bake gives an all-zero layer, stats["nothing_to_bake"] says why."""
     settings = settings or BakeSettings()
     settings.validate()
     scene.validate()
@@ -413,16 +465,41 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     plan = make_plan(scene, settings.use_cycles_flags)
     cam = CameraModel(scene.camera)
     check_memory(scene, cam.W, cam.H, settings.batches)
+    if plan.nothing:
+        return _nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
     film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
     tracer = Tracer(scene, threads=settings.threads or None)
+    refine_plan(plan, scene, tracer, cam, settings.seed, settings.pilots, indirect=settings.indirect)
+    if on_plan is not None:
+        on_plan(plan.words())
+    if plan.nothing:
+        return _nothing_to_bake(scene, settings, plan, cam, t0, None)
+    tracer.set_extent(*plan.bounds)  # tolerances from what takes part, not from objects out of the plan
+    method, choices, auto_stats = settings.method, {}, None
+    if method == "auto":
+        from . import auto
+
+        t_a = time.perf_counter()
+        choices = auto.choose(scene, settings, plan, cancel)
+        # light tracing alone where it wins everywhere and no caustic is seen through mirrors or glass
+        alone = all(c.photons_direct and not c.through for c in choices.values())
+        method = "reference" if alone else "manifold"
+        auto_stats = {"time_s": time.perf_counter() - t_a, "bake": method,
+                      "lights": {scene.light_names[li]: {"walks": c.walk, "direct": "photons" if c.photons_direct
+                                                         else c.walk, "why": c.why, "pilot": c.measured}
+                                 for li, c in choices.items()}}
+        for lp in plan.lights:
+            plan.notes.append(f"auto, {lp.name}: {choices[lp.index].why}")
+        if on_plan is not None:
+            on_plan([f"auto, {lp.name}: {choices[lp.index].why}" for lp in plan.lights])
     x0, x1, y0, y1 = cam.region
     n_pix = max(0, x1 - x0) * max(0, y1 - y0)
     per_light = settings.spp * n_pix
     light_stats = {lp.name: {"time_s": 0.0, "casters": [scene.object_names[o] for o in lp.caster_objects]}
                    for lp in plan.lights}
-    extra = {}
+    extra = {} if auto_stats is None else {"auto": auto_stats}
     indirect_stats = {}  # per light: the photons of indirect.trace_photons
-    if settings.method == "reference":
+    if method == "reference":
         for st in light_stats.values():
             st.update(dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats", "truncated",
                                      "lost_shading_normal"), 0))
@@ -440,12 +517,13 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)
         extra["batches_done"] = b
         rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
-                + _rays(eye_stats))
+                + _rays(eye_stats) + plan.cost.get("rays", 0))
         extra["eye_pass"] = eye_stats
     else:
         from .manifold import chain_types
 
         opts = settings.manifold_options()
+        opts_by_light = {li: settings.manifold_options(c.walk) for li, c in choices.items()}
         types = chain_types(scene, plan, opts)
         eye_stats = {"eye_paths": 0, "rays_eye": 0}
         per_batch = _eye_per_batch(cam, film, settings)
@@ -469,11 +547,18 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             guide = Guide(cam, masks, gstats, weak if opts.handoff > 0 else frozenset())
             gstats["left_to_photons"] = sorted(f"{scene.light_names[li]}: {t}" for li, t in guide.weak)
             extra["guide"] = gstats
+        photon_lights = {(li, t) for li, c in choices.items() if c.photons_direct for t in types}
+        if photon_lights and opts.handoff > 0:  # auto: light tracing serves these lights' direct receivers
+            if guide is None:
+                from .guide import Guide
+
+                guide = Guide(cam, {}, {})
+            guide.weak = frozenset(guide.weak) | photon_lights
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
 
         def run_batch(b):
             _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
-                            eye_stats, prog, guide)
+                            eye_stats, prog, guide, opts_by_light)
             _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
                            guide)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
@@ -487,7 +572,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
                 st["clamped_energy"] = st.get("clamped_energy", 0.0) / b
             st["trials"]["capped_energy_min"] = st.pop("capped_energy_min", 0.0) / b
         rays = (sum(st["rays"] for st in light_stats.values())
-                + _rays(eye_stats) + extra.get("guide", {}).get("rays", 0))
+                + _rays(eye_stats) + extra.get("guide", {}).get("rays", 0) + plan.cost.get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())
         extra.update({
             "chain_types": types, "eye_pass": eye_stats, "walks": walks,
@@ -528,6 +613,8 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         "lights": light_stats,
         **extra,
         "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
+        "plan": _plan_stats(plan),
+        "nothing_to_bake": None,
         "noise": noise_summary(image, variance, batch_lum),
         # an error bar and a price (convergence.py): noise only, a biased estimator's bias is not in it
         "relative_error": _finite_or_none(convergence.relative_error(batch_lum, region)),

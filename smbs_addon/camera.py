@@ -103,6 +103,32 @@ class CameraModel:
         tnear = self.cam.clip_start * stretch / np.abs(local_d[:, 2])
         return o, d, tnear
 
+    def pixel_rays(self, step: int = 1):
+        """Rays through the centres of the render region's pixels (every step-th on each
+        axis): (rows, columns, origins on the near clip plane, unit directions)."""
+        x0, x1, y0, y1 = self.region
+        jj, ii = np.mgrid[y0:y1:step, x0:x1:step]
+        jj, ii = jj.ravel(), ii.ravel()
+        o, d, tnear = self.rays(ii + 0.5, jj + 0.5)
+        return jj, ii, o + tnear[:, None] * d, d
+
+    def towards(self, p: np.ndarray, margin: float = 0.0):
+        """Connections of world points to the camera: raster positions, unit directions to
+        the camera, the distance to leave clear up to the near clip plane, cos to the view
+        axis, distance, and valid (in front, within the clip range, inside the render
+        region widened by margin pixels)."""
+        rx, ry, depth, cos_axis, dist, valid = self.project(p)
+        x0, x1, y0, y1 = self.region
+        valid &= (rx > x0 - margin) & (rx < x1 + margin) & (ry > y0 - margin) & (ry < y1 + margin)
+        if self.ortho:
+            to_cam = np.broadcast_to(self.axes[:, 2], p.shape).copy()
+            tmax = depth - self.cam.clip_start
+        else:
+            v = self.origin - p
+            to_cam = v / np.maximum(np.sqrt((v * v).sum(1)), 1e-300)[:, None]
+            tmax = dist * (1.0 - self.cam.clip_start / np.maximum(depth, 1e-300))
+        return rx, ry, to_cam, tmax, cos_axis, dist, valid
+
     def importance(self, cos_axis: np.ndarray, dist: np.ndarray, cos_surface: np.ndarray):
         """Sensor response per unit of outgoing radiance-weighted flux, before the
         pixel filter: a light-path vertex with throughput beta and BSDF value f

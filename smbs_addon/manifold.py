@@ -50,6 +50,7 @@ class Ctx:
 
     def __init__(self, scene, tracer, plan, stats):
         self.scene, self.tracer, self.casters, self.stats = scene, tracer, plan.casters, stats
+        self.scale = plan.scale  # a length for tolerances, over what takes part
         self.obj_lo, self.obj_hi = tracer.obj_lo, tracer.obj_hi  # built once per bake
         cast = np.flatnonzero(plan.casters & tracer.obj_has_tris)
         self.caster_lo = self.obj_lo[cast].min(axis=0) if cast.size else np.zeros(3)
@@ -359,7 +360,7 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     ng_eye = ng0 * np.sign(dot(rc.w_eye, ng0))[:, None]
     unbiased = opts.estimator == "unbiased" and opts.method != "mnee"
     M = 1 if (unbiased or opts.method == "mnee") else max(1, opts.trials)
-    feasible = seeder.feasible(x0, light, 1e-9 * ctx.scene.scale)
+    feasible = seeder.feasible(x0, light, 1e-9 * ctx.scale)
     ctx.stats["culled_lanes"] = ctx.stats.get("culled_lanes", 0) + int((~feasible).sum())
     rr_weight = np.ones(n)
     if guide is not None and guide.is_weak(li, types):  # the photon hand-off serves direct receivers
@@ -472,11 +473,12 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
 
 
 def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n_batch, rng, stats_per_light,
-                   eye_stats, guide=None, lights_direct=()):
+                   eye_stats, guide=None, lights_direct=(), opts_by_light=None):
     """Eye samples start..start+n of a batch: receivers, then every light x chain type;
     for receivers seen through mirrors or glass, also the caustic light that meets more
     diffuse surfaces (indirect.gather, with these walks at every diffuse vertex);
-    lights_direct: the lights whose direct light counts there (empty: none of it)."""
+    lights_direct: the lights whose direct light counts there (empty: none of it);
+    opts_by_light: {light index: ManifoldOptions} where a light walks otherwise (method auto)."""
     rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats, min_specular=0,
                        scale_eta=opts.physical)
     ctxs = {}
@@ -490,8 +492,9 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         total = np.zeros((len(receivers.p), 3))
         for lp in plan.lights:
             t = time.perf_counter()
+            o = opts if not opts_by_light else opts_by_light.get(lp.index, opts)
             for types in types_list:
-                total += estimate(ctxs[lp.index], opts, lp.index, types, receivers, rng, guide)
+                total += estimate(ctxs[lp.index], o, lp.index, types, receivers, rng, guide)
             stats_per_light[lp.name]["time_s"] += time.perf_counter() - t
         return total
 

@@ -9,6 +9,9 @@ them; ``OFF`` ignores them.
 """
 from __future__ import annotations
 
+import math
+import time
+import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -16,6 +19,7 @@ import numpy as np
 from . import scene as S
 from .errors import SceneError
 from .lights import light_covers
+from .vec import dot
 
 
 @dataclass
@@ -24,19 +28,75 @@ class LightPlan:
     name: str
     targets: np.ndarray  # (K,4) caster bounding spheres this light can reach
     caster_objects: list
+    caster_names: list = field(default_factory=list)
+    key: int = 0  # random streams are keyed by the light's name, not its place in the list
+    effects: list = field(default_factory=list)  # (caster, chain letters, receivers, share of pilots)
 
 
 @dataclass
 class Plan:
-    casters: np.ndarray  # (O,) bool
+    casters: np.ndarray  # (O,) bool: casters some light's caustic reaches the camera through
     receivers: np.ndarray  # (O,) bool
     lights: list
     skipped: list = field(default_factory=list)  # (kind, name, reason)
     notes: list = field(default_factory=list)
     # lights that may light a diffuse surface whose light then meets a caster (caustic light
-    # through more than one diffuse vertex, indirect.py): any planned light with power
+    # through more than one diffuse vertex, indirect.py): planned lights that reach a receiver
     indirect_lights: list = field(default_factory=list)
-    scene_sphere: np.ndarray = field(default_factory=lambda: np.zeros((1, 4)))  # (1,4) the whole scene
+    scene_sphere: np.ndarray = field(default_factory=lambda: np.zeros((1, 4)))  # (1,4) what takes part
+    nothing: str = ""  # why there is no caustic to bake (the layer is all zero), or ""
+    flag_casters: np.ndarray | None = None  # (O,) bool: casters by material and flags (before pilots)
+    scale: float = 1.0  # a length for tolerances: the diagonal of what takes part
+    bounds: tuple = (np.zeros(3), np.zeros(3))  # (lo, hi) of what takes part
+    seen: dict = field(default_factory=dict)  # receiver name -> "directly" / "through mirrors or glass"
+    cost: dict = field(default_factory=dict)  # rays and seconds the plan took
+    indirect_words: list = field(default_factory=list)  # light -> diffuse -> casters -> receivers
+
+    def words(self) -> list:
+        """The plan in an artist's words, one line per light that bakes, then what is skipped."""
+        if self.nothing:
+            return [f"Nothing to bake: {self.nothing}. The caustic layer is all zero."]
+        lines = []
+        for lp in self.lights:
+            for caster, shares, recv, flux in lp.effects:
+                lines.append(f"{lp.name} -> {caster} ({_chains_words(shares)}) -> {', '.join(recv)}")
+            if not lp.effects:  # planned by bounds only (no pilots)
+                lines.append(f"{lp.name} -> {', '.join(lp.caster_names)}")
+        lines += self.indirect_words
+        lines += [f"{name} skipped: {reason}" for kind, name, reason in self.skipped]
+        return lines + list(self.notes)
+
+
+WORDS_MIN_SHARE = 0.01  # chain types carrying less of a caster's caustic are summed up as "rarer"
+
+
+def _chains_words(shares: dict) -> str:
+    """'refraction, 2 vertices' or 'refraction, 2 vertices 93%; reflection 5%; rarer paths 2%'."""
+    order = sorted(shares, key=lambda t: (-shares[t], len(t), t))
+    main = [t for t in order if shares[t] >= WORDS_MIN_SHARE] or order[:1]
+    if len(main) == 1 and shares[main[0]] > 0.995:
+        return describe_chain(main[0])
+    parts = [f"{describe_chain(t)} {shares[t]:.0%}" for t in main]
+    rest = sum(shares[t] for t in order if t not in main)
+    if rest > 0:
+        parts.append(f"rarer paths {rest:.0%}" if rest >= 0.005 else "rarer paths <1%")
+    return "; ".join(parts)
+
+
+def describe_chain(t: str) -> str:
+    """R -> 'reflection', TT -> 'refraction, 2 vertices', TRT -> 'refraction, 3 vertices, 1 internal
+    reflection', RR -> '2 reflections'."""
+    k, r = len(t), t.count("R")
+    if r == k:
+        return "reflection" if k == 1 else f"{k} reflections"
+    if r == 0:
+        return "refraction" if k == 1 else f"refraction, {k} vertices"
+    what = "internal reflection" if t[0] == "T" and t[-1] == "T" else "reflection"
+    return f"refraction, {k} vertices, {r} {what}{'s' if r > 1 else ''}"
+
+
+def light_key(name: str) -> int:
+    return zlib.crc32(name.encode("utf-8"))
 
 
 def _bounding_sphere(lo, hi, scene) -> np.ndarray:
@@ -55,6 +115,8 @@ def _use_flags(mode: str, flags: np.ndarray) -> bool:
 
 
 def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
+    """The plan from materials, Cycles' flags and bounds alone (no tracing). A scene with
+    nothing to bake (no light, caster or receiver) gives a plan whose ``nothing`` says why."""
     O = len(scene.object_names)
     kind = scene.mat_kind[scene.tri_material] if scene.n_tris else np.zeros(0, np.int32)
     specular_tri = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
@@ -77,24 +139,26 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
             skipped.append(("receiver", scene.object_names[o], "not flagged as caustic receiver"))
         receivers &= scene.object_receiver
 
+    plan = Plan(casters=casters, receivers=receivers, lights=[], skipped=skipped, flag_casters=casters.copy())
     if scene.n_lights == 0:
-        raise SceneError(f"scene '{scene.name}' has no light: there is nothing to cast caustics")
-    if not casters.any():
-        raise SceneError(f"scene '{scene.name}' has no caustic caster: no object with a glossy "
-                         "or glass material" + (" is flagged 'Cast Shadow Caustics'"
-                                                if flags != "OFF" and scene.object_caster.any() else ""))
-    if not receivers.any():
-        raise SceneError(f"scene '{scene.name}' has no caustic receiver: no diffuse object"
-                         + (" is flagged 'Receive Shadow Caustics'"
-                            if flags != "OFF" and scene.object_receiver.any() else ""))
+        plan.nothing = f"scene '{scene.name}' has no light"
+    elif not casters.any():
+        plan.nothing = (f"scene '{scene.name}' has no caustic caster: no object with a glossy or glass "
+                        "material" + (" is flagged 'Cast Shadow Caustics'"
+                                      if flags != "OFF" and scene.object_caster.any() else ""))
+    elif not receivers.any():
+        plan.nothing = (f"scene '{scene.name}' has no caustic receiver: no diffuse object"
+                        + (" is flagged 'Receive Shadow Caustics'"
+                           if flags != "OFF" and scene.object_receiver.any() else ""))
+    if plan.nothing:
+        return _finish(plan, scene)
 
     spheres = {}
     for o in np.flatnonzero(casters):
         lo, hi = scene.object_bounds(o)
         spheres[o] = _bounding_sphere(lo, hi, scene)
+    rec_spheres = [_bounding_sphere(*scene.object_bounds(o), scene) for o in np.flatnonzero(receivers)]
     use_light_flags = _use_flags(flags, scene.light_caustics)
-    lights = []
-    indirect = []
     for li in range(scene.n_lights):
         name = scene.light_names[li]
         if use_light_flags and not scene.light_caustics[li]:
@@ -106,15 +170,336 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         if scene.light_type[li] == S.AREA and not (scene.light_size[li].min() > 0):
             skipped.append(("light", name, "zero size"))
             continue
-        indirect.append(li)
+        if any(light_covers(scene, li, sp[:3], sp[3]) for sp in rec_spheres):
+            plan.indirect_lights.append(li)  # its light on a receiver may go on to a caster
         objs = [o for o, sp in spheres.items() if light_covers(scene, li, sp[:3], sp[3])]
         if not objs:
-            skipped.append(("light", name, "reaches no caustic caster"))
+            skipped.append(("light", name, "reaches no caster"))
             continue
-        lights.append(LightPlan(li, name, np.array([spheres[o] for o in objs]), objs))
-    if not lights:
+        plan.lights.append(LightPlan(li, name, np.array([spheres[o] for o in objs]), objs,
+                                     [scene.object_names[o] for o in objs], light_key(name)))
+    if not plan.lights:
         reasons = "; ".join(f"'{n}': {r}" for k, n, r in skipped if k == "light")
-        raise SceneError(f"scene '{scene.name}': no light can cast caustics ({reasons})")
-    sphere = _bounding_sphere(*scene.bounds(), scene)[None, :]
-    return Plan(casters=casters, receivers=receivers, lights=lights, skipped=skipped, indirect_lights=indirect,
-                scene_sphere=sphere)
+        plan.nothing = f"no light can cast caustics ({reasons})"
+    return _finish(plan, scene)
+
+
+def _finish(plan: Plan, scene: S.Scene) -> Plan:
+    """Bounds, scale and the indirect pass's target sphere over what takes part (the planned
+    casters and every diffuse surface), so that an object outside the plan changes no tolerance."""
+    if plan.nothing:
+        plan.lights, plan.indirect_lights = [], []
+        plan.casters = np.zeros_like(plan.casters)
+    O = len(scene.object_names)
+    kind = scene.mat_kind[scene.tri_material] if scene.n_tris else np.zeros(0, np.int32)
+    has_diff = np.bincount(scene.tri_object[kind == S.DIFFUSE], minlength=O) > 0
+    part = np.flatnonzero(plan.casters | plan.receivers | has_diff)
+    if part.size:
+        b = [scene.object_bounds(o) for o in part]
+        lo, hi = np.min([x[0] for x in b], axis=0), np.max([x[1] for x in b], axis=0)
+    else:
+        lo, hi = scene.bounds()
+    plan.bounds = (lo, hi)
+    d = float(np.linalg.norm(hi - lo))
+    plan.scale = d if d > 0 else 1.0
+    plan.scene_sphere = _bounding_sphere(lo, hi, scene)[None, :]
+    return plan
+
+
+# ------------------------------------------------------------------ the traced part of the plan
+PILOT_PHOTONS = 4096  # per light and caster
+PILOT_BOUNCES = 8  # specular bounces a pilot photon follows
+PLAN_MIN_SHARE = 1e-5  # a caster bringing less of the light the camera sees (by the pilots) is left out
+CAMERA_RAYS = 1 << 18  # at most this many rays for what the camera sees (a grid over the frame)
+
+
+def _rng(seed, *key):
+    return np.random.default_rng(np.random.SeedSequence([int(seed), *[int(k) for k in key]]))
+
+
+def _surfaces(scene, tracer, o, d):
+    """Trace rays: (hits, indices of the rays that hit, their object, material and kind)."""
+    h = tracer.intersect(o, d)
+    i = np.flatnonzero(h.hit)
+    mat = scene.tri_material[h.prim[i]]
+    return h, i, scene.tri_object[h.prim[i]], mat, scene.mat_kind[mat]
+
+
+def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
+    """Receivers the camera sees directly and through mirrors or glass: one ray per pixel
+    (a grid of at most CAMERA_RAYS over a larger frame), split at glass into its reflection
+    and its refraction. Returns (direct (O,) bool, through (O,2,3): per receiver the box of
+    the points seen through mirrors or glass, padded (empty: lo > hi), sides (O,) the sides
+    of them seen (1 front, 2 back, by the geometric normal), rays)."""
+    from .optics import reflect, refract
+
+    O = len(scene.object_names)
+    direct = np.zeros(O, bool)
+    through = np.empty((O, 2, 3))
+    through[:, 0], through[:, 1] = np.inf, -np.inf
+    sides = np.zeros(O, np.int64)
+    x0, x1, y0, y1 = cam.region
+    w, h = max(0, x1 - x0), max(0, y1 - y0)
+    if w * h == 0 or scene.n_tris == 0:
+        return direct, through, sides, 0
+    _, _, o, d = cam.pixel_rays(max(1, math.ceil(math.sqrt(w * h / CAMERA_RAYS))))
+    rays = 0
+    for depth in range(max_bounces + 1):
+        if len(o) == 0:
+            break
+        hit, i, obj, mat, kind = _surfaces(scene, tracer, o, d)
+        rays += len(o)
+        r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj])
+        if depth == 0:
+            direct[np.unique(obj[r])] = True
+        else:
+            np.minimum.at(through[:, 0], obj[r], hit.p[i[r]])
+            np.maximum.at(through[:, 1], obj[r], hit.p[i[r]])
+            front = dot(d[i[r]], hit.ng[i[r]]) < 0
+            np.bitwise_or.at(sides, obj[r], np.where(front, 1, 2))
+        spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))  # any mirror or glass, as the eye
+        if spec.size == 0 or depth == max_bounces:
+            break
+        j = i[spec]
+        p, ng, ns, w_in = hit.p[j], hit.ng[j], hit.ns[j], -d[j]
+        m = mat[spec]
+        refl = scene.mat_fresnel[m] != S.REFRACTION_ONLY
+        glass = scene.mat_kind[m] == S.DIELECTRIC
+        d_r = reflect(w_in[refl], ns[refl])
+        d_t, ok = refract(w_in[glass], ns[glass], scene.mat_ior[m[glass]])
+        no = np.concatenate([p[refl], p[glass][ok]])
+        nd = np.concatenate([d_r, d_t[ok]])
+        nn = np.concatenate([ng[refl], ng[glass][ok]])
+        if len(nd) > 4 * CAMERA_RAYS:  # a maze of glass: keep a regular subset
+            keep = np.arange(0, len(nd), math.ceil(len(nd) / (4 * CAMERA_RAYS)))
+            no, nd, nn = no[keep], nd[keep], nn[keep]
+        o, d = tracer.spawn(no, nn, nd), nd
+    # the samples are a pixel apart: pad each box by a tenth of its size and 2% of the scene
+    seen = through[:, 0, 0] <= through[:, 1, 0]
+    pad = 0.1 * np.linalg.norm(through[:, 1] - through[:, 0], axis=1) + 0.02 * plan.scale
+    through[seen, 0] -= pad[seen, None]
+    through[seen, 1] += pad[seen, None]
+    return direct, through, sides, rays
+
+
+def _sees_point(scene, tracer, cam, p, ng, w_in):
+    """Does the camera see the lit side of each point p (lit from w_in, pointing away)?"""
+    rx, ry, to_cam, tmax, cos_axis, dist, valid = cam.towards(p, max(cam.cam.filter_width, 0.5))
+    valid &= dot(w_in, ng) * dot(to_cam, ng) > 0
+    idx = np.flatnonzero(valid)
+    if idx.size:
+        blocked = tracer.occluded(tracer.spawn(p[idx], ng[idx], to_cam[idx]), to_cam[idx], tmax[idx] - tracer.eps)
+        valid[idx[blocked]] = False
+    return valid, int(idx.size)
+
+
+def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounces, target):
+    """Follow pilot photons from caster ``target`` (the photons whose first hit is on it)
+    through mirrors and glass (glass: both ways while the lanes
+    stay few, else one way at random) to their first diffuse surface. Returns, per photon
+    path that lands where the camera sees it: the casters it met (K, max_bounces) object
+    ids (-1 past its end), its chain letters, the receiver and the flux it carries
+    (luminance, through the Fresnel weights); and the rays cast. target None: photons
+    leaving a diffuse surface (ph.o is on it), the first specular hit on any caster."""
+    from .optics import reflect, refract, specular_weights
+
+    n0 = len(ph.o)
+    keep = ph.w.max(axis=1) > 0
+    o, d = ph.o[keep], ph.d[keep]
+    w = ph.w[keep].mean(axis=1)  # the flux a lane carries (its photon's, times Fresnel weights)
+    if target is None:
+        target = np.flatnonzero(plan.flag_casters)
+    hist = np.full((len(o), max_bounces), -1, np.int64)
+    letters = np.zeros((len(o), max_bounces), np.int8)  # 1 R, 2 T
+    out = []
+    rays = 0
+    for depth in range(max_bounces + 1):
+        if len(o) == 0:
+            break
+        h, i, obj, mat, kind = _surfaces(scene, tracer, o, d)
+        rays += len(o)
+        land = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj] & (depth > 0))
+        if land.size:
+            li_ = i[land]
+            box = through[obj[land]]
+            pl = h.p[li_]
+            side = np.where(dot(d[li_], h.ng[li_]) < 0, 1, 2)
+            seen = np.all((box[:, 0] <= pl) & (pl <= box[:, 1]), axis=1) & (sides[obj[land]] & side > 0)
+            check = np.flatnonzero(~seen & direct[obj[land]])
+            if check.size:
+                v, r = _sees_point(scene, tracer, cam, h.p[li_[check]], h.ng[li_[check]], -d[li_[check]])
+                rays += r
+                seen[check] = v
+            out.append((hist[li_[seen]], letters[li_[seen]], obj[land[seen]], w[li_[seen]]))
+        spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
+        spec &= np.isin(obj, target) if depth == 0 else True  # the pilots of caster target: paths from it
+        sp = np.flatnonzero(spec)
+        if sp.size == 0 or depth == max_bounces:
+            break
+        j = i[sp]
+        p, ng, ns, w_in, m = h.p[j], h.ng[j], h.ns[j], -d[j], mat[sp]
+        wr, wt = specular_weights(scene, m, dot(w_in, ns))
+        wr, wt = wr.mean(axis=1), wt.mean(axis=1)
+        d_t, ok = refract(w_in, ns, np.where(scene.mat_kind[m] == S.DIELECTRIC, scene.mat_ior[m], 1.0))
+        refl = wr > 0
+        ok &= wt > 0
+        if 2 * len(j) > 8 * n0:  # too many lanes: where both lobes are open, go one way at random
+            both = refl & ok
+            coin = rng.random(len(j)) < 0.5
+            refl &= ~(both & coin)
+            ok &= ~(both & ~coin)
+            wr, wt = np.where(both, 2 * wr, wr), np.where(both, 2 * wt, wt)
+        wj = w[j]
+        hj = hist[j]
+        hj[:, depth] = np.where(plan.flag_casters[obj[sp]], obj[sp], -1)
+        lr, lt = letters[j].copy(), letters[j].copy()
+        lr[:, depth], lt[:, depth] = 1, 2
+        d = np.concatenate([reflect(w_in[refl], ns[refl]), d_t[ok]])
+        o = tracer.spawn(np.concatenate([p[refl], p[ok]]), np.concatenate([ng[refl], ng[ok]]), d)
+        w = np.concatenate([(wj * wr)[refl], (wj * wt)[ok]])
+        hist = np.concatenate([hj[refl], hj[ok]])
+        letters = np.concatenate([lr[refl], lt[ok]])
+    if out:
+        return tuple(np.concatenate(x) for x in zip(*out)) + (rays,)
+    return (np.zeros((0, max_bounces), np.int64), np.zeros((0, max_bounces), np.int8), np.zeros(0, np.int64),
+            np.zeros(0), rays)
+
+
+def _letters(row) -> str:
+    """Chain letters of one pilot path, the receiver's side first (the walks' order)."""
+    return "".join("R" if c == 1 else "T" for c in row[::-1] if c)
+
+
+def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: int = PILOT_PHOTONS,
+                max_bounces: int = PILOT_BOUNCES, indirect: bool = True) -> Plan:
+    """The traced part of the plan: which receivers the camera sees, and per light, by
+    ``pilots`` pilot photons per caster, the casters whose caustic lands where the camera
+    sees it, the chain types on the way and the receivers. Casters no pilot photon of a
+    light brings into view are left out for that light (a light left with none is
+    skipped), so they cost nothing and change no random number. pilots = 0: bounds only.
+
+    A caustic carrying less than about 3 / pilots of the light reaching a caster into view
+    may be missed: with no pilot landing, that share is below 3 / pilots at 95% confidence."""
+    t0 = time.perf_counter()
+    if not indirect:  # the bake leaves out caustics after a diffuse bounce
+        plan.indirect_lights = []
+    direct, through, sides, rays = camera_sees(scene, tracer, cam, plan)
+    for o in np.flatnonzero(plan.receivers):
+        if direct[o] or through[o, 0, 0] <= through[o, 1, 0]:
+            plan.seen[scene.object_names[o]] = "directly" if direct[o] else "through mirrors or glass"
+    photons = 0
+    if pilots > 0 and plan.lights:
+        from .lights import Photons, emit
+        from .vec import cosine_hemisphere, frame, to_world
+
+        found = []  # per light: {caster: (shares, receivers, flux, casters met)}
+        for lp in plan.lights:
+            per = {}
+            for k, o in enumerate(lp.caster_objects):
+                rng = _rng(seed, 7, lp.key, light_key(scene.object_names[o]))
+                ph = emit(scene, lp.index, lp.targets[k:k + 1], pilots, rng)
+                photons += pilots
+                hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng,
+                                                     max_bounces, o)
+                rays += r
+                first = hist[:, 0] == o
+                flux = float(wgt[first].sum())
+                if not flux > 0:
+                    continue
+                chains = {}
+                for row, wv in zip(letters[first], wgt[first]):
+                    t = _letters(row)
+                    chains[t] = chains.get(t, 0.0) + float(wv)
+                per[o] = ({t: v / flux for t, v in chains.items()},
+                          [scene.object_names[x] for x in np.unique(recv[first])], flux,
+                          {int(x) for x in np.unique(hist[first]) if x >= 0})
+            found.append(per)
+        # caustics through a diffuse bounce first (light -> diffuse -> caster -> ... -> seen;
+        # indirect.py): pilots from each light onto every diffuse surface, then a cosine bounce
+        indirect = {}
+        n_ind = max(64, pilots // 2)
+        kinds = scene.mat_kind[scene.tri_material]
+        dif_objs = np.unique(scene.tri_object[kinds == S.DIFFUSE])
+        b = [scene.object_bounds(o) for o in dif_objs]
+        dif_sphere = _bounding_sphere(np.min([x[0] for x in b], axis=0), np.max([x[1] for x in b], axis=0),
+                                      scene)[None, :] if b else plan.scene_sphere
+        for li in plan.indirect_lights:
+            name = scene.light_names[li]
+            rng = _rng(seed, 8, light_key(name))
+            ph = emit(scene, li, dif_sphere, n_ind, rng)  # onto the diffuse surfaces
+            photons += n_ind
+            lit = np.flatnonzero(ph.w.max(axis=1) > 0)
+            h = tracer.intersect(ph.o[lit], ph.d[lit])
+            rays += lit.size
+            i = np.flatnonzero(h.hit)
+            mat = scene.tri_material[h.prim[i]]
+            dif = np.flatnonzero(scene.mat_kind[mat] == S.DIFFUSE)
+            if dif.size == 0:
+                continue
+            j = i[dif]
+            ng = h.ng[j] * np.sign(-dot(ph.d[lit[j]], h.ng[j]))[:, None]  # the lit side
+            s_, t_ = frame(ng)
+            d2 = to_world(cosine_hemisphere(rng.random(j.size), rng.random(j.size)), s_, t_, ng)
+            w2 = ph.w[lit[j]] * scene.mat_color[mat[dif]]  # cosine sampling: the albedo
+            bounce = Photons(tracer.spawn(h.p[j], ng, d2), d2, w2)
+            hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, bounce, direct, through, sides, rng,
+                                                 max_bounces, None)
+            rays += r
+            if wgt.sum() > 0:
+                indirect[li] = (float(wgt.sum()), {int(x) for x in np.unique(hist) if x >= 0},
+                                [scene.object_names[x] for x in np.unique(recv)])
+        total = sum(f[2] for per in found for f in per.values()) + sum(v[0] for v in indirect.values())
+        kept_lights, no_direct = [], []
+        used = np.zeros_like(plan.casters)
+        for lp, per in zip(plan.lights, found):
+            lp_casters, effects = set(), []
+            for o in lp.caster_objects:
+                name = scene.object_names[o]
+                if o not in per:
+                    plan.notes.append(f"{name} skipped for {lp.name}: its direct caustic lands on nothing the "
+                                      f"camera sees (0 of {pilots} pilot photons)")
+                    continue
+                shares, recv_names, flux, met = per[o]
+                if flux < PLAN_MIN_SHARE * total:
+                    plan.notes.append(f"{name} skipped for {lp.name}: its caustic is too faint to show "
+                                      f"({flux / total:.1e} of the light the camera sees)")
+                    continue
+                effects.append((name, shares, recv_names, flux / total))
+                lp_casters |= met
+            if not lp_casters:
+                no_direct.append(lp)
+                continue
+            objs = sorted(lp_casters)
+            sph = [_bounding_sphere(*scene.object_bounds(o), scene) for o in objs]
+            kept_lights.append(LightPlan(lp.index, lp.name, np.array(sph), objs,
+                                         [scene.object_names[o] for o in objs], lp.key, effects))
+            used[objs] = True
+        ind_keep = []
+        for li in plan.indirect_lights:
+            # any landing keeps it: these pilots start at the first diffuse hit straight from the
+            # light, so they undercount light that meets glass first (a pool's floor under water)
+            if li in indirect:
+                ind_keep.append(li)
+                met = sorted(indirect[li][1])
+                used[met] = True
+                plan.indirect_words.append(
+                    f"{scene.light_names[li]} -> diffuse -> {', '.join(scene.object_names[o] for o in met)} -> "
+                    f"{', '.join(indirect[li][2])} (after a diffuse bounce)")
+        plan.indirect_lights = ind_keep
+        for lp in no_direct:
+            if lp.index not in ind_keep:
+                plan.skipped.append(("light", lp.name, "its caustics land on nothing the camera sees"))
+        for o in np.flatnonzero(plan.casters & ~used):  # out of every light's plan: one line for it
+            name = scene.object_names[o]
+            why = [n for n in plan.notes if n.startswith(name + " skipped for ")]
+            faint = any("too faint" in n for n in why)
+            plan.skipped.append(("caster", name, "its caustic is too faint to show" if faint else
+                                 "its caustic lands on nothing the camera sees"))
+            plan.notes = [n for n in plan.notes if n not in why]
+        plan.lights = kept_lights
+        plan.casters = used
+        if not plan.lights and not plan.indirect_lights:
+            plan.nothing = "no caster's caustic lands on anything the camera sees"
+        _finish(plan, scene)
+    plan.cost = {"rays": int(rays), "pilot_photons": int(photons), "time_s": time.perf_counter() - t0}
+    return plan

@@ -32,16 +32,7 @@ def splat_to_camera(scene, tracer, cam, film, y, ng, ns, w_in, beta, albedo, sta
     carrying flux beta to the camera; splat beta * f * importance."""
     if len(y) == 0:
         return
-    rx, ry, depth, cos_axis, dist, valid = cam.project(y)
-    if cam.ortho:
-        to_cam = np.broadcast_to(cam.axes[:, 2], y.shape).copy()
-        tmax = depth - cam.cam.clip_start
-    else:
-        to_cam = normalize(cam.origin - y)
-        tmax = dist * (1.0 - cam.cam.clip_start / np.maximum(depth, 1e-300))
-    x0, x1, y0, y1 = cam.region
-    r = film.filter_width
-    valid &= (rx > x0 - r) & (rx < x1 + r) & (ry > y0 - r) & (ry < y1 + r)
+    rx, ry, to_cam, tmax, cos_axis, dist, valid = cam.towards(y, film.filter_width)
     ci_g, co_g = dot(w_in, ng), dot(to_cam, ng)
     ci_s = dot(w_in, ns)
     valid &= (ci_g * co_g > 0) & (ci_s * np.sign(ci_g) > 0)  # same side, lit per shading normal

@@ -49,7 +49,6 @@ class Tracer:
         n_raw = cross(e1, e2)
         self.area2 = np.sqrt(dot(n_raw, n_raw))  # twice the triangle area
         self.ng = normalize(n_raw)
-        self.degenerate = ~(self.area2 > 1e-14 * max(scene.scale, 1e-30) ** 2)
         self.ns_corner = scene.tri_normals.astype(np.float64)
         # every object's bounding box in one pass (zeros for an object without triangles):
         # SMBS's GetRatio and the sphere-light cap read them for every chunk and light
@@ -60,15 +59,22 @@ class Tracer:
         self.obj_has_tris = np.isfinite(lo_o[:, 0])
         self.obj_lo = np.where(self.obj_has_tris[:, None], lo_o, 0.0)
         self.obj_hi = np.where(self.obj_has_tris[:, None], hi_o, 0.0)
-        lo, hi = scene.bounds()
-        extent = float(max(np.abs(lo).max(initial=0), np.abs(hi).max(initial=0)))
-        # self-intersection offset: a few float32 ulps of the largest coordinate
-        self.eps = 4e-6 * (extent + scene.scale)
+        self.set_extent(*scene.bounds())
         self._embree = None
         if scene.n_tris:
             self._embree = ers.EmbreeScene()
             emc.TriangleMesh(self._embree, np.ascontiguousarray(self.v, dtype=np.float32))
         self.rays_cast = 0
+
+    def set_extent(self, lo, hi) -> None:
+        """Tolerances for geometry within [lo, hi] (the bake's plan: objects out of it change
+        none): the self-intersection offset, a few float32 ulps of the largest coordinate,
+        and the area below which a triangle counts as degenerate."""
+        extent = float(max(np.abs(lo).max(initial=0), np.abs(hi).max(initial=0)))
+        d = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+        scale = d if d > 0 else 1.0
+        self.eps = 4e-6 * (extent + scale)
+        self.degenerate = ~(self.area2 > 1e-14 * max(scale, 1e-30) ** 2)
 
     # ------------------------------------------------------------- low level
     def _run(self, o, d, tmax, query):

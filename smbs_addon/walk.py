@@ -212,7 +212,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         front[tir_seed] = False
         outcome[tir_seed] = OK
         act = np.sort(np.concatenate([act, tir_seed]))
-    max_step = cfg.max_step * ctx.scene.scale
+    max_step = cfg.max_step * ctx.scale
     for it in range(cfg.max_iterations + 1):
         if act.size == 0:
             break

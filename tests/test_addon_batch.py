@@ -90,13 +90,27 @@ def test_command_exit_codes(addon, cli, small_mirror, tmp_path, capsys):
     assert cli.smbs_bake([str(text), "--out", out]) == 1
     # A scene that cannot be baked: the message names the object and the problem.
     bpy.ops.wm.open_mainfile(filepath=str(small_mirror), load_ui=False)
+    bpy.context.scene.camera = None
+    blind = tmp_path / "blind.blend"
+    bpy.ops.wm.save_as_mainfile(filepath=str(blind), copy=True)
+    capsys.readouterr()
+    assert cli.smbs_bake([str(blind), "--out", out]) == 1
+    assert "has no camera" in capsys.readouterr().err
+    assert not Path(out).exists()
+    # A scene with no caustic is not a failure (a farm must not fail the shot): an all-zero
+    # layer, exit 0, and the output says why
+    bpy.ops.wm.open_mainfile(filepath=str(small_mirror), load_ui=False)
     bpy.data.objects.remove(bpy.data.objects["Light"])
     dark = tmp_path / "dark.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(dark), copy=True)
     capsys.readouterr()
-    assert cli.smbs_bake([str(dark), "--out", out]) == 1
-    assert "has no light" in capsys.readouterr().err
-    assert not Path(out).exists()
+    assert cli.smbs_bake([str(dark), "--spp", "1", "--out", out]) == 0
+    said = capsys.readouterr().out
+    assert "Nothing to bake: scene 'Mirror' has no light. The caustic layer is all zero." in said
+    assert "nothing to bake: scene 'Mirror' has no light; the caustic layer is all zero" in said
+    img = _read(out)[0]
+    assert img.shape == (60, 80, 3) and not img.any()
+    Path(out).unlink()
     # `bake` may be spelled out, as with python -m smbs_addon
     assert cli.smbs_bake(["bake", str(small_mirror), "--spp", "1", "--batches", "1", "--quiet",
                           "--out", out]) == 0

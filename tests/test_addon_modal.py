@@ -125,9 +125,9 @@ def test_modal_bake_cancel_leaves_the_scene_as_it_was(bake_op, tmp_path, how):
 
 
 def test_modal_bake_reports_scene_errors(bake_op, tmp_path):
-    """An error found by the core in the worker thread (here: no light) reaches the reports."""
+    """An error found by the core in the worker thread (here: a film too big) reaches the reports."""
     scene = _mirror_scene()
-    bpy.data.objects.remove(scene.objects["Disk"])
+    scene.render.resolution_x, scene.render.resolution_y = 16000, 9000
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     before = _scene_state(scene)
     reports = _Reports()
@@ -136,7 +136,7 @@ def test_modal_bake_reports_scene_errors(bake_op, tmp_path):
     assert bake.job.wait(60.0)
     assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
     (error,) = reports.of('ERROR')
-    assert "has no light" in error, reports
+    assert "caustic layer needs about" in error, reports
     assert _scene_state(scene) == before and bake_op.running_bake(scene) is None
 
 

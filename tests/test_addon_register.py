@@ -15,7 +15,7 @@ bpy = pytest.importorskip("bpy")
 TYPES = ("SMBS_OT_bake_caustics", "SMBS_OT_cancel_bake", "SMBS_OT_remove_caustic_layer",
          "SMBS_PT_caustics", "SMBS_UL_participants", "SMBS_PT_caustics_participants",
          "SMBS_PT_caustics_advanced", "SMBS_PT_caustics_statistics")
-OPERATORS = ("bake_caustics", "cancel_bake", "remove_caustic_layer")
+OPERATORS = ("bake_caustics", "cancel_bake", "remove_caustic_layer", "show_plan")
 LAYER = "SMBS Caustics"
 
 
@@ -39,7 +39,7 @@ def _assert_registered(extension):
         assert hasattr(bpy.types, name), name
     assert "smbs_caustics" in bpy.types.Scene.bl_rna.properties
     assert _operators_registered() == list(OPERATORS)
-    assert bpy.context.scene.smbs_caustics.method == "smbs"
+    assert bpy.context.scene.smbs_caustics.method == "auto"
     assert extension.operators.cli.registered()
 
 
@@ -132,7 +132,8 @@ def test_ui_settings_are_the_core_settings(empty_bpy, addon):
 
 def test_settings_defaults(empty_bpy, addon):
     s = bpy.context.scene.smbs_caustics
-    assert (s.method, s.estimator, s.spp, s.output_path) == ("smbs", "unbiased", 16, "//caustics.exr")
+    assert (s.method, s.estimator, s.spp, s.output_path) == ("auto", "unbiased", 16, "//caustics.exr")
+    assert s.pilots == 4096 and s.plan_text == ""
     assert (s.max_iterations, s.max_chain, s.use_cycles_flags) == (20, 4, "AUTO")
     assert (s.trials, s.max_trials, s.batches, s.threads, s.guide) == (4, 10000, 8, 0, True)
     assert s.solver_threshold == pytest.approx(1e-6)
@@ -513,6 +514,31 @@ def test_bake_operator_end_to_end(empty_bpy, addon, tmp_path, capsys):
 
     assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}  # a re-bake reuses everything
     assert len(_layer_images()) == 1 and len(bpy.data.node_groups) == 1
+
+
+def test_show_plan_before_baking(empty_bpy, addon, tmp_path):
+    """Show Plan: the plan in words in the panel, nothing baked, nothing else changed."""
+    scene = _mirror_scene()
+    assert bpy.ops.smbs.show_plan() == {'FINISHED'}
+    assert scene.smbs_caustics.plan_text.splitlines() == ["Disk -> Mirror (reflection) -> Floor",
+                                                          "Disk -> diffuse -> Mirror -> Floor (after a diffuse bounce)"]
+    assert not _layer_images() and scene.smbs_caustics.last_stats == ""
+
+
+def test_bake_operator_with_nothing_to_bake(empty_bpy, addon, tmp_path):
+    """No light: not a failure; an all-zero layer, a warning saying why, and the panel's plan."""
+    scene = _mirror_scene()
+    bpy.data.objects.remove(scene.objects["Disk"])
+    settings = scene.smbs_caustics
+    settings.spp, settings.output_path = 1, str(tmp_path / "layer.exr")
+    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
+    stats = json.loads(settings.last_stats)
+    assert stats["nothing_to_bake"] == "scene 'Scene' has no light"
+    panels = importlib.import_module("smbs_caustics.ui.panels")
+    assert panels.plan_lines(stats) == ["Nothing to bake: scene 'Scene' has no light. "
+                                               "The caustic layer is all zero."]
+    img = bpy.data.images[LAYER]
+    assert img.size[:] == (24, 16) and not _pixels(img)[..., :3].any()
 
 
 def test_bake_operator_reports_scene_errors(empty_bpy, addon, tmp_path):

@@ -47,27 +47,39 @@ def bake_error(scene, **kw) -> str:
 
 
 # ------------------------------------------------------------------------ nothing to bake
+def nothing_to_bake(scene) -> str:
+    """A scene with no caustic to bake is not an error (issue 12): the layer is all zero,
+    no caustic ray is traced, and the statistics say why."""
+    res = bake(scene, BakeSettings(spp=1, batches=2))
+    assert not res.image.any() and res.image.shape == (24, 32, 3)
+    assert res.stats["lights"] == {} and res.stats["stopped_by"] == "nothing_to_bake"
+    assert res.stats["rays"] == res.stats["plan"].get("rays", 0)
+    assert res.stats["plan"]["words"] == [f"Nothing to bake: {res.stats['nothing_to_bake']}. "
+                                          "The caustic layer is all zero."]
+    return res.stats["nothing_to_bake"]
+
+
 def test_no_light():
     scene = mirror_parts(SceneBuilder("Dark"), light=False).build()
-    assert bake_error(scene) == "scene 'Dark' has no light: there is nothing to cast caustics"
+    assert nothing_to_bake(scene) == "scene 'Dark' has no light"
 
 
 def test_no_caster():
     scene = mirror_parts(SceneBuilder("Bare"), caster=False).build()
-    assert bake_error(scene) == "scene 'Bare' has no caustic caster: no object with a glossy or glass material"
+    assert nothing_to_bake(scene) == "scene 'Bare' has no caustic caster: no object with a glossy or glass material"
 
 
 def test_no_caster_among_the_flagged_objects():
     b = mirror_parts(SceneBuilder("Flagged"), caster=False)
     b.plane("Wall", (3, 0, 1), 2, "floor", normal=(-1, 0, 0), caster=True)  # flagged, but diffuse
     b.plane("Mirror", (0, 0, 1.5), 1.5, "mirror", normal=np.array([-1, 0, -1]) / math.sqrt(2))  # not flagged
-    assert bake_error(b.build()) == ("scene 'Flagged' has no caustic caster: no object with a glossy or "
-                                     "glass material is flagged 'Cast Shadow Caustics'")
+    assert nothing_to_bake(b.build()) == ("scene 'Flagged' has no caustic caster: no object with a glossy or "
+                                          "glass material is flagged 'Cast Shadow Caustics'")
 
 
 def test_no_receiver():
     scene = mirror_parts(SceneBuilder("Void"), receiver=False).build()
-    assert bake_error(scene) == "scene 'Void' has no caustic receiver: no diffuse object"
+    assert nothing_to_bake(scene) == "scene 'Void' has no caustic receiver: no diffuse object"
 
 
 # --------------------------------------------------------------------------- zero-size lights
@@ -80,10 +92,10 @@ def test_zero_size_area_light_is_skipped_with_a_reason():
     assert list(res.stats["lights"]) == ["Disk"] and res.image.max() > 0
 
 
-def test_only_a_zero_size_light_is_an_error():
+def test_only_a_zero_size_light_bakes_nothing():
     b = mirror_parts(SceneBuilder("Pinhole"), light=False)
     b.light("Dot", "AREA", location=(-2, 0, 1.5), target=(0, 0, 1.5), power=100.0, shape="DISK", size=0.0)
-    assert bake_error(b.build()) == "scene 'Pinhole': no light can cast caustics ('Dot': zero size)"
+    assert nothing_to_bake(b.build()) == "no light can cast caustics ('Dot': zero size)"
 
 
 def test_zero_radius_point_light_is_a_point_not_an_error():
@@ -421,10 +433,11 @@ def _extension_core(addon):
 
 
 def test_failed_bake_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path):
-    scene = blender_mirror_scene(light=False)
+    scene = blender_mirror_scene()
+    scene.camera = None
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     before = snapshot()
-    with pytest.raises(RuntimeError, match=r"scene 'Scene' has no light: there is nothing to cast caustics"):
+    with pytest.raises(RuntimeError, match=r"scene 'Scene' has no camera"):
         bpy.ops.smbs.bake_caustics()
     assert snapshot() == before
     assert list(tmp_path.iterdir()) == []

@@ -189,7 +189,9 @@ def test_bake_blend(tmp_path):
     assert [img.shape[1], img.shape[0]] == stats["resolution"]
     assert meta["spp"] == 1 and meta["seed"] == 0
     assert img.max() > 0 and np.all(np.isfinite(img))
-    assert re.search(r"^scene '.+': smbs, \d+x\d+, ", proc.stdout, re.M), proc.stdout
+    assert re.search(r"^scene '.+': auto, \d+x\d+, ", proc.stdout, re.M), proc.stdout
+    # the plan, before the bake, and auto's choice in it
+    assert re.search(r"^plan:\n  Light -> Mirror \(reflection\) -> Floor\n  auto, Light: ", proc.stdout, re.M), proc.stdout
 
 
 def test_error_bar_and_price_in_output_json_and_exr(baked):

@@ -57,7 +57,7 @@ def test_soft_falloff_factor_at_a_solution():
     assert np.allclose(soft, hard * (d2 / (d2 + 0.25))[:, None], rtol=1e-12)
 
 
-@pytest.mark.parametrize("method,spp", [("reference", 64)])
+@pytest.mark.parametrize("method,spp", [("reference", 96)])  # 64: its standard error sat at the limit
 def test_soft_falloff_point_light_seen_in_a_mirror(method, spp):
     scene = scenes.mirror_scene(resolution=(120, 90))
     scene.light_type[:] = S.POINT

@@ -105,7 +105,7 @@ def test_glass_sphere_final_image_matches_cycles():
     off = read_exr(DATA / "cycles_glass_sphere_off.exr")[0][..., :3].mean(axis=2)
     on_b = read_exr(DATA / "cycles_glass_sphere_on_b.exr")[0][..., :3].mean(axis=2)
     scene = load_input(str(ROOT / "sample_blends" / "glass_sphere.blend"), warn=lambda m: None)
-    res = bake(scene, BakeSettings(spp=8, seed=1))
+    res = bake(scene, BakeSettings(method="smbs", spp=8, seed=1))
     assert res.stats["method"] == "smbs" and res.stats["lights"]["Light"]["handoff"]["handoff_paths"] > 0
     final = off + res.image.mean(axis=2)
     rel_final = final[region].mean() / on_b[region].mean() - 1

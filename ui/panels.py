@@ -149,6 +149,13 @@ def skipped_stats(stats):
             for d in skipped if isinstance(d, dict)]
 
 
+def plan_lines(stats):
+    """The bake's plan in words (light -> caster (chain) -> receivers; what was skipped, why)."""
+    plan = stats.get("plan")
+    words = plan.get("words") if isinstance(plan, dict) else None
+    return [str(w) for w in words] if isinstance(words, list) else []
+
+
 _parsed_cache = ("", {})
 
 
@@ -222,7 +229,7 @@ class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
         col = layout.column()
         col.prop(settings, "method")
         sub = col.column()
-        sub.active = settings.method in {"sms", "smbs"}
+        sub.active = settings.method in {"sms", "smbs", "auto"}
         sub.prop(settings, "estimator")
         if settings.estimator == "biased":
             sub.prop(settings, "trials")
@@ -258,8 +265,15 @@ class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
             row = layout.row(align=True)
             row.scale_y = 1.4
             row.operator("smbs.bake_caustics", icon='RENDER_STILL')
+            row.operator("smbs.show_plan", text="", icon='OUTLINER')
             if settings.cycles_kept_out or _has_layer_image():
                 row.operator("smbs.remove_caustic_layer", text="", icon='TRASH')
+        plan_text = getattr(settings, "plan_text", "")
+        if plan_text:
+            box = layout.box()
+            box.label(text="Plan", icon='OUTLINER')
+            for line in plan_text.splitlines():
+                _draw_text(box, context, line)
 
         if settings.cycles_note:
             box = layout.box()
@@ -352,6 +366,7 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         col.prop(settings, "max_chain")
         col.prop(settings, "clamp_g")
         col.prop(settings, "handoff")
+        col.prop(settings, "pilots")
 
         col = layout.column(heading="Large Mutations")
         col.active = settings.method == "smbs"
@@ -387,8 +402,16 @@ class SMBS_PT_caustics_statistics(_RenderPanel, bpy.types.Panel):
             box = layout.box()
             box.label(text=name, icon='LIGHT')
             _draw_rows(box, light_rows)
-        for line in skipped_stats(stats):
-            layout.label(text=line, icon='INFO')
+        plan = plan_lines(stats)
+        if plan:
+            box = layout.box()
+            box.label(text="Plan", icon='OUTLINER')
+            for line in plan:
+                for i, part in enumerate(textwrap.wrap(line, 60) or [""]):
+                    box.label(text=part if i == 0 else "    " + part)
+        else:
+            for line in skipped_stats(stats):
+                layout.label(text=line, icon='INFO')
 
 
 classes = (SMBS_PT_caustics, SMBS_UL_participants, SMBS_PT_caustics_participants,

@@ -20,10 +20,13 @@ BAKE_FIELDS = (
     "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
     "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
-    "max_chain", "clamp_g", "handoff", "indirect",
+    "max_chain", "clamp_g", "handoff", "indirect", "pilots",
 )
 
 METHOD_ITEMS = (
+    ("auto", "Auto",
+     "Per light, a short pilot measures light tracing, SMS and SMBS, and each effect (receivers "
+     "seen directly; seen through mirrors and glass) gets the cheapest for its noise"),
     ("reference", "Reference",
      "Brute-force light tracing. Slow but unbiased; use it to check the other methods"),
     ("mnee", "MNEE",
@@ -78,7 +81,7 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
     """Settings for baking the caustic layer of one scene."""
 
     method: EnumProperty(
-        name="Method", items=METHOD_ITEMS, default="smbs",
+        name="Method", items=METHOD_ITEMS, default="auto",
         description="How the caustic light paths are found",
     )
     estimator: EnumProperty(
@@ -210,6 +213,12 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
                     "bright folds) are traced from the light instead of walked, which is much "
                     "faster and less noisy there; the result stays unbiased. 0: walks only",
     )
+    pilots: IntProperty(
+        name="Plan Pilots", default=4096, min=0, soft_max=65536, max=10_000_000,
+        description="Pilot photons per light and caster that find where its caustic lands before "
+                    "baking; casters whose caustic the camera cannot see are skipped. 0: plan by "
+                    "bounds only (bake every caster a light reaches)",
+    )
 
     # The participants list (UI only).
     participant_index: IntProperty(name="Active Participant", default=0, min=0, options={'HIDDEN'})
@@ -218,6 +227,11 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
     last_stats: StringProperty(
         name="Last Bake Statistics", default="", options={'HIDDEN'},
         description="Statistics of the last bake, as JSON",
+    )
+    plan_text: StringProperty(
+        name="Plan", default="",
+        description="What the bake will trace (Show Plan), one line each: light -> caster (chains) -> "
+                    "receivers, and what it skips and why",
     )
     cycles_note: StringProperty(
         name="Cycles Note", default="", options={'HIDDEN'},

@@ -1,0 +1,85 @@
+"""--method auto (issue 12): per light, a pilot measures light tracing, SMS and SMBS on the
+receivers seen directly and on those seen through mirrors or glass, and each effect gets
+the cheapest. The pieces partition path space, so auto is unbiased: checked against the
+light tracer's image of the same scene within a stated statistical tolerance."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+import scenes
+from smbs_addon import BakeSettings, bake
+from smbs_addon.bake import region_mean_error
+from smbs_addon.convergence import caustic_region
+
+
+def _agree(a, b, region, sigmas=4.0, rel=0.03):
+    """Region means of two bakes agree within sigmas standard errors (their batches) plus rel."""
+    ma, sa = region_mean_error(a.batch_luminance, region)
+    mb, sb = region_mean_error(b.batch_luminance, region)
+    tol = sigmas * math.hypot(sa, sb) + rel * mb
+    assert abs(ma - mb) <= tol, (ma, mb, tol)
+    return ma, mb
+
+
+@pytest.mark.slow
+def test_auto_on_the_ring_matches_the_light_tracer():
+    """The ring is seen from above: the floor directly, and in the ring's inner wall. auto
+    gives the direct receivers to light tracing or the walks and the mirrored view to a walk."""
+    scene = scenes.ring_scene(resolution=(48, 36))
+    auto = bake(scene, BakeSettings(method="auto", spp=16, batches=8, seed=2))
+    ref = bake(scene, BakeSettings(method="reference", spp=256, batches=8, seed=5))
+    st = auto.stats["auto"]
+    assert set(st["lights"]) == {"Area"}
+    choice = st["lights"]["Area"]
+    assert choice["walks"] in ("sms", "smbs") and choice["direct"] in ("photons", "sms", "smbs")
+    assert set(choice["pilot"]) == {"reference", "sms", "smbs"}
+    assert all(v["time_s"] > 0 for v in choice["pilot"].values())
+    assert any(w.startswith("auto, Area: ") for w in auto.stats["plan"]["words"])
+    # the ring's own mirror image of the floor is there: auto must walk (the light tracer's
+    # eye pass serves it in the reference)
+    assert st["bake"] == "manifold"
+    region = caustic_region(ref.image.mean(axis=2))
+    _agree(auto, ref, region)
+
+
+def test_auto_is_the_default_and_names_its_choice():
+    scene = scenes.glass_sphere_scene(resolution=(32, 24))
+    res = bake(scene, BakeSettings(spp=2, batches=2, seed=1))
+    assert res.stats["method"] == "auto" and res.stats["settings"]["method"] == "auto"
+    choice = res.stats["auto"]["lights"]["Area"]
+    words = [w for w in res.stats["plan"]["words"] if w.startswith("auto, Area: ")]
+    assert words == [f"auto, Area: {choice['why']}"]
+    assert np.all(np.isfinite(res.image)) and res.image.max() > 0
+
+
+def test_pilot_scene_has_one_light_and_a_small_frame():
+    from smbs_addon import auto
+
+    scene = scenes.water_scene(light="point", resolution=64)
+    scene = __import__("dataclasses").replace(scene, light_color=np.vstack([scene.light_color, [[5.0, 5, 5]]]))
+    sub = auto._pilot_scene(scene, 1)
+    assert sub.light_color[0].max() == 0 and sub.light_color[1].tolist() == [5.0, 5.0, 5.0]
+    assert scene.light_color[0].max() > 0  # the user's scene is not changed
+    px = sub.camera.width * sub.camera.height
+    assert 0.5 * auto.PILOT_PIXELS <= px <= auto.PILOT_PIXELS
+
+
+def test_decide_takes_the_cheapest_per_effect():
+    from smbs_addon.auto import decide
+
+    def m(ref, sms, smbs):  # (direct, all) costs per method
+        return {"reference": {"direct": ref[0], "all": ref[1]}, "sms": {"direct": sms[0], "all": sms[1]},
+                "smbs": {"direct": smbs[0], "all": smbs[1]}}
+
+    walk, photons, why = decide(m((1.0, 9.0), (8.0, 8.0), (6.0, 6.0)), True, True)
+    assert (walk, photons) == ("smbs", True)
+    assert why == "light tracing for receivers seen directly (6.0x cheaper than SMBS); SMBS through mirrors and glass"
+    walk, photons, why = decide(m((4.0, 9.0), (2.0, 3.0), (2.5, 6.0)), True, False)
+    assert (walk, photons) == ("sms", False)
+    assert why == "SMS (2.0x cheaper than SMBS, 2.0x cheaper than light tracing where seen directly)"
+    # nothing seen directly: the light tracer cannot serve, whatever its numbers
+    assert decide(m((0.0, 0.0), (2.0, 3.0), (2.5, 6.0)), False, True)[:2] == ("sms", False)
+    assert decide(m((1, 1), (1, 1), (1, 1)), True, True, has_caustic=False)[:2] == ("smbs", False)

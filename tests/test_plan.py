@@ -1,0 +1,182 @@
+"""Simulate only what the scene calls for (issue 12): the plan before any tracing.
+
+- a light that reaches no caster, and a caster whose caustic cannot show, change
+  neither the image (bit for bit, same seed) nor the ray count by more than 5%;
+- a scene with only mirrors walks no refraction chain;
+- a scene with nothing to bake gives an all-zero layer, says why, and the command
+  exits 0;
+- the plan of every sample scene, word for word.
+"""
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import scenes
+from smbs_addon import BakeSettings, bake
+from smbs_addon.__main__ import main
+from smbs_addon.builder import SceneBuilder
+from smbs_addon.camera import CameraModel
+from smbs_addon.plan import describe_chain, make_plan, refine_plan
+from smbs_addon.tracer import Tracer
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def lens_scene(extra: bool, resolution=(96, 72), far=(0, 0, -3)):
+    """The glass ball of scenes.glass_sphere_scene; with extra, a spot aimed at the empty
+    sky (first in the list of lights, so every light after it moves one place) and a glass
+    ball at ``far``: under the floor (hidden from the light and the camera), or out of the
+    frame beyond the floor's edge."""
+    b = SceneBuilder("lens")
+    floor = b.material("floor", "diffuse", color=(0.8,) * 3)
+    glass = b.material("glass", "dielectric", color=(1, 1, 1), ior=1.5)
+    if extra:
+        b.light("SkySpot", "SPOT", location=(0, 0, 3), target=(0, 0, 10), power=500, spot_size=math.radians(30))
+    b.plane("Floor", (0, 0, 0), 10, floor)
+    b.uv_sphere("Ball", (0, 0, 1.2), 0.5, glass, segments=64, rings=32)
+    if extra:
+        b.uv_sphere("FarGlass", far, 0.5, glass, segments=32, rings=16)
+    b.light("Area", "AREA", location=(0.3, 0.2, 5.0), target=(0.3, 0.2, 0), power=400, size=1.0)
+    b.set_camera((0, -2.0, 3.0), (0, 0, 0.0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
+
+
+BALL = ["Area -> Ball (refraction, 2 vertices 94%; reflection 6%; rarer paths <1%) -> Floor",
+        "Area -> diffuse -> Ball -> Floor (after a diffuse bounce)"]
+
+
+@pytest.mark.parametrize("method,spp,resolution", [("reference", 32, (96, 72)), ("smbs", 1, (48, 36))])
+def test_what_cannot_show_changes_nothing(method, spp, resolution):
+    settings = dict(method=method, spp=spp, batches=2, seed=3)
+    plain = bake(lens_scene(False, resolution), BakeSettings(**settings))
+    more = bake(lens_scene(True, resolution), BakeSettings(**settings))
+    assert plain.stats["plan"]["words"] == BALL
+    assert more.stats["plan"]["words"] == BALL + ["SkySpot skipped: reaches no caster",
+                                           "FarGlass skipped: its caustic lands on nothing the camera sees"]
+    assert plain.image.max() > 0
+    assert plain.image.tobytes() == more.image.tobytes()
+    assert plain.std.tobytes() == more.std.tobytes()
+    ratio = more.stats["rays"] / plain.stats["rays"]
+    assert 1.0 <= ratio < 1.05, ratio  # the pilots aimed at FarGlass, no more
+    assert list(more.stats["lights"]) == ["Area"]
+
+
+def test_a_far_caster_too_faint_to_show_is_skipped():
+    """A glass ball 45 m away, beyond the floor's edge and below it: a faint glory of light
+    reflected inside it does reach the floor, and the Ball shows it in its reflection, so it
+    is not invisible; the pilots find its caustic below PLAN_MIN_SHARE of the light the
+    camera sees, and it is left out."""
+    scene = lens_scene(True, (48, 36), far=(-45, 0, -3))
+    plan = make_plan(scene)
+    refine_plan(plan, scene, Tracer(scene), CameraModel(scene.camera), seed=3)
+    assert plan.words() == BALL + ["SkySpot skipped: reaches no caster",
+                            "FarGlass skipped: its caustic is too faint to show"]
+    assert [lp.caster_names for lp in plan.lights] == [["Ball"]]
+    assert plan.casters.sum() == 1 and plan.scale < 15  # tolerances from what takes part
+
+
+def _skyward():
+    b = SceneBuilder("Skyward")
+    b.material("floor", "diffuse", color=(0.8,) * 3)
+    b.material("mirror", "conductor", color=(0.9,) * 3)
+    b.plane("Floor", (0, 0, 0), 10, "floor")
+    b.plane("Mirror", (0, 0, 1.5), 1.0, "mirror", normal=np.array([-1, 0, 1]) / math.sqrt(2))
+    b.light("Disk", "AREA", location=(-2, 0, 1.5), target=(0, 0, 1.5), power=100.0, shape="DISK", size=0.5)
+    b.set_camera((0, -6, 5), (0, 0, 0), lens=35, resolution_x=32, resolution_y=24)
+    return b.build()
+
+
+def test_a_caster_whose_caustic_lands_out_of_view_bakes_nothing():
+    """A mirror turned to throw its light at the sky: with the caustics through a diffuse
+    bounce off, no caustic can show, so nothing is traced past the plan and the layer is
+    all zero."""
+    b = _skyward()
+    res = bake(b, BakeSettings(method="sms", spp=1, batches=2, indirect=False))
+    assert res.stats["nothing_to_bake"] == "no caster's caustic lands on anything the camera sees"
+    assert res.stats["plan"]["words"] == [
+        "Nothing to bake: no caster's caustic lands on anything the camera sees. The caustic layer is all zero."]
+    assert not res.image.any() and res.stats["lights"] == {}
+    assert res.stats["rays"] == res.stats["plan"]["rays"] > 0  # the plan's own rays only
+    # with pilots off the plan goes by bounds, and the walks find nothing either
+    res = bake(b, BakeSettings(method="sms", spp=1, batches=2, pilots=0, indirect=False))
+    assert res.stats["plan"]["words"] == ["Disk -> Mirror"] and not res.image.any()
+
+
+def test_a_caustic_after_a_diffuse_bounce_is_kept():
+    """The same mirror: light from the floor reaches its face and throws a caustic back on
+    the floor. The plan keeps it for that path only, and the image is the one a plan by
+    bounds gives (the same indirect pass, the same random numbers)."""
+    scene = _skyward()
+    res = bake(scene, BakeSettings(method="sms", spp=16, batches=4))
+    assert res.stats["plan"]["words"] == [
+        "Disk -> diffuse -> Mirror -> Floor (after a diffuse bounce)",
+        "Mirror skipped for Disk: its direct caustic lands on nothing the camera sees (0 of 4096 pilot photons)"]
+    assert res.image.max() > 0 and res.stats["lights"] == {}
+    by_bounds = bake(scene, BakeSettings(method="sms", spp=16, batches=4, pilots=0))
+    assert res.image.tobytes() == by_bounds.image.tobytes()
+
+
+def test_only_mirrors_walk_no_refraction():
+    res = bake(scenes.ring_scene(resolution=(32, 24)), BakeSettings(method="sms", spp=1, batches=2))
+    assert res.stats["chain_types"] == ["R", "RR"]
+    assert set(res.stats["lights"]["Area"]["by_chain"]) <= {"R", "RR"}
+    assert res.stats["plan"]["words"][0].startswith("Area -> Ring (reflection")
+
+
+def test_no_caster_exits_zero_with_an_all_zero_layer(tmp_path, capsys):
+    b = SceneBuilder("Bare")
+    b.material("floor", "diffuse", color=(0.8,) * 3)
+    b.plane("Floor", (0, 0, 0), 10, "floor")
+    b.light("Sun", "SUN", location=(0, 0, 5), power=3.0)
+    b.set_camera((0, -6, 5), (0, 0, 0), lens=35, resolution_x=16, resolution_y=12)
+    b.build().save(tmp_path / "bare.npz")
+    out = tmp_path / "bare.exr"
+    assert main(["bake", str(tmp_path / "bare.npz"), "--spp", "1", "--out", str(out)]) == 0
+    said = capsys.readouterr().out
+    why = "scene 'Bare' has no caustic caster: no object with a glossy or glass material"
+    assert f"plan:\n  Nothing to bake: {why}. The caustic layer is all zero.\n" in said
+    assert f"nothing to bake: {why}; the caustic layer is all zero" in said
+    from smbs_addon.imageio import read_exr
+
+    img = read_exr(out)[0]
+    assert img.shape == (12, 16, 3) and not img.any()
+
+
+def test_chain_words():
+    assert [describe_chain(t) for t in ("R", "RR", "T", "TT", "TRT", "TRRT", "RT")] == [
+        "reflection", "2 reflections", "refraction", "refraction, 2 vertices",
+        "refraction, 3 vertices, 1 internal reflection", "refraction, 4 vertices, 2 internal reflections",
+        "refraction, 2 vertices, 1 reflection"]
+
+
+# ------------------------------------------------------------------ the sample scenes' plans
+SAMPLE_PLANS = {  # word for word: what each sample scene bakes, by which paths, onto what
+    "glass_sphere.blend": ["Light -> Sphere (refraction, 2 vertices 94%; reflection 6%; rarer paths <1%) -> Floor",
+                           "Light -> diffuse -> Sphere -> Floor (after a diffuse bounce)"],
+    "glass_spot.blend": ["Spot -> Sphere (refraction, 2 vertices 97%; reflection 3%; rarer paths <1%) -> Floor"],
+    "mirror.blend": ["Light -> Mirror (reflection) -> Floor"],
+    "pool.blend": ["Sun -> WaterSurface (refraction) -> PoolFloor",
+                   "Sun -> diffuse -> WaterSurface -> PoolFloor (after a diffuse bounce)"],
+    "water.blend": ["Point -> Water (refraction) -> Floor", "Sun -> Water (refraction) -> Floor"],
+}
+
+
+def _sample_plan(name):
+    import bpy
+
+    from smbs_addon.export import export_scene
+
+    bpy.ops.wm.open_mainfile(filepath=str(ROOT / "sample_blends" / name), load_ui=False)
+    scene = export_scene(bpy.context.scene)
+    plan = make_plan(scene)
+    refine_plan(plan, scene, Tracer(scene), CameraModel(scene.camera), seed=0)
+    return plan.words()
+
+
+@pytest.mark.parametrize("name", sorted(SAMPLE_PLANS))
+def test_sample_scene_plans(name):
+    assert _sample_plan(name) == SAMPLE_PLANS[name]
