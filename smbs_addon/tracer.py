@@ -108,6 +108,12 @@ class Tracer:
         prim, _ = self._run(o, d, tmax, "OCCLUDED")
         return prim >= 0
 
+    def cast(self, o: np.ndarray, d: np.ndarray):
+        """Embree's closest hits of rays o + t d as they come: primitive ids (int64, -1 on a
+        miss) and float32 distances as float64, for callers that re-compute the hits
+        themselves (kernels.hit_vertices does intersect's work per lane)."""
+        return self._run(o, d, None, "INTERSECT")
+
     def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None,
                   exact_origin: np.ndarray | None = None) -> Hits:
         """Closest hits of rays o + t d (d unit), re-computed in float64.
