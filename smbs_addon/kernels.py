@@ -377,27 +377,30 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
 
 # ------------------------------------------------------------------ a vertex from a ray hit
 @njit(**_JIT)
-def hit_vertices(refract, last, o, d, origin, exact, prim, t32, tv, tng, tns, eps,
-                 tri_material, mat_kind, tri_object, casters, mat_ior, prev):
-    """walk.propagate's work after one intersect call, per lane: tracer.intersect's float64
-    hit point (the plane of the hit triangle re-intersected from origin, the ray's true start
-    when exact, else o), geometry.vertex_from_hits, the material checks, the reflection or
-    refraction of w_in = normalize(prev - p) and the side checks. Returns the packed vertex
-    Fv (M,NF), Iv (M,3), the unit outgoing direction w (M,3) (zero on TIR), the next ray's
-    offset origin (M,3) and the walk outcome code (M,)."""
+def propagate_step(refract, last, j, act, o, d, prev, exact, prim, t32, tv, tng, tns, eps,
+                   tri_material, mat_kind, tri_object, casters, mat_ior, F, I, status, out):
+    """walk.propagate's work after the intersect call for vertex j, per lane (rows act of the
+    chain's F, I, status, out): tracer.intersect's float64 hit point (the plane of the hit
+    triangle re-intersected from prev, the ray's true start, when exact, else from o),
+    geometry.vertex_from_hits, the material checks, the reflection or refraction of
+    w_in = normalize(prev - p) and the side checks. Writes the walk outcome to status, the
+    vertex to F and I where it is kept (valid, or at the last vertex TIR or SIDE), the unit
+    outgoing direction to out; returns the lanes that go on (act, the next ray's offset origin
+    and direction, the vertex)."""
     M = o.shape[0]
-    Fv = np.zeros((M, NF))
-    Iv = np.zeros((M, 3), np.int64)
-    wn_out = np.zeros((M, 3))
-    onext = np.zeros((M, 3))
-    bad = np.zeros(M, np.int64)
+    nxt = np.zeros(M, np.int64)
+    o_next = np.zeros((M, 3))
+    d_next = np.zeros((M, 3))
+    p_next = np.zeros((M, 3))
+    cnt = 0
     for i in range(M):
+        lane = act[i]
         pr = prim[i]
         if pr < 0:
-            bad[i] = _MISS
+            status[lane] = _MISS
             continue
         # tracer.intersect: the hit re-computed in float64
-        oi = _v(origin, i, 0) if exact else _v(o, i, 0)
+        oi = _v(prev, i, 0) if exact else _v(o, i, 0)
         di = _v(d, i, 0)
         tt = t32[i]
         if exact:
@@ -445,11 +448,11 @@ def hit_vertices(refract, last, o, d, origin, exact, prim, t32, tv, tng, tns, ep
                 alpha = (g22 * r1 - g12 * r2) * inv2
                 beta = (g11 * r2 - g12 * r1) * inv2
                 dN = _add(_mul(alpha, dn1), _mul(beta, dn2))
-                out = _div(_sub(dN, _mul(_dot(dN, n), n)), ln)
+                dv = _div(_sub(dN, _mul(_dot(dN, n), n)), ln)
                 if col == 0:
-                    dns = out
+                    dns = dv
                 else:
-                    dnt = out
+                    dnt = dv
         mat = tri_material[pr]
         mk = mat_kind[mat]
         obj = tri_object[pr]
@@ -467,19 +470,116 @@ def hit_vertices(refract, last, o, d, origin, exact, prim, t32, tv, tng, tns, ep
         side_ok = ((cin * cout < 0) if refract else (cin * cout > 0)) and (_dot(w_in, n) * _dot(n, g) * cin > 0)
         if not side_ok and code == _OK:
             code = _SIDE if last else _SIDE_INNER
-        bad[i] = code
+        status[lane] = code
+        keep = code == _OK or (last and (code == _TIR or code == _SIDE))
+        if not keep:
+            continue
         wn = _normalize(w_out)
+        for c in range(3):
+            F[lane, j, P + c] = p[c]
+            F[lane, j, NG + c] = g[c]
+            F[lane, j, NS + c] = n[c]
+            F[lane, j, S + c] = s[c]
+            F[lane, j, T + c] = t[c]
+            F[lane, j, DNS + c] = dns[c]
+            F[lane, j, DNT + c] = dnt[c]
+        I[lane, j, PRIM], I[lane, j, OBJ], I[lane, j, MAT] = pr, obj, mat
+        if code == _TIR:
+            continue
+        out[lane, 0], out[lane, 1], out[lane, 2] = wn
+        if code != _OK:
+            continue
         side = 1.0 if _dot(wn, g) >= 0 else -1.0
         on = _add(p, _mul(eps * side, g))
+        nxt[cnt] = lane
         for c in range(3):
-            Fv[i, P + c] = p[c]
-            Fv[i, NG + c] = g[c]
-            Fv[i, NS + c] = n[c]
-            Fv[i, S + c] = s[c]
-            Fv[i, T + c] = t[c]
-            Fv[i, DNS + c] = dns[c]
-            Fv[i, DNT + c] = dnt[c]
-            wn_out[i, c] = wn[c]
-            onext[i, c] = on[c]
-        Iv[i, PRIM], Iv[i, OBJ], Iv[i, MAT] = pr, obj, mat
-    return Fv, Iv, wn_out, onext, bad
+            o_next[cnt, c] = on[c]
+            d_next[cnt, c] = wn[c]
+            p_next[cnt, c] = p[c]
+        cnt += 1
+    return nxt[:cnt], o_next[:cnt], d_next[:cnt], p_next[:cnt]
+
+
+@njit(**_JIT)
+def end_mismatch(idx, F, out_dir, ly, directional):
+    """walk.end_mismatch of a chain (rows 0.. of F, out_dir) against the light end rows idx:
+    |w_o' - w_o| at the last vertex and whether w_o' points to the light's side."""
+    M = idx.shape[0]
+    k = F.shape[1]
+    err = np.zeros(M)
+    front = np.zeros(M, np.bool_)
+    for m in range(M):
+        i = idx[m]
+        if directional:
+            to_light = _v(ly, i, 0)
+        else:
+            to_light = _normalize(_sub(_v(ly, i, 0), _vk(F, m, k - 1, P)))
+        od = _v(out_dir, m, 0)
+        diff = _sub(od, to_light)
+        err[m] = math.sqrt(_dot(diff, diff))
+        front[m] = _dot(od, to_light) > 0
+    return err, front
+
+
+# ------------------------------------------------------------------ SMBS's large mutation
+@njit(inline="always", **_JIT)
+def _ray_box(o, d, lo, hi):
+    """large_mutation.ray_box for one ray."""
+    tmin = -np.inf
+    tmax = np.inf
+    for c in range(3):
+        inv = 1.0 / d[c]
+        t1 = (lo[c] - o[c]) * inv
+        t2 = (hi[c] - o[c]) * inv
+        if t1 != t1:
+            t1 = -np.inf
+        if t2 != t2:
+            t2 = np.inf
+        near, far = min(t1, t2), max(t1, t2)
+        if c == 0:
+            tmin, tmax = near, far
+        else:
+            tmin, tmax = max(tmin, near), min(tmax, far)
+    return tmax >= max(tmin, 0.0)
+
+
+@njit(**_JIT)
+def large_proposal(idx, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, scale, max_halvings):
+    """large_mutation.large_direction for lanes idx: GetNextDir back from the light through
+    the chain's vertices, then GetRatio's bisection towards it until the ray from x0 meets the
+    box of x1's object. Returns the direction (M,3) and ok (M,)."""
+    M = idx.shape[0]
+    k = kinds.shape[0]
+    d_out = np.zeros((M, 3))
+    oks = np.zeros(M, np.bool_)
+    for m in range(M):
+        i = idx[m]
+        if directional:
+            v = _neg(_v(ly, i, 0))
+        else:
+            v = _normalize(_sub(_vk(F, i, k - 1, P), _v(ly, i, 0)))
+        ok = True
+        for j in range(k - 1, -1, -1):
+            v, okm = smap(kinds[j] == 1, _neg(v), _vk(F, i, j, NS), etas[i, j])
+            ok = ok and okm
+        xi = _v(x0, i, 0)
+        v1 = _normalize(_sub(_vk(F, i, 0, P), xi))
+        target = _neg(v)
+        a = 1.0 if _dot(v1, target) < 0 else 0.5
+        a = a * scale[i]
+        obj = I[i, 0, OBJ]
+        lo = _v(obj_lo, obj, 0)
+        hi = _v(obj_hi, obj, 0)
+        found = False
+        for _ in range(max_halvings + 1):
+            d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
+            if _ray_box(xi, d, lo, hi) and _dot(d, d) > 0:
+                found = True
+                break
+            a *= 0.5
+        if not found:
+            a = 0.0
+        d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
+        d_out[m, 0], d_out[m, 1], d_out[m, 2] = d
+        oks[m] = ok and _dot(d, d) > 0.5
+    return d_out, oks

@@ -23,8 +23,9 @@ import numpy as np
 from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .geometry import vertex_view
-from .kernels import MAT, NF, OBJ, P, hit_vertices, newton_proposal
-from .large_mutation import large_direction
+from . import kernels
+from .kernels import MAT, NF, large_proposal, newton_proposal, propagate_step
+from .large_mutation import MAX_HALVINGS
 from .vec import dot, normalize
 
 # walk outcome codes
@@ -84,7 +85,7 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
     Every vertex must be a specular caster; a T vertex must be glass. The
     geometric normal must agree with the interaction (reflection stays on its
     side, refraction crosses), else the chain is rejected (SIDE). The per-lane work
-    after each intersect call is kernels.hit_vertices."""
+    after each intersect call is kernels.propagate_step."""
     scene, tracer = ctx.scene, ctx.tracer
     n = len(x0)
     k = len(types)
@@ -102,31 +103,15 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
             break
         prim, t = tracer.cast(o, dirs)
         ctx.count("rays_walk", len(o))
-        last = j == k - 1
-        # from the true previous vertex, not the offset ray origin: the chain stays exact
-        Fv, Iv, w_out, o_next, bad = hit_vertices(
-            kind == "T", last, o, dirs, prev, j > 0, prim, t, tracer.v, tracer.ng, tracer.ns_corner, tracer.eps,
-            scene.tri_material, scene.mat_kind, scene.tri_object, ctx.casters, scene.mat_ior, prev)
-        status[act] = bad
-        good = bad == OK
-        if last:
-            # keep the last vertex of a chain whose exit is TIR: SMBS can mutate from it; and of
-            # one whose exit dips below the geometric surface (a shading normal leaning away, as
-            # on a normal-mapped mirror): every walk goes on from it, as SMS does from any seed
-            # on the caster, and converges only once the exit is valid
-            side = bad == SIDE
-            keep = good | side | (bad == TIR)
-            F[act[keep], j] = Fv[keep]
-            I[act[keep], j] = Iv[keep]
-            out[act[side]] = w_out[side]
-        else:
-            F[act[good], j] = Fv[good]
-            I[act[good], j] = Iv[good]
-        act = act[good]
-        out[act] = w_out[good]
-        o = o_next[good]
-        dirs = w_out[good]
-        prev = Fv[good, P:P + 3]
+        # from the true previous vertex, not the offset ray origin: the chain stays exact. At the
+        # last vertex the kernel keeps the vertex of a chain whose exit is TIR (SMBS can mutate
+        # from it) and of one whose exit dips below the geometric surface (a shading normal
+        # leaning away, as on a normal-mapped mirror): every walk goes on from it, as SMS does
+        # from any seed on the caster, and converges only once the exit is valid
+        act, o, dirs, prev = propagate_step(
+            kind == "T", j == k - 1, j, act, o, dirs, prev, j > 0, prim, t, tracer.v, tracer.ng,
+            tracer.ns_corner, tracer.eps, scene.tri_material, scene.mat_kind, scene.tri_object, ctx.casters,
+            scene.mat_ior, F, I, status, out)
     return Chain(F, I, status, out)
 
 
@@ -218,19 +203,17 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         use_large = np.zeros(act.size, bool) if cfg.smbs else None
         if cfg.smbs:
             trig = pending[act]
-            x0a, la = x0[act], light.take(act)
             if cfg.backlit:
                 v1 = vertex_view(chain.F, chain.I, 0)
-                bl = backlit_at(types, x0a, v1.p[act], v1.n[act], la) & (trig == NONE)
+                bl = backlit_at(types, x0[act], v1.p[act], v1.n[act], light.take(act)) & (trig == NONE)
                 trig[bl] = TRIG_BACKLIT
             want = (trig != NONE) & large_ok[act]
             if want.any():
-                ch = chain.take(act)
-                obj1 = ch.I[:, 0, OBJ]
-                dl, okl = large_direction(types, ch.verts, list(etas[act].T), la, x0a, ctx.obj_lo[obj1],
-                                          ctx.obj_hi[obj1], lscale[act])
-                use_large = want & okl
-                d = np.where(use_large[:, None], dl, d)
+                w = np.flatnonzero(want)
+                dl, okl = large_proposal(act[w], kinds, x0, chain.F, chain.I, etas, light.y, light.directional,
+                                         ctx.obj_lo, ctx.obj_hi, lscale, MAX_HALVINGS)
+                use_large[w] = okl
+                d[w[okl]] = dl[okl]
                 for t_id in (TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW):
                     large_counts[TRIGGERS[t_id]] += int((use_large & (trig == t_id)).sum())
             pending[act] = NONE
@@ -250,7 +233,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
             break
         mutations[act] += 1
         new = propagate(ctx, x0[act], ng0[act], d, types, target=p)
-        e_new, f_new = end_mismatch(new, light.take(act))
+        e_new, f_new = kernels.end_mismatch(act, new.F, new.out_dir, light.y, light.directional)
         okp = (new.status == OK) | (new.status == SIDE)
         if use_large is None:
             accept = okp & (e_new < err[act])

@@ -124,3 +124,25 @@ def test_specular_map_kernel_matches_numpy():
             out, oki = K.smap(refract, tuple(w[i]), tuple(nrm[i]), eta[i])
             assert oki == ok[i]
             assert np.abs(np.array(out) - ref[i]).max() < 1e-15
+
+
+@pytest.mark.parametrize("types", ["R", "TT", "TRT"])
+@pytest.mark.parametrize("directional", [False, True])
+def test_large_proposal_matches_numpy(types, directional):
+    from smbs_addon.large_mutation import MAX_HALVINGS, large_direction
+
+    rng = np.random.default_rng(len(types) + 10 * directional)
+    n = 1000
+    x0, verts, etas, light = _random_chain(rng, n, types, directional)
+    verts[0].obj[:] = rng.integers(0, 3, n)
+    obj_lo = np.array([[-0.5, -0.5, 0.5], [-2.0, -2.0, 0.0], [0.3, 0.3, 0.9]])
+    obj_hi = obj_lo + np.array([[1.0, 1.0, 1.0], [4.0, 4.0, 3.0], [0.2, 0.2, 0.2]])
+    scale = np.where(rng.random(n) < 0.3, 0.25, 1.0)
+    obj1 = verts[0].obj
+    d_ref, ok_ref = large_direction(types, verts, etas, light, x0, obj_lo[obj1], obj_hi[obj1], scale)
+    F, I = pack(verts)
+    idx = np.arange(n)
+    d, ok = K.large_proposal(idx, _kinds(types), x0, F, I, np.stack(etas, 1), light.y, directional, obj_lo,
+                             obj_hi, scale, MAX_HALVINGS)
+    np.testing.assert_array_equal(ok, ok_ref)
+    assert 0.2 < ok.mean() and np.abs(d - d_ref)[ok].max() < 1e-14
