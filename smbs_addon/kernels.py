@@ -118,7 +118,7 @@ def _orient(w, n, eta):
     return _neg(n), eta, -1.0
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def smap(refract, w, n, eta):
     """constraints.specular_map for one lane: (direction, ok)."""
     if not refract:
@@ -134,7 +134,7 @@ def smap(refract, w, n, eta):
     return out, True
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def smap_d(refract, w, n, eta, dw, dn):
     """constraints.specular_map_d for one lane."""
     if not refract:

@@ -91,13 +91,13 @@ class Tracer:
             return r["primID"], r["tfar"]
 
         parts = max(1, min(self.threads, n // _MIN_SPLIT))
+        if parts == 1:  # most calls of the walks: a few hundred rays
+            prim, t = job(slice(None))
+            return prim.astype(np.int64), None if t is None else t.astype(np.float64)
         bounds = np.linspace(0, n, parts + 1).astype(int)
         slices = [slice(bounds[i], bounds[i + 1]) for i in range(parts)]
-        if parts == 1:
-            res = [job(slices[0])]
-        else:
-            with ThreadPoolExecutor(max_workers=parts) as ex:
-                res = list(ex.map(job, slices))
+        with ThreadPoolExecutor(max_workers=parts) as ex:
+            res = list(ex.map(job, slices))
         prim = np.concatenate([r[0] for r in res]).astype(np.int64)
         t = None if query == "OCCLUDED" else np.concatenate([r[1] for r in res]).astype(np.float64)
         return prim, t
