@@ -583,3 +583,103 @@ def large_proposal(idx, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, 
         d_out[m, 0], d_out[m, 1], d_out[m, 2] = d
         oks[m] = ok and _dot(d, d) > 0.5
     return d_out, oks
+
+
+# ------------------------------------------------------------------ the walk's bookkeeping
+_NONE, _TRIG_TIR, _TRIG_BACKLIT, _TRIG_SLOW = 0, 1, 2, 3
+_MAX_ITER = 8
+
+
+@njit(**_JIT)
+def smbs_triggers(act, reflect_first, backlit_on, x0, F, ly, directional, pending, large_ok):
+    """SMBS's triggers for lanes act: the pending one (TIR, slow), else trigger 2 (walk.backlit:
+    for a reflection at x1, x0 and the light on different sides of its surface; for a
+    refraction, on the same side); clears pending. Returns trig (M,) and want (M,): a trigger
+    fired and the lane may take large mutations."""
+    M = act.shape[0]
+    trig = np.zeros(M, np.int64)
+    want = np.zeros(M, np.bool_)
+    for m in range(M):
+        i = act[m]
+        tr = pending[i]
+        if backlit_on and tr == _NONE:
+            p1 = _vk(F, i, 0, P)
+            n1 = _vk(F, i, 0, NS)
+            to_light = _v(ly, i, 0) if directional else _sub(_v(ly, i, 0), p1)
+            a = _dot(_sub(_v(x0, i, 0), p1), n1) > 0
+            b = _dot(to_light, n1) > 0
+            if (a != b) if reflect_first else (a == b):
+                tr = _TRIG_BACKLIT
+        trig[m] = tr
+        want[m] = tr != _NONE and large_ok[i]
+        pending[i] = _NONE
+    return trig, want
+
+
+@njit(**_JIT)
+def spawn_aim(x0, ng0, d, target, eps):
+    """tracer.spawn of x0 towards d, and the unit direction from that origin to target."""
+    M = x0.shape[0]
+    o = np.zeros((M, 3))
+    dirs = np.zeros((M, 3))
+    for i in range(M):
+        g = _v(ng0, i, 0)
+        side = 1.0 if _dot(_v(d, i, 0), g) >= 0 else -1.0
+        on = _add(_v(x0, i, 0), _mul(eps * side, g))
+        w = _normalize(_sub(_v(target, i, 0), on))
+        for c in range(3):
+            o[i, c] = on[c]
+            dirs[i, c] = w[c]
+    return o, dirs
+
+
+@njit(**_JIT)
+def walk_update(act, nF, nI, nstatus, nout, e_new, f_new, use_large, smbs, tir_on, slow_on, tir_rejected, tau,
+                slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome):
+    """walk.newton_walk's acceptance of the proposals (chain nF/nI/nstatus/nout, mismatch e_new,
+    f_new; row m belongs to lane act[m]) and its state updates: the accepted chain, the
+    mismatch, beta (doubled on acceptance, halved on rejection, 1 after a large mutation), SMBS's
+    bisection scale and triggers 1 (a large mutation into TIR moves the chain) and 3 (slow
+    small steps in a row). Returns the lanes that walk on (a lane whose beta fell below
+    min_beta is stuck: outcome MAX_ITER)."""
+    M = act.shape[0]
+    keep = np.ones(M, np.bool_)
+    for m in range(M):
+        i = act[m]
+        st = nstatus[m]
+        okp = st == _OK or st == _SIDE
+        ul = use_large[m]
+        e, f = e_new[m], f_new[m]
+        accept = okp and (ul or e < err[i])
+        if ul and st == _TIR and tir_on:
+            # a large mutation that ends in total internal reflection still moves the chain
+            accept = True
+            e, f = np.inf, False
+            pending[i] = _TRIG_TIR
+        if accept:
+            F[i, :, :] = nF[m]
+            I[i, :, :] = nI[m]
+            out_dir[i, 0], out_dir[i, 1], out_dir[i, 2] = nout[m, 0], nout[m, 1], nout[m, 2]
+        if smbs and slow_on:
+            slow = okp and not ul and e > tau * err[i]
+            slow_n[i] = slow_n[i] + 1 if slow else 0
+            if slow and slow_n[i] >= slow_run:
+                slow_n[i] = 0
+                pending[i] = _TRIG_SLOW
+        if accept:
+            err[i], front[i] = e, f
+            valid[i] = st == _OK
+            beta[i] = min(1.0, 2.0 * beta[i])
+            if ul:
+                beta[i] = 1.0
+                lscale[i] = 1.0
+        else:
+            if ul:
+                lscale[i] *= 0.5
+            beta[i] *= 0.5
+            if smbs and tir_on and tir_rejected and st == _TIR:
+                pending[i] = _TRIG_TIR
+            if beta[i] < min_beta:
+                outcome[i] = _MAX_ITER
+                keep[m] = False
+    return act[keep]

@@ -24,7 +24,7 @@ from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .geometry import vertex_view
 from . import kernels
-from .kernels import MAT, NF, large_proposal, newton_proposal, propagate_step
+from .kernels import MAT, NF, large_proposal, newton_proposal, propagate_step, smbs_triggers, spawn_aim, walk_update
 from .large_mutation import MAX_HALVINGS
 from .vec import dot, normalize
 
@@ -94,9 +94,10 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
     status = np.full(n, OK, np.int64)
     out = np.zeros((n, 3))
     act = np.arange(n)
-    o = tracer.spawn(x0, ng0, d)
-    # aim from the offset origin itself, so the hit lands on the proposed point
-    dirs = d if target is None else normalize(target - o)
+    if target is None:
+        o, dirs = tracer.spawn(x0, ng0, d), d
+    else:  # aim from the offset origin itself, so the hit lands on the proposed point
+        o, dirs = spawn_aim(x0, ng0, d, target, tracer.eps)
     prev = x0
     for j, kind in enumerate(types):
         if act.size == 0:
@@ -200,79 +201,40 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         # --- small mutation: Newton step of x1 from the block-tridiagonal system (one kernel)
         p, d, oks = newton_proposal(act, hv, kinds, x0, chain.F, etas, light.y, light.ys, light.yt,
                                     light.directional, beta, max_step)
-        use_large = np.zeros(act.size, bool) if cfg.smbs else None
+        use_large = np.zeros(act.size, bool)
         if cfg.smbs:
-            trig = pending[act]
-            if cfg.backlit:
-                v1 = vertex_view(chain.F, chain.I, 0)
-                bl = backlit_at(types, x0[act], v1.p[act], v1.n[act], light.take(act)) & (trig == NONE)
-                trig[bl] = TRIG_BACKLIT
-            want = (trig != NONE) & large_ok[act]
+            trig, want = smbs_triggers(act, types[0] == "R", cfg.backlit, x0, chain.F, light.y, light.directional,
+                                       pending, large_ok)
             if want.any():
                 w = np.flatnonzero(want)
                 dl, okl = large_proposal(act[w], kinds, x0, chain.F, chain.I, etas, light.y, light.directional,
                                          ctx.obj_lo, ctx.obj_hi, lscale, MAX_HALVINGS)
                 use_large[w] = okl
-                d[w[okl]] = dl[okl]
+                wl = w[okl]
+                d[wl] = dl[okl]
+                p[wl] = x0[act[wl]] + dl[okl]
                 for t_id in (TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW):
                     large_counts[TRIGGERS[t_id]] += int((use_large & (trig == t_id)).sum())
-            pending[act] = NONE
-        if use_large is None:
-            singular = ~oks
-        else:
-            singular = ~oks & ~use_large
+        singular = ~(oks | use_large)
         if singular.any():
             outcome[act[singular]] = SINGULAR
             keep = ~singular
-            act, d, p = act[keep], d[keep], p[keep]
-            if use_large is not None:
-                use_large = use_large[keep]
-        if use_large is not None:
-            p = np.where(use_large[:, None], x0[act] + d, p)
+            act, d, p, use_large = act[keep], d[keep], p[keep], use_large[keep]
         if act.size == 0:
             break
         mutations[act] += 1
         new = propagate(ctx, x0[act], ng0[act], d, types, target=p)
         e_new, f_new = kernels.end_mismatch(act, new.F, new.out_dir, light.y, light.directional)
-        okp = (new.status == OK) | (new.status == SIDE)
-        if use_large is None:
-            accept = okp & (e_new < err[act])
-        else:
-            accept = okp & (use_large | (e_new < err[act]))
-            # a large mutation that ends in total internal reflection still moves the chain (its
-            # last vertex is kept, as for a TIR seed): the next one bisects on from there instead
-            # of repeating the same rejected proposal until the walk counts as stuck
-            moved_tir = use_large & (new.status == TIR) & cfg.tir
-            accept |= moved_tir
-            e_new[moved_tir], f_new[moved_tir] = np.inf, False
-            pending[act[moved_tir]] = TRIG_TIR
-        acc = act[accept]
-        chain.F[acc] = new.F[accept]
-        chain.I[acc] = new.I[accept]
-        chain.out_dir[acc] = new.out_dir[accept]
-        if cfg.smbs and cfg.slow:
-            # trigger 3 on the last small mutation's proposal, kept or not: a rejected one
-            # (the mismatch grew, ratio > 1 > tau) is the slowest progress of all; waiting for
-            # beta to shrink below min_beta instead lost 9-13% of all walks to local minima
-            slow = okp & ~use_large & (e_new > cfg.tau * err[act])
-            slow_n[act] = np.where(slow, slow_n[act] + 1, 0)
-            fire = slow & (slow_n[act] >= cfg.slow_run)
-            slow_n[act[fire]] = 0
-            pending[act[fire]] = TRIG_SLOW
-        err[acc], front[acc] = e_new[accept], f_new[accept]
-        valid[acc] = new.status[accept] == OK
-        beta[acc] = np.minimum(1.0, 2.0 * beta[acc])
-        if use_large is not None:
-            beta[act[accept & use_large]] = 1.0  # Algorithm 2, line 7: a large mutation restarts the step
-            lscale[act[accept & use_large]] = 1.0
-            lscale[act[use_large & ~accept]] *= 0.5
-        rej = act[~accept]
-        beta[rej] *= 0.5
-        if cfg.smbs and cfg.tir and cfg.tir_rejected:
-            pending[act[(new.status == TIR) & ~accept]] = TRIG_TIR
-        stuck = beta[rej] < cfg.min_beta  # the step had to shrink too far: give up
-        if stuck.any():
-            outcome[rej[stuck]] = MAX_ITER
-            act = np.setdiff1d(act, rej[stuck], assume_unique=True)
+        # acceptance and every per-lane state update in one kernel (see walk_update): a large
+        # mutation that ends in total internal reflection still moves the chain (its last vertex
+        # is kept, as for a TIR seed), so the next one bisects on from there instead of repeating
+        # the same rejected proposal until the walk counts as stuck; trigger 3 on the last small
+        # mutation's proposal, kept or not: a rejected one (the mismatch grew, ratio > 1 > tau) is
+        # the slowest progress of all; waiting for beta to shrink below min_beta instead lost
+        # 9-13% of all walks to local minima; beta halves on rejection and a walk whose step had
+        # to shrink below min_beta gives up
+        act = walk_update(act, new.F, new.I, new.status, new.out_dir, e_new, f_new, use_large, cfg.smbs, cfg.tir,
+                          cfg.slow, cfg.tir_rejected, cfg.tau, cfg.slow_run, cfg.min_beta, chain.F, chain.I,
+                          chain.out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome)
     outcome[converged] = OK
     return WalkResult(chain=chain, converged=converged, outcome=outcome, mutations=mutations, large=large_counts)
