@@ -37,6 +37,55 @@ _CONDUCTOR, _DIELECTRIC = 1, 2
 _JIT = dict(cache=True, nogil=True, error_model="numpy")
 
 
+def _cache_per_module_name():
+    """Keep one disk cache per name this module is imported under. numba's cache is keyed by
+    the source file, but a cached kernel rebuilds its environment by importing the module by the
+    name it was compiled under: the same file imported as smbs_addon.kernels (command line) and
+    as bl_ext.<repo>.smbs_caustics.smbs_addon.kernels (Blender) would each fail to load the
+    other's entries (ModuleNotFoundError). The module's name goes into the cache file names."""
+    try:
+        import hashlib
+
+        from numba.core import caching
+    except ImportError:  # pragma: no cover - numba's layout changed: default caching
+        return
+    name = __name__
+
+    class Locator(caching._CacheLocator):
+        def __init__(self, inner):
+            self._inner = inner
+            self._tag = hashlib.sha1(name.encode()).hexdigest()[:10]
+
+        def ensure_cache_path(self):
+            self._inner.ensure_cache_path()
+
+        def get_cache_path(self):
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return self._inner.get_source_stamp()
+
+        def get_disambiguator(self):
+            return f"{self._inner.get_disambiguator()}-{self._tag}"
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if getattr(py_func, "__module__", None) != name:
+                return None
+            for base in caching.CacheImpl._locator_classes:
+                if base is not cls and not getattr(base, "_smbs_per_module", False):
+                    inner = base.from_function(py_func, py_file)
+                    if inner is not None:
+                        return cls(inner)
+            return None
+
+    Locator._smbs_per_module = True
+    caching.CacheImpl._locator_classes.insert(0, Locator)
+
+
+_cache_per_module_name()
+
+
 # ------------------------------------------------------------------ 3-vectors as tuples
 @njit(inline="always", **_JIT)
 def _v(a, i, off):

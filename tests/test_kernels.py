@@ -146,3 +146,40 @@ def test_large_proposal_matches_numpy(types, directional):
                              obj_hi, scale, MAX_HALVINGS)
     np.testing.assert_array_equal(ok, ok_ref)
     assert 0.2 < ok.mean() and np.abs(d - d_ref)[ok].max() < 1e-14
+
+
+_CACHE_USE = r"""
+import importlib.util, sys
+import numpy as np
+name, path = sys.argv[1], sys.argv[2]
+if name == "smbs_addon.kernels":
+    import smbs_addon.kernels as K
+else:  # the same file under another name, as Blender imports the extension
+    spec = importlib.util.spec_from_file_location(name, path)
+    K = importlib.util.module_from_spec(spec)
+    sys.modules[name] = K
+    spec.loader.exec_module(K)
+F = np.zeros((3, 1, K.NF))
+F[:, 0, 2] = 1.0
+err, front = K.end_mismatch(np.arange(3), F, np.tile([0.0, 0.0, 1.0], (3, 1)), np.tile([0.0, 0.0, 5.0], (3, 1)), False)
+assert np.allclose(err, 0.0) and front.all()
+print("CACHE-OK")
+"""
+
+
+def test_disk_cache_survives_two_module_names(tmp_path):
+    """A kernel cached under one module name (Blender's bl_ext.*.smbs_caustics...) must not break
+    a later process importing the same file as smbs_addon.kernels, and the other way round."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    path = str(root / "smbs_addon" / "kernels.py")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
+    for name in ("smbs_caustics_test.smbs_addon.kernels", "smbs_addon.kernels", "smbs_caustics_test.smbs_addon.kernels",
+                 "smbs_addon.kernels"):
+        proc = subprocess.run([sys.executable, "-c", _CACHE_USE, name, path], env=env, capture_output=True,
+                              text=True, timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
