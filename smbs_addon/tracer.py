@@ -9,11 +9,11 @@ geometric normal by a distance relative to the scene's size.
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import lanes
 from .vec import cross, dot, normalize
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
@@ -90,14 +90,10 @@ class Tracer:
             r = self._embree.run(o32[sl], d32[sl], output=1, **kw)
             return r["primID"], r["tfar"]
 
-        parts = max(1, min(self.threads, n // _MIN_SPLIT))
-        if parts == 1:  # most calls of the walks: a few hundred rays
-            prim, t = job(slice(None))
+        res = lanes.run(lambda a, b: job(slice(a, b)), n, self.threads, _MIN_SPLIT)
+        if len(res) == 1:
+            prim, t = res[0]
             return prim.astype(np.int64), None if t is None else t.astype(np.float64)
-        bounds = np.linspace(0, n, parts + 1).astype(int)
-        slices = [slice(bounds[i], bounds[i + 1]) for i in range(parts)]
-        with ThreadPoolExecutor(max_workers=parts) as ex:
-            res = list(ex.map(job, slices))
         prim = np.concatenate([r[0] for r in res]).astype(np.int64)
         t = None if query == "OCCLUDED" else np.concatenate([r[1] for r in res]).astype(np.float64)
         return prim, t

@@ -23,7 +23,7 @@ import numpy as np
 from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .geometry import vertex_view
-from . import kernels
+from . import kernels, lanes
 from .kernels import MAT, NF, large_proposal, newton_proposal, propagate_step, smbs_triggers, spawn_aim, walk_update
 from .large_mutation import MAX_HALVINGS
 from .vec import dot, normalize
@@ -79,6 +79,16 @@ class Chain:
         return Chain(self.F[idx], self.I[idx], self.status[idx], self.out_dir[idx])
 
 
+MIN_PART = 512  # lanes per thread below which splitting a kernel call does not pay
+
+
+def _joined(parts):
+    """The parts' result arrays joined in lane order."""
+    if len(parts) == 1:
+        return parts[0]
+    return tuple(np.concatenate(x) for x in zip(*parts))
+
+
 def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
     """Trace x0 -> d and follow the chain's reflections/refractions (shading normals).
 
@@ -109,10 +119,13 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
         # from it) and of one whose exit dips below the geometric surface (a shading normal
         # leaning away, as on a normal-mapped mirror): every walk goes on from it, as SMS does
         # from any seed on the caster, and converges only once the exit is valid
-        act, o, dirs, prev = propagate_step(
-            kind == "T", j == k - 1, j, act, o, dirs, prev, j > 0, prim, t, tracer.v, tracer.ng,
-            tracer.ns_corner, tracer.eps, scene.tri_material, scene.mat_kind, scene.tri_object, ctx.casters,
-            scene.mat_ior, F, I, status, out)
+        def part(a, b, act=act, o=o, dirs=dirs, prev=prev, prim=prim, t=t, j=j, kind=kind):
+            return propagate_step(
+                kind == "T", j == k - 1, j, act[a:b], o[a:b], dirs[a:b], prev[a:b], j > 0, prim[a:b], t[a:b],
+                tracer.v, tracer.ng, tracer.ns_corner, tracer.eps, scene.tri_material, scene.mat_kind,
+                scene.tri_object, ctx.casters, scene.mat_ior, F, I, status, out)
+
+        act, o, dirs, prev = _joined(lanes.run(part, act.size, tracer.threads, MIN_PART))
     return Chain(F, I, status, out)
 
 
@@ -199,8 +212,11 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
             outcome[act] = MAX_ITER
             break
         # --- small mutation: Newton step of x1 from the block-tridiagonal system (one kernel)
-        p, d, oks = newton_proposal(act, hv, kinds, x0, chain.F, etas, light.y, light.ys, light.yt,
-                                    light.directional, beta, max_step)
+        def part(a, b, act=act):
+            return newton_proposal(act[a:b], hv, kinds, x0, chain.F, etas, light.y, light.ys, light.yt,
+                                   light.directional, beta, max_step)
+
+        p, d, oks = _joined(lanes.run(part, act.size, ctx.tracer.threads, MIN_PART))
         use_large = np.zeros(act.size, bool)
         if cfg.smbs:
             trig, want = smbs_triggers(act, types[0] == "R", cfg.backlit, x0, chain.F, light.y, light.directional,
