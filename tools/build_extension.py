@@ -42,11 +42,12 @@ MANIFEST = "blender_manifest.toml"
 PYTHON_VERSION = "3.11"  # Blender 4.2 to 5.0
 BLENDER_VERSION_MAX = "5.1.0"  # exclusive: Blender 5.1 moves to Python 3.13
 PACKAGES = ("embreex", "OpenImageIO", "numba", "llvmlite")
-# Blender platform -> the pip --platform tag to ask for (pip also accepts older compatible tags).
+# Blender platform -> the pip --platform tags to ask for (pip accepts older macOS tags, but not
+# the legacy manylinux2014 name of manylinux_2_17, which numba 0.60's and llvmlite 0.43's wheels carry).
 PLATFORMS = {
-    "linux-x64": "manylinux_2_28_x86_64",
-    "windows-x64": "win_amd64",
-    "macos-arm64": "macosx_13_0_arm64",  # embreex 4.4 needs macOS 13
+    "linux-x64": ("manylinux_2_28_x86_64", "manylinux2014_x86_64"),
+    "windows-x64": ("win_amd64",),
+    "macos-arm64": ("macosx_13_0_arm64",),  # embreex 4.4 needs macOS 13
 }
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DOWNLOAD = 0, 1, 2, 4
 
@@ -140,7 +141,8 @@ def fetch_wheels(folder: Path, platforms, download=True) -> list[Path]:
                 say(f"downloading {package}=={version} for {platform}")
                 cmd = [sys.executable, "-m", "pip", "download", "--quiet", "--disable-pip-version-check",
                        "--only-binary=:all:", "--no-deps", "--python-version", PYTHON_VERSION,
-                       "--platform", PLATFORMS[platform], "--dest", str(folder), f"{package}=={version}"]
+                       *(a for tag in PLATFORMS[platform] for a in ("--platform", tag)),
+                       "--dest", str(folder), f"{package}=={version}"]
                 proc = subprocess.run(cmd, capture_output=True, text=True)
                 if proc.returncode != 0:
                     raise BuildError(f"cannot download {package}=={version} for {platform}:\n"
