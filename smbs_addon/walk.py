@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .geometry import vertex_view
 from . import kernels, lanes
