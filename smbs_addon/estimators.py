@@ -24,7 +24,9 @@ import math
 import numpy as np
 
 from . import scene as S
-from .constraints import ANGLE_DIFF, LightEnd, block_solve, blocks
+from .constraints import LightEnd
+from .geometry import pack
+from .kernels import chain_solve
 from .lights import soft_falloff_factor, spot_mask
 from .optics import specular_weights
 from .vec import dot, frame, normalize
@@ -87,18 +89,17 @@ def light_end_at_solution(scene, li, light: LightEnd, xk):
 
 def geometric_term(types, x0, verts, etas, light_end: LightEnd):
     """|d w0 / d A_y| (or d w0 / d w_y for a sun) at converged chains, and ok."""
-    k = len(types)
-    _, A, B, D, ok = blocks(ANGLE_DIFF, types, x0, verts, etas, light_end)
-    rhs = np.zeros(A.shape[:2] + (2, 2))
-    rhs[:, k - 1] = -D[:, k - 1]
-    X, oks = block_solve(A, B, D, rhs)
-    X1 = X[:, 0]
+    # constraints.blocks + block_solve with the right-hand side -D_k, per lane in one kernel
+    F, _ = pack(verts)
+    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
+    X1, oks = chain_solve(1, False, kinds, x0, F, np.stack(np.broadcast_arrays(*etas), 1), light_end.y,
+                          light_end.ys, light_end.yt, light_end.directional)
     det = X1[:, 0, 0] * X1[:, 1, 1] - X1[:, 0, 1] * X1[:, 1, 0]
     d01 = verts[0].p - x0
     r2 = dot(d01, d01)
     cos1 = np.abs(dot(d01, verts[0].ng)) / np.sqrt(np.maximum(r2, 1e-300))
     g = cos1 / np.maximum(r2, 1e-300) * np.abs(det)
-    ok = ok & oks & np.isfinite(g)
+    ok = oks & np.isfinite(g)
     return np.where(ok, g, 0.0), ok
 
 

@@ -62,3 +62,28 @@ def vertex_from_hits(scene, tracer, prim: np.ndarray, p: np.ndarray, b: np.ndarr
 
     return Vertex(p=p, ng=ng, n=n, s=s, t=t, dn_s=dn_along(s), dn_t=dn_along(t), prim=prim,
                   obj=scene.tri_object[prim], mat=scene.tri_material[prim])
+
+
+# packed chains (kernels.py): F (N,k,21) float64 holds p, ng, n, s, t, dn_s, dn_t of each
+# vertex, I (N,k,3) int64 prim, obj, mat; a Vertex is then a view of one column j
+FLOAT_FIELDS = ("p", "ng", "n", "s", "t", "dn_s", "dn_t")
+INT_FIELDS = ("prim", "obj", "mat")
+
+
+def vertex_view(F: np.ndarray, I: np.ndarray, j: int) -> Vertex:
+    """Vertex j of a packed chain, as views (writing to it writes to F and I)."""
+    return Vertex(*(F[:, j, 3 * c:3 * c + 3] for c in range(len(FLOAT_FIELDS))),
+                  *(I[:, j, c] for c in range(len(INT_FIELDS))))
+
+
+def pack(verts: list) -> tuple[np.ndarray, np.ndarray]:
+    """F, I of a list of Vertex (the inverse of vertex_view)."""
+    n, k = len(verts[0].p), len(verts)
+    F = np.empty((n, k, 3 * len(FLOAT_FIELDS)))
+    I = np.empty((n, k, len(INT_FIELDS)), np.int64)
+    for j, v in enumerate(verts):
+        for c, f in enumerate(FLOAT_FIELDS):
+            F[:, j, 3 * c:3 * c + 3] = getattr(v, f)
+        for c, f in enumerate(INT_FIELDS):
+            I[:, j, c] = getattr(v, f)
+    return F, I

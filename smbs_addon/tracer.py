@@ -9,11 +9,11 @@ geometric normal by a distance relative to the scene's size.
 from __future__ import annotations
 
 import os
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
 import numpy as np
 
+from . import lanes
 from .vec import cross, dot, normalize
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
@@ -96,14 +96,10 @@ class Tracer:
             r = self._embree.run(o32[sl], d32[sl], output=1, **kw)
             return r["primID"], r["tfar"]
 
-        parts = max(1, min(self.threads, n // _MIN_SPLIT))
-        bounds = np.linspace(0, n, parts + 1).astype(int)
-        slices = [slice(bounds[i], bounds[i + 1]) for i in range(parts)]
-        if parts == 1:
-            res = [job(slices[0])]
-        else:
-            with ThreadPoolExecutor(max_workers=parts) as ex:
-                res = list(ex.map(job, slices))
+        res = lanes.run(lambda a, b: job(slice(a, b)), n, self.threads, _MIN_SPLIT)
+        if len(res) == 1:
+            prim, t = res[0]
+            return prim.astype(np.int64), None if t is None else t.astype(np.float64)
         prim = np.concatenate([r[0] for r in res]).astype(np.int64)
         t = None if query == "OCCLUDED" else np.concatenate([r[1] for r in res]).astype(np.float64)
         return prim, t
@@ -113,6 +109,12 @@ class Tracer:
         """True where something lies on the segment o + t d, 0 < t < tmax (d unit)."""
         prim, _ = self._run(o, d, tmax, "OCCLUDED")
         return prim >= 0
+
+    def cast(self, o: np.ndarray, d: np.ndarray):
+        """Embree's closest hits of rays o + t d as they come: primitive ids (int64, -1 on a
+        miss) and float32 distances as float64, for callers that re-compute the hits
+        themselves (kernels.hit_vertices does intersect's work per lane)."""
+        return self._run(o, d, None, "INTERSECT")
 
     def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None,
                   exact_origin: np.ndarray | None = None) -> Hits:

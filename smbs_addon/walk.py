@@ -20,10 +20,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from . import scene as S
-from .constraints import ANGLE_DIFF, LightEnd, block_solve, blocks, specular_map
-from .geometry import Vertex, vertex_from_hits
-from .large_mutation import large_direction
+from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
+from .geometry import vertex_view
+from . import kernels, lanes
+from .kernels import MAT, NF, large_proposal, newton_proposal, propagate_step, smbs_triggers, spawn_aim, walk_update
+from .large_mutation import MAX_HALVINGS
 from .vec import dot, normalize
 
 # walk outcome codes
@@ -61,25 +62,30 @@ class WalkConfig:
 
 @dataclass
 class Chain:
-    """k vertices over N lanes plus each lane's status."""
+    """k vertices over N lanes, packed (geometry.vertex_view: F (N,k,21) float64, I (N,k,3)
+    int64), plus each lane's status."""
 
-    verts: list
+    F: np.ndarray
+    I: np.ndarray
     status: np.ndarray
     out_dir: np.ndarray  # (N,3) direction leaving the last vertex
 
+    @property
+    def verts(self) -> list:
+        return [vertex_view(self.F, self.I, j) for j in range(self.F.shape[1])]
+
     def take(self, idx) -> "Chain":
-        return Chain([v.take(idx) for v in self.verts], self.status[idx], self.out_dir[idx])
+        return Chain(self.F[idx], self.I[idx], self.status[idx], self.out_dir[idx])
 
 
-def _empty_vertex(n):
-    z3 = np.zeros((n, 3))
-    zi = np.zeros(n, np.int64)
-    return Vertex(z3, z3.copy(), z3.copy(), z3.copy(), z3.copy(), z3.copy(), z3.copy(), zi, zi.copy(), zi.copy())
+MIN_PART = 512  # lanes per thread below which splitting a kernel call does not pay
 
 
-def _put(dst: Vertex, idx, src: Vertex):
-    for f in dst.__dataclass_fields__:
-        getattr(dst, f)[idx] = getattr(src, f)
+def _joined(parts):
+    """The parts' result arrays joined in lane order."""
+    if len(parts) == 1:
+        return parts[0]
+    return tuple(np.concatenate(x) for x in zip(*parts))
 
 
 def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
@@ -87,64 +93,39 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
 
     Every vertex must be a specular caster; a T vertex must be glass. The
     geometric normal must agree with the interaction (reflection stays on its
-    side, refraction crosses), else the chain is rejected (SIDE)."""
+    side, refraction crosses), else the chain is rejected (SIDE). The per-lane work
+    after each intersect call is kernels.propagate_step."""
     scene, tracer = ctx.scene, ctx.tracer
     n = len(x0)
     k = len(types)
-    verts = [_empty_vertex(n) for _ in range(k)]
+    F = np.zeros((n, k, NF))
+    I = np.zeros((n, k, 3), np.int64)
     status = np.full(n, OK, np.int64)
     out = np.zeros((n, 3))
     act = np.arange(n)
-    o = tracer.spawn(x0, ng0, d)
-    # aim from the offset origin itself, so the hit lands on the proposed point
-    dirs = d.copy() if target is None else normalize(target - o)
+    if target is None:
+        o, dirs = tracer.spawn(x0, ng0, d), d
+    else:  # aim from the offset origin itself, so the hit lands on the proposed point
+        o, dirs = spawn_aim(x0, ng0, d, target, tracer.eps)
     prev = x0
     for j, kind in enumerate(types):
         if act.size == 0:
             break
-        h = tracer.intersect(o, dirs, exact_origin=None if j == 0 else prev)
+        prim, t = tracer.cast(o, dirs)
         ctx.count("rays_walk", len(o))
-        miss = ~h.hit
-        prim = np.where(h.hit, h.prim, 0)
-        mat = scene.tri_material[prim]
-        mkind = scene.mat_kind[mat]
-        obj = scene.tri_object[prim]
-        bad = np.full(len(act), OK, np.int64)
-        bad[~ctx.casters[obj]] = NOT_CASTER
-        need = (mkind == S.DIELECTRIC) if kind == "T" else ((mkind == S.CONDUCTOR) | (mkind == S.DIELECTRIC))
-        bad[~need & (bad == OK)] = WRONG_MATERIAL
-        bad[miss] = MISS
-        v = vertex_from_hits(scene, tracer, prim, h.p, h.b)
-        # from the true previous vertex, not the offset ray origin: the chain stays exact
-        w_in = normalize(prev - v.p)
-        w_out, okm = specular_map(kind, w_in, v.n, scene.mat_ior[mat])
-        bad[(~okm) & (bad == OK)] = TIR if j == k - 1 else TIR_INNER
-        cin, cout = dot(w_in, v.ng), dot(w_out, v.ng)
-        # Cycles: the geometric normal picks the side, the shading normal (oriented to the
-        # geometric one: v.n's sign is free here) must face w_in on it, and the new direction
-        # must leave on the side the interaction calls for
-        side_ok = ((cin * cout > 0) if kind == "R" else (cin * cout < 0)) & \
-            (dot(w_in, v.n) * dot(v.n, v.ng) * cin > 0)
-        bad[(~side_ok) & (bad == OK)] = SIDE if j == k - 1 else SIDE_INNER
-        status[act] = bad
-        good = bad == OK
-        if j == k - 1:
-            # keep the last vertex of a chain whose exit is TIR: SMBS can mutate from it; and of
-            # one whose exit dips below the geometric surface (a shading normal leaning away, as
-            # on a normal-mapped mirror): every walk goes on from it, as SMS does from any seed
-            # on the caster, and converges only once the exit is valid
-            _put(verts[j], act[bad == TIR], v.take(bad == TIR))
-            side = bad == SIDE
-            _put(verts[j], act[side], v.take(side))
-            out[act[side]] = normalize(w_out[side])
-        _put(verts[j], act[good], v.take(good))
-        act = act[good]
-        w_out = normalize(w_out[good])
-        out[act] = w_out
-        o = tracer.spawn(v.p[good], v.ng[good], w_out)
-        dirs = w_out
-        prev = v.p[good]
-    return Chain(verts, status, out)
+        # from the true previous vertex, not the offset ray origin: the chain stays exact. At the
+        # last vertex the kernel keeps the vertex of a chain whose exit is TIR (SMBS can mutate
+        # from it) and of one whose exit dips below the geometric surface (a shading normal
+        # leaning away, as on a normal-mapped mirror): every walk goes on from it, as SMS does
+        # from any seed on the caster, and converges only once the exit is valid
+        def part(a, b, act=act, o=o, dirs=dirs, prev=prev, prim=prim, t=t, j=j, kind=kind):
+            return propagate_step(
+                kind == "T", j == k - 1, j, act[a:b], o[a:b], dirs[a:b], prev[a:b], j > 0, prim[a:b], t[a:b],
+                tracer.v, tracer.ng, tracer.ns_corner, tracer.eps, scene.tri_material, scene.mat_kind,
+                scene.tri_object, ctx.casters, scene.mat_ior, F, I, status, out)
+
+        act, o, dirs, prev = _joined(lanes.run(part, act.size, tracer.threads, MIN_PART))
+    return Chain(F, I, status, out)
 
 
 def end_mismatch(chain: Chain, light: LightEnd):
@@ -163,9 +144,14 @@ def backlit(types: str, x0, chain: Chain, light: LightEnd):
     """SMBS trigger 2 at x1: for a reflection, x0 and the light lie on different
     sides of x1's surface; for a refraction, on the same side."""
     v = chain.verts[0]
-    to_light = light.y if light.directional else light.y - v.p
-    a = dot(x0 - v.p, v.n) > 0
-    b = dot(to_light, v.n) > 0
+    return backlit_at(types, x0, v.p, v.n, light)
+
+
+def backlit_at(types: str, x0, p1, n1, light: LightEnd):
+    """backlit for x1 at p1 with shading normal n1."""
+    to_light = light.y if light.directional else light.y - p1
+    a = dot(x0 - p1, n1) > 0
+    b = dot(to_light, n1) > 0
     return (a != b) if types[0] == "R" else (a == b)
 
 
@@ -185,8 +171,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     (the rest walk as plain SMS)."""
     n = len(x0)
     k = len(types)
-    chain = Chain([Vertex(*(getattr(v, f).copy() for f in v.__dataclass_fields__)) for v in chain.verts],
-                  chain.status.copy(), chain.out_dir.copy())
+    chain = Chain(chain.F.copy(), chain.I.copy(), chain.status.copy(), chain.out_dir.copy())
     outcome = chain.status.copy()
     converged = np.zeros(n, bool)
     mutations = np.zeros(n, np.int64)
@@ -199,7 +184,9 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     lscale = np.ones(n)
     large_counts = dict.fromkeys(TRIGGERS[1:], 0)
     slow_n = np.zeros(n, np.int64)  # slow small steps in a row
-    etas_all = [ctx.scene.mat_ior[v.mat] for v in chain.verts]
+    etas = ctx.scene.mat_ior[chain.I[:, :, MAT]]  # (N,k), of the seed's vertices
+    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
+    hv = cfg.form == HALF_VECTOR
     valid = outcome == OK  # a lane converges only from a valid chain
     outcome[outcome == SIDE] = OK  # an exit below the surface is walkable, not yet valid
     act = np.flatnonzero(outcome == OK)
@@ -217,82 +204,52 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         if act.size == 0:
             break
         done = (err[act] < cfg.threshold) & front[act] & valid[act]
-        converged[act[done]] = True
-        act = act[~done]
+        if done.any():
+            converged[act[done]] = True
+            act = act[~done]
         if it == cfg.max_iterations or act.size == 0:
             outcome[act] = MAX_ITER
             break
-        ch = chain.take(act)
-        x0a, ng0a, la = x0[act], ng0[act], light.take(act)
-        etas = [e[act] for e in etas_all]
-        # --- small mutation: Newton step of x1 from the block-tridiagonal system
-        C, A, B, D, okc = blocks(cfg.form, types, x0a, ch.verts, etas, la)
-        delta, oks = block_solve(A, B, D, C[..., None])
-        step = -(delta[:, 0, 0, 0][:, None] * ch.verts[0].s + delta[:, 0, 1, 0][:, None] * ch.verts[0].t)
-        ls = np.sqrt(dot(step, step))
-        step *= np.minimum(1.0, max_step / np.maximum(ls, 1e-300))[:, None]
-        p = ch.verts[0].p + beta[act][:, None] * step
-        d = normalize(p - x0a)
+        # --- small mutation: Newton step of x1 from the block-tridiagonal system (one kernel)
+        def part(a, b, act=act):
+            return newton_proposal(act[a:b], hv, kinds, x0, chain.F, etas, light.y, light.ys, light.yt,
+                                   light.directional, beta, max_step)
+
+        p, d, oks = _joined(lanes.run(part, act.size, ctx.tracer.threads, MIN_PART))
         use_large = np.zeros(act.size, bool)
         if cfg.smbs:
-            trig = pending[act].copy()
-            if cfg.backlit:
-                bl = backlit(types, x0a, ch, la) & (trig == NONE)
-                trig[bl] = TRIG_BACKLIT
-            want = (trig != NONE) & large_ok[act]
+            trig, want = smbs_triggers(act, types[0] == "R", cfg.backlit, x0, chain.F, light.y, light.directional,
+                                       pending, large_ok)
             if want.any():
-                lo = ctx.obj_lo[ch.verts[0].obj]
-                hi = ctx.obj_hi[ch.verts[0].obj]
-                dl, okl = large_direction(types, ch.verts, etas, la, x0a, lo, hi, lscale[act])
-                use_large = want & okl
-                d = np.where(use_large[:, None], dl, d)
+                w = np.flatnonzero(want)
+                dl, okl = large_proposal(act[w], kinds, x0, chain.F, chain.I, etas, light.y, light.directional,
+                                         ctx.obj_lo, ctx.obj_hi, lscale, MAX_HALVINGS)
+                use_large[w] = okl
+                wl = w[okl]
+                d[wl] = dl[okl]
+                p[wl] = x0[act[wl]] + dl[okl]
                 for t_id in (TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW):
                     large_counts[TRIGGERS[t_id]] += int((use_large & (trig == t_id)).sum())
-            pending[act] = NONE
-        singular = ~(okc & oks) & ~use_large
-        outcome[act[singular]] = SINGULAR
-        keep = ~singular
-        act, d, use_large = act[keep], d[keep], use_large[keep]
-        p = np.where(use_large[:, None], x0[act] + d, p[keep])
+        singular = ~(oks | use_large)
+        if singular.any():
+            outcome[act[singular]] = SINGULAR
+            keep = ~singular
+            act, d, p, use_large = act[keep], d[keep], p[keep], use_large[keep]
         if act.size == 0:
             break
         mutations[act] += 1
         new = propagate(ctx, x0[act], ng0[act], d, types, target=p)
-        e_new, f_new = end_mismatch(new, light.take(act))
-        okp = (new.status == OK) | (new.status == SIDE)
-        accept = okp & (use_large | (e_new < err[act]))
-        # a large mutation that ends in total internal reflection still moves the chain (its last
-        # vertex is kept, as for a TIR seed): the next one bisects on from there instead of
-        # repeating the same rejected proposal until the walk counts as stuck
-        moved_tir = use_large & (new.status == TIR) & cfg.tir
-        accept |= moved_tir
-        e_new[moved_tir], f_new[moved_tir] = np.inf, False
-        pending[act[moved_tir]] = TRIG_TIR
-        acc = act[accept]
-        for j in range(k):
-            _put(chain.verts[j], acc, new.verts[j].take(accept))
-        chain.out_dir[acc] = new.out_dir[accept]
-        if cfg.smbs and cfg.slow:
-            # trigger 3 on the last small mutation's proposal, kept or not: a rejected one
-            # (the mismatch grew, ratio > 1 > tau) is the slowest progress of all; waiting for
-            # beta to shrink below min_beta instead lost 9-13% of all walks to local minima
-            slow = okp & ~use_large & (e_new > cfg.tau * err[act])
-            slow_n[act] = np.where(slow, slow_n[act] + 1, 0)
-            fire = slow & (slow_n[act] >= cfg.slow_run)
-            slow_n[act[fire]] = 0
-            pending[act[fire]] = TRIG_SLOW
-        err[acc], front[acc] = e_new[accept], f_new[accept]
-        valid[acc] = new.status[accept] == OK
-        beta[acc] = np.minimum(1.0, 2.0 * beta[acc])
-        beta[act[accept & use_large]] = 1.0  # Algorithm 2, line 7: a large mutation restarts the step
-        lscale[act[accept & use_large]] = 1.0
-        lscale[act[use_large & ~accept]] *= 0.5
-        rej = act[~accept]
-        beta[rej] *= 0.5
-        if cfg.smbs and cfg.tir and cfg.tir_rejected:
-            pending[act[(new.status == TIR) & ~accept]] = TRIG_TIR
-        stuck = rej[beta[rej] < cfg.min_beta]  # the step had to shrink too far: give up
-        outcome[stuck] = MAX_ITER
-        act = np.setdiff1d(act, stuck, assume_unique=True)
+        e_new, f_new = kernels.end_mismatch(act, new.F, new.out_dir, light.y, light.directional)
+        # acceptance and every per-lane state update in one kernel (see walk_update): a large
+        # mutation that ends in total internal reflection still moves the chain (its last vertex
+        # is kept, as for a TIR seed), so the next one bisects on from there instead of repeating
+        # the same rejected proposal until the walk counts as stuck; trigger 3 on the last small
+        # mutation's proposal, kept or not: a rejected one (the mismatch grew, ratio > 1 > tau) is
+        # the slowest progress of all; waiting for beta to shrink below min_beta instead lost
+        # 9-13% of all walks to local minima; beta halves on rejection and a walk whose step had
+        # to shrink below min_beta gives up
+        act = walk_update(act, new.F, new.I, new.status, new.out_dir, e_new, f_new, use_large, cfg.smbs, cfg.tir,
+                          cfg.slow, cfg.tir_rejected, cfg.tau, cfg.slow_run, cfg.min_beta, chain.F, chain.I,
+                          chain.out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome)
     outcome[converged] = OK
     return WalkResult(chain=chain, converged=converged, outcome=outcome, mutations=mutations, large=large_counts)

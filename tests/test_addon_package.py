@@ -1,6 +1,6 @@
-"""tools/build_extension.py builds the linux-x64 zip with the embreex and OpenImageIO wheels;
-Blender's installer takes it into a temporary user folder, and the installed extension
-bakes a sample scene with the bundled packages (the venv's copies are hidden from it).
+"""tools/build_extension.py builds the linux-x64 zip with the embreex, OpenImageIO, numba and
+llvmlite wheels; Blender's installer takes it into a temporary user folder, and the installed
+extension bakes a sample scene with the bundled packages (the venv's copies are hidden from it).
 
 If the wheels cannot be downloaded (no network), the zip is built without them and the
 bake imports the venv's packages; the test says so in its output.
@@ -24,9 +24,9 @@ site = os.path.join(user, "extensions", ".local", "lib",
                     f"python{sys.version_info.major}.{sys.version_info.minor}", "site-packages")
 
 class OnlyBundled(importlib.abc.MetaPathFinder):
-    """embreex and OpenImageIO come from the extension's wheels, never from the venv."""
+    """embreex, OpenImageIO, numba and llvmlite come from the extension's wheels, never from the venv."""
     def find_spec(self, name, path, target=None):
-        if name in ("embreex", "OpenImageIO"):
+        if name in ("embreex", "OpenImageIO", "numba", "llvmlite"):
             spec = importlib.machinery.PathFinder.find_spec(name, [site])
             if spec is None:
                 raise ModuleNotFoundError(f"{name} is not in the extension's wheels ({site})")
@@ -46,8 +46,8 @@ scene.render.resolution_percentage = 50
 s = scene.smbs_caustics
 s.method, s.spp, s.batches, s.seed, s.output_path = "smbs", 1, 2, 1, out
 assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
-import embreex, OpenImageIO
-print("MODULES", json.dumps({m.__name__: m.__file__ for m in (embreex, OpenImageIO)}))
+import embreex, OpenImageIO, numba, llvmlite
+print("MODULES", json.dumps({m.__name__: m.__file__ for m in (embreex, OpenImageIO, numba, llvmlite)}))
 print("CORE", sys.modules[ext + ".smbs_addon.bake"].__file__)
 print("PACKAGE-OK")
 '''
@@ -78,7 +78,8 @@ def test_built_linux_zip_installs_and_bakes(tmp_path):
     wheels = sorted(n for n in names if n.startswith("wheels/"))
     if bundled:
         assert zip_path.name == "smbs_caustics-0.1.0-linux_x64.zip"
-        assert [w.split("-")[0] for w in wheels] == ["wheels/embreex", "wheels/openimageio"]
+        assert [w.split("-")[0] for w in wheels] == ["wheels/embreex", "wheels/llvmlite", "wheels/numba",
+                                                      "wheels/openimageio"]
         assert all("manylinux" in w and "cp311" in w for w in wheels)
         assert 'platforms = ["linux-x64"]' in manifest and 'blender_version_max = "5.1.0"' in manifest
     assert not any("numpy" in n for n in names)
@@ -96,5 +97,5 @@ def test_built_linux_zip_installs_and_bakes(tmp_path):
     assert core.startswith(str(user)), core  # the installed copy baked, not this checkout
     modules = next(line for line in proc.stdout.splitlines() if line.startswith("MODULES "))
     if bundled:
-        assert modules.count(str(user)) == 2, modules  # both packages from the bundled wheels
+        assert modules.count(str(user)) == 4, modules  # every package from the bundled wheels
     print(("bundled wheels: " if bundled else "no wheels bundled, venv packages: ") + modules)

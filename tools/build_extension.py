@@ -1,11 +1,13 @@
-"""Build the installable extension zips, one per platform, with embreex and OpenImageIO bundled.
+"""Build the installable extension zips, one per platform, with embreex, OpenImageIO, numba and
+llvmlite bundled.
 
     python tools/build_extension.py                       # linux-x64, windows-x64, macos-arm64
     python tools/build_extension.py --platform linux-x64  # just one
     python tools/build_extension.py --no-wheels           # source only (needs the packages installed)
 
 1. Downloads (``pip download --only-binary=:all: --no-deps --python-version 3.11
-   --platform ...``) the embreex and OpenImageIO wheels pinned in requirements.txt
+   --platform ...``) the embreex, OpenImageIO, numba and llvmlite (numba's compiler) wheels
+   pinned in requirements.txt
    into ``wheels/`` (git-ignored; wheels already there are reused). numpy is not
    bundled: Blender ships its own.
 2. Stages the extension in a temporary folder: the files Blender's own builder
@@ -39,12 +41,13 @@ ROOT = Path(__file__).resolve().parent.parent
 MANIFEST = "blender_manifest.toml"
 PYTHON_VERSION = "3.11"  # Blender 4.2 to 5.0
 BLENDER_VERSION_MAX = "5.1.0"  # exclusive: Blender 5.1 moves to Python 3.13
-PACKAGES = ("embreex", "OpenImageIO")
-# Blender platform -> the pip --platform tag to ask for (pip also accepts older compatible tags).
+PACKAGES = ("embreex", "OpenImageIO", "numba", "llvmlite")
+# Blender platform -> the pip --platform tags to ask for (pip accepts older macOS tags, but not
+# the legacy manylinux2014 name of manylinux_2_17, which numba 0.60's and llvmlite 0.43's wheels carry).
 PLATFORMS = {
-    "linux-x64": "manylinux_2_28_x86_64",
-    "windows-x64": "win_amd64",
-    "macos-arm64": "macosx_13_0_arm64",  # embreex 4.4 needs macOS 13
+    "linux-x64": ("manylinux_2_28_x86_64", "manylinux2014_x86_64"),
+    "windows-x64": ("win_amd64",),
+    "macos-arm64": ("macosx_13_0_arm64",),  # embreex 4.4 needs macOS 13
 }
 EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_DOWNLOAD = 0, 1, 2, 4
 
@@ -138,7 +141,8 @@ def fetch_wheels(folder: Path, platforms, download=True) -> list[Path]:
                 say(f"downloading {package}=={version} for {platform}")
                 cmd = [sys.executable, "-m", "pip", "download", "--quiet", "--disable-pip-version-check",
                        "--only-binary=:all:", "--no-deps", "--python-version", PYTHON_VERSION,
-                       "--platform", PLATFORMS[platform], "--dest", str(folder), f"{package}=={version}"]
+                       *(a for tag in PLATFORMS[platform] for a in ("--platform", tag)),
+                       "--dest", str(folder), f"{package}=={version}"]
                 proc = subprocess.run(cmd, capture_output=True, text=True)
                 if proc.returncode != 0:
                     raise BuildError(f"cannot download {package}=={version} for {platform}:\n"
@@ -221,7 +225,7 @@ def main(argv=None) -> int:
     p.add_argument("--wheels-dir", type=Path, default=ROOT / "wheels")
     p.add_argument("--no-download", action="store_true", help="use only the wheels already in --wheels-dir")
     p.add_argument("--no-wheels", action="store_true",
-                   help="one source-only zip (embreex and OpenImageIO must then be installed in Blender's Python)")
+                   help="one source-only zip (embreex, OpenImageIO and numba must then be installed in Blender's Python)")
     p.add_argument("--blender", help="a Blender executable to build with (default: the bpy module's builder)")
     args = p.parse_args(argv)
     platforms = args.platforms or list(PLATFORMS)

@@ -1,0 +1,734 @@
+"""Compiled (numba) per-lane kernels of the manifold walk: the Newton step of a chain, and a
+chain vertex from a ray hit. Issue 11: the walks spent their time on numpy's per-call overhead
+(dozens of tiny (N,3) operations per Newton step on a few hundred lanes), not on rays.
+
+Each kernel is a loop over lanes doing, per lane, the same IEEE operations in the same order
+as the numpy reference it replaces (constraints.blocks + block_solve, geometry.vertex_from_hits,
+tracer.intersect's float64 re-computation, constraints.specular_map, walk.propagate's checks);
+no fastmath, so results agree with the reference to rounding (tests/test_kernels.py). Degenerate
+input gives ok False and zeros, never an exception (error_model="numpy": x / 0 is inf or NaN
+as in numpy, and the ok flags catch it).
+
+Compiled on first use and cached on disk (cache=True; numba falls back to a user cache folder
+when the package folder is read-only). nogil: threads can run lanes side by side.
+
+Chain vertices are packed: F (N, k, NF) float64 with the columns below, I (N, k, 3) int64
+(prim, obj, mat).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+# packed vertex columns
+P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
+NF = 21
+PRIM, OBJ, MAT = 0, 1, 2
+
+_R_MIN = 1e-6  # as constraints._R_MIN
+_R_MIN2 = _R_MIN**2
+# walk outcome codes used here (walk.py)
+_OK, _MISS, _NOT_CASTER, _WRONG_MATERIAL, _TIR, _SIDE = 0, 1, 2, 3, 4, 5
+_TIR_INNER, _SIDE_INNER = 11, 12
+_CONDUCTOR, _DIELECTRIC = 1, 2
+
+_JIT = dict(cache=True, nogil=True, error_model="numpy")
+
+
+def _cache_per_module_name():
+    """Keep one disk cache per name this module is imported under. numba's cache is keyed by
+    the source file, but a cached kernel rebuilds its environment by importing the module by the
+    name it was compiled under: the same file imported as smbs_addon.kernels (command line) and
+    as bl_ext.<repo>.smbs_caustics.smbs_addon.kernels (Blender) would each fail to load the
+    other's entries (ModuleNotFoundError). The module's name goes into the cache file names."""
+    try:
+        import hashlib
+
+        from numba.core import caching
+    except ImportError:  # pragma: no cover - numba's layout changed: default caching
+        return
+    name = __name__
+
+    class Locator(caching._CacheLocator):
+        def __init__(self, inner):
+            self._inner = inner
+            self._tag = hashlib.sha1(name.encode()).hexdigest()[:10]
+
+        def ensure_cache_path(self):
+            self._inner.ensure_cache_path()
+
+        def get_cache_path(self):
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return self._inner.get_source_stamp()
+
+        def get_disambiguator(self):
+            return f"{self._inner.get_disambiguator()}-{self._tag}"
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            if getattr(py_func, "__module__", None) != name:
+                return None
+            for base in caching.CacheImpl._locator_classes:
+                if base is not cls and not getattr(base, "_smbs_per_module", False):
+                    inner = base.from_function(py_func, py_file)
+                    if inner is not None:
+                        return cls(inner)
+            return None
+
+    Locator._smbs_per_module = True
+    caching.CacheImpl._locator_classes.insert(0, Locator)
+
+
+_cache_per_module_name()
+
+
+# ------------------------------------------------------------------ 3-vectors as tuples
+@njit(inline="always", **_JIT)
+def _v(a, i, off):
+    return (a[i, off], a[i, off + 1], a[i, off + 2])
+
+
+@njit(inline="always", **_JIT)
+def _vk(F, i, j, off):
+    return (F[i, j, off], F[i, j, off + 1], F[i, j, off + 2])
+
+
+@njit(inline="always", **_JIT)
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(inline="always", **_JIT)
+def _add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+@njit(inline="always", **_JIT)
+def _sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+@njit(inline="always", **_JIT)
+def _mul(s, a):
+    return (s * a[0], s * a[1], s * a[2])
+
+
+@njit(inline="always", **_JIT)
+def _div(a, s):
+    return (a[0] / s, a[1] / s, a[2] / s)
+
+
+@njit(inline="always", **_JIT)
+def _neg(a):
+    return (-a[0], -a[1], -a[2])
+
+
+@njit(inline="always", **_JIT)
+def _cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(inline="always", **_JIT)
+def _normalize(a):
+    """vec.normalize: times 1/|a|, zero stays zero."""
+    n = math.sqrt(_dot(a, a))
+    inv = 1.0 / n if n > 0 else 0.0
+    return (a[0] * inv, a[1] * inv, a[2] * inv)
+
+
+@njit(inline="always", **_JIT)
+def _max(a, b):
+    """np.maximum: NaN propagates."""
+    if a != a:
+        return a
+    return a if a >= b else b
+
+
+@njit(inline="always", **_JIT)
+def _frame(n):
+    """vec.frame."""
+    sign = 1.0 if n[2] >= 0 else -1.0
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    s = (1.0 + sign * n[0] ** 2 * a, sign * b, -sign * n[0])
+    t = (b, sign + n[1] ** 2 * a, -n[1])
+    return s, t
+
+
+# ------------------------------------------------------------------ reflection / refraction
+@njit(inline="always", **_JIT)
+def _orient(w, n, eta):
+    if _dot(w, n) >= 0:
+        return n, 1.0 / eta, 1.0
+    return _neg(n), eta, -1.0
+
+
+@njit(inline="always", **_JIT)
+def smap(refract, w, n, eta):
+    """constraints.specular_map for one lane: (direction, ok)."""
+    if not refract:
+        return _sub(_mul(2.0 * _dot(w, n), n), w), True
+    no, eta_r, _ = _orient(w, n, eta)
+    c = _dot(w, no)
+    r2 = 1.0 - eta_r**2 * (1.0 - c * c)
+    ok = r2 > _R_MIN2
+    r = math.sqrt(r2 if ok else 1.0)
+    if not ok:
+        return (0.0, 0.0, 0.0), False
+    out = _sub(_mul(-eta_r, _sub(w, _mul(c, no))), _mul(r, no))
+    return out, True
+
+
+@njit(inline="always", **_JIT)
+def smap_d(refract, w, n, eta, dw, dn):
+    """constraints.specular_map_d for one lane."""
+    if not refract:
+        wn = _dot(w, n)
+        return _sub(_mul(2.0, _add(_mul(_dot(dw, n) + _dot(w, dn), n), _mul(wn, dn))), dw)
+    no, eta_r, sg = _orient(w, n, eta)
+    dno = _mul(sg, dn)
+    c = _dot(w, no)
+    r2 = _max(1.0 - eta_r**2 * (1.0 - c * c), _R_MIN2)
+    r = math.sqrt(r2)
+    dc = _dot(dw, no) + _dot(w, dno)
+    dr = eta_r**2 * c * dc / r
+    return _sub(_sub(_mul(-eta_r, _sub(_sub(dw, _mul(dc, no)), _mul(c, dno))), _mul(dr, no)), _mul(r, dno))
+
+
+@njit(inline="always", **_JIT)
+def _unit_d(u, length, a):
+    return _div(_sub(a, _mul(_dot(u, a), u)), length)
+
+
+# ------------------------------------------------------------------ constraint blocks
+@njit(inline="always", **_JIT)
+def _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn, dwi, dn, dwo):
+    if not hv:
+        dw = _sub(smap_d(refract, wi, n, eta, dwi, dn), dwo)
+        return _dot(e1, dw), _dot(e2, dw)
+    dH = _add(_mul(eta_i, dwi), _mul(eta_o, dwo))
+    dh = _div(_sub(dH, _mul(_dot(h, dH), h)), _max(lh, 1e-300))
+    return _dot(s2, dh) - hn * _dot(s2, dn), _dot(t2, dh) - hn * _dot(t2, dn)
+
+
+@njit(**_JIT)
+def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, B, D):
+    """constraints.blocks for one lane (row `lane` of F/etas/x0/light, written to C/A/B/D[:]):
+    returns ok."""
+    k = kinds.shape[0]
+    ok = True
+    zero = (0.0, 0.0, 0.0)
+    for j in range(k):
+        refract = kinds[j] == 1
+        p = _vk(F, lane, j, P)
+        n = _vk(F, lane, j, NS)
+        prev_p = _v(x0, lane, 0) if j == 0 else _vk(F, lane, j - 1, P)
+        wi = _sub(prev_p, p)
+        li = math.sqrt(_dot(wi, wi))
+        wi = _div(wi, _max(li, 1e-300))
+        has_lo = not (j == k - 1 and directional)
+        lo = 1.0
+        if has_lo:
+            nxt = _v(ly, lane, 0) if j == k - 1 else _vk(F, lane, j + 1, P)
+            wo = _sub(nxt, p)
+            lo = math.sqrt(_dot(wo, wo))
+            wo = _div(wo, _max(lo, 1e-300))
+            ok = ok and (li > 0) and (lo > 0)
+        else:
+            wo = _v(ly, lane, 0)
+            ok = ok and (li > 0)
+        eta = etas[lane, j]
+        e1 = e2 = s2 = t2 = h = zero
+        eta_i = eta_o = lh = hn = 0.0
+        if not hv:
+            wo_p, okm = smap(refract, wi, n, eta)
+            ok = ok and okm
+            e1, e2 = _frame(wo)
+            diff = _sub(wo_p, wo)
+            C[j, 0], C[j, 1] = _dot(e1, diff), _dot(e2, diff)
+        else:
+            if refract:
+                if _dot(wi, _vk(F, lane, j, NG)) >= 0:
+                    eta_i, eta_o = 1.0, eta
+                else:
+                    eta_i, eta_o = eta, 1.0
+            else:
+                eta_i, eta_o = 1.0, 1.0
+            H = _add(_mul(eta_i, wi), _mul(eta_o, wo))
+            lh = math.sqrt(_dot(H, H))
+            ok = ok and (lh > 1e-9 * (eta_i + eta_o))
+            h = _div(H, _max(lh, 1e-300))
+            s = _vk(F, lane, j, S)
+            s2 = _normalize(_sub(s, _mul(_dot(s, n), n)))
+            t2 = _cross(n, s2)
+            C[j, 0], C[j, 1] = _dot(s2, h), _dot(t2, h)
+            hn = _dot(h, n)
+        for col in range(2):
+            a = _vk(F, lane, j, S if col == 0 else T)
+            dna = _vk(F, lane, j, DNS if col == 0 else DNT)
+            dwi = _neg(_unit_d(wi, li, a))
+            dwo = _neg(_unit_d(wo, lo, a)) if has_lo else zero
+            A[j, 0, col], A[j, 1, col] = _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
+                                             dwi, dna, dwo)
+            if j > 0:
+                a = _vk(F, lane, j - 1, S if col == 0 else T)
+                B[j, 0, col], B[j, 1, col] = _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2,
+                                                 hn, _unit_d(wi, li, a), zero, zero)
+            else:
+                B[j, 0, col] = B[j, 1, col] = 0.0
+            if j < k - 1:
+                a = _vk(F, lane, j + 1, S if col == 0 else T)
+            else:
+                a = _v(lys, lane, 0) if col == 0 else _v(lyt, lane, 0)
+            dwo = _unit_d(wo, lo, a) if has_lo else a
+            D[j, 0, col], D[j, 1, col] = _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
+                                             zero, zero, dwo)
+    return ok
+
+
+@njit(inline="always", **_JIT)
+def _inv2(M, out):
+    """constraints.inv2 of one 2x2 into out; returns ok."""
+    a, b, c, d = M[0, 0], M[0, 1], M[1, 0], M[1, 1]
+    det = a * d - b * c
+    scale = a * a + b * b + c * c + d * d
+    ok = abs(det) > 1e-12 * scale
+    inv_det = 1.0 / det if ok else 0.0
+    out[0, 0], out[0, 1] = d * inv_det, -b * inv_det
+    out[1, 0], out[1, 1] = -c * inv_det, a * inv_det
+    return ok
+
+
+@njit(inline="always", **_JIT)
+def _mm(X, Y, out):
+    for r in range(2):
+        for c in range(2):
+            out[r, c] = X[r, 0] * Y[0, c] + X[r, 1] * Y[1, c]
+
+
+@njit(**_JIT)
+def _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2):
+    """constraints.block_solve for one lane, 2 right-hand columns; X[:] the solution; ok."""
+    k = A.shape[0]
+    ok = _inv2(A[0], Li[0])
+    Y[0, :, :] = rhs[0]
+    for j in range(1, k):
+        _mm(B[j], Li[j - 1], Tm)
+        _mm(Tm, D[j - 1], W)
+        for r in range(2):
+            for c in range(2):
+                W2[r, c] = A[j, r, c] - W[r, c]
+        ok = _inv2(W2, Li[j]) and ok
+        _mm(Tm, Y[j - 1], W)
+        for r in range(2):
+            for c in range(2):
+                Y[j, r, c] = rhs[j, r, c] - W[r, c]
+    _mm(Li[k - 1], Y[k - 1], X[k - 1])
+    for j in range(k - 2, -1, -1):
+        _mm(D[j], X[j + 1], W)
+        for r in range(2):
+            for c in range(2):
+                W2[r, c] = Y[j, r, c] - W[r, c]
+        _mm(Li[j], W2, X[j])
+    return ok
+
+
+@njit(**_JIT)
+def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
+    """Per lane, the constraints' blocks and the block-tridiagonal solve of the first vertex:
+    mode 0 (Newton): J x = C, out[:, :, 0] = x_1 (column 1 zero); mode 1 (geometric term):
+    J X = -D_k e_k, out = X_1 (2x2). ok False (and out zero) where the constraint or a 2x2 pivot
+    is undefined."""
+    N = x0.shape[0]
+    k = kinds.shape[0]
+    out = np.zeros((N, 2, 2))
+    oks = np.zeros(N, np.bool_)
+    C = np.zeros((k, 2))
+    A = np.zeros((k, 2, 2))
+    B = np.zeros((k, 2, 2))
+    D = np.zeros((k, 2, 2))
+    rhs = np.zeros((k, 2, 2))
+    Li = np.zeros((k, 2, 2))
+    Y = np.zeros((k, 2, 2))
+    X = np.zeros((k, 2, 2))
+    Tm = np.zeros((2, 2))
+    W = np.zeros((2, 2))
+    W2 = np.zeros((2, 2))
+    for i in range(N):
+        ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
+        rhs[:] = 0.0
+        if mode == 0:
+            for j in range(k):
+                rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
+        else:
+            for r in range(2):
+                for c in range(2):
+                    rhs[k - 1, r, c] = -D[k - 1, r, c]
+        oks_ = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2)
+        ok = ok and oks_
+        if ok:
+            out[i, :, :] = X[0]
+            if mode == 0:
+                out[i, 0, 1] = out[i, 1, 1] = 0.0
+        oks[i] = ok
+    return out, oks
+
+
+@njit(**_JIT)
+def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step):
+    """walk.newton_walk's small mutation for lanes idx (rows of the full arrays): the Newton
+    step of x1 in its tangent plane, shortened to max_step and scaled by beta; returns the
+    proposed x1 p (M,3), the direction d = normalize(p - x0) (M,3), and ok (M,) (False where
+    the constraints or the solve are singular; p = x1 and d zero there)."""
+    M = idx.shape[0]
+    k = kinds.shape[0]
+    p_out = np.zeros((M, 3))
+    d_out = np.zeros((M, 3))
+    oks = np.zeros(M, np.bool_)
+    C = np.zeros((k, 2))
+    A = np.zeros((k, 2, 2))
+    B = np.zeros((k, 2, 2))
+    D = np.zeros((k, 2, 2))
+    rhs = np.zeros((k, 2, 2))
+    Li = np.zeros((k, 2, 2))
+    Y = np.zeros((k, 2, 2))
+    X = np.zeros((k, 2, 2))
+    Tm = np.zeros((2, 2))
+    W = np.zeros((2, 2))
+    W2 = np.zeros((2, 2))
+    for m in range(M):
+        i = idx[m]
+        ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
+        rhs[:] = 0.0
+        for j in range(k):
+            rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
+        ok = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2) and ok
+        p1 = _vk(F, i, 0, P)
+        if not ok:
+            p_out[m, 0], p_out[m, 1], p_out[m, 2] = p1
+            continue
+        oks[m] = True
+        s = _vk(F, i, 0, S)
+        t = _vk(F, i, 0, T)
+        step = _neg(_add(_mul(X[0, 0, 0], s), _mul(X[0, 1, 0], t)))
+        ls = math.sqrt(_dot(step, step))
+        step = _mul(min(1.0, max_step / _max(ls, 1e-300)), step)
+        p = _add(p1, _mul(beta[i], step))
+        d = _normalize(_sub(p, _v(x0, i, 0)))
+        p_out[m, 0], p_out[m, 1], p_out[m, 2] = p
+        d_out[m, 0], d_out[m, 1], d_out[m, 2] = d
+    return p_out, d_out, oks
+
+
+# ------------------------------------------------------------------ a vertex from a ray hit
+@njit(**_JIT)
+def propagate_step(refract, last, j, act, o, d, prev, exact, prim, t32, tv, tng, tns, eps,
+                   tri_material, mat_kind, tri_object, casters, mat_ior, F, I, status, out):
+    """walk.propagate's work after the intersect call for vertex j, per lane (rows act of the
+    chain's F, I, status, out): tracer.intersect's float64 hit point (the plane of the hit
+    triangle re-intersected from prev, the ray's true start, when exact, else from o),
+    geometry.vertex_from_hits, the material checks, the reflection or refraction of
+    w_in = normalize(prev - p) and the side checks. Writes the walk outcome to status, the
+    vertex to F and I where it is kept (valid, or at the last vertex TIR or SIDE), the unit
+    outgoing direction to out; returns the lanes that go on (act, the next ray's offset origin
+    and direction, the vertex)."""
+    M = o.shape[0]
+    nxt = np.zeros(M, np.int64)
+    o_next = np.zeros((M, 3))
+    d_next = np.zeros((M, 3))
+    p_next = np.zeros((M, 3))
+    cnt = 0
+    for i in range(M):
+        lane = act[i]
+        pr = prim[i]
+        if pr < 0:
+            status[lane] = _MISS
+            continue
+        # tracer.intersect: the hit re-computed in float64
+        oi = _v(prev, i, 0) if exact else _v(o, i, 0)
+        di = _v(d, i, 0)
+        tt = t32[i]
+        if exact:
+            tt = tt + _dot(_sub(_v(o, i, 0), oi), di)
+        g = _v(tng, pr, 0)
+        v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
+        v1 = (tv[pr, 1, 0], tv[pr, 1, 1], tv[pr, 1, 2])
+        v2 = (tv[pr, 2, 0], tv[pr, 2, 1], tv[pr, 2, 2])
+        den = _dot(di, g)
+        num = _dot(_sub(v0, oi), g)
+        ti = num / den if abs(den) > 1e-12 else tt
+        if not math.isfinite(ti) or abs(ti - tt) > 1e-3 * abs(tt) + eps:
+            ti = tt
+        p = _add(oi, _mul(ti, di))
+        e1, e2, q = _sub(v1, v0), _sub(v2, v0), _sub(p, v0)
+        d11, d12, d22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
+        q1, q2 = _dot(q, e1), _dot(q, e2)
+        det = d11 * d22 - d12 * d12
+        if det > 0:
+            inv = 1.0 / det
+            b1 = (d22 * q1 - d12 * q2) * inv
+            b2 = (d11 * q2 - d12 * q1) * inv
+        else:
+            b1 = b2 = 1.0 / 3.0
+        # geometry.vertex_from_hits
+        s = _normalize(e1)
+        t = _cross(g, s)
+        c0 = (tns[pr, 0, 0], tns[pr, 0, 1], tns[pr, 0, 2])
+        c1 = (tns[pr, 1, 0], tns[pr, 1, 1], tns[pr, 1, 2])
+        c2 = (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2])
+        b0 = 1.0 - b1 - b2
+        nraw = _add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2))
+        ln = math.sqrt(_dot(nraw, nraw))
+        good = ln > 1e-3
+        n = _div(nraw, ln) if good else g
+        dns = dnt = (0.0, 0.0, 0.0)
+        if good:
+            g11, g12, g22 = d11, d12, d22
+            det2 = g11 * g22 - g12 * g12
+            inv2 = 1.0 / det2 if det2 > 1e-300 else 0.0
+            dn1, dn2 = _sub(c1, c0), _sub(c2, c0)
+            for col in range(2):
+                w = s if col == 0 else t
+                r1, r2 = _dot(w, e1), _dot(w, e2)
+                alpha = (g22 * r1 - g12 * r2) * inv2
+                beta = (g11 * r2 - g12 * r1) * inv2
+                dN = _add(_mul(alpha, dn1), _mul(beta, dn2))
+                dv = _div(_sub(dN, _mul(_dot(dN, n), n)), ln)
+                if col == 0:
+                    dns = dv
+                else:
+                    dnt = dv
+        mat = tri_material[pr]
+        mk = mat_kind[mat]
+        obj = tri_object[pr]
+        code = _OK
+        if not casters[obj]:
+            code = _NOT_CASTER
+        need = (mk == _DIELECTRIC) if refract else (mk == _CONDUCTOR or mk == _DIELECTRIC)
+        if not need and code == _OK:
+            code = _WRONG_MATERIAL
+        w_in = _normalize(_sub(_v(prev, i, 0), p))
+        w_out, okm = smap(refract, w_in, n, mat_ior[mat])
+        if not okm and code == _OK:
+            code = _TIR if last else _TIR_INNER
+        cin, cout = _dot(w_in, g), _dot(w_out, g)
+        side_ok = ((cin * cout < 0) if refract else (cin * cout > 0)) and (_dot(w_in, n) * _dot(n, g) * cin > 0)
+        if not side_ok and code == _OK:
+            code = _SIDE if last else _SIDE_INNER
+        status[lane] = code
+        keep = code == _OK or (last and (code == _TIR or code == _SIDE))
+        if not keep:
+            continue
+        wn = _normalize(w_out)
+        for c in range(3):
+            F[lane, j, P + c] = p[c]
+            F[lane, j, NG + c] = g[c]
+            F[lane, j, NS + c] = n[c]
+            F[lane, j, S + c] = s[c]
+            F[lane, j, T + c] = t[c]
+            F[lane, j, DNS + c] = dns[c]
+            F[lane, j, DNT + c] = dnt[c]
+        I[lane, j, PRIM], I[lane, j, OBJ], I[lane, j, MAT] = pr, obj, mat
+        if code == _TIR:
+            continue
+        out[lane, 0], out[lane, 1], out[lane, 2] = wn
+        if code != _OK:
+            continue
+        side = 1.0 if _dot(wn, g) >= 0 else -1.0
+        on = _add(p, _mul(eps * side, g))
+        nxt[cnt] = lane
+        for c in range(3):
+            o_next[cnt, c] = on[c]
+            d_next[cnt, c] = wn[c]
+            p_next[cnt, c] = p[c]
+        cnt += 1
+    return nxt[:cnt], o_next[:cnt], d_next[:cnt], p_next[:cnt]
+
+
+@njit(**_JIT)
+def end_mismatch(idx, F, out_dir, ly, directional):
+    """walk.end_mismatch of a chain (rows 0.. of F, out_dir) against the light end rows idx:
+    |w_o' - w_o| at the last vertex and whether w_o' points to the light's side."""
+    M = idx.shape[0]
+    k = F.shape[1]
+    err = np.zeros(M)
+    front = np.zeros(M, np.bool_)
+    for m in range(M):
+        i = idx[m]
+        if directional:
+            to_light = _v(ly, i, 0)
+        else:
+            to_light = _normalize(_sub(_v(ly, i, 0), _vk(F, m, k - 1, P)))
+        od = _v(out_dir, m, 0)
+        diff = _sub(od, to_light)
+        err[m] = math.sqrt(_dot(diff, diff))
+        front[m] = _dot(od, to_light) > 0
+    return err, front
+
+
+# ------------------------------------------------------------------ SMBS's large mutation
+@njit(inline="always", **_JIT)
+def _ray_box(o, d, lo, hi):
+    """large_mutation.ray_box for one ray."""
+    tmin = -np.inf
+    tmax = np.inf
+    for c in range(3):
+        inv = 1.0 / d[c]
+        t1 = (lo[c] - o[c]) * inv
+        t2 = (hi[c] - o[c]) * inv
+        if t1 != t1:
+            t1 = -np.inf
+        if t2 != t2:
+            t2 = np.inf
+        near, far = min(t1, t2), max(t1, t2)
+        if c == 0:
+            tmin, tmax = near, far
+        else:
+            tmin, tmax = max(tmin, near), min(tmax, far)
+    return tmax >= max(tmin, 0.0)
+
+
+@njit(**_JIT)
+def large_proposal(idx, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, scale, max_halvings):
+    """large_mutation.large_direction for lanes idx: GetNextDir back from the light through
+    the chain's vertices, then GetRatio's bisection towards it until the ray from x0 meets the
+    box of x1's object. Returns the direction (M,3) and ok (M,)."""
+    M = idx.shape[0]
+    k = kinds.shape[0]
+    d_out = np.zeros((M, 3))
+    oks = np.zeros(M, np.bool_)
+    for m in range(M):
+        i = idx[m]
+        if directional:
+            v = _neg(_v(ly, i, 0))
+        else:
+            v = _normalize(_sub(_vk(F, i, k - 1, P), _v(ly, i, 0)))
+        ok = True
+        for j in range(k - 1, -1, -1):
+            v, okm = smap(kinds[j] == 1, _neg(v), _vk(F, i, j, NS), etas[i, j])
+            ok = ok and okm
+        xi = _v(x0, i, 0)
+        v1 = _normalize(_sub(_vk(F, i, 0, P), xi))
+        target = _neg(v)
+        a = 1.0 if _dot(v1, target) < 0 else 0.5
+        a = a * scale[i]
+        obj = I[i, 0, OBJ]
+        lo = _v(obj_lo, obj, 0)
+        hi = _v(obj_hi, obj, 0)
+        found = False
+        for _ in range(max_halvings + 1):
+            d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
+            if _ray_box(xi, d, lo, hi) and _dot(d, d) > 0:
+                found = True
+                break
+            a *= 0.5
+        if not found:
+            a = 0.0
+        d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
+        d_out[m, 0], d_out[m, 1], d_out[m, 2] = d
+        oks[m] = ok and _dot(d, d) > 0.5
+    return d_out, oks
+
+
+# ------------------------------------------------------------------ the walk's bookkeeping
+_NONE, _TRIG_TIR, _TRIG_BACKLIT, _TRIG_SLOW = 0, 1, 2, 3
+_MAX_ITER = 8
+
+
+@njit(**_JIT)
+def smbs_triggers(act, reflect_first, backlit_on, x0, F, ly, directional, pending, large_ok):
+    """SMBS's triggers for lanes act: the pending one (TIR, slow), else trigger 2 (walk.backlit:
+    for a reflection at x1, x0 and the light on different sides of its surface; for a
+    refraction, on the same side); clears pending. Returns trig (M,) and want (M,): a trigger
+    fired and the lane may take large mutations."""
+    M = act.shape[0]
+    trig = np.zeros(M, np.int64)
+    want = np.zeros(M, np.bool_)
+    for m in range(M):
+        i = act[m]
+        tr = pending[i]
+        if backlit_on and tr == _NONE:
+            p1 = _vk(F, i, 0, P)
+            n1 = _vk(F, i, 0, NS)
+            to_light = _v(ly, i, 0) if directional else _sub(_v(ly, i, 0), p1)
+            a = _dot(_sub(_v(x0, i, 0), p1), n1) > 0
+            b = _dot(to_light, n1) > 0
+            if (a != b) if reflect_first else (a == b):
+                tr = _TRIG_BACKLIT
+        trig[m] = tr
+        want[m] = tr != _NONE and large_ok[i]
+        pending[i] = _NONE
+    return trig, want
+
+
+@njit(**_JIT)
+def spawn_aim(x0, ng0, d, target, eps):
+    """tracer.spawn of x0 towards d, and the unit direction from that origin to target."""
+    M = x0.shape[0]
+    o = np.zeros((M, 3))
+    dirs = np.zeros((M, 3))
+    for i in range(M):
+        g = _v(ng0, i, 0)
+        side = 1.0 if _dot(_v(d, i, 0), g) >= 0 else -1.0
+        on = _add(_v(x0, i, 0), _mul(eps * side, g))
+        w = _normalize(_sub(_v(target, i, 0), on))
+        for c in range(3):
+            o[i, c] = on[c]
+            dirs[i, c] = w[c]
+    return o, dirs
+
+
+@njit(**_JIT)
+def walk_update(act, nF, nI, nstatus, nout, e_new, f_new, use_large, smbs, tir_on, slow_on, tir_rejected, tau,
+                slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome):
+    """walk.newton_walk's acceptance of the proposals (chain nF/nI/nstatus/nout, mismatch e_new,
+    f_new; row m belongs to lane act[m]) and its state updates: the accepted chain, the
+    mismatch, beta (doubled on acceptance, halved on rejection, 1 after a large mutation), SMBS's
+    bisection scale and triggers 1 (a large mutation into TIR moves the chain) and 3 (slow
+    small steps in a row). Returns the lanes that walk on (a lane whose beta fell below
+    min_beta is stuck: outcome MAX_ITER)."""
+    M = act.shape[0]
+    keep = np.ones(M, np.bool_)
+    for m in range(M):
+        i = act[m]
+        st = nstatus[m]
+        okp = st == _OK or st == _SIDE
+        ul = use_large[m]
+        e, f = e_new[m], f_new[m]
+        accept = okp and (ul or e < err[i])
+        if ul and st == _TIR and tir_on:
+            # a large mutation that ends in total internal reflection still moves the chain
+            accept = True
+            e, f = np.inf, False
+            pending[i] = _TRIG_TIR
+        if accept:
+            F[i, :, :] = nF[m]
+            I[i, :, :] = nI[m]
+            out_dir[i, 0], out_dir[i, 1], out_dir[i, 2] = nout[m, 0], nout[m, 1], nout[m, 2]
+        if smbs and slow_on:
+            slow = okp and not ul and e > tau * err[i]
+            slow_n[i] = slow_n[i] + 1 if slow else 0
+            if slow and slow_n[i] >= slow_run:
+                slow_n[i] = 0
+                pending[i] = _TRIG_SLOW
+        if accept:
+            err[i], front[i] = e, f
+            valid[i] = st == _OK
+            beta[i] = min(1.0, 2.0 * beta[i])
+            if ul:
+                beta[i] = 1.0
+                lscale[i] = 1.0
+        else:
+            if ul:
+                lscale[i] *= 0.5
+            beta[i] *= 0.5
+            if smbs and tir_on and tir_rejected and st == _TIR:
+                pending[i] = _TRIG_TIR
+            if beta[i] < min_beta:
+                outcome[i] = _MAX_ITER
+                keep[m] = False
+    return act[keep]

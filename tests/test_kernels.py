@@ -1,0 +1,185 @@
+"""The compiled kernels (smbs_addon/kernels.py) against the numpy reference they replace:
+constraints.blocks + block_solve (the Newton step and the geometric term's dx1/dy) on random
+chains of both constraint forms, point and directional light ends, reflections and
+refractions; and the degenerate cases (coincident vertices, grazing refraction, singular
+Jacobians) give ok False and finite zeros, as the ok flags of the numpy code say."""
+import numpy as np
+import pytest
+
+from smbs_addon import kernels as K
+from smbs_addon.constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd, block_solve, blocks, specular_map
+from smbs_addon.geometry import Vertex, pack
+from smbs_addon.vec import cross, frame, normalize
+
+
+def _random_chain(rng, n, types, directional):
+    """Vertices strung roughly along +z from x0 to the light, with random normals and
+    tangents and normal derivatives: many valid lanes, some grazing or TIR."""
+    k = len(types)
+    x0 = rng.normal(size=(n, 3)) * 0.3
+    verts = []
+    for j in range(k):
+        p = rng.normal(size=(n, 3)) * 0.4 + np.array([0, 0, 1.0 + j])
+        ng = normalize(rng.normal(size=(n, 3)) * 0.4 + np.array([0, 0, 1.0]))
+        ns = normalize(ng + rng.normal(size=(n, 3)) * 0.1)
+        s = normalize(cross(ng, rng.normal(size=(n, 3))))
+        t = cross(ng, s)
+        verts.append(Vertex(p=p, ng=ng, n=ns, s=s, t=t, dn_s=rng.normal(size=(n, 3)) * 0.2,
+                            dn_t=rng.normal(size=(n, 3)) * 0.2, prim=np.zeros(n, np.int64),
+                            obj=np.zeros(n, np.int64), mat=np.zeros(n, np.int64)))
+    etas = [rng.uniform(1.1, 1.8, n) for _ in range(k)]
+    if directional:
+        y = normalize(rng.normal(size=(n, 3)) * 0.3 + np.array([0, 0, 1.0]))
+    else:
+        y = rng.normal(size=(n, 3)) * 0.4 + np.array([0, 0, 2.0 + k])
+    ys, yt = frame(normalize(rng.normal(size=(n, 3))))
+    return x0, verts, etas, LightEnd(directional, y, ys, yt)
+
+
+def _kinds(types):
+    return np.array([1 if c == "T" else 0 for c in types], np.int64)
+
+
+def _close(a, b, ok):
+    a, b = a[ok], b[ok]
+    scale = np.maximum(np.abs(b).max(axis=tuple(range(1, b.ndim)), keepdims=True), 1e-300)
+    return np.abs(a - b) / scale
+
+
+@pytest.mark.parametrize("form", [ANGLE_DIFF, HALF_VECTOR])
+@pytest.mark.parametrize("types", ["R", "T", "RR", "TT", "TRT", "TRRT"])
+@pytest.mark.parametrize("directional", [False, True])
+def test_chain_solve_matches_numpy(form, types, directional):
+    rng = np.random.default_rng(hash((form, types, directional)) % 2**32)
+    n = 2000
+    x0, verts, etas, light = _random_chain(rng, n, types, directional)
+    k = len(types)
+    C, A, B, D, okc = blocks(form, types, x0, verts, etas, light)
+    with np.errstate(all="ignore"):
+        delta, oks = block_solve(A, B, D, C[..., None])
+        rhs = np.zeros(A.shape[:2] + (2, 2))
+        rhs[:, k - 1] = -D[:, k - 1]
+        X, oksg = block_solve(A, B, D, rhs)
+    F, _ = pack(verts)
+    E = np.stack(etas, 1)
+    args = (form == HALF_VECTOR, _kinds(types), x0, F, E, light.y, light.ys, light.yt, directional)
+    out0, ok0 = K.chain_solve(0, *args)
+    out1, ok1 = K.chain_solve(1, *args)
+    ref_ok = okc & oks
+    assert ref_ok.mean() > 0.3  # the test exercises real chains
+    np.testing.assert_array_equal(ok0, ref_ok)
+    np.testing.assert_array_equal(ok1, okc & oksg)
+    assert _close(out0[:, :, 0], delta[:, 0, :, 0], ok0).max() < 1e-12
+    assert _close(out1, X[:, 0], ok1).max() < 1e-12
+    assert np.all(out0[~ok0] == 0) and np.all(np.isfinite(out0)) and np.all(np.isfinite(out1))
+    # the walk's proposal: the Newton step of x1, shortened and scaled by beta
+    idx = rng.permutation(n)[: n // 2]
+    beta = rng.uniform(0.1, 1.0, n)
+    p, d, okp = K.newton_proposal(idx, *args, beta, 0.3)
+    np.testing.assert_array_equal(okp, ref_ok[idx])
+    step = -(delta[idx, 0, 0, 0][:, None] * verts[0].s[idx] + delta[idx, 0, 1, 0][:, None] * verts[0].t[idx])
+    ls = np.sqrt(np.sum(step * step, 1))
+    with np.errstate(all="ignore"):
+        step *= np.minimum(1.0, 0.3 / np.maximum(ls, 1e-300))[:, None]
+    p_ref = verts[0].p[idx] + beta[idx, None] * step
+    assert np.abs(p - p_ref)[okp].max() < 1e-12
+    assert np.abs(d - normalize(p_ref - x0[idx]))[okp].max() < 1e-12
+
+
+def test_degenerate_chains_are_flagged_not_nan():
+    rng = np.random.default_rng(3)
+    n = 64
+    x0, verts, etas, light = _random_chain(rng, n, "TT", False)
+    verts[0].p[:8] = x0[:8]  # x1 on x0: the first segment has no direction
+    verts[1].p[8:16] = verts[0].p[8:16]  # two vertices at one point
+    light.y[16:24] = verts[1].p[16:24]  # the light on the last vertex
+    for f in ("s", "t", "dn_s", "dn_t"):  # a vertex without tangents: singular Jacobian
+        getattr(verts[0], f)[24:32] = 0.0
+    etas[0][32:40] = 50.0  # grazing / TIR-like refraction
+    verts[0].n[40:48] = 0.0  # no normal at all
+    F, _ = pack(verts)
+    args = (False, _kinds("TT"), x0, F, np.stack(etas, 1), light.y, light.ys, light.yt, False)
+    with np.errstate(all="ignore"):
+        C, A, B, D, okc = blocks(ANGLE_DIFF, "TT", x0, verts, etas, light)
+        _, oks = block_solve(A, B, D, C[..., None])
+    for mode in (0, 1):
+        out, ok = K.chain_solve(mode, *args)
+        assert np.all(np.isfinite(out))
+        assert not ok[:32].any()
+        if mode == 0:
+            np.testing.assert_array_equal(ok, okc & oks)
+    p, d, okp = K.newton_proposal(np.arange(n), *args, np.ones(n), 1.0)
+    assert np.all(np.isfinite(p)) and np.all(np.isfinite(d)) and not okp[:32].any()
+
+
+def test_specular_map_kernel_matches_numpy():
+    rng = np.random.default_rng(5)
+    n = 500
+    w = normalize(rng.normal(size=(n, 3)))
+    nrm = normalize(rng.normal(size=(n, 3)))
+    eta = rng.uniform(1.0, 2.0, n)
+    for refract, kind in ((False, "R"), (True, "T")):
+        ref, ok = specular_map(kind, w, nrm, eta)
+        for i in range(n):
+            out, oki = K.smap(refract, tuple(w[i]), tuple(nrm[i]), eta[i])
+            assert oki == ok[i]
+            assert np.abs(np.array(out) - ref[i]).max() < 1e-15
+
+
+@pytest.mark.parametrize("types", ["R", "TT", "TRT"])
+@pytest.mark.parametrize("directional", [False, True])
+def test_large_proposal_matches_numpy(types, directional):
+    from smbs_addon.large_mutation import MAX_HALVINGS, large_direction
+
+    rng = np.random.default_rng(len(types) + 10 * directional)
+    n = 1000
+    x0, verts, etas, light = _random_chain(rng, n, types, directional)
+    verts[0].obj[:] = rng.integers(0, 3, n)
+    obj_lo = np.array([[-0.5, -0.5, 0.5], [-2.0, -2.0, 0.0], [0.3, 0.3, 0.9]])
+    obj_hi = obj_lo + np.array([[1.0, 1.0, 1.0], [4.0, 4.0, 3.0], [0.2, 0.2, 0.2]])
+    scale = np.where(rng.random(n) < 0.3, 0.25, 1.0)
+    obj1 = verts[0].obj
+    d_ref, ok_ref = large_direction(types, verts, etas, light, x0, obj_lo[obj1], obj_hi[obj1], scale)
+    F, I = pack(verts)
+    idx = np.arange(n)
+    d, ok = K.large_proposal(idx, _kinds(types), x0, F, I, np.stack(etas, 1), light.y, directional, obj_lo,
+                             obj_hi, scale, MAX_HALVINGS)
+    np.testing.assert_array_equal(ok, ok_ref)
+    assert 0.2 < ok.mean() and np.abs(d - d_ref)[ok].max() < 1e-14
+
+
+_CACHE_USE = r"""
+import importlib.util, sys
+import numpy as np
+name, path = sys.argv[1], sys.argv[2]
+if name == "smbs_addon.kernels":
+    import smbs_addon.kernels as K
+else:  # the same file under another name, as Blender imports the extension
+    spec = importlib.util.spec_from_file_location(name, path)
+    K = importlib.util.module_from_spec(spec)
+    sys.modules[name] = K
+    spec.loader.exec_module(K)
+F = np.zeros((3, 1, K.NF))
+F[:, 0, 2] = 1.0
+err, front = K.end_mismatch(np.arange(3), F, np.tile([0.0, 0.0, 1.0], (3, 1)), np.tile([0.0, 0.0, 5.0], (3, 1)), False)
+assert np.allclose(err, 0.0) and front.all()
+print("CACHE-OK")
+"""
+
+
+def test_disk_cache_survives_two_module_names(tmp_path):
+    """A kernel cached under one module name (Blender's bl_ext.*.smbs_caustics...) must not break
+    a later process importing the same file as smbs_addon.kernels, and the other way round."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parent.parent
+    path = str(root / "smbs_addon" / "kernels.py")
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
+    for name in ("smbs_caustics_test.smbs_addon.kernels", "smbs_addon.kernels", "smbs_caustics_test.smbs_addon.kernels",
+                 "smbs_addon.kernels"):
+        proc = subprocess.run([sys.executable, "-c", _CACHE_USE, name, path], env=env, capture_output=True,
+                              text=True, timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
