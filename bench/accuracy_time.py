@@ -69,7 +69,9 @@ def ours(scene, method, budget, seed):
             "rays": st["rays"], "SR": st.get("success_rate"), "mps": st.get("mutations_per_success"),
             "rmse": conf.relative_rmse(r.image.mean(axis=2), ref), "floor": conf.noise_floor(ref),
             "est": st["relative_error"],
-            "halve": st["seconds_to_halve_error"], "image": r.image.mean(axis=2)}
+            "halve": st["seconds_to_halve_error"], "image": r.image.mean(axis=2),
+            "choice": "; ".join(f"{k}: {v['why']} (bake: {st['auto']['bake']})"
+                                for k, v in st.get("auto", {}).get("lights", {}).items())}
 
 
 def cycles(scene, budget, seed):
@@ -166,7 +168,8 @@ def main(argv=None):
                 rows.append(ours(scene, method, b, args.seed))
                 r = rows[-1]
                 print(f"{scene} {method} {b:g} s: {r['wall']:.1f} s, {r['spp']} spp, RMSE {r['rmse']:.3f}, "
-                      f"estimated {_fmt(r['est'], '.3f')}, halve {_fmt(r['halve'], '.1f')} s", flush=True)
+                      f"estimated {_fmt(r['est'], '.3f')}, halve {_fmt(r['halve'], '.1f')} s"
+                      + (f"; auto chose {r['choice']}" if r.get("choice") else ""), flush=True)
         if args.cycles:
             for b in budgets:
                 rows.append(cycles(scene, b, args.seed))
@@ -223,6 +226,11 @@ def write(rows, args, budgets, noise=()):
         lines += ["", f"The time rule (`--time`): wall / budget {min(kept):.2f} to {max(kept):.2f} over the "
                   f"{len(kept)} bakes that ran more than the two batches every bake makes (a shorter budget "
                   "than two batches cannot be kept, and is not counted)."]
+    chose = [r for r in rows if r.get("choice")]
+    if chose:
+        lines += ["", "What auto chose (per light, from its pilot; `bake`: light tracing alone (reference) or the "
+                  "walks with light tracing where it won (manifold)):", ""]
+        lines += [f"- {r['scene']}, {r['budget']:g} s: {r['choice']}" for r in chose]
     if noise:
         lines += ["", "The noise rule (`--noise`, default method, a 120 s cap): how far it ran past the end of "
                   "the batch whose error met the target (the check, the statistics and the image's "

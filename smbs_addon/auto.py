@@ -31,8 +31,7 @@ from . import convergence
 from . import scene as S
 
 PILOT_PIXELS = 40 * 30  # the pilot's frame: the camera's, scaled down to about this many pixels
-PILOT_SECONDS = 1.0  # per candidate and light, unless the bake's time budget asks for less
-PILOT_SHARE = 0.1  # of a bake's time budget, at most, for all the pilots
+PILOT_BATCHES = 4  # of one sample per pixel, per candidate and light
 CANDIDATES = ("reference", "sms", "smbs")
 NAMES = {"reference": "light tracing", "sms": "SMS", "smbs": "SMBS"}
 
@@ -42,6 +41,7 @@ class Choice:
     walk: str  # "sms" or "smbs": the walks' method for this light
     photons_direct: bool  # directly seen receivers: light tracing (the photon hand-off)
     through: bool  # the pilot found caustic pixels seen through mirrors or glass
+    alone: bool  # light tracing throughout, its eye pass for the view through mirrors and glass
     measured: dict  # method -> {"direct": cost, "through": cost, "all": cost, "time_s": s}
     why: str
 
@@ -69,14 +69,14 @@ def _direct_pixels(scene, tracer, cam, plan) -> np.ndarray:
     return mask
 
 
-def _cost(batch_lum, region, seconds) -> float:
-    """Variance of the mean image over region, times the seconds it took (lower is better);
-    inf where there is no spread to measure."""
+def _cost(batch_lum, region, work) -> float:
+    """Variance of the mean image over region, times the work it took (rays: unlike seconds,
+    the same for one seed, so one seed makes one choice); lower is better."""
     if not region.any():
         return 0.0
     if len(batch_lum) < 2:
         return math.inf
-    return float(convergence._var_of_mean(batch_lum[:, region]).mean()) * seconds
+    return float(convergence._var_of_mean(batch_lum[:, region]).mean()) * work
 
 
 def choose(scene, settings, plan, cancel=None) -> dict:
@@ -86,48 +86,61 @@ def choose(scene, settings, plan, cancel=None) -> dict:
     from .tracer import Tracer
 
     out = {}
-    seconds = PILOT_SECONDS
-    if settings.time_budget > 0:
-        seconds = min(seconds, PILOT_SHARE * settings.time_budget / max(1, len(plan.lights) * len(CANDIDATES)))
     for lp in plan.lights:
         sub = _pilot_scene(scene, lp.index)
         cam = CameraModel(sub.camera)
         direct = _direct_pixels(sub, Tracer(sub, threads=settings.threads or None), cam, plan)
         runs = {}
         for m in CANDIDATES:
-            # one sample per pixel a batch, batches until the seconds are spent (at least two)
-            s = dataclasses.replace(settings, method=m, spp=1, batches=1, time_budget=seconds,
+            # a fixed pilot (one sample per pixel a batch), so that one seed makes one choice
+            s = dataclasses.replace(settings, method=m, spp=PILOT_BATCHES, batches=PILOT_BATCHES, time_budget=0.0,
                                     noise_target=0.0, indirect=False, estimator="unbiased")
             t = time.perf_counter()
             res = bake(sub, s, cancel=cancel)
-            runs[m] = (res.batch_luminance, time.perf_counter() - t, res.image.mean(axis=2))
+            st = res.stats  # the work per sample: the rays past the plan and the photon pre-pass
+            work = st["rays"] - st["plan"].get("rays", 0) - st.get("guide", {}).get("rays", 0)
+            runs[m] = (res.batch_luminance, max(work, 1), res.image.mean(axis=2), time.perf_counter() - t)
         lum = sum(r[2] for r in runs.values())
         region = convergence.caustic_region(lum)
         if sub.camera.use_border and sub.camera.use_crop_to_border:
             x0, x1, y0, y1 = cam.region
             direct = direct[y0:y1, x0:x1]
         d_reg, t_reg = region & direct, region & ~direct
-        measured = {m: {"direct": _cost(b, d_reg, t), "through": _cost(b, t_reg, t), "all": _cost(b, region, t),
-                        "time_s": t} for m, (b, t, _) in runs.items()}
-        walk, photons, why = decide(measured, bool(d_reg.any()), bool(t_reg.any()), bool(region.any()))
-        out[lp.index] = Choice(walk, photons, bool(t_reg.any()), measured, why)
+        measured = {m: {"direct": _cost(b, d_reg, w), "through": _cost(b, t_reg, w), "all": _cost(b, region, w),
+                        "rays": w, "time_s": t} for m, (b, w, _, t) in runs.items()}
+        walk, photons, alone, why = decide(measured, bool(d_reg.any()), bool(t_reg.any()), bool(region.any()))
+        out[lp.index] = Choice(walk, photons, bool(t_reg.any()), alone, measured, why)
     return out
 
 
 def decide(measured: dict, has_direct: bool, has_through: bool, has_caustic: bool = True):
-    """(walk method, light tracing for the direct receivers?, why) from the pilot's costs
-    (measured[method] = {"direct", "through", "all"}: variance x seconds, lower is better)."""
+    """(walk method, light tracing for the direct receivers?, light tracing everywhere?, why)
+    from the pilot's costs (measured[method] = {"direct", "through", "all"}: variance x
+    seconds, lower is better). Three ways to share the work: the walks everywhere; light
+    tracing at the receivers seen directly and the walks through mirrors and glass; light
+    tracing everywhere (its eye pass takes the view through mirrors and glass). The
+    cheapest sum of the two regions' costs wins."""
     if not has_caustic:
-        return "smbs", False, "the pilot found no caustic; walks as SMBS"
+        return "smbs", False, False, "the pilot found no caustic; walks as SMBS"
     walk = min(("sms", "smbs"), key=lambda m: (measured[m]["all"], m != "smbs"))
-    lt, wk = measured["reference"]["direct"], measured[walk]["direct"]
-    if has_direct and lt < wk:
-        return walk, True, (f"light tracing for receivers seen directly ({_ratio(wk, lt)} cheaper than "
-                            f"{NAMES[walk]})" + (f"; {NAMES[walk]} through mirrors and glass" if has_through else ""))
+    ref, wk = measured["reference"], measured[walk]
+    costs = {"walks": wk["direct"] + wk["through"],
+             "mixed": ref["direct"] + wk["through"] if has_direct else math.inf,
+             # the light tracer's eye pass through mirrors and glass: rare bright paths, whose
+             # variance a short pilot underestimates (the wavy mirror: 10x the walks' error)
+             "photons": ref["direct"] if not has_through else math.inf}
+    way = min(costs, key=lambda k: (costs[k], ("walks", "photons", "mixed").index(k)))
     other = "smbs" if walk == "sms" else "sms"
-    return walk, False, (f"{NAMES[walk]} ({_ratio(measured[other]['all'], measured[walk]['all'])} cheaper than "
-                         f"{NAMES[other]}" + (f", {_ratio(lt, wk)} cheaper than light tracing where seen directly"
-                                              if has_direct else "") + ")")
+    if way == "photons":
+        return walk, has_direct, True, ("light tracing throughout (" + _ratio(costs["walks"], costs["photons"])
+                                  + f" cheaper than {NAMES[walk]})")
+    if way == "mixed":
+        return walk, True, False, (f"light tracing for receivers seen directly ({_ratio(wk['direct'], ref['direct'])} "
+                                   f"cheaper than {NAMES[walk]})"
+                                   + (f"; {NAMES[walk]} through mirrors and glass" if has_through else ""))
+    return walk, False, False, (f"{NAMES[walk]} ({_ratio(measured[other]['all'], wk['all'])} cheaper than "
+                                f"{NAMES[other]}" + (f", {_ratio(costs['mixed'], costs['walks'])} cheaper than "
+                                                     "light tracing where seen directly" if has_direct else "") + ")")
 
 
 def _ratio(a, b) -> str:

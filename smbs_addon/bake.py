@@ -482,7 +482,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         t_a = time.perf_counter()
         choices = auto.choose(scene, settings, plan, cancel)
         # light tracing alone where it wins everywhere and no caustic is seen through mirrors or glass
-        alone = all(c.photons_direct and not c.through for c in choices.values())
+        alone = all(c.alone or (c.photons_direct and not c.through) for c in choices.values())
         method = "reference" if alone else "manifold"
         auto_stats = {"time_s": time.perf_counter() - t_a, "bake": method,
                       "lights": {scene.light_names[li]: {"walks": c.walk, "direct": "photons" if c.photons_direct

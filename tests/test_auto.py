@@ -70,16 +70,24 @@ def test_pilot_scene_has_one_light_and_a_small_frame():
 def test_decide_takes_the_cheapest_per_effect():
     from smbs_addon.auto import decide
 
-    def m(ref, sms, smbs):  # (direct, all) costs per method
-        return {"reference": {"direct": ref[0], "all": ref[1]}, "sms": {"direct": sms[0], "all": sms[1]},
-                "smbs": {"direct": smbs[0], "all": smbs[1]}}
+    def m(ref, sms, smbs):  # (direct, through, all) costs per method
+        return {k: dict(zip(("direct", "through", "all"), v)) for k, v in
+                (("reference", ref), ("sms", sms), ("smbs", smbs))}
 
-    walk, photons, why = decide(m((1.0, 9.0), (8.0, 8.0), (6.0, 6.0)), True, True)
-    assert (walk, photons) == ("smbs", True)
+    # light tracing is cheap where seen directly, but its eye pass is dear through the glass
+    walk, photons, alone, why = decide(m((1.0, 50.0, 51.0), (8.0, 2.0, 10.0), (6.0, 1.0, 7.0)), True, True)
+    assert (walk, photons, alone) == ("smbs", True, False)
     assert why == "light tracing for receivers seen directly (6.0x cheaper than SMBS); SMBS through mirrors and glass"
-    walk, photons, why = decide(m((4.0, 9.0), (2.0, 3.0), (2.5, 6.0)), True, False)
-    assert (walk, photons) == ("sms", False)
+    # nothing seen through mirrors or glass: light tracing throughout
+    walk, photons, alone, why = decide(m((1.0, 0.0, 1.0), (8.0, 0.0, 8.0), (6.0, 0.0, 6.0)), True, False)
+    assert (photons, alone) == (True, True) and why == "light tracing throughout (6.0x cheaper than SMBS)"
+    # ... but never its eye pass where the caustic is seen through them, however cheap the
+    # pilot found it (rare bright paths, which a short pilot underestimates)
+    assert decide(m((1.0, 0.1, 1.1), (8.0, 2.0, 10.0), (6.0, 1.0, 7.0)), True, True)[1:3] == (True, False)
+    walk, photons, alone, why = decide(m((4.0, 0.0, 4.0), (2.0, 0.0, 3.0), (2.5, 0.0, 6.0)), True, False)
+    assert (walk, photons, alone) == ("sms", False, False)
     assert why == "SMS (2.0x cheaper than SMBS, 2.0x cheaper than light tracing where seen directly)"
-    # nothing seen directly: the light tracer cannot serve, whatever its numbers
-    assert decide(m((0.0, 0.0), (2.0, 3.0), (2.5, 6.0)), False, True)[:2] == ("sms", False)
-    assert decide(m((1, 1), (1, 1), (1, 1)), True, True, has_caustic=False)[:2] == ("smbs", False)
+    # nothing seen directly: the light tracer has nothing it may take
+    assert decide(m((0.0, 9.0, 9.0), (0.0, 2.0, 3.0), (0.0, 2.5, 6.0)), False, True)[:3] == ("sms", False, False)
+    assert decide(m((0.0, 1.0, 1.0), (0.0, 2.0, 3.0), (0.0, 2.5, 6.0)), False, True)[:3] == ("sms", False, False)
+    assert decide(m((1, 1, 1), (1, 1, 1), (1, 1, 1)), True, True, has_caustic=False)[:3] == ("smbs", False, False)
