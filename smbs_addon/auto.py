@@ -2,17 +2,20 @@
 
 An effect is a light's caustic on the receivers the camera sees directly, or on
 those it sees through mirrors and glass. A short pilot per light (that light
-alone, a small copy of the frame, a few batches) bakes it with each candidate
-unbiased estimator -- the light tracer, SMS and SMBS -- and measures, per effect,
-the variance of the mean image times the time it took: the cost of a given
-error. Each effect then gets the cheapest:
+alone, a 40 x 30 copy of the frame, PILOT_BATCHES batches of one sample per pixel)
+bakes it with each candidate unbiased estimator -- the light tracer, SMS and SMBS --
+and measures, per effect, the variance of the mean image times the rays it cast past
+the plan and the photon pre-pass (which a longer bake pays once): the cost of a given
+error, in rays rather than seconds so that one seed makes one choice. Each effect
+then gets the cheapest (``decide``):
 
-- through mirrors and glass only the walks can connect (the light tracer cannot
-  reach the camera through a delta BSDF), so it is SMS or SMBS, whichever is
-  cheaper over the light's caustic;
+- through mirrors and glass the walks, SMS or SMBS, whichever is cheaper over the
+  light's caustic (light tracing reaches the camera there only by its eye pass, whose
+  rare bright paths a short pilot underestimates);
 - directly seen receivers go to the light tracer (the bake's photon hand-off with
   every chain type of the light, as for the guide's weak chains) when it is
-  cheaper there than that walk, else to the walk.
+  cheaper there than that walk, else to the walk; a light whose caustic is never
+  seen through a mirror or glass is then baked by light tracing alone.
 
 Light tracing at directly seen receivers and walks at receivers seen through
 mirrors or glass partition path space (as the concentration hand-off does), so
@@ -42,7 +45,7 @@ class Choice:
     photons_direct: bool  # directly seen receivers: light tracing (the photon hand-off)
     through: bool  # the pilot found caustic pixels seen through mirrors or glass
     alone: bool  # light tracing throughout, its eye pass for the view through mirrors and glass
-    measured: dict  # method -> {"direct": cost, "through": cost, "all": cost, "time_s": s}
+    measured: dict  # method -> {"direct", "through", "all": costs, "rays": work, "time_s": seconds}
     why: str
 
 
@@ -116,10 +119,10 @@ def choose(scene, settings, plan, cancel=None) -> dict:
 def decide(measured: dict, has_direct: bool, has_through: bool, has_caustic: bool = True):
     """(walk method, light tracing for the direct receivers?, light tracing everywhere?, why)
     from the pilot's costs (measured[method] = {"direct", "through", "all"}: variance x
-    seconds, lower is better). Three ways to share the work: the walks everywhere; light
+    rays, lower is better). Three ways to share the work: the walks everywhere; light
     tracing at the receivers seen directly and the walks through mirrors and glass; light
-    tracing everywhere (its eye pass takes the view through mirrors and glass). The
-    cheapest sum of the two regions' costs wins."""
+    tracing alone, only where no caustic is seen through mirrors or glass. The cheapest
+    sum of the two regions' costs wins."""
     if not has_caustic:
         return "smbs", False, False, "the pilot found no caustic; walks as SMBS"
     walk = min(("sms", "smbs"), key=lambda m: (measured[m]["all"], m != "smbs"))

@@ -7,9 +7,9 @@ whatever the thread count.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
-import dataclasses
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -20,7 +20,7 @@ from .camera import CameraModel
 from .errors import BakeCancelled, SceneError
 from .film import Film
 from .lights import emit
-from .plan import light_key, make_plan, refine_plan
+from .plan import _rng, light_key, make_plan, refine_plan
 from .tracer import Tracer
 
 METHODS = ("auto", "reference", "mnee", "sms", "smbs")
@@ -170,9 +170,6 @@ def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None)
 
 def _finite_or_none(x: float):
     return float(x) if math.isfinite(x) else None  # JSON has no infinity
-
-
-from .plan import _rng  # noqa: E402  (one way to key a random stream)
 
 
 def _eye_per_batch(cam, film, settings) -> int:
@@ -419,15 +416,21 @@ def plan_words(scene, settings: BakeSettings | None = None) -> list:
     scene.validate()
     plan = make_plan(scene, settings.use_cycles_flags)
     if not plan.nothing:
-        tracer = Tracer(scene, threads=settings.threads or None)
-        refine_plan(plan, scene, tracer, CameraModel(scene.camera), settings.seed, settings.pilots,
-                    indirect=settings.indirect)
+        _trace_plan(plan, scene, settings, CameraModel(scene.camera))
     return plan.words()
 
 
+def _trace_plan(plan, scene, settings, cam) -> Tracer:
+    """The traced part of the plan (plan.refine_plan) with the bake's tracer; the tracer's
+    tolerances then follow what takes part, not objects out of the plan."""
+    tracer = Tracer(scene, threads=settings.threads or None)
+    refine_plan(plan, scene, tracer, cam, settings.seed, settings.pilots, indirect=settings.indirect)
+    tracer.set_extent(*plan.bounds)
+    return tracer
+
+
 def _plan_stats(plan) -> dict:
-    return {"words": plan.words(), "notes": list(plan.notes), "seen": dict(plan.seen), **plan.cost,
-            "nothing_to_bake": plan.nothing or None}
+    return {"words": plan.words(), "notes": list(plan.notes), "seen": dict(plan.seen), **plan.cost}
 
 
 def _nothing_to_bake(scene, settings, plan, cam, t0, on_plan) -> BakeResult:
@@ -468,13 +471,11 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     if plan.nothing:
         return _nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
     film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
-    tracer = Tracer(scene, threads=settings.threads or None)
-    refine_plan(plan, scene, tracer, cam, settings.seed, settings.pilots, indirect=settings.indirect)
+    tracer = _trace_plan(plan, scene, settings, cam)
     if on_plan is not None:
         on_plan(plan.words())
     if plan.nothing:
         return _nothing_to_bake(scene, settings, plan, cam, t0, None)
-    tracer.set_extent(*plan.bounds)  # tolerances from what takes part, not from objects out of the plan
     method, choices, auto_stats = settings.method, {}, None
     if method == "auto":
         from . import auto

@@ -311,6 +311,15 @@ def _mm(X, Y, out):
 
 
 @njit(**_JIT)
+def _lane_scratch(k):
+    """Per-lane work arrays of _lane_blocks and _lane_solve for a chain of k vertices:
+    C, A, B, D, rhs, Li, Y, X (per vertex) and Tm, W, W2 (2x2)."""
+    return (np.zeros((k, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)),
+            np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)),
+            np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)))
+
+
+@njit(**_JIT)
 def _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2):
     """constraints.block_solve for one lane, 2 right-hand columns; X[:] the solution; ok."""
     k = A.shape[0]
@@ -347,17 +356,7 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
     k = kinds.shape[0]
     out = np.zeros((N, 2, 2))
     oks = np.zeros(N, np.bool_)
-    C = np.zeros((k, 2))
-    A = np.zeros((k, 2, 2))
-    B = np.zeros((k, 2, 2))
-    D = np.zeros((k, 2, 2))
-    rhs = np.zeros((k, 2, 2))
-    Li = np.zeros((k, 2, 2))
-    Y = np.zeros((k, 2, 2))
-    X = np.zeros((k, 2, 2))
-    Tm = np.zeros((2, 2))
-    W = np.zeros((2, 2))
-    W2 = np.zeros((2, 2))
+    C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = _lane_scratch(k)
     for i in range(N):
         ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
         rhs[:] = 0.0
@@ -389,17 +388,7 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
     p_out = np.zeros((M, 3))
     d_out = np.zeros((M, 3))
     oks = np.zeros(M, np.bool_)
-    C = np.zeros((k, 2))
-    A = np.zeros((k, 2, 2))
-    B = np.zeros((k, 2, 2))
-    D = np.zeros((k, 2, 2))
-    rhs = np.zeros((k, 2, 2))
-    Li = np.zeros((k, 2, 2))
-    Y = np.zeros((k, 2, 2))
-    X = np.zeros((k, 2, 2))
-    Tm = np.zeros((2, 2))
-    W = np.zeros((2, 2))
-    W2 = np.zeros((2, 2))
+    C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = _lane_scratch(k)
     for m in range(M):
         i = idx[m]
         ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)

@@ -184,6 +184,12 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     return _finish(plan, scene)
 
 
+def _bounds_over(scene: S.Scene, objs):
+    """(lo, hi) around the objects objs, or None for none."""
+    b = [scene.object_bounds(o) for o in objs]
+    return (np.min([x[0] for x in b], axis=0), np.max([x[1] for x in b], axis=0)) if b else None
+
+
 def _finish(plan: Plan, scene: S.Scene) -> Plan:
     """Bounds, scale and the indirect pass's target sphere over what takes part (the planned
     casters and every diffuse surface), so that an object outside the plan changes no tolerance."""
@@ -193,12 +199,7 @@ def _finish(plan: Plan, scene: S.Scene) -> Plan:
     O = len(scene.object_names)
     kind = scene.mat_kind[scene.tri_material] if scene.n_tris else np.zeros(0, np.int32)
     has_diff = np.bincount(scene.tri_object[kind == S.DIFFUSE], minlength=O) > 0
-    part = np.flatnonzero(plan.casters | plan.receivers | has_diff)
-    if part.size:
-        b = [scene.object_bounds(o) for o in part]
-        lo, hi = np.min([x[0] for x in b], axis=0), np.max([x[1] for x in b], axis=0)
-    else:
-        lo, hi = scene.bounds()
+    lo, hi = _bounds_over(scene, np.flatnonzero(plan.casters | plan.receivers | has_diff)) or scene.bounds()
     plan.bounds = (lo, hi)
     d = float(np.linalg.norm(hi - lo))
     plan.scale = d if d > 0 else 1.0
@@ -418,11 +419,8 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
         # indirect.py): pilots from each light onto every diffuse surface, then a cosine bounce
         indirect = {}
         n_ind = max(64, pilots // 2)
-        kinds = scene.mat_kind[scene.tri_material]
-        dif_objs = np.unique(scene.tri_object[kinds == S.DIFFUSE])
-        b = [scene.object_bounds(o) for o in dif_objs]
-        dif_sphere = _bounding_sphere(np.min([x[0] for x in b], axis=0), np.max([x[1] for x in b], axis=0),
-                                      scene)[None, :] if b else plan.scene_sphere
+        dif = _bounds_over(scene, np.unique(scene.tri_object[scene.mat_kind[scene.tri_material] == S.DIFFUSE]))
+        dif_sphere = _bounding_sphere(*dif, scene)[None, :] if dif else plan.scene_sphere
         for li in plan.indirect_lights:
             name = scene.light_names[li]
             rng = _rng(seed, 8, light_key(name))

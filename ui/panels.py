@@ -407,8 +407,7 @@ class SMBS_PT_caustics_statistics(_RenderPanel, bpy.types.Panel):
             box = layout.box()
             box.label(text="Plan", icon='OUTLINER')
             for line in plan:
-                for i, part in enumerate(textwrap.wrap(line, 60) or [""]):
-                    box.label(text=part if i == 0 else "    " + part)
+                _draw_text(box, context, line)
         else:
             for line in skipped_stats(stats):
                 layout.label(text=line, icon='INFO')
