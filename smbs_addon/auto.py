@@ -19,8 +19,11 @@ then gets the cheapest (``decide``):
 
 Light tracing at directly seen receivers and walks at receivers seen through
 mirrors or glass partition path space (as the concentration hand-off does), so
-the sum stays unbiased. Every effect is baked with the same samples per pixel;
-what the pilot measured and what it chose is in the statistics and the plan's words.
+the sum stays unbiased. When the two share a light, the time is shared between them
+by their pilot variances V and costs c per sample (``photon_factor``): the light
+tracer gets k = sqrt(V_direct c_walk / (V_through c_photon)) times the walks' samples,
+which minimises the summed variance for a given time (Neyman's allocation). What the
+pilot measured and what it chose is in the statistics and the plan's words.
 """
 from __future__ import annotations
 
@@ -36,6 +39,7 @@ from . import scene as S
 PILOT_PIXELS = 40 * 30  # the pilot's frame: the camera's, scaled down to about this many pixels
 PILOT_BATCHES = 4  # of one sample per pixel, per candidate and light
 CANDIDATES = ("reference", "sms", "smbs")
+PHOTON_FACTOR = (0.125, 16.0)  # the range of the light tracer's samples per walk sample
 NAMES = {"reference": "light tracing", "sms": "SMS", "smbs": "SMBS"}
 
 
@@ -45,8 +49,9 @@ class Choice:
     photons_direct: bool  # directly seen receivers: light tracing (the photon hand-off)
     through: bool  # the pilot found caustic pixels seen through mirrors or glass
     alone: bool  # light tracing throughout, its eye pass for the view through mirrors and glass
-    measured: dict  # method -> {"direct", "through", "all": costs, "rays": work, "time_s": seconds}
+    measured: dict  # method -> {"direct", "through", "all": costs, "rays": work, "time_s": seconds, ...}
     why: str
+    photon_factor: float = 1.0  # photons for the direct receivers per walk sample (photons_direct only)
 
 
 def _pilot_scene(scene, li):
@@ -72,14 +77,19 @@ def _direct_pixels(scene, tracer, cam, plan) -> np.ndarray:
     return mask
 
 
-def _cost(batch_lum, region, work) -> float:
-    """Variance of the mean image over region, times the work it took (rays: unlike seconds,
-    the same for one seed, so one seed makes one choice); lower is better."""
+def _var(batch_lum, region) -> float:
+    """Variance of the mean image over region (0 for an empty region)."""
     if not region.any():
         return 0.0
     if len(batch_lum) < 2:
         return math.inf
-    return float(convergence._var_of_mean(batch_lum[:, region]).mean()) * work
+    return float(convergence._var_of_mean(batch_lum[:, region]).mean())
+
+
+def _cost(batch_lum, region, work) -> float:
+    """Variance of the mean image over region, times the work it took (rays: unlike seconds,
+    the same for one seed, so one seed makes one choice); lower is better."""
+    return _var(batch_lum, region) * work if region.any() else 0.0
 
 
 def choose(scene, settings, plan, cancel=None) -> dict:
@@ -102,7 +112,9 @@ def choose(scene, settings, plan, cancel=None) -> dict:
             res = bake(sub, s, cancel=cancel)
             st = res.stats  # the work per sample: the rays past the plan and the photon pre-pass
             work = st["rays"] - st["plan"].get("rays", 0) - st.get("guide", {}).get("rays", 0)
-            runs[m] = (res.batch_luminance, max(work, 1), res.image.mean(axis=2), time.perf_counter() - t)
+            ls = st["lights"].get(lp.name, {})
+            seen = ls.get("walks_seen", 0) / ls["walks"] if ls.get("walks") else 0.0
+            runs[m] = (res.batch_luminance, max(work, 1), res.image.mean(axis=2), time.perf_counter() - t, seen)
         lum = sum(r[2] for r in runs.values())
         region = convergence.caustic_region(lum)
         if sub.camera.use_border and sub.camera.use_crop_to_border:
@@ -110,10 +122,35 @@ def choose(scene, settings, plan, cancel=None) -> dict:
             direct = direct[y0:y1, x0:x1]
         d_reg, t_reg = region & direct, region & ~direct
         measured = {m: {"direct": _cost(b, d_reg, w), "through": _cost(b, t_reg, w), "all": _cost(b, region, w),
-                        "rays": w, "time_s": t} for m, (b, w, _, t) in runs.items()}
+                        "var_direct": _var(b, d_reg), "var_through": _var(b, t_reg), "walks_seen_share": seen,
+                        "rays": w, "time_s": t} for m, (b, w, img, t, seen) in runs.items()}
         walk, photons, alone, why = decide(measured, bool(d_reg.any()), bool(t_reg.any()), bool(region.any()))
-        out[lp.index] = Choice(walk, photons, bool(t_reg.any()), alone, measured, why)
+        k = 1.0
+        if photons and not alone:
+            k = photon_factor(measured, walk)
+            if k != 1.0:
+                why = why.replace("light tracing for receivers seen directly (",
+                                  f"light tracing for receivers seen directly ({k:g}x the samples; ", 1)
+        out[lp.index] = Choice(walk, photons, bool(t_reg.any()), alone, measured, why, k)
     return out
+
+
+def photon_factor(measured: dict, walk: str) -> float:
+    """The light tracer's samples per walk sample where it serves the directly seen receivers
+    and the walks those seen through mirrors and glass: sqrt(V_d c_w / (V_w c_d)) (Neyman's
+    allocation: the summed variance V_d / k + V_w for the time c_w + k c_d is least there), V
+    the pilot's variances of the mean on each region, c the rays per sample (the walks' own
+    share of rays: their walks from receivers seen through mirrors and glass), in
+    PHOTON_FACTOR's range and to two digits."""
+    ref, wk = measured["reference"], measured[walk]
+    v_d, c_d = ref["var_direct"], ref["rays"]
+    v_w, c_w = wk["var_through"], wk["rays"] * wk.get("walks_seen_share", 1.0)
+    lo, hi = PHOTON_FACTOR
+    if not (v_d > 0 and c_d > 0) or not math.isfinite(v_d):
+        return 1.0
+    if not (v_w > 0 and c_w > 0):
+        return hi
+    return min(hi, max(lo, float(f"{math.sqrt(v_d * c_w / (v_w * c_d)):.2g}")))
 
 
 def decide(measured: dict, has_direct: bool, has_through: bool, has_caustic: bool = True):

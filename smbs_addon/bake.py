@@ -280,13 +280,14 @@ def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, pe
 
 
 def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
-                   guide=None):
+                   guide=None, factors=None):
     """The photons' share of a manifold bake: the paths focusing more than opts.handoff,
-    and every path of a chain type the guide found too weak to be worth walks."""
+    and every path of a chain type the guide found too weak to be worth walks; factors:
+    {light index: photons per walk sample} (auto's share of the time, default 1)."""
     if opts.handoff <= 0 or not types:
         return
-    per_batch = max(1, per_light // settings.batches)
     for lp in plan.lights:
+        per_batch = max(1, int(per_light * (factors or {}).get(lp.index, 1.0)) // settings.batches)
         st = light_stats[lp.name]
         hs = st.setdefault("handoff", dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats",
                                                      "handoff_paths", "truncated", "lost_shading_normal"), 0))
@@ -487,7 +488,8 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         method = "reference" if alone else "manifold"
         auto_stats = {"time_s": time.perf_counter() - t_a, "bake": method,
                       "lights": {scene.light_names[li]: {"walks": c.walk, "direct": "photons" if c.photons_direct
-                                                         else c.walk, "why": c.why, "pilot": c.measured}
+                                                         else c.walk, "photon_factor": c.photon_factor,
+                                                         "why": c.why, "pilot": c.measured}
                                  for li, c in choices.items()}}
         for lp in plan.lights:
             plan.notes.append(f"auto, {lp.name}: {choices[lp.index].why}")
@@ -561,7 +563,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
             _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
                             eye_stats, prog, guide, opts_by_light)
             _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
-                           guide)
+                           guide, {li: c.photon_factor for li, c in choices.items() if c.photons_direct})
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
 
         b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)

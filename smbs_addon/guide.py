@@ -6,8 +6,12 @@ first diffuse hit projects to are marked, per light and per chain type. A
 receiver in an unmarked tile is walked only with probability Q (and weighted by
 1/Q, Russian roulette), so the estimate stays unbiased while most walks that
 could never converge (receivers outside every caustic) are never started.
-Receivers seen through mirrors or glass are always walked (their screen
-position says nothing about where they are).
+Both the marks and the receivers are keyed by where the receiver point itself
+projects (the photons' hits are projected without asking whether the camera sees
+them), so a receiver seen through mirrors or glass is looked up at its own
+projection, not at the pixel it shows up in: the floor seen through a glass ball
+is walked where photons reached that floor. Receivers that project outside the
+marked tiles (behind the camera, off screen) are always walked.
 """
 from __future__ import annotations
 
@@ -51,18 +55,33 @@ class Guide:
     def is_weak(self, li, types) -> bool:
         return (li, types) in self.weak
 
-    def keep_probability(self, li, types, rx, ry, eye_specular):
-        """Per receiver: 1 inside the marked tiles (or when not guidable), Q elsewhere."""
+    def keep_probability(self, li, types, rx, ry, eye_specular, points=None):
+        """Per receiver: 1 inside the marked tiles (or when not guidable), Q elsewhere.
+
+        rx, ry: the film position of each eye sample; points (M,3): the receiver points,
+        needed for those seen through mirrors or glass (eye_specular > 0), which are
+        looked up where the point itself projects (always walked without points)."""
         m = self.masks.get((li, types))
-        p = np.ones(len(rx))
+        n = len(rx)
         if m is None:
-            return p
-        tx = np.floor((rx - self.tx0) / TILE).astype(np.int64)
-        ty = np.floor((ry - self.ty0) / TILE).astype(np.int64)
-        inside = (tx >= 0) & (ty >= 0) & (tx < m.shape[1]) & (ty < m.shape[0])
-        hit = np.zeros(len(rx), bool)
-        hit[inside] = m[ty[inside], tx[inside]]
-        return np.where(hit | (eye_specular > 0), 1.0, Q)
+            return np.ones(n)
+        rx, ry = np.array(rx, float), np.array(ry, float)
+        seen = eye_specular > 0
+        known = ~seen
+        if points is not None and seen.any():
+            px, py, _, _, _, valid = self.cam.project(points[seen])
+            rx[seen], ry[seen] = px, py
+            known[seen] = valid
+        tx = np.floor((rx - self.tx0) / TILE)
+        ty = np.floor((ry - self.ty0) / TILE)
+        # the tiles a photon can mark (build_guide's `ok`, dilated by one): a point beyond them
+        # is somewhere the pre-pass did not look
+        inside = known & (tx >= 0) & (ty >= 0) & (tx < m.shape[1]) & (ty < m.shape[0])
+        inside &= ~seen | ((tx >= 1) & (ty >= 1) & (tx < m.shape[1] - 1) & (ty < m.shape[0] - 1))
+        hit = np.zeros(n, bool)
+        i = np.flatnonzero(inside)
+        hit[i] = m[ty[i].astype(np.int64), tx[i].astype(np.int64)]
+        return np.where(hit | (seen & ~inside), 1.0, Q)
 
 
 def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, max_bounces=16, check=None):

@@ -368,14 +368,18 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
         ctx.stats["weak_skips"] = ctx.stats.get("weak_skips", 0) + int(weak.sum())
         feasible &= ~weak
     if guide is not None:  # Russian roulette outside the tiles the photon pre-pass reached
-        q = guide.keep_probability(li, types, rc.rx, rc.ry, rc.eye_specular)
+        q = guide.keep_probability(li, types, rc.rx, rc.ry, rc.eye_specular, rc.p)
         survive = rng.random(n) < q
         ctx.stats["guided_skips"] = ctx.stats.get("guided_skips", 0) + int((feasible & ~survive).sum())
+        seen_skips = int((feasible & ~survive & (rc.eye_specular > 0)).sum())
+        ctx.stats["guided_skips_seen"] = ctx.stats.get("guided_skips_seen", 0) + seen_skips
         feasible &= survive
         rr_weight = 1.0 / q
     lanes = np.repeat(np.flatnonzero(feasible), M)
     if lanes.size == 0:
         return out
+    # primary walks from receivers seen through mirrors or glass (auto's cost of that effect)
+    ctx.stats["walks_seen"] = ctx.stats.get("walks_seen", 0) + int((rc.eye_specular[lanes] > 0).sum())
     res = _walk(ctx, opts, seeder, types, x0[lanes], ng_eye[lanes], light.take(lanes), rng)
     conv = np.flatnonzero(res.converged)
     if conv.size == 0:

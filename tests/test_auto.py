@@ -91,3 +91,38 @@ def test_decide_takes_the_cheapest_per_effect():
     assert decide(m((0.0, 9.0, 9.0), (0.0, 2.0, 3.0), (0.0, 2.5, 6.0)), False, True)[:3] == ("sms", False, False)
     assert decide(m((0.0, 1.0, 1.0), (0.0, 2.0, 3.0), (0.0, 2.5, 6.0)), False, True)[:3] == ("sms", False, False)
     assert decide(m((1, 1, 1), (1, 1, 1), (1, 1, 1)), True, True, has_caustic=False)[:3] == ("smbs", False, False)
+
+
+def test_photon_factor_is_neyman_allocation():
+    """Light tracing for the direct receivers, walks through glass: the light tracer gets
+    sqrt(V_d c_w / (V_w c_d)) samples per walk sample, within PHOTON_FACTOR, two digits."""
+    from smbs_addon.auto import PHOTON_FACTOR, photon_factor
+
+    def m(v_d, c_d, v_w, c_w, seen=0.25):
+        return {"reference": {"var_direct": v_d, "rays": c_d},
+                "sms": {"var_through": v_w, "rays": c_w / seen, "walks_seen_share": seen}}
+
+    assert photon_factor(m(4.0, 100.0, 1.0, 400.0), "sms") == 4.0
+    assert photon_factor(m(1.0, 400.0, 4.0, 100.0), "sms") == 0.25
+    assert photon_factor(m(2.0, 100.0, 1.0, 100.0), "sms") == 1.4  # sqrt 2, two digits
+    assert photon_factor(m(1e6, 1.0, 1.0, 1.0), "sms") == PHOTON_FACTOR[1]
+    assert photon_factor(m(1.0, 1e6, 1.0, 1.0), "sms") == PHOTON_FACTOR[0]
+    assert photon_factor(m(0.0, 100.0, 1.0, 100.0), "sms") == 1.0  # nothing measured: as before
+    assert photon_factor(m(1.0, 100.0, 0.0, 100.0), "sms") == PHOTON_FACTOR[1]
+
+
+def test_auto_shares_samples_between_photons_and_walks():
+    """The glass ball seen from the side, the floor directly and through the ball: auto gives
+    the direct receivers photon_factor x the photons of one sample per pixel a batch, exactly,
+    and its image agrees with the light tracer's."""
+    scene = scenes.glass_sphere_scene(resolution=(40, 30), height=0.9)
+    res = bake(scene, BakeSettings(method="auto", spp=8, batches=4, seed=3))
+    choice = res.stats["auto"]["lights"]["Area"]
+    if choice["direct"] != "photons" or res.stats["auto"]["bake"] != "manifold":
+        pytest.skip(f"the pilot chose otherwise here: {choice['why']}")
+    k = choice["photon_factor"]
+    assert k != 1.0 and f"{k:g}x the samples" in choice["why"]
+    per_batch = max(1, int(8 * 40 * 30 * k) // 4)  # spp x pixels x k, in 4 batches
+    assert res.stats["lights"]["Area"]["handoff"]["photons"] == 4 * per_batch
+    ref = bake(scene, BakeSettings(method="reference", spp=128, batches=8, seed=5))
+    _agree(res, ref, caustic_region(ref.image.mean(axis=2)))
