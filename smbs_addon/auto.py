@@ -40,6 +40,14 @@ PILOT_PIXELS = 40 * 30  # the pilot's frame: the camera's, scaled down to about 
 PILOT_BATCHES = 4  # of one sample per pixel, per candidate and light
 CANDIDATES = ("reference", "sms", "smbs")
 PHOTON_FACTOR = (0.125, 16.0)  # the range of the light tracer's samples per walk sample
+# a time budget under this many seconds per planned light runs no pilot (it takes 1-3 s per
+# light, and the time rule counts it): SMBS throughout, the paper's method
+PILOT_MIN_BUDGET_PER_LIGHT = 10.0
+
+
+def pilot_fits(time_budget: float, lights: int) -> bool:
+    """Is there time for the pilot? Always without a time budget."""
+    return time_budget <= 0 or time_budget >= PILOT_MIN_BUDGET_PER_LIGHT * max(1, lights)
 NAMES = {"reference": "light tracing", "sms": "SMS", "smbs": "SMBS"}
 
 

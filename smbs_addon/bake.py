@@ -482,19 +482,24 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         from . import auto
 
         t_a = time.perf_counter()
-        choices = auto.choose(scene, settings, plan, cancel)
+        if auto.pilot_fits(settings.time_budget, len(plan.lights)):
+            choices = auto.choose(scene, settings, plan, cancel)
+            why = {lp.name: choices[lp.index].why for lp in plan.lights}
+        else:
+            why = {lp.name: f"SMBS (a {settings.time_budget:g} s budget leaves no time for the pilot, which "
+                            f"needs {auto.PILOT_MIN_BUDGET_PER_LIGHT:g} s per light)" for lp in plan.lights}
         # light tracing alone where it wins everywhere and no caustic is seen through mirrors or glass
-        alone = all(c.alone or (c.photons_direct and not c.through) for c in choices.values())
+        alone = bool(choices) and all(c.alone or (c.photons_direct and not c.through) for c in choices.values())
         method = "reference" if alone else "manifold"
-        auto_stats = {"time_s": time.perf_counter() - t_a, "bake": method,
+        auto_stats = {"time_s": time.perf_counter() - t_a, "bake": method, "pilot": bool(choices),
                       "lights": {scene.light_names[li]: {"walks": c.walk, "direct": "photons" if c.photons_direct
                                                          else c.walk, "photon_factor": c.photon_factor,
                                                          "why": c.why, "pilot": c.measured}
                                  for li, c in choices.items()}}
         for lp in plan.lights:
-            plan.notes.append(f"auto, {lp.name}: {choices[lp.index].why}")
+            plan.notes.append(f"auto, {lp.name}: {why[lp.name]}")
         if on_plan is not None:
-            on_plan([f"auto, {lp.name}: {choices[lp.index].why}" for lp in plan.lights])
+            on_plan([f"auto, {lp.name}: {why[lp.name]}" for lp in plan.lights])
     x0, x1, y0, y1 = cam.region
     n_pix = max(0, x1 - x0) * max(0, y1 - y0)
     per_light = settings.spp * n_pix

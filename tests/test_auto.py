@@ -126,3 +126,19 @@ def test_auto_shares_samples_between_photons_and_walks():
     assert res.stats["lights"]["Area"]["handoff"]["photons"] == 4 * per_batch
     ref = bake(scene, BakeSettings(method="reference", spp=128, batches=8, seed=5))
     _agree(res, ref, caustic_region(ref.image.mean(axis=2)))
+
+
+def test_a_short_time_budget_runs_no_pilot():
+    """The time rule counts the pilot (1-3 s per light): under PILOT_MIN_BUDGET_PER_LIGHT
+    seconds per light auto bakes SMBS without one, and says so in the plan's words."""
+    from smbs_addon.auto import PILOT_MIN_BUDGET_PER_LIGHT, pilot_fits
+
+    assert pilot_fits(0.0, 3) and pilot_fits(20.0, 2) and not pilot_fits(19.9, 2) and not pilot_fits(2.0, 0)
+    scene = scenes.glass_sphere_scene(resolution=(32, 24))
+    budget = 0.5 * PILOT_MIN_BUDGET_PER_LIGHT
+    res = bake(scene, BakeSettings(spp=2, batches=2, seed=1, time_budget=budget))
+    st = res.stats["auto"]
+    assert st["pilot"] is False and st["lights"] == {} and st["bake"] == "manifold"
+    assert f"auto, Area: SMBS (a {budget:g} s budget leaves no time for the pilot, which needs 10 s per light)" \
+        in res.stats["plan"]["words"]
+    assert res.stats["lights"]["Area"]["walks"] > 0 and np.isfinite(res.image).all()
