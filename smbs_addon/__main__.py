@@ -196,6 +196,10 @@ def error_lines(stats: dict) -> list[str]:
     stop = stats.get("stopped_by")
     if stop in ("time", "noise"):
         out.append(f"  stopped by the {stop} rule after {stats.get('batches_done', 0)} batches")
+    budget = stats.get("settings", {}).get("time_budget", 0.0)
+    if stop == "time" and stats.get("batches_done", 0) <= 2 and stats.get("time_s", 0.0) > 1.1 * budget:
+        out.append(f"  warning: the {budget:g} s budget was shorter than the plan, the pre-pass and the two "
+                   f"batches an error bar needs ({stats['time_s']:.1f} s)")
     return out
 
 

@@ -89,6 +89,10 @@ def test_time_rule_adds_batches_and_counts_the_whole_bake():
     res = bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4, time_budget=1e-6))
     assert res.stats["batches_done"] == 2 and res.stats["stopped_by"] == "time"  # two at least: a spread
     assert res.stats["relative_error"] is not None
+    from smbs_addon.__main__ import error_lines
+
+    assert "  warning: the 1e-06 s budget was shorter than the plan, the pre-pass and the two batches an error " \
+           f"bar needs ({res.stats['time_s']:.1f} s)" in error_lines(res.stats)
 
 
 def test_one_batch_has_no_error_bar():
