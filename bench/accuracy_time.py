@@ -60,6 +60,34 @@ SCENES = ("lens_area", "gold_cylinder", "pool_sun4", "mirror_point_hard", "spher
           "sphere_refraction_spot", "wavy_mirror_sun2", "water_flat_sun0", "through_glass_disk", "prism_tir",
           "cube_grey", "cube_white_rect")
 BATCHES = 4  # per pass of BATCHES samples per pixel: one sample per pixel per batch
+CELLS = ROOT / ".cache" / "accuracy_time"  # every measured cell, kept as soon as it is measured
+
+
+def _commit() -> str:
+    import subprocess
+
+    r = subprocess.run(["git", "-C", str(ROOT), "rev-parse", "--short", "HEAD"], capture_output=True, text=True)
+    return r.stdout.strip() or "unknown"
+
+
+def cell(kind: str, key: tuple, run, resume: bool) -> dict:
+    """run() -> a row, stored under CELLS at once (a long run that stops keeps what it measured);
+    with resume, a row stored before is read back instead of measured again."""
+    import json
+
+    path = CELLS / ("-".join(str(k) for k in (kind,) + key) + ".npz")
+    if resume and path.exists():
+        with np.load(path, allow_pickle=False) as z:
+            row = json.loads(str(z["meta"]))
+            row["image"] = z["image"] if z["image"].size else None
+        return row
+    row = run()
+    row.setdefault("commit", _commit())
+    CELLS.mkdir(parents=True, exist_ok=True)
+    img = row.get("image")
+    np.savez(path, meta=json.dumps({k: v for k, v in row.items() if k != "image"}),
+             image=np.zeros(0) if img is None else np.asarray(img, np.float32))
+    return row
 
 
 def merge_seeds(rows):
@@ -163,7 +191,10 @@ def crops(rows, scene, budget, out):
     ref = conf.load_reference(scene)
     truth = 0.5 * (ref["a"] + ref["b"]).mean(axis=2)
     sel = [r for r in rows if r["scene"] == scene and r["budget"] == budget]
-    panels = [("Cycles reference", truth, None)] + [(r["method"], r["image"], r["rmse"]) for r in sel]
+    panels = [("Cycles reference", truth, None)] + [(r["method"], r["image"], r["rmse"]) for r in sel
+                                                    if r.get("image") is not None]
+    if len(panels) == 1:  # no image kept (rows rebuilt from a log): no crops
+        return False
     vmax = float(np.percentile(truth, 99.5)) or 1.0
     fig, axes = plt.subplots(1, len(panels), figsize=(2.2 * len(panels), 2.1))
     for ax, (title, img, e) in zip(np.atleast_1d(axes), panels):
@@ -174,6 +205,7 @@ def crops(rows, scene, budget, out):
     fig.tight_layout()
     fig.savefig(out / f"crops_{scene}.png", dpi=110)
     plt.close(fig)
+    return True
 
 
 def main(argv=None):
@@ -187,6 +219,9 @@ def main(argv=None):
     ap.add_argument("--noise-targets", default="0.2,0.1",
                     help="per scene, bakes of the default method with these --noise targets (0: none)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
+    ap.add_argument("--note", default="", help="a paragraph under the report's header (how the run went)")
+    ap.add_argument("--resume", action="store_true",
+                    help="reuse the cells a run before measured (.cache/accuracy_time; each row keeps its commit)")
     args = ap.parse_args(argv)
     budgets = [float(b) for b in args.budgets.split(",")]
     rows = []
@@ -195,20 +230,23 @@ def main(argv=None):
             if (scene, method) in conf.NOT_APPLICABLE:
                 continue
             for b, seed in [(b, s) for b in budgets for s in range(args.seed, args.seed + args.seeds)]:
-                rows.append(ours(scene, method, b, seed))
+                rows.append(cell("ours", (scene, method, f"{b:g}", seed),
+                                 lambda: ours(scene, method, b, seed), args.resume))
                 r = rows[-1]
                 print(f"{scene} {method} {b:g} s, seed {seed}: {r['wall']:.1f} s, {r['spp']} spp, "
                       f"RMSE {r['rmse']:.3f}, estimated {_fmt(r['est'], '.3f')}, halve {_fmt(r['halve'], '.1f')} s"
                       + (f"; auto chose {r['choice']}" if r.get("choice") else ""), flush=True)
         if args.cycles:
             for b in budgets:
-                rows.append(cycles(scene, b, args.seed))
+                rows.append(cell("cycles", (scene, f"{b:g}", args.seed), lambda: cycles(scene, b, args.seed),
+                                 args.resume))
                 print(f"{scene} {rows[-1]['method']} {b:g} s: {rows[-1]['wall']:.1f} s, "
                       f"RMSE {rows[-1]['rmse']:.3f}", flush=True)
     noise = []
     for scene in args.scenes.split(","):
         for target in [float(x) for x in args.noise_targets.split(",") if float(x) > 0]:
-            noise.append(noise_run(scene, target, args.seed))
+            noise.append(cell("noise", (scene, f"{target:g}", args.seed), lambda: noise_run(scene, target, args.seed),
+                              args.resume))
             n = noise[-1]
             print(f"{scene} --noise {target:g}: {n['wall']:.1f} s, error {n['est']:.3f}, met at {n['met']:.1f} s, "
                   f"{n['batches']} batches, stopped by {n['stopped_by']}", flush=True)
@@ -241,10 +279,13 @@ def write(raw, args, budgets, noise=()):
              "Cycles' converged caustic component over its caustic region, the reference's noise taken out. "
              "`est.` is the bake's own relative_error (noise only: a biased method's bias is not in it); "
              "`halve` its seconds_to_halve_error; `budget kept` the wall time / budget. An RMSE below the "
-             "reference's own noise (`floor`, per pixel) is not resolved: it reads `< floor`.", "",
-             "| scene | method | budget s | wall s | budget kept | spp | rays | SR | mut/sol | RMSE | floor | est. "
-             "| halve s |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
+             "reference's own noise (`floor`, per pixel) is not resolved: it reads `< floor`. Measured at "
+             "commit " + ", ".join(sorted({str(r.get("commit", "?")) for r in raw})) + ".", ""]
+    if args.note:
+        lines += [args.note, ""]
+    lines += ["| scene | method | budget s | wall s | budget kept | spp | rays | SR | mut/sol | RMSE | floor | est. "
+              "| halve s |",
+              "|---|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         kept = r["wall"] / r["budget"]
         lines.append(f"| {r['scene']} | {r['method']}{' (biased)' if r['method'] in BIASED else ''} | "
@@ -271,7 +312,7 @@ def write(raw, args, budgets, noise=()):
         for n in noise:
             lines.append(f"| {n['scene']} | {n['target']:g} | {n['wall']:.1f} | {n['met']:.1f} | "
                          f"{n['wall'] / max(n['met'], 1e-9) - 1:+.1%} | {n['batches']} | {n['est']:.3f} | "
-                         f"{n['rmse']:.3f} | {n['stopped_by']} |")
+                         f"{_fmt(n.get('rmse'), '.3f')} | {n['stopped_by']} |")
     lines += ["", "Equal time, best first (the largest budget):", ""]
     top = max(budgets)
     for scene in dict.fromkeys(r["scene"] for r in rows):
@@ -281,10 +322,13 @@ def write(raw, args, budgets, noise=()):
         single = [r for r in sel if r["method"] in ("reference", "sms", "smbs")]
         if auto and single:  # issue 12's rule: auto within 15% of the best single unbiased method
             best = min(single, key=lambda r: r["rmse"])
-            lines.append(f"  auto / best single method ({best['method']}): {auto[0]['rmse'] / best['rmse']:.2f}")
+            ratio = f"{auto[0]['rmse'] / best['rmse']:.2f}" if best["rmse"] > 0 else "not resolved"
+            if 0 < best["rmse"] <= 0.5 * best["floor"]:
+                ratio += " (under half the reference's noise: resolved only by taking that noise out)"
+            lines.append(f"  auto / best single method ({best['method']}): {ratio}")
         plot(rows, scene, out)
-        crops(rows, scene, top, out)
-        lines.append(f"  ![{scene}](accuracy_time_{scene}.png) ![crops](crops_{scene}.png)")
+        cropped = crops(rows, scene, top, out)
+        lines.append(f"  ![{scene}](accuracy_time_{scene}.png)" + (f" ![crops](crops_{scene}.png)" if cropped else ""))
     (out / "accuracy_time.md").write_text("\n".join(lines) + "\n")
     with open(out / "accuracy_time.csv", "w", newline="") as fh:
         w = csv.writer(fh)
