@@ -721,3 +721,50 @@ def walk_update(act, nF, nI, nstatus, nout, e_new, f_new, use_large, smbs, tir_o
                 outcome[i] = _MAX_ITER
                 keep[m] = False
     return act[keep]
+
+
+# ------------------------------------------------------------------ the film
+@njit(inline="always", **_JIT)
+def _blackman_harris(x, r):
+    """film.blackman_harris of one offset (r already at least 0.5)."""
+    if not abs(x) <= r:
+        return 0.0
+    v = 2.0 * math.pi * (x / (2.0 * r) + 0.5)
+    h = 0.35875 - 0.48829 * math.cos(v) + 0.14128 * math.cos(2 * v) - 0.01168 * math.cos(3 * v)
+    return h / (0.35875 * 2.0 * r)
+
+
+@njit(**_JIT)
+def blackman_harris(x, r):
+    """Cycles' Blackman-Harris window of half-width r (>= 0.5) at offsets x, normalised to one."""
+    out = np.zeros(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = _blackman_harris(x[i], r)
+    return out
+
+
+@njit(**_JIT)
+def splat(cur, W, x0, x1, y0, y1, r, k, rx, ry, rgb):
+    """film.Film.splat's loop: every sample through the (2k+1)^2 filter taps into cur (H*W, 3),
+    samples in order (one thread: the sums' order, and so the image, are fixed)."""
+    wx = np.zeros(2 * k + 1)
+    for i in range(rx.shape[0]):
+        fx = math.floor(rx[i])
+        fy = math.floor(ry[i])
+        for ox in range(-k, k + 1):
+            wx[ox + k] = _blackman_harris(fx + ox + 0.5 - rx[i], r)
+        for oy in range(-k, k + 1):
+            py = fy + oy
+            if py < y0 or py >= y1:
+                continue
+            wy = _blackman_harris(py + 0.5 - ry[i], r)
+            if wy == 0.0:
+                continue
+            for ox in range(-k, k + 1):
+                px = fx + ox
+                w = wy * wx[ox + k]
+                if not (w > 0) or px < x0 or px >= x1:
+                    continue
+                idx = int(py) * W + int(px)
+                for c in range(3):
+                    cur[idx, c] += rgb[i, c] * w
