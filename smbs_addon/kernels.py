@@ -736,6 +736,49 @@ def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, t
     return True
 
 
+_DROP, _CONVERGED, _PROPOSE = 0, 1, 2
+
+
+@njit(inline="always", **_JIT)
+def _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, scratch):
+    """One Newton iteration of lane i (see walk_iterate). Returns (what: _DROP, _CONVERGED or
+    _PROPOSE, the proposal ray's offset origin and direction, large or not, its trigger)."""
+    (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, reflect_first, tau, slow_run, min_beta,
+     threshold, max_step, eps, max_halvings) = cfg
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
+    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
+    zero = (0.0, 0.0, 0.0)
+    if has_new:
+        e, f = _lane_mismatch(nF, m, nout, ly, i, directional)
+        if not _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul_new, smbs, tir_on, slow_on, tir_rejected, tau,
+                            slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n,
+                            outcome):
+            return _DROP, zero, zero, False, _NONE
+    if err[i] < threshold and front[i] and valid[i]:
+        converged[i] = True
+        return _CONVERGED, zero, zero, False, _NONE
+    if last_it:
+        outcome[i] = _MAX_ITER
+        return _DROP, zero, zero, False, _NONE
+    ok, p, d = _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch)
+    ul = False
+    tr = _NONE
+    if smbs:
+        tr = _lane_trigger(i, reflect_first, backlit_on, x0, F, ly, directional, pending)
+        if tr != _NONE and large_ok[i]:
+            dl, okl = _lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, lscale, max_halvings)
+            if okl:
+                ul = True
+                d = dl
+                p = _add(_v(x0, i, 0), dl)
+    if not (ok or ul):
+        outcome[i] = _SINGULAR
+        return _DROP, zero, zero, False, _NONE
+    mutations[i] += 1
+    on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), d, p, eps)
+    return _PROPOSE, on, w, ul, tr
+
+
 @njit(**_JIT)
 def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, lane, state):
     """One Newton iteration of walk.newton_walk for lanes act, in one pass per lane: the
@@ -746,49 +789,22 @@ def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, l
     (spawn_aim). cfg, lane and state: walk.newton_walk's settings, per-lane input and state
     (tuples, see there). Returns the lanes that propose, their rays' offset origins and
     directions, which proposals are large, and the large mutations per trigger (4,)."""
-    (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, reflect_first, tau, slow_run, min_beta,
-     threshold, max_step, eps, max_halvings) = cfg
-    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
-    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
     M = act.shape[0]
     nxt = np.zeros(M, np.int64)
     o_out = np.zeros((M, 3))
     d_out = np.zeros((M, 3))
     ul_out = np.zeros(M, np.bool_)
     counts = np.zeros(4, np.int64)
-    scratch = _lane_scratch(kinds.shape[0])
+    scratch = _lane_scratch(cfg[1].shape[0])
     cnt = 0
     for m in range(M):
         i = act[m]
-        if has_new:
-            e, f = _lane_mismatch(nF, m, nout, ly, i, directional)
-            if not _lane_update(m, i, nF, nI, nstatus, nout, e, f, use_large[m], smbs, tir_on, slow_on,
-                                tir_rejected, tau, slow_run, min_beta, F, I, out_dir, err, front, valid, beta,
-                                lscale, pending, slow_n, outcome):
-                continue
-        if err[i] < threshold and front[i] and valid[i]:
-            converged[i] = True
+        what, on, w, ul, tr = _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout,
+                                            use_large[m] if has_new else False, cfg, lane, state, scratch)
+        if what != _PROPOSE:
             continue
-        if last_it:
-            outcome[i] = _MAX_ITER
-            continue
-        ok, p, d = _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch)
-        ul = False
-        if smbs:
-            tr = _lane_trigger(i, reflect_first, backlit_on, x0, F, ly, directional, pending)
-            if tr != _NONE and large_ok[i]:
-                dl, okl = _lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, lscale,
-                                      max_halvings)
-                if okl:
-                    ul = True
-                    d = dl
-                    p = _add(_v(x0, i, 0), dl)
-                    counts[tr] += 1
-        if not (ok or ul):
-            outcome[i] = _SINGULAR
-            continue
-        mutations[i] += 1
-        on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), d, p, eps)
+        if ul:
+            counts[tr] += 1
         nxt[cnt] = i
         ul_out[cnt] = ul
         for c in range(3):
@@ -796,6 +812,194 @@ def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, l
             d_out[cnt, c] = w[c]
         cnt += 1
     return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], counts
+
+
+# ------------------------------------------------------------------ the lane pool (Bernoulli trials)
+_GOLD = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_SEEDING, _WALKING = 1, 2
+_SEED_OBJECT = 6
+
+
+@njit(inline="always", **_JIT)
+def _mix64(z):
+    """splitmix64's finaliser (Steele, Lea and Flood 2014)."""
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(inline="always", **_JIT)
+def keyed_uniform(key, a, b, dim):
+    """A uniform number in [0, 1) that depends only on (key, a, b, dim): counter-based, so a
+    trial's random numbers do not depend on when or on which thread it runs."""
+    z = _mix64(np.uint64(key) + _GOLD * np.uint64(a + 1))
+    z = _mix64(z + _GOLD * np.uint64(b + 1))
+    z = _mix64(z + _GOLD * np.uint64(dim + 1))
+    return np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(**_JIT)
+def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, mat_ior, d1, obj1, uniqueness,
+                 max_iterations):
+    """The lane pool's work on the chains traced last (row m for pool slot rows[m]): a seed chain
+    starts its slot's walk (walk.newton_walk's set-up, SEED_OBJECT where it landed off the
+    caster it aimed at), a walked one goes through _lane_iterate. Returns the slots that cast next
+    (their rays' offset origins and directions, large or not), and the trials that ended:
+    (slot, whether it found the solution of its sample (d1, obj1: the first segment's direction
+    and the first vertex's object, estimators.same_solution)), and the proposals made."""
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
+    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
+    phase, it, want_obj, sample, trial = pool
+    smbs_tir = cfg[2] and cfg[3]
+    M = rows.shape[0]
+    k = cfg[1].shape[0]
+    nxt = np.zeros(M, np.int64)
+    o_out = np.zeros((M, 3))
+    d_out = np.zeros((M, 3))
+    ul_out = np.zeros(M, np.bool_)
+    ended = np.zeros(M, np.int64)
+    found = np.zeros(M, np.bool_)
+    scratch = _lane_scratch(k)
+    cnt = 0
+    n_end = 0
+    steps = 0
+    for m in range(M):
+        s = rows[m]
+        has_new = True
+        if phase[s] == _SEEDING:
+            has_new = False
+            st = nstatus[m]
+            if st == _OK and nI[m, 0, OBJ] != want_obj[s]:
+                st = _SEED_OBJECT
+            F[s, :, :] = nF[m]
+            I[s, :, :] = nI[m]
+            for c in range(3):
+                out_dir[s, c] = nout[m, c]
+            for j in range(k):
+                etas[s, j] = mat_ior[I[s, j, MAT]]
+            err[s], front[s] = _lane_mismatch(F, s, out_dir, ly, s, directional)
+            valid[s] = st == _OK
+            beta[s] = 1.0
+            lscale[s] = 1.0
+            pending[s] = _NONE
+            slow_n[s] = 0
+            converged[s] = False
+            mutations[s] = 0
+            outcome[s] = _OK
+            walkable = st == _OK or st == _SIDE
+            if smbs_tir and st == _TIR and large_ok[s]:  # as newton_walk: a TIR seed mutates first
+                pending[s] = _TRIG_TIR
+                err[s] = np.inf
+                front[s] = False
+                walkable = True
+            phase[s] = _WALKING
+            it[s] = 0
+            if not walkable:
+                ended[n_end] = s
+                n_end += 1
+                continue
+        what, on, w, ul, tr = _lane_iterate(m, s, has_new, it[s] == max_iterations, nF, nI, nstatus, nout,
+                                            ul_new[m] if has_new else False, cfg, lane, state, scratch)
+        it[s] += 1
+        if what == _PROPOSE:
+            steps += 1
+            nxt[cnt] = s
+            ul_out[cnt] = ul
+            for c in range(3):
+                o_out[cnt, c] = on[c]
+                d_out[cnt, c] = w[c]
+            cnt += 1
+            continue
+        ended[n_end] = s
+        if what == _CONVERGED:
+            d2 = _normalize(_sub(_vk(F, s, 0, P), _v(x0, s, 0)))
+            p = sample[s]
+            found[n_end] = abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[s, 0, OBJ] == obj1[p]
+        n_end += 1
+    return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], ended[:n_end], found[:n_end], steps
+
+
+@njit(**_JIT)
+def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, max_parallel, defensive, smbs, eps):
+    """The lane pool's bookkeeping, on one thread: the trials that ended (slots ended; found_end:
+    they found their sample's solution) free their slots and lower their sample's first
+    success; then every free slot takes the next trial of a sample that still needs one (trials
+    in order per sample; at most max_parallel of a sample at once, and no more than one plus
+    half the number of its trials that ended: a sample whose trial t succeeds needs none after
+    t, so trials run side by side only for samples that have needed many). A trial's seed ray aims
+    at a uniform point on the casters (manifold.Seeder.directions for SMS), its random numbers
+    keyed by (key, sample, trial): whichever slot or thread runs it, trial t of a sample walks
+    the same way, so each sample's first success (and the image) does not depend on the
+    scheduling. Returns the slots that cast a seed ray, the rays' offset origins, directions."""
+    phase, it, want_obj, sample, trial = pool
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
+    sx0, sng, sly, first, next_trial, inflight, active, free, cur = samples
+    cdf, total, tv, tobj = seeds
+    for e in range(ended.shape[0]):
+        s = ended[e]
+        p = sample[s]
+        inflight[p] -= 1
+        if found_end[e] and trial[s] < first[p]:
+            first[p] = trial[s]
+        phase[s] = 0
+        free[cur[2]] = s
+        cur[2] += 1
+    n_out = cur[2]
+    rows = np.zeros(n_out, np.int64)
+    o_out = np.zeros((n_out, 3))
+    d_out = np.zeros((n_out, 3))
+    cnt = 0
+    while cur[2] > 0 and cur[0] > 0:
+        got = -1
+        scanned = 0
+        while scanned < cur[0] and cur[0] > 0:
+            if cur[1] >= cur[0]:
+                cur[1] = 0
+            p = active[cur[1]]
+            if next_trial[p] >= min(first[p], max_trials):  # needs no more trials, ever
+                cur[0] -= 1
+                active[cur[1]] = active[cur[0]]
+                continue
+            cur[1] += 1
+            scanned += 1
+            if inflight[p] < min(max_parallel, 1 + (next_trial[p] - inflight[p]) // 2):  # 1 + half the trials ended
+                got = p
+                break
+        if got < 0:
+            break
+        p = got
+        cur[2] -= 1
+        s = free[cur[2]]
+        t = next_trial[p]
+        next_trial[p] += 1
+        inflight[p] += 1
+        sample[s], trial[s], phase[s], it[s] = p, t, _SEEDING, 0
+        for c in range(3):
+            x0[s, c], ng0[s, c], ly[s, c] = sx0[p, c], sng[p, c], sly[p, c]
+        u0 = keyed_uniform(key, p, t, 0)
+        u1 = keyed_uniform(key, p, t, 1)
+        u2 = keyed_uniform(key, p, t, 2)
+        tri = min(np.searchsorted(cdf, u0 * total, side="right"), cdf.shape[0] - 1)
+        su = math.sqrt(u1)
+        b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
+        q = (b0 * tv[tri, 0, 0] + b1 * tv[tri, 1, 0] + b2 * tv[tri, 2, 0],
+             b0 * tv[tri, 0, 1] + b1 * tv[tri, 1, 1] + b2 * tv[tri, 2, 1],
+             b0 * tv[tri, 0, 2] + b1 * tv[tri, 1, 2] + b2 * tv[tri, 2, 2])
+        xs = _v(x0, s, 0)
+        d = _normalize(_sub(q, xs))
+        want_obj[s] = tobj[tri]
+        large_ok[s] = keyed_uniform(key, p, t, 3) >= defensive if smbs else True
+        g = _v(ng0, s, 0)
+        side = 1.0 if _dot(d, g) >= 0 else -1.0
+        on = _add(xs, _mul(eps * side, g))
+        rows[cnt] = s
+        for c in range(3):
+            o_out[cnt, c] = on[c]
+            d_out[cnt, c] = d[c]
+        cnt += 1
+    return rows[:cnt], o_out[:cnt], d_out[:cnt]
 
 
 # ------------------------------------------------------------------ the film

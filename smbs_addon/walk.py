@@ -102,9 +102,10 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
     return trace_chain(ctx, x0, o, dirs, types)
 
 
-def trace_chain(ctx, x0, o, dirs, types: str) -> Chain:
+def trace_chain(ctx, x0, o, dirs, types: str, seeding=None) -> Chain:
     """propagate from x0 with the first ray's offset origins o and directions dirs given: one
-    intersect call and one kernels.propagate_step call per vertex."""
+    intersect call and one kernels.propagate_step call per vertex. seeding (N,) bool: the rows
+    whose rays count as seed rays (the lane pool casts seeds and walks together)."""
     scene, tracer = ctx.scene, ctx.tracer
     n = len(x0)
     k = len(types)
@@ -118,7 +119,11 @@ def trace_chain(ctx, x0, o, dirs, types: str) -> Chain:
         if act.size == 0:
             break
         prim, t = tracer.cast(o, dirs)
-        ctx.count("rays_walk", len(o))
+        n_seed = 0
+        if seeding is not None:
+            n_seed = int(np.count_nonzero(seeding[act]))
+            ctx.count("rays_seed", n_seed)
+        ctx.count("rays_walk", len(o) - n_seed)
         # from the true previous vertex, not the offset ray origin: the chain stays exact. At the
         # last vertex the kernel keeps the vertex of a chain whose exit is TIR (SMBS can mutate
         # from it) and of one whose exit dips below the geometric surface (a shading normal
@@ -164,6 +169,14 @@ class WalkResult:
     large: dict = field(default_factory=dict)  # trigger name -> count
 
 
+def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
+    """The walk's settings as kernels.walk_iterate takes them."""
+    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
+    return (cfg.form == HALF_VECTOR, kinds, cfg.smbs, cfg.tir, cfg.backlit, cfg.slow, cfg.tir_rejected,
+            types[0] == "R", cfg.tau, cfg.slow_run, cfg.min_beta, cfg.threshold, cfg.max_step * ctx.scale,
+            ctx.tracer.eps, MAX_HALVINGS)
+
+
 def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
                 large_ok: np.ndarray | None = None) -> WalkResult:
     """Walk every lane's chain to the light end. Lanes whose seed failed keep
@@ -185,8 +198,6 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     large_counts = dict.fromkeys(TRIGGERS[1:], 0)
     slow_n = np.zeros(n, np.int64)  # slow small steps in a row
     etas = ctx.scene.mat_ior[chain.I[:, :, MAT]]  # (N,k), of the seed's vertices
-    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
-    hv = cfg.form == HALF_VECTOR
     valid = outcome == OK  # a lane converges only from a valid chain
     outcome[outcome == SIDE] = OK  # an exit below the surface is walkable, not yet valid
     act = np.flatnonzero(outcome == OK)
@@ -202,8 +213,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     # one kernel per iteration (kernels.walk_iterate: the acceptance of the last proposals, the
     # convergence test, the next proposal and its ray), then one per chain vertex after each
     # intersect call (trace_chain)
-    cfg_t = (hv, kinds, cfg.smbs, cfg.tir, cfg.backlit, cfg.slow, cfg.tir_rejected, types[0] == "R", cfg.tau,
-             cfg.slow_run, cfg.min_beta, cfg.threshold, cfg.max_step * ctx.scale, ctx.tracer.eps, MAX_HALVINGS)
+    cfg_t = kernel_config(ctx, cfg, types)
     lane_t = (x0, ng0, light.y, light.ys, light.yt, light.directional, etas, large_ok, ctx.obj_lo, ctx.obj_hi)
     state = (chain.F, chain.I, chain.out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged,
              mutations)
