@@ -37,3 +37,21 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     c = bake(make(), BakeSettings(**s, threads=1))
     d = bake(make(), BakeSettings(**s, threads=2))
     assert _same(c, d)
+
+
+@pytest.mark.parametrize("make, method", [
+    (lambda: scenes.ring_scene(resolution=(48, 36)), "sms"),
+    (lambda: scenes.glass_sphere_scene(resolution=(48, 36)), "smbs"),
+])
+def test_bernoulli_pool_scheduling_does_not_change_the_image(make, method, monkeypatch):
+    """The lane pool's trials are keyed by (sample, trial): a pool of 64 lanes that runs every
+    sample's trials one at a time gives the image of a full pool that runs them side by side."""
+    pool = importlib.import_module("smbs_addon.pool")
+    s = BakeSettings(method=method, spp=2, batches=2, seed=7)
+    a = bake(make(), s)
+    monkeypatch.setattr(pool, "POOL", 64)
+    monkeypatch.setattr(pool, "MAX_PARALLEL", 1)
+    b = bake(make(), s)
+    assert a.stats["lights"] and _same(a, b)
+    walks = [sum(L.get("bernoulli_walks", 0) for L in r.stats["lights"].values()) for r in (a, b)]
+    assert walks[0] >= walks[1] > 0  # the full pool may run trials a sample turns out not to need
