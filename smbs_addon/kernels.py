@@ -779,6 +779,15 @@ def _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, la
     return _PROPOSE, on, w, ul, tr
 
 
+@njit(inline="always", **_JIT)
+def _put_ray(rows, o_out, d_out, cnt, lane, on, w):
+    """Row cnt of a kernel's rays: the lane, the ray's offset origin and direction."""
+    rows[cnt] = lane
+    for c in range(3):
+        o_out[cnt, c] = on[c]
+        d_out[cnt, c] = w[c]
+
+
 @njit(**_JIT)
 def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, lane, state):
     """One Newton iteration of walk.newton_walk for lanes act, in one pass per lane: the
@@ -805,11 +814,8 @@ def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, l
             continue
         if ul:
             counts[tr] += 1
-        nxt[cnt] = i
         ul_out[cnt] = ul
-        for c in range(3):
-            o_out[cnt, c] = on[c]
-            d_out[cnt, c] = w[c]
+        _put_ray(nxt, o_out, d_out, cnt, i, on, w)
         cnt += 1
     return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], counts
 
@@ -905,11 +911,8 @@ def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, ma
         it[s] += 1
         if what == _PROPOSE:
             steps += 1
-            nxt[cnt] = s
             ul_out[cnt] = ul
-            for c in range(3):
-                o_out[cnt, c] = on[c]
-                d_out[cnt, c] = w[c]
+            _put_ray(nxt, o_out, d_out, cnt, s, on, w)
             cnt += 1
             continue
         ended[n_end] = s
@@ -994,10 +997,7 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, m
         g = _v(ng0, s, 0)
         side = 1.0 if _dot(d, g) >= 0 else -1.0
         on = _add(xs, _mul(eps * side, g))
-        rows[cnt] = s
-        for c in range(3):
-            o_out[cnt, c] = on[c]
-            d_out[cnt, c] = d[c]
+        _put_ray(rows, o_out, d_out, cnt, s, on, d)
         cnt += 1
     return rows[:cnt], o_out[:cnt], d_out[:cnt]
 
