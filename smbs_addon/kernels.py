@@ -935,7 +935,8 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, m
     at a uniform point on the casters (manifold.Seeder.directions for SMS), its random numbers
     keyed by (key, sample, trial): whichever slot or thread runs it, trial t of a sample walks
     the same way, so each sample's first success (and the image) does not depend on the
-    scheduling. Returns the slots that cast a seed ray, the rays' offset origins, directions."""
+    scheduling. New trials take the lowest free slots. Returns the slots that cast a seed ray,
+    the rays' offset origins and directions."""
     phase, it, want_obj, sample, trial = pool
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
     sx0, sng, sly, first, next_trial, inflight, active, free, cur = samples
@@ -947,14 +948,18 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, m
         if found_end[e] and trial[s] < first[p]:
             first[p] = trial[s]
         phase[s] = 0
-        free[cur[2]] = s
-        cur[2] += 1
-    n_out = cur[2]
-    rows = np.zeros(n_out, np.int64)
-    o_out = np.zeros((n_out, 3))
-    d_out = np.zeros((n_out, 3))
+    # the free slots, lowest first: the busy slots stay packed at the front of the pool's arrays,
+    # which stay in cache when few lanes are busy
+    n_free = 0
+    for s in range(phase.shape[0]):
+        if phase[s] == 0:
+            free[n_free] = s
+            n_free += 1
+    rows = np.zeros(n_free, np.int64)
+    o_out = np.zeros((n_free, 3))
+    d_out = np.zeros((n_free, 3))
     cnt = 0
-    while cur[2] > 0 and cur[0] > 0:
+    while cnt < n_free and cur[0] > 0:
         got = -1
         scanned = 0
         while scanned < cur[0] and cur[0] > 0:
@@ -973,8 +978,7 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, m
         if got < 0:
             break
         p = got
-        cur[2] -= 1
-        s = free[cur[2]]
+        s = free[cnt]
         t = next_trial[p]
         next_trial[p] += 1
         inflight[p] += 1

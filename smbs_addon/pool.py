@@ -46,7 +46,7 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
             np.zeros(P, np.int64))
     samples = (np.ascontiguousarray(x0, np.float64), np.ascontiguousarray(ng0, np.float64),
                np.ascontiguousarray(light.y, np.float64), first, np.zeros(S, np.int64), np.zeros(S, np.int64),
-               np.arange(S), np.arange(P)[::-1].copy(), np.array([S, 0, P], np.int64))  # every slot free
+               np.arange(S), np.zeros(P, np.int64), np.array([S, 0], np.int64))
     seeds = (seeder.cdf, seeder.total, np.ascontiguousarray(seeder.v, np.float64), seeder.obj.astype(np.int64))
     cfg_t = kernel_config(ctx, cfg, types)
     d1 = np.ascontiguousarray(d1, np.float64)
