@@ -26,7 +26,9 @@ from .tracer import Tracer
 METHODS = ("auto", "reference", "mnee", "sms", "smbs")
 ESTIMATORS = ("unbiased", "biased")
 CHUNK = 65536  # lanes per chunk (keeps temporaries in cache, see performance-anchors.md)
-WALK_CHUNK = 8192  # eye samples per manifold chunk (each fans out to lights x chain types x trials)
+WALK_CHUNK = 65536  # eye samples per manifold chunk (each fans out to lights x chain types x trials): big
+# enough that the walks' kernel and intersect calls see thousands of lanes (8192: 19.1 s, 65536: 16.3 s for
+# the glass sphere at 512^2, SMS, bench/throughput.py)
 MEMORY_BUDGET = 8 * 2**30  # bytes the film may take; a bigger resolution is refused before baking
 NOISE_MIN_BATCHES = 4  # a noise target is checked from this many batches on (a spread of fewer lies)
 MAX_BATCHES = 1 << 20  # a stop rule that is never met (a noise target under a heavy tail) ends here

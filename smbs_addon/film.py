@@ -13,17 +13,16 @@ import math
 
 import numpy as np
 
-_BH = (0.35875, 0.48829, 0.14128, 0.01168)
+from . import kernels
+
 MAX_GROUPS = 64  # batch images kept (even); more batches are merged in pairs
 
 
 def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
-    """1-D filter of Cycles' width convention, normalised to integrate to one."""
+    """1-D filter of Cycles' width convention, normalised to integrate to one (the same formula
+    as the splat kernel's, kernels.blackman_harris)."""
     r = max(float(width), 0.5)  # splatting needs a finite support; Cycles' minimum is 0.01
-    v = 2.0 * math.pi * (x / (2.0 * r) + 0.5)
-    a0, a1, a2, a3 = _BH
-    h = a0 - a1 * np.cos(v) + a2 * np.cos(2 * v) - a3 * np.cos(3 * v)
-    return np.where(np.abs(x) <= r, h / (a0 * 2.0 * r), 0.0)
+    return kernels.blackman_harris(np.asarray(x, np.float64).ravel(), r).reshape(np.shape(x))
 
 
 class Film:
@@ -59,22 +58,8 @@ class Film:
         r = self.filter_width
         k = int(math.ceil(r)) + 1
         x0, x1, y0, y1 = self.region
-        fx = np.floor(rx).astype(np.int64)
-        fy = np.floor(ry).astype(np.int64)
-        size = self.H * self.W
-        for oy in range(-k, k + 1):
-            py = fy + oy
-            wy = blackman_harris(py + 0.5 - ry, r)
-            for ox in range(-k, k + 1):
-                px = fx + ox
-                w = wy * blackman_harris(px + 0.5 - rx, r)
-                m = (w > 0) & (px >= x0) & (px < x1) & (py >= y0) & (py < y1)
-                if not m.any():
-                    continue
-                idx = py[m] * self.W + px[m]
-                wm = w[m]
-                for c in range(3):
-                    self._cur[:, c] += np.bincount(idx, weights=rgb[m, c] * wm, minlength=size)
+        kernels.splat(self._cur, self.W, x0, x1, y0, y1, r, k, np.ascontiguousarray(rx, np.float64),
+                      np.ascontiguousarray(ry, np.float64), np.ascontiguousarray(rgb, np.float64))
 
     def end_batch(self, t: float = 0.0) -> None:
         """Close the current batch (t: when it ended, seconds into the bake)."""

@@ -184,16 +184,24 @@ def smap(refract, w, n, eta):
 
 
 @njit(inline="always", **_JIT)
-def smap_d(refract, w, n, eta, dw, dn):
-    """constraints.specular_map_d for one lane."""
+def smap_d_pre(refract, w, n, eta):
+    """The part of constraints.specular_map_d that depends only on (w, n, eta), shared by every
+    derivative at one vertex: (oriented normal, eta ratio, orientation sign, w.n', r)."""
     if not refract:
-        wn = _dot(w, n)
-        return _sub(_mul(2.0, _add(_mul(_dot(dw, n) + _dot(w, dn), n), _mul(wn, dn))), dw)
+        return n, 1.0, 1.0, _dot(w, n), 0.0
     no, eta_r, sg = _orient(w, n, eta)
-    dno = _mul(sg, dn)
     c = _dot(w, no)
     r2 = _max(1.0 - eta_r**2 * (1.0 - c * c), _R_MIN2)
-    r = math.sqrt(r2)
+    return no, eta_r, sg, c, math.sqrt(r2)
+
+
+@njit(inline="always", **_JIT)
+def smap_d(refract, w, pre, dw, dn):
+    """constraints.specular_map_d for one lane (pre: smap_d_pre(refract, w, n, eta))."""
+    no, eta_r, sg, c, r = pre
+    if not refract:
+        return _sub(_mul(2.0, _add(_mul(_dot(dw, no) + _dot(w, dn), no), _mul(c, dn))), dw)
+    dno = _mul(sg, dn)
     dc = _dot(dw, no) + _dot(w, dno)
     dr = eta_r**2 * c * dc / r
     return _sub(_sub(_mul(-eta_r, _sub(_sub(dw, _mul(dc, no)), _mul(c, dno))), _mul(dr, no)), _mul(r, dno))
@@ -206,9 +214,9 @@ def _unit_d(u, length, a):
 
 # ------------------------------------------------------------------ constraint blocks
 @njit(inline="always", **_JIT)
-def _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn, dwi, dn, dwo):
+def _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn, dwi, dn, dwo):
     if not hv:
-        dw = _sub(smap_d(refract, wi, n, eta, dwi, dn), dwo)
+        dw = _sub(smap_d(refract, wi, pre, dwi, dn), dwo)
         return _dot(e1, dw), _dot(e2, dw)
     dH = _add(_mul(eta_i, dwi), _mul(eta_o, dwo))
     dh = _div(_sub(dH, _mul(_dot(h, dH), h)), _max(lh, 1e-300))
@@ -244,6 +252,7 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
         eta = etas[lane, j]
         e1 = e2 = s2 = t2 = h = zero
         eta_i = eta_o = lh = hn = 0.0
+        pre = smap_d_pre(refract, wi, n, eta) if not hv else (n, 1.0, 1.0, 0.0, 0.0)
         if not hv:
             wo_p, okm = smap(refract, wi, n, eta)
             ok = ok and okm
@@ -272,11 +281,11 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
             dna = _vk(F, lane, j, DNS if col == 0 else DNT)
             dwi = _neg(_unit_d(wi, li, a))
             dwo = _neg(_unit_d(wo, lo, a)) if has_lo else zero
-            A[j, 0, col], A[j, 1, col] = _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
+            A[j, 0, col], A[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
                                              dwi, dna, dwo)
             if j > 0:
                 a = _vk(F, lane, j - 1, S if col == 0 else T)
-                B[j, 0, col], B[j, 1, col] = _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2,
+                B[j, 0, col], B[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2,
                                                  hn, _unit_d(wi, li, a), zero, zero)
             else:
                 B[j, 0, col] = B[j, 1, col] = 0.0
@@ -285,7 +294,7 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
             else:
                 a = _v(lys, lane, 0) if col == 0 else _v(lyt, lane, 0)
             dwo = _unit_d(wo, lo, a) if has_lo else a
-            D[j, 0, col], D[j, 1, col] = _dC(hv, refract, wi, n, eta, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
+            D[j, 0, col], D[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
                                              zero, zero, dwo)
     return ok
 
@@ -377,6 +386,28 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
     return out, oks
 
 
+@njit(inline="always", **_JIT)
+def _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch):
+    """The small mutation of lane i (see newton_proposal): (ok, proposed x1, direction)."""
+    C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = scratch
+    k = kinds.shape[0]
+    ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
+    rhs[:] = 0.0
+    for j in range(k):
+        rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
+    ok = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2) and ok
+    p1 = _vk(F, i, 0, P)
+    if not ok:
+        return False, p1, (0.0, 0.0, 0.0)
+    s = _vk(F, i, 0, S)
+    t = _vk(F, i, 0, T)
+    step = _neg(_add(_mul(X[0, 0, 0], s), _mul(X[0, 1, 0], t)))
+    ls = math.sqrt(_dot(step, step))
+    step = _mul(min(1.0, max_step / _max(ls, 1e-300)), step)
+    p = _add(p1, _mul(beta[i], step))
+    return True, p, _normalize(_sub(p, _v(x0, i, 0)))
+
+
 @njit(**_JIT)
 def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step):
     """walk.newton_walk's small mutation for lanes idx (rows of the full arrays): the Newton
@@ -384,30 +415,13 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
     proposed x1 p (M,3), the direction d = normalize(p - x0) (M,3), and ok (M,) (False where
     the constraints or the solve are singular; p = x1 and d zero there)."""
     M = idx.shape[0]
-    k = kinds.shape[0]
     p_out = np.zeros((M, 3))
     d_out = np.zeros((M, 3))
     oks = np.zeros(M, np.bool_)
-    C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = _lane_scratch(k)
+    scratch = _lane_scratch(kinds.shape[0])
     for m in range(M):
-        i = idx[m]
-        ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
-        rhs[:] = 0.0
-        for j in range(k):
-            rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
-        ok = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2) and ok
-        p1 = _vk(F, i, 0, P)
-        if not ok:
-            p_out[m, 0], p_out[m, 1], p_out[m, 2] = p1
-            continue
-        oks[m] = True
-        s = _vk(F, i, 0, S)
-        t = _vk(F, i, 0, T)
-        step = _neg(_add(_mul(X[0, 0, 0], s), _mul(X[0, 1, 0], t)))
-        ls = math.sqrt(_dot(step, step))
-        step = _mul(min(1.0, max_step / _max(ls, 1e-300)), step)
-        p = _add(p1, _mul(beta[i], step))
-        d = _normalize(_sub(p, _v(x0, i, 0)))
+        ok, p, d = _lane_newton(idx[m], hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch)
+        oks[m] = ok
         p_out[m, 0], p_out[m, 1], p_out[m, 2] = p
         d_out[m, 0], d_out[m, 1], d_out[m, 2] = d
     return p_out, d_out, oks
@@ -538,24 +552,28 @@ def propagate_step(refract, last, j, act, o, d, prev, exact, prim, t32, tv, tng,
     return nxt[:cnt], o_next[:cnt], d_next[:cnt], p_next[:cnt]
 
 
+@njit(inline="always", **_JIT)
+def _lane_mismatch(F, m, out_dir, ly, i, directional):
+    """walk.end_mismatch of chain row m against lane i's light end: (|w_o' - w_o|, front)."""
+    k = F.shape[1]
+    if directional:
+        to_light = _v(ly, i, 0)
+    else:
+        to_light = _normalize(_sub(_v(ly, i, 0), _vk(F, m, k - 1, P)))
+    od = _v(out_dir, m, 0)
+    diff = _sub(od, to_light)
+    return math.sqrt(_dot(diff, diff)), _dot(od, to_light) > 0
+
+
 @njit(**_JIT)
 def end_mismatch(idx, F, out_dir, ly, directional):
     """walk.end_mismatch of a chain (rows 0.. of F, out_dir) against the light end rows idx:
     |w_o' - w_o| at the last vertex and whether w_o' points to the light's side."""
     M = idx.shape[0]
-    k = F.shape[1]
     err = np.zeros(M)
     front = np.zeros(M, np.bool_)
     for m in range(M):
-        i = idx[m]
-        if directional:
-            to_light = _v(ly, i, 0)
-        else:
-            to_light = _normalize(_sub(_v(ly, i, 0), _vk(F, m, k - 1, P)))
-        od = _v(out_dir, m, 0)
-        diff = _sub(od, to_light)
-        err[m] = math.sqrt(_dot(diff, diff))
-        front[m] = _dot(od, to_light) > 0
+        err[m], front[m] = _lane_mismatch(F, m, out_dir, ly, idx[m], directional)
     return err, front
 
 
@@ -581,77 +599,81 @@ def _ray_box(o, d, lo, hi):
     return tmax >= max(tmin, 0.0)
 
 
+@njit(inline="always", **_JIT)
+def _lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, scale, max_halvings):
+    """The large mutation of lane i (see large_proposal): (direction, ok)."""
+    k = kinds.shape[0]
+    if directional:
+        v = _neg(_v(ly, i, 0))
+    else:
+        v = _normalize(_sub(_vk(F, i, k - 1, P), _v(ly, i, 0)))
+    ok = True
+    for j in range(k - 1, -1, -1):
+        v, okm = smap(kinds[j] == 1, _neg(v), _vk(F, i, j, NS), etas[i, j])
+        ok = ok and okm
+    xi = _v(x0, i, 0)
+    v1 = _normalize(_sub(_vk(F, i, 0, P), xi))
+    target = _neg(v)
+    a = 1.0 if _dot(v1, target) < 0 else 0.5
+    a = a * scale[i]
+    obj = I[i, 0, OBJ]
+    lo = _v(obj_lo, obj, 0)
+    hi = _v(obj_hi, obj, 0)
+    found = False
+    for _ in range(max_halvings + 1):
+        d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
+        if _ray_box(xi, d, lo, hi) and _dot(d, d) > 0:
+            found = True
+            break
+        a *= 0.5
+    if not found:
+        a = 0.0
+    d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
+    return d, ok and _dot(d, d) > 0.5
+
+
 @njit(**_JIT)
 def large_proposal(idx, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, scale, max_halvings):
     """large_mutation.large_direction for lanes idx: GetNextDir back from the light through
     the chain's vertices, then GetRatio's bisection towards it until the ray from x0 meets the
     box of x1's object. Returns the direction (M,3) and ok (M,)."""
     M = idx.shape[0]
-    k = kinds.shape[0]
     d_out = np.zeros((M, 3))
     oks = np.zeros(M, np.bool_)
     for m in range(M):
-        i = idx[m]
-        if directional:
-            v = _neg(_v(ly, i, 0))
-        else:
-            v = _normalize(_sub(_vk(F, i, k - 1, P), _v(ly, i, 0)))
-        ok = True
-        for j in range(k - 1, -1, -1):
-            v, okm = smap(kinds[j] == 1, _neg(v), _vk(F, i, j, NS), etas[i, j])
-            ok = ok and okm
-        xi = _v(x0, i, 0)
-        v1 = _normalize(_sub(_vk(F, i, 0, P), xi))
-        target = _neg(v)
-        a = 1.0 if _dot(v1, target) < 0 else 0.5
-        a = a * scale[i]
-        obj = I[i, 0, OBJ]
-        lo = _v(obj_lo, obj, 0)
-        hi = _v(obj_hi, obj, 0)
-        found = False
-        for _ in range(max_halvings + 1):
-            d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
-            if _ray_box(xi, d, lo, hi) and _dot(d, d) > 0:
-                found = True
-                break
-            a *= 0.5
-        if not found:
-            a = 0.0
-        d = _normalize(_add(_mul(a, target), _mul(1.0 - a, v1)))
+        d, oks[m] = _lane_large(idx[m], kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, scale, max_halvings)
         d_out[m, 0], d_out[m, 1], d_out[m, 2] = d
-        oks[m] = ok and _dot(d, d) > 0.5
     return d_out, oks
 
 
 # ------------------------------------------------------------------ the walk's bookkeeping
 _NONE, _TRIG_TIR, _TRIG_BACKLIT, _TRIG_SLOW = 0, 1, 2, 3
-_MAX_ITER = 8
+_SINGULAR, _MAX_ITER = 7, 8
 
 
-@njit(**_JIT)
-def smbs_triggers(act, reflect_first, backlit_on, x0, F, ly, directional, pending, large_ok):
-    """SMBS's triggers for lanes act: the pending one (TIR, slow), else trigger 2 (walk.backlit:
-    for a reflection at x1, x0 and the light on different sides of its surface; for a
-    refraction, on the same side); clears pending. Returns trig (M,) and want (M,): a trigger
-    fired and the lane may take large mutations."""
-    M = act.shape[0]
-    trig = np.zeros(M, np.int64)
-    want = np.zeros(M, np.bool_)
-    for m in range(M):
-        i = act[m]
-        tr = pending[i]
-        if backlit_on and tr == _NONE:
-            p1 = _vk(F, i, 0, P)
-            n1 = _vk(F, i, 0, NS)
-            to_light = _v(ly, i, 0) if directional else _sub(_v(ly, i, 0), p1)
-            a = _dot(_sub(_v(x0, i, 0), p1), n1) > 0
-            b = _dot(to_light, n1) > 0
-            if (a != b) if reflect_first else (a == b):
-                tr = _TRIG_BACKLIT
-        trig[m] = tr
-        want[m] = tr != _NONE and large_ok[i]
-        pending[i] = _NONE
-    return trig, want
+@njit(inline="always", **_JIT)
+def _lane_trigger(i, reflect_first, backlit_on, x0, F, ly, directional, pending):
+    """SMBS's trigger of lane i (SMBS's trigger 2, walk.backlit: for a reflection at x1, x0 and the light on different
+    sides of its surface; for a refraction, on the same side); clears pending."""
+    tr = pending[i]
+    if backlit_on and tr == _NONE:
+        p1 = _vk(F, i, 0, P)
+        n1 = _vk(F, i, 0, NS)
+        to_light = _v(ly, i, 0) if directional else _sub(_v(ly, i, 0), p1)
+        a = _dot(_sub(_v(x0, i, 0), p1), n1) > 0
+        b = _dot(to_light, n1) > 0
+        if (a != b) if reflect_first else (a == b):
+            tr = _TRIG_BACKLIT
+    pending[i] = _NONE
+    return tr
+
+
+@njit(inline="always", **_JIT)
+def _spawn_aim1(x0, g, d, target, eps):
+    """tracer.spawn of x0 (normal g) towards d, and the unit direction from there to target."""
+    side = 1.0 if _dot(d, g) >= 0 else -1.0
+    on = _add(x0, _mul(eps * side, g))
+    return on, _normalize(_sub(target, on))
 
 
 @njit(**_JIT)
@@ -661,63 +683,371 @@ def spawn_aim(x0, ng0, d, target, eps):
     o = np.zeros((M, 3))
     dirs = np.zeros((M, 3))
     for i in range(M):
-        g = _v(ng0, i, 0)
-        side = 1.0 if _dot(_v(d, i, 0), g) >= 0 else -1.0
-        on = _add(_v(x0, i, 0), _mul(eps * side, g))
-        w = _normalize(_sub(_v(target, i, 0), on))
+        on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), _v(d, i, 0), _v(target, i, 0), eps)
         for c in range(3):
             o[i, c] = on[c]
             dirs[i, c] = w[c]
     return o, dirs
 
 
-@njit(**_JIT)
-def walk_update(act, nF, nI, nstatus, nout, e_new, f_new, use_large, smbs, tir_on, slow_on, tir_rejected, tau,
-                slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome):
-    """walk.newton_walk's acceptance of the proposals (chain nF/nI/nstatus/nout, mismatch e_new,
-    f_new; row m belongs to lane act[m]) and its state updates: the accepted chain, the
-    mismatch, beta (doubled on acceptance, halved on rejection, 1 after a large mutation), SMBS's
+@njit(inline="always", **_JIT)
+def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, tir_rejected, tau, slow_run,
+                 min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome):
+    """walk.newton_walk's acceptance of proposal row m (of the chain nF/nI/nstatus/nout, mismatch
+    e, f, large or not ul) for lane i, and its state updates: the accepted chain, the mismatch,
+    beta (doubled on acceptance, halved on rejection, 1 after a large mutation), SMBS's
     bisection scale and triggers 1 (a large mutation into TIR moves the chain) and 3 (slow
-    small steps in a row). Returns the lanes that walk on (a lane whose beta fell below
+    small steps in a row). Returns whether the lane walks on (a lane whose beta fell below
     min_beta is stuck: outcome MAX_ITER)."""
+    st = nstatus[m]
+    okp = st == _OK or st == _SIDE
+    accept = okp and (ul or e < err[i])
+    if ul and st == _TIR and tir_on:
+        # a large mutation that ends in total internal reflection still moves the chain
+        accept = True
+        e, f = np.inf, False
+        pending[i] = _TRIG_TIR
+    if accept:
+        F[i, :, :] = nF[m]
+        I[i, :, :] = nI[m]
+        out_dir[i, 0], out_dir[i, 1], out_dir[i, 2] = nout[m, 0], nout[m, 1], nout[m, 2]
+    if smbs and slow_on:
+        slow = okp and not ul and e > tau * err[i]
+        slow_n[i] = slow_n[i] + 1 if slow else 0
+        if slow and slow_n[i] >= slow_run:
+            slow_n[i] = 0
+            pending[i] = _TRIG_SLOW
+    if accept:
+        err[i], front[i] = e, f
+        valid[i] = st == _OK
+        beta[i] = min(1.0, 2.0 * beta[i])
+        if ul:
+            beta[i] = 1.0
+            lscale[i] = 1.0
+        return True
+    if ul:
+        lscale[i] *= 0.5
+    beta[i] *= 0.5
+    if smbs and tir_on and tir_rejected and st == _TIR:
+        pending[i] = _TRIG_TIR
+    if beta[i] < min_beta:
+        outcome[i] = _MAX_ITER
+        return False
+    return True
+
+
+_DROP, _CONVERGED, _PROPOSE = 0, 1, 2
+
+
+@njit(inline="always", **_JIT)
+def _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, scratch):
+    """One Newton iteration of lane i (see walk_iterate). Returns (what: _DROP, _CONVERGED or
+    _PROPOSE, the proposal ray's offset origin and direction, large or not, its trigger)."""
+    (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, reflect_first, tau, slow_run, min_beta,
+     threshold, max_step, eps, max_halvings) = cfg
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
+    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
+    zero = (0.0, 0.0, 0.0)
+    if has_new:
+        e, f = _lane_mismatch(nF, m, nout, ly, i, directional)
+        if not _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul_new, smbs, tir_on, slow_on, tir_rejected, tau,
+                            slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n,
+                            outcome):
+            return _DROP, zero, zero, False, _NONE
+    if err[i] < threshold and front[i] and valid[i]:
+        converged[i] = True
+        return _CONVERGED, zero, zero, False, _NONE
+    if last_it:
+        outcome[i] = _MAX_ITER
+        return _DROP, zero, zero, False, _NONE
+    ok, p, d = _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch)
+    ul = False
+    tr = _NONE
+    if smbs:
+        tr = _lane_trigger(i, reflect_first, backlit_on, x0, F, ly, directional, pending)
+        if tr != _NONE and large_ok[i]:
+            dl, okl = _lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, lscale, max_halvings)
+            if okl:
+                ul = True
+                d = dl
+                p = _add(_v(x0, i, 0), dl)
+    if not (ok or ul):
+        outcome[i] = _SINGULAR
+        return _DROP, zero, zero, False, _NONE
+    mutations[i] += 1
+    on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), d, p, eps)
+    return _PROPOSE, on, w, ul, tr
+
+
+@njit(inline="always", **_JIT)
+def _put_ray(rows, o_out, d_out, cnt, lane, on, w):
+    """Row cnt of a kernel's rays: the lane, the ray's offset origin and direction."""
+    rows[cnt] = lane
+    for c in range(3):
+        o_out[cnt, c] = on[c]
+        d_out[cnt, c] = w[c]
+
+
+@njit(**_JIT)
+def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, lane, state):
+    """One Newton iteration of walk.newton_walk for lanes act, in one pass per lane: the
+    acceptance of the last proposals (has_new: row m of the proposal chain nF/nI/nstatus/nout
+    and use_large belongs to lane act[m]; _lane_update), the convergence test, MAX_ITER at the
+    last iteration (last_it), the small mutation (newton_proposal), SMBS's trigger and large
+    mutation (_lane_trigger, large_proposal), the singular test, and the ray of the proposal
+    (spawn_aim). cfg, lane and state: walk.newton_walk's settings, per-lane input and state
+    (tuples, see there). Returns the lanes that propose, their rays' offset origins and
+    directions, which proposals are large, and the large mutations per trigger (4,)."""
     M = act.shape[0]
-    keep = np.ones(M, np.bool_)
+    nxt = np.zeros(M, np.int64)
+    o_out = np.zeros((M, 3))
+    d_out = np.zeros((M, 3))
+    ul_out = np.zeros(M, np.bool_)
+    counts = np.zeros(4, np.int64)
+    scratch = _lane_scratch(cfg[1].shape[0])
+    cnt = 0
     for m in range(M):
         i = act[m]
-        st = nstatus[m]
-        okp = st == _OK or st == _SIDE
-        ul = use_large[m]
-        e, f = e_new[m], f_new[m]
-        accept = okp and (ul or e < err[i])
-        if ul and st == _TIR and tir_on:
-            # a large mutation that ends in total internal reflection still moves the chain
-            accept = True
-            e, f = np.inf, False
-            pending[i] = _TRIG_TIR
-        if accept:
-            F[i, :, :] = nF[m]
-            I[i, :, :] = nI[m]
-            out_dir[i, 0], out_dir[i, 1], out_dir[i, 2] = nout[m, 0], nout[m, 1], nout[m, 2]
-        if smbs and slow_on:
-            slow = okp and not ul and e > tau * err[i]
-            slow_n[i] = slow_n[i] + 1 if slow else 0
-            if slow and slow_n[i] >= slow_run:
-                slow_n[i] = 0
-                pending[i] = _TRIG_SLOW
-        if accept:
-            err[i], front[i] = e, f
-            valid[i] = st == _OK
-            beta[i] = min(1.0, 2.0 * beta[i])
-            if ul:
-                beta[i] = 1.0
-                lscale[i] = 1.0
-        else:
-            if ul:
-                lscale[i] *= 0.5
-            beta[i] *= 0.5
-            if smbs and tir_on and tir_rejected and st == _TIR:
-                pending[i] = _TRIG_TIR
-            if beta[i] < min_beta:
-                outcome[i] = _MAX_ITER
-                keep[m] = False
-    return act[keep]
+        what, on, w, ul, tr = _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout,
+                                            use_large[m] if has_new else False, cfg, lane, state, scratch)
+        if what != _PROPOSE:
+            continue
+        if ul:
+            counts[tr] += 1
+        ul_out[cnt] = ul
+        _put_ray(nxt, o_out, d_out, cnt, i, on, w)
+        cnt += 1
+    return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], counts
+
+
+# ------------------------------------------------------------------ the lane pool (Bernoulli trials)
+_GOLD = np.uint64(0x9E3779B97F4A7C15)
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_SEEDING, _WALKING = 1, 2
+_SEED_OBJECT = 6
+
+
+@njit(inline="always", **_JIT)
+def _mix64(z):
+    """splitmix64's finaliser (Steele, Lea and Flood 2014)."""
+    z = (z ^ (z >> np.uint64(30))) * _M1
+    z = (z ^ (z >> np.uint64(27))) * _M2
+    return z ^ (z >> np.uint64(31))
+
+
+@njit(inline="always", **_JIT)
+def keyed_uniform(key, a, b, dim):
+    """A uniform number in [0, 1) that depends only on (key, a, b, dim): counter-based, so a
+    trial's random numbers do not depend on when or on which thread it runs."""
+    z = _mix64(np.uint64(key) + _GOLD * np.uint64(a + 1))
+    z = _mix64(z + _GOLD * np.uint64(b + 1))
+    z = _mix64(z + _GOLD * np.uint64(dim + 1))
+    return np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+
+
+@njit(**_JIT)
+def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, mat_ior, d1, obj1, uniqueness,
+                 max_iterations):
+    """The lane pool's work on the chains traced last (row m for pool slot rows[m]): a seed chain
+    starts its slot's walk (walk.newton_walk's set-up, SEED_OBJECT where it landed off the
+    caster it aimed at), a walked one goes through _lane_iterate. Returns the slots that cast next
+    (their rays' offset origins and directions, large or not), and the trials that ended:
+    (slot, whether it found the solution of its sample (d1, obj1: the first segment's direction
+    and the first vertex's object, estimators.same_solution)), and the proposals made."""
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
+    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
+    phase, it, want_obj, sample, trial = pool
+    smbs_tir = cfg[2] and cfg[3]
+    M = rows.shape[0]
+    k = cfg[1].shape[0]
+    nxt = np.zeros(M, np.int64)
+    o_out = np.zeros((M, 3))
+    d_out = np.zeros((M, 3))
+    ul_out = np.zeros(M, np.bool_)
+    ended = np.zeros(M, np.int64)
+    found = np.zeros(M, np.bool_)
+    scratch = _lane_scratch(k)
+    cnt = 0
+    n_end = 0
+    steps = 0
+    for m in range(M):
+        s = rows[m]
+        has_new = True
+        if phase[s] == _SEEDING:
+            has_new = False
+            st = nstatus[m]
+            if st == _OK and nI[m, 0, OBJ] != want_obj[s]:
+                st = _SEED_OBJECT
+            F[s, :, :] = nF[m]
+            I[s, :, :] = nI[m]
+            for c in range(3):
+                out_dir[s, c] = nout[m, c]
+            for j in range(k):
+                etas[s, j] = mat_ior[I[s, j, MAT]]
+            err[s], front[s] = _lane_mismatch(F, s, out_dir, ly, s, directional)
+            valid[s] = st == _OK
+            beta[s] = 1.0
+            lscale[s] = 1.0
+            pending[s] = _NONE
+            slow_n[s] = 0
+            converged[s] = False
+            mutations[s] = 0
+            outcome[s] = _OK
+            walkable = st == _OK or st == _SIDE
+            if smbs_tir and st == _TIR and large_ok[s]:  # as newton_walk: a TIR seed mutates first
+                pending[s] = _TRIG_TIR
+                err[s] = np.inf
+                front[s] = False
+                walkable = True
+            phase[s] = _WALKING
+            it[s] = 0
+            if not walkable:
+                ended[n_end] = s
+                n_end += 1
+                continue
+        what, on, w, ul, tr = _lane_iterate(m, s, has_new, it[s] == max_iterations, nF, nI, nstatus, nout,
+                                            ul_new[m] if has_new else False, cfg, lane, state, scratch)
+        it[s] += 1
+        if what == _PROPOSE:
+            steps += 1
+            ul_out[cnt] = ul
+            _put_ray(nxt, o_out, d_out, cnt, s, on, w)
+            cnt += 1
+            continue
+        ended[n_end] = s
+        if what == _CONVERGED:
+            d2 = _normalize(_sub(_vk(F, s, 0, P), _v(x0, s, 0)))
+            p = sample[s]
+            found[n_end] = abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[s, 0, OBJ] == obj1[p]
+        n_end += 1
+    return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], ended[:n_end], found[:n_end], steps
+
+
+@njit(**_JIT)
+def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, max_parallel, defensive, smbs, eps):
+    """The lane pool's bookkeeping, on one thread: the trials that ended (slots ended; found_end:
+    they found their sample's solution) free their slots and lower their sample's first
+    success; then every free slot takes the next trial of a sample that still needs one (trials
+    in order per sample; at most max_parallel of a sample at once, and no more than one plus
+    half the number of its trials that ended: a sample whose trial t succeeds needs none after
+    t, so trials run side by side only for samples that have needed many). A trial's seed ray aims
+    at a uniform point on the casters (manifold.Seeder.directions for SMS), its random numbers
+    keyed by (key, sample, trial): whichever slot or thread runs it, trial t of a sample walks
+    the same way, so each sample's first success (and the image) does not depend on the
+    scheduling. New trials take the lowest free slots. Returns the slots that cast a seed ray,
+    the rays' offset origins and directions."""
+    phase, it, want_obj, sample, trial = pool
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
+    sx0, sng, sly, first, next_trial, inflight, active, free, cur = samples
+    cdf, total, tv, tobj = seeds
+    for e in range(ended.shape[0]):
+        s = ended[e]
+        p = sample[s]
+        inflight[p] -= 1
+        if found_end[e] and trial[s] < first[p]:
+            first[p] = trial[s]
+        phase[s] = 0
+    # the free slots, lowest first: the busy slots stay packed at the front of the pool's arrays,
+    # which stay in cache when few lanes are busy
+    n_free = 0
+    for s in range(phase.shape[0]):
+        if phase[s] == 0:
+            free[n_free] = s
+            n_free += 1
+    rows = np.zeros(n_free, np.int64)
+    o_out = np.zeros((n_free, 3))
+    d_out = np.zeros((n_free, 3))
+    cnt = 0
+    while cnt < n_free and cur[0] > 0:
+        got = -1
+        scanned = 0
+        while scanned < cur[0] and cur[0] > 0:
+            if cur[1] >= cur[0]:
+                cur[1] = 0
+            p = active[cur[1]]
+            if next_trial[p] >= min(first[p], max_trials):  # needs no more trials, ever
+                cur[0] -= 1
+                active[cur[1]] = active[cur[0]]
+                continue
+            cur[1] += 1
+            scanned += 1
+            if inflight[p] < min(max_parallel, 1 + (next_trial[p] - inflight[p]) // 2):  # 1 + half the trials ended
+                got = p
+                break
+        if got < 0:
+            break
+        p = got
+        s = free[cnt]
+        t = next_trial[p]
+        next_trial[p] += 1
+        inflight[p] += 1
+        sample[s], trial[s], phase[s], it[s] = p, t, _SEEDING, 0
+        for c in range(3):
+            x0[s, c], ng0[s, c], ly[s, c] = sx0[p, c], sng[p, c], sly[p, c]
+        u0 = keyed_uniform(key, p, t, 0)
+        u1 = keyed_uniform(key, p, t, 1)
+        u2 = keyed_uniform(key, p, t, 2)
+        tri = min(np.searchsorted(cdf, u0 * total, side="right"), cdf.shape[0] - 1)
+        su = math.sqrt(u1)
+        b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
+        q = (b0 * tv[tri, 0, 0] + b1 * tv[tri, 1, 0] + b2 * tv[tri, 2, 0],
+             b0 * tv[tri, 0, 1] + b1 * tv[tri, 1, 1] + b2 * tv[tri, 2, 1],
+             b0 * tv[tri, 0, 2] + b1 * tv[tri, 1, 2] + b2 * tv[tri, 2, 2])
+        xs = _v(x0, s, 0)
+        d = _normalize(_sub(q, xs))
+        want_obj[s] = tobj[tri]
+        large_ok[s] = keyed_uniform(key, p, t, 3) >= defensive if smbs else True
+        g = _v(ng0, s, 0)
+        side = 1.0 if _dot(d, g) >= 0 else -1.0
+        on = _add(xs, _mul(eps * side, g))
+        _put_ray(rows, o_out, d_out, cnt, s, on, d)
+        cnt += 1
+    return rows[:cnt], o_out[:cnt], d_out[:cnt]
+
+
+# ------------------------------------------------------------------ the film
+@njit(inline="always", **_JIT)
+def _blackman_harris(x, r):
+    """film.blackman_harris of one offset (r already at least 0.5)."""
+    if not abs(x) <= r:
+        return 0.0
+    v = 2.0 * math.pi * (x / (2.0 * r) + 0.5)
+    h = 0.35875 - 0.48829 * math.cos(v) + 0.14128 * math.cos(2 * v) - 0.01168 * math.cos(3 * v)
+    return h / (0.35875 * 2.0 * r)
+
+
+@njit(**_JIT)
+def blackman_harris(x, r):
+    """Cycles' Blackman-Harris window of half-width r (>= 0.5) at offsets x, normalised to one."""
+    out = np.zeros(x.shape[0])
+    for i in range(x.shape[0]):
+        out[i] = _blackman_harris(x[i], r)
+    return out
+
+
+@njit(**_JIT)
+def splat(cur, W, x0, x1, y0, y1, r, k, rx, ry, rgb):
+    """film.Film.splat's loop: every sample through the (2k+1)^2 filter taps into cur (H*W, 3),
+    samples in order (one thread: the sums' order, and so the image, are fixed)."""
+    wx = np.zeros(2 * k + 1)
+    for i in range(rx.shape[0]):
+        fx = math.floor(rx[i])
+        fy = math.floor(ry[i])
+        for ox in range(-k, k + 1):
+            wx[ox + k] = _blackman_harris(fx + ox + 0.5 - rx[i], r)
+        for oy in range(-k, k + 1):
+            py = fy + oy
+            if py < y0 or py >= y1:
+                continue
+            wy = _blackman_harris(py + 0.5 - ry[i], r)
+            if wy == 0.0:
+                continue
+            for ox in range(-k, k + 1):
+                px = fx + ox
+                w = wy * wx[ox + k]
+                if not (w > 0) or px < x0 or px >= x1:
+                    continue
+                idx = int(py) * W + int(px)
+                for c in range(3):
+                    cur[idx, c] += rgb[i, c] * w

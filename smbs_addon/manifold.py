@@ -21,6 +21,7 @@ from .estimators import chain_throughput, concentration, geometric_term, light_e
 from .eye import eye_receivers
 from .lights import area_light_points
 from .optics import has_reflection
+from .pool import bernoulli_trials
 from .vec import dot, normalize, uniform_cone, frame, to_world
 from .walk import OK, OCCLUDED, OUTCOMES, SEED_OBJECT, TRIGGERS, WalkConfig, newton_walk, propagate
 
@@ -432,33 +433,15 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
         np.add.at(out, owner[keep & ok], val[keep & ok])
         _count_clamped(ctx, None if cut is None else cut[keep & ok])
         return out
-    # unbiased: 1/p by Bernoulli trials, only where the contribution is non-zero
+    # unbiased: 1/p by Bernoulli trials, only where the contribution is non-zero: the count is
+    # that of the first trial that finds the same solution again (pool.py: the trials of all
+    # samples in one wavefront, random numbers keyed by sample and trial)
     pend = np.flatnonzero(ok)
-    count = np.ones(pend.size)
-    done = np.zeros(pend.size, bool)
-    rnd = 0
-    while True:
-        left = np.flatnonzero(~done & (count <= opts.max_trials))
-        if left.size == 0:
-            break
-        # trials run in parallel per lane, more each round for the lanes still pending;
-        # the count is that of the first success in trial order, as if run one by one
-        m = int(min(2**rnd, 64, max(1, 65536 // left.size)))
-        rnd += 1
-        rep = np.repeat(left, m)
-        own = owner[pend[rep]]
-        r2 = _walk(ctx, opts, seeder, types, x0[own], ng_eye[own], light.take(own), rng, primary=False)
-        found = r2.converged.copy()
-        c_idx = np.flatnonzero(found)
-        if c_idx.size:
-            d2 = normalize(r2.chain.verts[0].p[c_idx] - x0[own[c_idx]])
-            match = same_solution(d2, d1[pend[rep[c_idx]]], r2.chain.verts[0].obj[c_idx],
-                                  obj1[pend[rep[c_idx]]], opts.uniqueness)
-            found[c_idx] = match
-        found = found.reshape(left.size, m)
-        first = np.where(found.any(axis=1), found.argmax(axis=1), m)
-        count[left] += first
-        done[left] |= first < m
+    own = owner[pend]
+    first = bernoulli_trials(ctx, opts, seeder, types, x0[own], ng_eye[own], light.take(own), d1[pend], obj1[pend],
+                             int(rng.integers(2**63)))
+    done = first < opts.max_trials
+    count = 1.0 + first
     capped = ~done
     ctx.stats["capped"] = ctx.stats.get("capped", 0) + int(capped.sum())
     st = ctx.stats

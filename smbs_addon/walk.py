@@ -23,9 +23,9 @@ import numpy as np
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .geometry import vertex_view
 from . import kernels, lanes
-from .kernels import MAT, NF, large_proposal, newton_proposal, propagate_step, smbs_triggers, spawn_aim, walk_update
+from .kernels import MAT, NF, propagate_step, spawn_aim, walk_iterate
 from .large_mutation import MAX_HALVINGS
-from .vec import dot, normalize
+from .vec import dot
 
 # walk outcome codes
 (OK, MISS, NOT_CASTER, WRONG_MATERIAL, TIR, SIDE, SEED_OBJECT, SINGULAR, MAX_ITER, WRONG_END, OCCLUDED,
@@ -93,8 +93,19 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
 
     Every vertex must be a specular caster; a T vertex must be glass. The
     geometric normal must agree with the interaction (reflection stays on its
-    side, refraction crosses), else the chain is rejected (SIDE). The per-lane work
-    after each intersect call is kernels.propagate_step."""
+    side, refraction crosses), else the chain is rejected (SIDE). With a target, the
+    ray is aimed from the offset origin itself, so the hit lands on the proposed point."""
+    if target is None:
+        o, dirs = ctx.tracer.spawn(x0, ng0, d), d
+    else:
+        o, dirs = spawn_aim(x0, ng0, d, target, ctx.tracer.eps)
+    return trace_chain(ctx, x0, o, dirs, types)
+
+
+def trace_chain(ctx, x0, o, dirs, types: str, seeding=None) -> Chain:
+    """propagate from x0 with the first ray's offset origins o and directions dirs given: one
+    intersect call and one kernels.propagate_step call per vertex. seeding (N,) bool: the rows
+    whose rays count as seed rays (the lane pool casts seeds and walks together)."""
     scene, tracer = ctx.scene, ctx.tracer
     n = len(x0)
     k = len(types)
@@ -103,16 +114,16 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
     status = np.full(n, OK, np.int64)
     out = np.zeros((n, 3))
     act = np.arange(n)
-    if target is None:
-        o, dirs = tracer.spawn(x0, ng0, d), d
-    else:  # aim from the offset origin itself, so the hit lands on the proposed point
-        o, dirs = spawn_aim(x0, ng0, d, target, tracer.eps)
     prev = x0
     for j, kind in enumerate(types):
         if act.size == 0:
             break
         prim, t = tracer.cast(o, dirs)
-        ctx.count("rays_walk", len(o))
+        n_seed = 0
+        if seeding is not None:
+            n_seed = int(np.count_nonzero(seeding[act]))
+            ctx.count("rays_seed", n_seed)
+        ctx.count("rays_walk", len(o) - n_seed)
         # from the true previous vertex, not the offset ray origin: the chain stays exact. At the
         # last vertex the kernel keeps the vertex of a chain whose exit is TIR (SMBS can mutate
         # from it) and of one whose exit dips below the geometric surface (a shading normal
@@ -131,13 +142,7 @@ def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
 def end_mismatch(chain: Chain, light: LightEnd):
     """|w_o' - w_o| at the last vertex: the propagated direction against the
     direction to the light end; and whether it points to the light's side."""
-    k = len(chain.verts)
-    if light.directional:
-        to_light = light.y
-    else:
-        to_light = normalize(light.y - chain.verts[k - 1].p)
-    diff = chain.out_dir - to_light
-    return np.sqrt(dot(diff, diff)), dot(chain.out_dir, to_light) > 0
+    return kernels.end_mismatch(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
 
 
 def backlit(types: str, x0, chain: Chain, light: LightEnd):
@@ -164,6 +169,14 @@ class WalkResult:
     large: dict = field(default_factory=dict)  # trigger name -> count
 
 
+def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
+    """The walk's settings as kernels.walk_iterate takes them."""
+    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
+    return (cfg.form == HALF_VECTOR, kinds, cfg.smbs, cfg.tir, cfg.backlit, cfg.slow, cfg.tir_rejected,
+            types[0] == "R", cfg.tau, cfg.slow_run, cfg.min_beta, cfg.threshold, cfg.max_step * ctx.scale,
+            ctx.tracer.eps, MAX_HALVINGS)
+
+
 def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
                 large_ok: np.ndarray | None = None) -> WalkResult:
     """Walk every lane's chain to the light end. Lanes whose seed failed keep
@@ -185,8 +198,6 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     large_counts = dict.fromkeys(TRIGGERS[1:], 0)
     slow_n = np.zeros(n, np.int64)  # slow small steps in a row
     etas = ctx.scene.mat_ior[chain.I[:, :, MAT]]  # (N,k), of the seed's vertices
-    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
-    hv = cfg.form == HALF_VECTOR
     valid = outcome == OK  # a lane converges only from a valid chain
     outcome[outcome == SIDE] = OK  # an exit below the surface is walkable, not yet valid
     act = np.flatnonzero(outcome == OK)
@@ -199,57 +210,35 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         front[tir_seed] = False
         outcome[tir_seed] = OK
         act = np.sort(np.concatenate([act, tir_seed]))
-    max_step = cfg.max_step * ctx.scale
+    # one kernel per iteration (kernels.walk_iterate: the acceptance of the last proposals, the
+    # convergence test, the next proposal and its ray), then one per chain vertex after each
+    # intersect call (trace_chain)
+    cfg_t = kernel_config(ctx, cfg, types)
+    lane_t = (x0, ng0, light.y, light.ys, light.yt, light.directional, etas, large_ok, ctx.obj_lo, ctx.obj_hi)
+    state = (chain.F, chain.I, chain.out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged,
+             mutations)
+    new, use_large = None, np.zeros(0, bool)
     for it in range(cfg.max_iterations + 1):
         if act.size == 0:
             break
-        done = (err[act] < cfg.threshold) & front[act] & valid[act]
-        if done.any():
-            converged[act[done]] = True
-            act = act[~done]
-        if it == cfg.max_iterations or act.size == 0:
-            outcome[act] = MAX_ITER
-            break
-        # --- small mutation: Newton step of x1 from the block-tridiagonal system (one kernel)
-        def part(a, b, act=act):
-            return newton_proposal(act[a:b], hv, kinds, x0, chain.F, etas, light.y, light.ys, light.yt,
-                                   light.directional, beta, max_step)
 
-        p, d, oks = _joined(lanes.run(part, act.size, ctx.tracer.threads, MIN_PART))
-        use_large = np.zeros(act.size, bool)
-        if cfg.smbs:
-            trig, want = smbs_triggers(act, types[0] == "R", cfg.backlit, x0, chain.F, light.y, light.directional,
-                                       pending, large_ok)
-            if want.any():
-                w = np.flatnonzero(want)
-                dl, okl = large_proposal(act[w], kinds, x0, chain.F, chain.I, etas, light.y, light.directional,
-                                         ctx.obj_lo, ctx.obj_hi, lscale, MAX_HALVINGS)
-                use_large[w] = okl
-                wl = w[okl]
-                d[wl] = dl[okl]
-                p[wl] = x0[act[wl]] + dl[okl]
-                for t_id in (TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW):
-                    large_counts[TRIGGERS[t_id]] += int((use_large & (trig == t_id)).sum())
-        singular = ~(oks | use_large)
-        if singular.any():
-            outcome[act[singular]] = SINGULAR
-            keep = ~singular
-            act, d, p, use_large = act[keep], d[keep], p[keep], use_large[keep]
+        def part(a, b, act=act, new=new, use_large=use_large, it=it):
+            if new is None:
+                nF = np.zeros((0, k, NF))
+                nI = np.zeros((0, k, 3), np.int64)
+                nst, nout = np.zeros(0, np.int64), np.zeros((0, 3))
+            else:
+                nF, nI, nst, nout = new.F[a:b], new.I[a:b], new.status[a:b], new.out_dir[a:b]
+            return walk_iterate(act[a:b], new is not None, it == cfg.max_iterations, nF, nI, nst, nout,
+                                use_large[a:b], cfg_t, lane_t, state)
+
+        parts = lanes.run(part, act.size, ctx.tracer.threads, MIN_PART)
+        for *_, counts in parts:
+            for t_id in (TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW):
+                large_counts[TRIGGERS[t_id]] += int(counts[t_id])
+        act, o, dirs, use_large = _joined([p[:4] for p in parts])
         if act.size == 0:
             break
-        mutations[act] += 1
-        new = propagate(ctx, x0[act], ng0[act], d, types, target=p)
-        e_new, f_new = kernels.end_mismatch(act, new.F, new.out_dir, light.y, light.directional)
-        # acceptance and every per-lane state update in one kernel (see walk_update): a large
-        # mutation that ends in total internal reflection still moves the chain (its last vertex
-        # is kept, as for a TIR seed), so the next one bisects on from there instead of repeating
-        # the same rejected proposal until the walk counts as stuck; trigger 3 on the last small
-        # mutation's proposal, kept or not: a rejected one (the mismatch grew, ratio > 1 > tau) is
-        # the slowest progress of all; waiting for beta to shrink below min_beta instead lost
-        # 9-13% of all walks to local minima; beta halves on rejection and a walk whose step had
-        # to shrink below min_beta gives up
-        act = walk_update(act, new.F, new.I, new.status, new.out_dir, e_new, f_new, use_large, cfg.smbs, cfg.tir,
-                          cfg.slow, cfg.tir_rejected, cfg.tau, cfg.slow_run, cfg.min_beta, chain.F, chain.I,
-                          chain.out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome)
+        new = trace_chain(ctx, x0[act], o, dirs, types)
     outcome[converged] = OK
     return WalkResult(chain=chain, converged=converged, outcome=outcome, mutations=mutations, large=large_counts)
