@@ -70,13 +70,16 @@ def _commit() -> str:
     return r.stdout.strip() or "unknown"
 
 
-def cell(kind: str, key: tuple, run, resume: bool) -> dict:
+def cell(kind: str, key: tuple, run, resume: bool, report_only: bool = False) -> dict | None:
     """run() -> a row, stored under CELLS at once (a long run that stops keeps what it measured);
-    with resume, a row stored before is read back instead of measured again."""
+    with resume, a row stored before is read back instead of measured again; report_only: None
+    for a row not stored."""
     import json
 
     path = CELLS / ("-".join(str(k) for k in (kind,) + key) + ".npz")
-    if resume and path.exists():
+    if report_only and not path.exists():
+        return None
+    if (resume or report_only) and path.exists():
         with np.load(path, allow_pickle=False) as z:
             row = json.loads(str(z["meta"]))
             row["image"] = z["image"] if z["image"].size else None
@@ -220,6 +223,8 @@ def main(argv=None):
                     help="per scene, bakes of the default method with these --noise targets (0: none)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
     ap.add_argument("--note", default="", help="a paragraph under the report's header (how the run went)")
+    ap.add_argument("--report-only", action="store_true",
+                    help="measure nothing: the report of the cells stored (.cache/accuracy_time)")
     ap.add_argument("--resume", action="store_true",
                     help="reuse the cells a run before measured (.cache/accuracy_time; each row keeps its commit)")
     args = ap.parse_args(argv)
@@ -231,22 +236,31 @@ def main(argv=None):
                 continue
             for b, seed in [(b, s) for b in budgets for s in range(args.seed, args.seed + args.seeds)]:
                 rows.append(cell("ours", (scene, method, f"{b:g}", seed),
-                                 lambda: ours(scene, method, b, seed), args.resume))
+                                 lambda: ours(scene, method, b, seed), args.resume, args.report_only))
                 r = rows[-1]
+                if r is None:
+                    rows.pop()
+                    continue
                 print(f"{scene} {method} {b:g} s, seed {seed}: {r['wall']:.1f} s, {r['spp']} spp, "
                       f"RMSE {r['rmse']:.3f}, estimated {_fmt(r['est'], '.3f')}, halve {_fmt(r['halve'], '.1f')} s"
                       + (f"; auto chose {r['choice']}" if r.get("choice") else ""), flush=True)
         if args.cycles:
             for b in budgets:
                 rows.append(cell("cycles", (scene, f"{b:g}", args.seed), lambda: cycles(scene, b, args.seed),
-                                 args.resume))
+                                 args.resume, args.report_only))
+                if rows[-1] is None:
+                    rows.pop()
+                    continue
                 print(f"{scene} {rows[-1]['method']} {b:g} s: {rows[-1]['wall']:.1f} s, "
                       f"RMSE {rows[-1]['rmse']:.3f}", flush=True)
     noise = []
     for scene in args.scenes.split(","):
         for target in [float(x) for x in args.noise_targets.split(",") if float(x) > 0]:
             noise.append(cell("noise", (scene, f"{target:g}", args.seed), lambda: noise_run(scene, target, args.seed),
-                              args.resume))
+                              args.resume, args.report_only))
+            if noise[-1] is None:
+                noise.pop()
+                continue
             n = noise[-1]
             print(f"{scene} --noise {target:g}: {n['wall']:.1f} s, error {n['est']:.3f}, met at {n['met']:.1f} s, "
                   f"{n['batches']} batches, stopped by {n['stopped_by']}", flush=True)

@@ -39,7 +39,9 @@ from . import scene as S
 PILOT_PIXELS = 40 * 30  # the pilot's frame: the camera's, scaled down to about this many pixels
 PILOT_BATCHES = 4  # of one sample per pixel, per candidate and light
 CANDIDATES = ("reference", "sms", "smbs")
-PHOTON_FACTOR = (0.125, 16.0)  # the range of the light tracer's samples per walk sample
+# the range of the light tracer's samples per walk sample: the pilot sees a small region (the view
+# through a glass ball: 3 of its pixels) too coarsely to be trusted with more
+PHOTON_FACTOR = (0.25, 4.0)
 # a time budget under this many seconds per planned light runs no pilot (it takes 1-3 s per
 # light, and the time rule counts it): SMBS throughout, the paper's method
 PILOT_MIN_BUDGET_PER_LIGHT = 10.0
@@ -85,19 +87,21 @@ def _direct_pixels(scene, tracer, cam, plan) -> np.ndarray:
     return mask
 
 
-def _var(batch_lum, region) -> float:
-    """Variance of the mean image over region (0 for an empty region)."""
+def _var(batch_lum, region, n_all: int) -> float:
+    """The variance of the mean image summed over region, per pixel of the whole caustic region
+    (n_all pixels): the region's share of the image's mean squared error, so that the shares
+    of the directly seen and the mirrored parts add up to the whole (0 for an empty region)."""
     if not region.any():
         return 0.0
     if len(batch_lum) < 2:
         return math.inf
-    return float(convergence._var_of_mean(batch_lum[:, region]).mean())
+    return float(convergence._var_of_mean(batch_lum[:, region]).sum()) / max(n_all, 1)
 
 
-def _cost(batch_lum, region, work) -> float:
-    """Variance of the mean image over region, times the work it took (rays: unlike seconds,
-    the same for one seed, so one seed makes one choice); lower is better."""
-    return _var(batch_lum, region) * work if region.any() else 0.0
+def _cost(batch_lum, region, work, n_all: int) -> float:
+    """_var times the work it took (rays: unlike seconds, the same for one seed, so one seed
+    makes one choice); lower is better."""
+    return _var(batch_lum, region, n_all) * work if region.any() else 0.0
 
 
 def choose(scene, settings, plan, cancel=None) -> dict:
@@ -129,8 +133,10 @@ def choose(scene, settings, plan, cancel=None) -> dict:
             x0, x1, y0, y1 = cam.region
             direct = direct[y0:y1, x0:x1]
         d_reg, t_reg = region & direct, region & ~direct
-        measured = {m: {"direct": _cost(b, d_reg, w), "through": _cost(b, t_reg, w), "all": _cost(b, region, w),
-                        "var_direct": _var(b, d_reg), "var_through": _var(b, t_reg), "walks_seen_share": seen,
+        n = int(region.sum())
+        measured = {m: {"direct": _cost(b, d_reg, w, n), "through": _cost(b, t_reg, w, n),
+                        "all": _cost(b, region, w, n), "var_direct": _var(b, d_reg, n),
+                        "var_through": _var(b, t_reg, n), "walks_seen_share": seen,
                         "rays": w, "time_s": t} for m, (b, w, img, t, seen) in runs.items()}
         walk, photons, alone, why = decide(measured, bool(d_reg.any()), bool(t_reg.any()), bool(region.any()))
         k = 1.0
@@ -147,7 +153,8 @@ def photon_factor(measured: dict, walk: str) -> float:
     """The light tracer's samples per walk sample where it serves the directly seen receivers
     and the walks those seen through mirrors and glass: sqrt(V_d c_w / (V_w c_d)) (Neyman's
     allocation: the summed variance V_d / k + V_w for the time c_w + k c_d is least there), V
-    the pilot's variances of the mean on each region, c the rays per sample (the walks' own
+    the pilot's variances of the mean summed over each region (each region's share of the
+    image's error, so a region of many pixels weighs more), c the rays per sample (the walks' own
     share of rays: their walks from receivers seen through mirrors and glass), in
     PHOTON_FACTOR's range and to two digits."""
     ref, wk = measured["reference"], measured[walk]

@@ -142,3 +142,21 @@ def test_a_short_time_budget_runs_no_pilot():
     assert f"auto, Area: SMBS (a {budget:g} s budget leaves no time for the pilot, which needs 10 s per light)" \
         in res.stats["plan"]["words"]
     assert res.stats["lights"]["Area"]["walks"] > 0 and np.isfinite(res.image).all()
+
+
+def test_region_shares_add_up_to_the_whole():
+    """auto weighs each region by its pixels: the direct and the mirrored shares of the
+    variance (and so of the cost) add up to the whole caustic region's, exactly."""
+    from smbs_addon.auto import _cost, _var
+
+    rng = np.random.default_rng(0)
+    b = rng.random((4, 6, 8)) * np.linspace(0.1, 3.0, 48).reshape(6, 8)
+    region = np.ones((6, 8), bool)
+    region[0] = False
+    direct = np.zeros((6, 8), bool)
+    direct[:, :5] = True
+    n = int(region.sum())
+    d, t = region & direct, region & ~direct
+    assert math.isclose(_var(b, d, n) + _var(b, t, n), _var(b, region, n), rel_tol=1e-12)
+    assert math.isclose(_cost(b, d, 7, n) + _cost(b, t, 7, n), _cost(b, region, 7, n), rel_tol=1e-12)
+    assert _var(b, np.zeros_like(region), n) == 0.0
