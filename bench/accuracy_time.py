@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import argparse
 import csv
+import functools
 import math
 import sys
 import tempfile
@@ -63,6 +64,7 @@ BATCHES = 4  # per pass of BATCHES samples per pixel: one sample per pixel per b
 CELLS = ROOT / ".cache" / "accuracy_time"  # every measured cell, kept as soon as it is measured
 
 
+@functools.lru_cache(maxsize=None)
 def _commit() -> str:
     import subprocess
 
@@ -235,33 +237,30 @@ def main(argv=None):
             if (scene, method) in conf.NOT_APPLICABLE:
                 continue
             for b, seed in [(b, s) for b in budgets for s in range(args.seed, args.seed + args.seeds)]:
-                rows.append(cell("ours", (scene, method, f"{b:g}", seed),
-                                 lambda: ours(scene, method, b, seed), args.resume, args.report_only))
-                r = rows[-1]
+                r = cell("ours", (scene, method, f"{b:g}", seed), lambda: ours(scene, method, b, seed),
+                         args.resume, args.report_only)
                 if r is None:
-                    rows.pop()
                     continue
+                rows.append(r)
                 print(f"{scene} {method} {b:g} s, seed {seed}: {r['wall']:.1f} s, {r['spp']} spp, "
                       f"RMSE {r['rmse']:.3f}, estimated {_fmt(r['est'], '.3f')}, halve {_fmt(r['halve'], '.1f')} s"
                       + (f"; auto chose {r['choice']}" if r.get("choice") else ""), flush=True)
         if args.cycles:
             for b in budgets:
-                rows.append(cell("cycles", (scene, f"{b:g}", args.seed), lambda: cycles(scene, b, args.seed),
-                                 args.resume, args.report_only))
-                if rows[-1] is None:
-                    rows.pop()
+                r = cell("cycles", (scene, f"{b:g}", args.seed), lambda: cycles(scene, b, args.seed),
+                         args.resume, args.report_only)
+                if r is None:
                     continue
-                print(f"{scene} {rows[-1]['method']} {b:g} s: {rows[-1]['wall']:.1f} s, "
-                      f"RMSE {rows[-1]['rmse']:.3f}", flush=True)
+                rows.append(r)
+                print(f"{scene} {r['method']} {b:g} s: {r['wall']:.1f} s, RMSE {r['rmse']:.3f}", flush=True)
     noise = []
     for scene in args.scenes.split(","):
         for target in [float(x) for x in args.noise_targets.split(",") if float(x) > 0]:
-            noise.append(cell("noise", (scene, f"{target:g}", args.seed), lambda: noise_run(scene, target, args.seed),
-                              args.resume, args.report_only))
-            if noise[-1] is None:
-                noise.pop()
+            n = cell("noise", (scene, f"{target:g}", args.seed), lambda: noise_run(scene, target, args.seed),
+                     args.resume, args.report_only)
+            if n is None:
                 continue
-            n = noise[-1]
+            noise.append(n)
             print(f"{scene} --noise {target:g}: {n['wall']:.1f} s, error {n['est']:.3f}, met at {n['met']:.1f} s, "
                   f"{n['batches']} batches, stopped by {n['stopped_by']}", flush=True)
     write(rows, args, budgets, noise)

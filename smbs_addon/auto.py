@@ -39,6 +39,7 @@ from . import scene as S
 PILOT_PIXELS = 40 * 30  # the pilot's frame: the camera's, scaled down to about this many pixels
 PILOT_BATCHES = 4  # of one sample per pixel, per candidate and light
 CANDIDATES = ("reference", "sms", "smbs")
+NAMES = {"reference": "light tracing", "sms": "SMS", "smbs": "SMBS"}
 # the range of the light tracer's samples per walk sample: the pilot sees a small region (the view
 # through a glass ball: 3 of its pixels) too coarsely to be trusted with more
 PHOTON_FACTOR = (0.25, 4.0)
@@ -50,7 +51,6 @@ PILOT_MIN_BUDGET_PER_LIGHT = 10.0
 def pilot_fits(time_budget: float, lights: int) -> bool:
     """Is there time for the pilot? Always without a time budget."""
     return time_budget <= 0 or time_budget >= PILOT_MIN_BUDGET_PER_LIGHT * max(1, lights)
-NAMES = {"reference": "light tracing", "sms": "SMS", "smbs": "SMBS"}
 
 
 @dataclasses.dataclass
@@ -101,7 +101,7 @@ def _var(batch_lum, region, n_all: int) -> float:
 def _cost(batch_lum, region, work, n_all: int) -> float:
     """_var times the work it took (rays: unlike seconds, the same for one seed, so one seed
     makes one choice); lower is better."""
-    return _var(batch_lum, region, n_all) * work if region.any() else 0.0
+    return _var(batch_lum, region, n_all) * work
 
 
 def choose(scene, settings, plan, cancel=None) -> dict:
@@ -137,7 +137,7 @@ def choose(scene, settings, plan, cancel=None) -> dict:
         measured = {m: {"direct": _cost(b, d_reg, w, n), "through": _cost(b, t_reg, w, n),
                         "all": _cost(b, region, w, n), "var_direct": _var(b, d_reg, n),
                         "var_through": _var(b, t_reg, n), "walks_seen_share": seen,
-                        "rays": w, "time_s": t} for m, (b, w, img, t, seen) in runs.items()}
+                        "rays": w, "time_s": t} for m, (b, w, _, t, seen) in runs.items()}
         walk, photons, alone, why = decide(measured, bool(d_reg.any()), bool(t_reg.any()), bool(region.any()))
         k = 1.0
         if photons and not alone:

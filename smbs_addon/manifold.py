@@ -371,8 +371,9 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     if guide is not None:  # Russian roulette outside the tiles the photon pre-pass reached
         q = guide.keep_probability(li, types, rc.rx, rc.ry, rc.eye_specular, rc.p)
         survive = rng.random(n) < q
-        ctx.stats["guided_skips"] = ctx.stats.get("guided_skips", 0) + int((feasible & ~survive).sum())
-        seen_skips = int((feasible & ~survive & (rc.eye_specular > 0)).sum())
+        skipped = feasible & ~survive
+        ctx.stats["guided_skips"] = ctx.stats.get("guided_skips", 0) + int(skipped.sum())
+        seen_skips = int((skipped & (rc.eye_specular > 0)).sum())
         ctx.stats["guided_skips_seen"] = ctx.stats.get("guided_skips_seen", 0) + seen_skips
         feasible &= survive
         rr_weight = 1.0 / q
