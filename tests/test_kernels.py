@@ -183,3 +183,47 @@ def test_disk_cache_survives_two_module_names(tmp_path):
         proc = subprocess.run([sys.executable, "-c", _CACHE_USE, name, path], env=env, capture_output=True,
                               text=True, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
+
+
+def test_typed_once_types_a_long_tuple_once(monkeypatch):
+    """kernels.TypedOnce: numba's dispatcher types a tuple of more than 4 items in Python on
+    every call; through TypedOnce the compiled code is found once per argument key and then
+    called directly (no typing: zero typeof_pyval calls), with the dispatcher's results. A new
+    key (other dtypes) compiles and is found in turn; where numba would convert an argument
+    rather than match it (an int for a float64 signature), the call keeps the dispatcher."""
+    from numba import njit
+    from numba.core import dispatcher
+
+    @njit
+    def total(t, x):
+        s = x
+        for a in t:
+            s += a.sum()
+        return s
+
+    calls = []
+    real = dispatcher._DispatcherBase.typeof_pyval
+    monkeypatch.setattr(dispatcher._DispatcherBase, "typeof_pyval",
+                        lambda self, v: calls.append(1) or real(self, v))
+    arrays = tuple(np.full(3, float(i)) for i in range(7))
+    assert total(arrays, 1.0) == 64.0
+    calls.clear()
+    total(arrays, 1.0)
+    assert len(calls) > 0  # the plain dispatcher types the 7-tuple on every call
+    fast = K.TypedOnce(total)
+    assert fast(arrays, 1.0) == 64.0
+    calls.clear()
+    assert [fast(arrays, 2.0) for _ in range(3)] == [65.0] * 3
+    assert calls == []
+    ints = tuple(np.full(3, i) for i in range(7))  # int64 arrays: another key, another overload
+    assert fast(ints, 1.0) == 64.0 and fast(ints, 1.0) == 64.0
+    assert len(fast._entries) == 2
+
+    @njit("float64(float64)")
+    def half(x):
+        return x / 2
+
+    h = K.TypedOnce(half)
+    assert h(3) == 1.5 and h(3) == 1.5  # int -> float64: converted by the dispatcher, each time
+    assert h._entries[K._arg_key((3,))] is half
+    assert h(3.0) == 1.5 and h._entries[K._arg_key((3.0,))] is not half
