@@ -9,8 +9,16 @@ Per scene and method, in one run on the same geometry:
   on threads (one embreex ``run`` call uses one core and releases the GIL);
 - the bake's effective rate: the rays it cast / its wall time, and its Newton steps (small and
   large mutations) per second;
-- ``ratio``: effective / raw; ``cpu/wall``: the process's CPU time over the bake's wall time
-  (2.0 means both cores busy the whole time); peak memory (the process's maximum resident set).
+- ``ratio``: effective / raw;
+- embree's rate on the bake's own rays (``same rays``): every 4th ray the bake cast (offset
+  origin, direction, segment length for shadow rays), replayed through plain embreex the same
+  way, closest-hit or occlusion as cast. Rays from a diffuse floor into a glass ball hit and
+  cost about 4x random rays in the scene's box (two thirds of which leave it without a hit);
+  ``ratio (same rays)`` is the bake's rate over this one, the share of the time it spends
+  tracing;
+- ``cpu/wall``: the process's CPU time over the bake's wall time
+  (2.0 means both cores busy the whole time); peak memory (the process's maximum resident set;
+  the recorded rays add about 7 bytes per ray cast).
 
 Scenes (tests/scenes.py): the glass sphere under an area light, the gold ring lit from the side,
 the hammered mirror; at --size x --size pixels (``name:size`` for one scene: the hammered mirror's
@@ -34,6 +42,7 @@ sys.path.insert(0, str(ROOT))
 
 import scenes  # noqa: E402
 from smbs_addon import BakeSettings, bake  # noqa: E402
+from smbs_addon.tracer import Tracer  # noqa: E402
 from smbs_addon.tracer import default_threads  # noqa: E402
 
 SCENES = {
@@ -65,21 +74,91 @@ def raw_rate(scene, n: int, seed: int = 0) -> float:
     return n / (time.perf_counter() - t)
 
 
+class RayRecorder:
+    """Keeps every `stride`-th ray of each embree call the bake makes (Tracer._run), as float32."""
+
+    def __init__(self, stride: int = 4):
+        self.stride = stride
+        self.calls = []
+
+    def __enter__(self):
+        real = self._real = Tracer._run
+        rec = self
+
+        def _run(tracer, o, d, tmax, query):
+            if len(o):
+                sl = slice(0, None, rec.stride)
+                t = None if tmax is None else np.minimum(np.asarray(tmax)[sl], 3e37).astype(np.float32)
+                rec.calls.append((np.asarray(o, np.float32)[sl], np.asarray(d, np.float32)[sl], t, query))
+            return real(tracer, o, d, tmax, query)
+
+        Tracer._run = _run
+        return self
+
+    def __exit__(self, *exc):
+        Tracer._run = self._real
+
+
+def replay_rate(scene, calls: list) -> float:
+    """Rays per second of plain embreex on the recorded rays, each call's kind (closest hit or
+    occlusion), all calls' rays in parts of at least 8192 threaded over all cores."""
+    import embreex.mesh_construction as emc
+    import embreex.rtcore_scene as ers
+
+    es = ers.EmbreeScene()
+    emc.TriangleMesh(es, np.ascontiguousarray(scene.tri_vertices, dtype=np.float32))
+    jobs = []
+    for kind in ("INTERSECT", "OCCLUDED"):
+        cs = [c for c in calls if c[3] == kind]
+        if not cs:
+            continue
+        o = np.ascontiguousarray(np.concatenate([c[0] for c in cs]))
+        d = np.ascontiguousarray(np.concatenate([c[1] for c in cs]))
+        t = None
+        if kind == "OCCLUDED":
+            t = np.ascontiguousarray(np.concatenate([c[2] if c[2] is not None else np.full(len(c[0]), 3e37, np.float32)
+                                                     for c in cs]))
+        for a in range(0, len(o), 65536):
+            sl = slice(a, a + 65536)
+            jobs.append((o[sl], d[sl], None if t is None else t[sl], kind))
+
+    def run(job):
+        o, d, t, kind = job
+        if kind == "OCCLUDED":
+            es.run(o, d, query="OCCLUDED", dists=t)
+        else:
+            es.run(o, d, output=1)
+
+    n = sum(len(j[0]) for j in jobs)
+    if n == 0:
+        return float("nan")
+    run(jobs[0])  # warm-up
+    t0 = time.perf_counter()
+    with ThreadPoolExecutor(max_workers=default_threads()) as ex:
+        list(ex.map(run, jobs))
+    return n / (time.perf_counter() - t0)
+
+
 def measure(name: str, method: str, size: int, spp: int) -> dict:
     sc = SCENES[name]((size, size))
     cpu0 = time.process_time()
     t = time.perf_counter()
-    r = bake(sc, BakeSettings(method=method, spp=spp, batches=min(spp, 2) if spp > 1 else 1, seed=1))
+    with RayRecorder() as rec:
+        r = bake(sc, BakeSettings(method=method, spp=spp, batches=min(spp, 2) if spp > 1 else 1, seed=1))
     wall = time.perf_counter() - t
     cpu = time.process_time() - cpu0
+    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
     st = r.stats
     rays = int(st["rays"])
     raw = raw_rate(sc, int(min(max(rays, 100_000), 8_000_000)))
+    same = replay_rate(sc, rec.calls)
+    del rec
     # Newton steps of the primary walks and of the unbiased estimator's Bernoulli re-walks
     steps = int(st.get("mutations", 0)) + sum(int(L.get("bernoulli_mutations", 0)) for L in st["lights"].values())
     return {"scene": name, "method": method, "size": size, "spp": spp, "wall": wall, "rays": rays,
-            "effective": rays / wall, "raw": raw, "ratio": rays / wall / raw, "steps_per_s": steps / wall,
-            "cpu_wall": cpu / wall, "peak_gib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20}
+            "effective": rays / wall, "raw": raw, "ratio": rays / wall / raw, "same": same,
+            "ratio_same": rays / wall / same, "steps_per_s": steps / wall,
+            "cpu_wall": cpu / wall, "peak_gib": peak}
 
 
 def main(argv=None):
@@ -97,18 +176,22 @@ def main(argv=None):
             rows.append(measure(name, method, int(size or args.size), args.spp))
             r = rows[-1]
             print(f"{name} {method}: {r['wall']:.1f} s, {r['rays']:,} rays, effective {r['effective'] / 1e6:.2f} M/s, "
-                  f"raw {r['raw'] / 1e6:.2f} M/s, ratio: {r['ratio']:.3f}, steps {r['steps_per_s'] / 1e3:.0f} k/s, "
+                  f"raw {r['raw'] / 1e6:.2f} M/s, ratio: {r['ratio']:.3f}, same rays {r['same'] / 1e6:.2f} M/s, "
+                  f"ratio (same rays): {r['ratio_same']:.3f}, steps {r['steps_per_s'] / 1e3:.0f} k/s, "
                   f"cpu/wall: {r['cpu_wall']:.2f}, peak {r['peak_gib']:.2f} GiB", flush=True)
     lines = ["# Throughput: the bake's ray rate against embree's", "",
              f"Made by `python bench/throughput.py --size {args.size} --spp {args.spp} --scenes {args.scenes} "
              f"--methods {args.methods}` (2 cores). Raw: plain embreex, incoherent closest-hit rays threaded over "
-             "all cores, as many as the bake cast. Peak memory is the process's maximum so far (it only grows "
+             "all cores, as many as the bake cast; same rays: every 4th ray the bake cast, replayed through plain "
+             "embreex threaded over all cores. Peak memory is the process's maximum so far (it only grows "
              "down the table).", "",
-             "| scene | method | wall s | rays | effective M rays/s | raw M rays/s | ratio | Newton steps k/s "
-             "| cpu/wall | peak GiB |", "|---|---|---|---|---|---|---|---|---|---|"]
+             "| scene | method | wall s | rays | effective M rays/s | raw M rays/s | ratio | same rays M rays/s "
+             "| ratio (same rays) | Newton steps k/s | cpu/wall | peak GiB |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['scene']} {r['size']}^2 | {r['method']} | {r['wall']:.1f} | {r['rays']:,} | {r['effective'] / 1e6:.2f} | "
-                     f"{r['raw'] / 1e6:.2f} | {r['ratio']:.3f} | {r['steps_per_s'] / 1e3:.0f} | {r['cpu_wall']:.2f} | "
+                     f"{r['raw'] / 1e6:.2f} | {r['ratio']:.3f} | {r['same'] / 1e6:.2f} | {r['ratio_same']:.3f} | "
+                     f"{r['steps_per_s'] / 1e3:.0f} | {r['cpu_wall']:.2f} | "
                      f"{r['peak_gib']:.2f} |")
     args.out.mkdir(parents=True, exist_ok=True)
     (args.out / "throughput.md").write_text("\n".join(lines) + "\n")

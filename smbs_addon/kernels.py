@@ -267,7 +267,7 @@ def _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn, dwi, dn, 
     return _dot(s2, dh) - hn * _dot(s2, dn), _dot(t2, dh) - hn * _dot(t2, dn)
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, B, D):
     """constraints.blocks for one lane (row `lane` of F/etas/x0/light, written to C/A/B/D[:]):
     returns ok."""
@@ -363,6 +363,23 @@ def _mm(X, Y, out):
             out[r, c] = X[r, 0] * Y[0, c] + X[r, 1] * Y[1, c]
 
 
+@njit(inline="always", **_JIT)
+def _copy_rows(dst, i, src, m):
+    """dst[i] = src[m] for (N, a, b) arrays, element by element: numba's slice assignment costs
+    ~50-100 ns per call on these small rows (views and a generic loop), more than the copy."""
+    for j in range(src.shape[1]):
+        for c in range(src.shape[2]):
+            dst[i, j, c] = src[m, j, c]
+
+
+@njit(inline="always", **_JIT)
+def _zero_rhs(rhs, k):
+    for j in range(k):
+        for r in range(2):
+            for c in range(2):
+                rhs[j, r, c] = 0.0
+
+
 @njit(**_JIT)
 def _lane_scratch(k):
     """Per-lane work arrays of _lane_blocks and _lane_solve for a chain of k vertices:
@@ -372,12 +389,14 @@ def _lane_scratch(k):
             np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)))
 
 
-@njit(**_JIT)
+@njit(inline="always", **_JIT)
 def _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2):
     """constraints.block_solve for one lane, 2 right-hand columns; X[:] the solution; ok."""
     k = A.shape[0]
     ok = _inv2(A[0], Li[0])
-    Y[0, :, :] = rhs[0]
+    for r in range(2):
+        for c in range(2):
+            Y[0, r, c] = rhs[0, r, c]
     for j in range(1, k):
         _mm(B[j], Li[j - 1], Tm)
         _mm(Tm, D[j - 1], W)
@@ -412,7 +431,7 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
     C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = _lane_scratch(k)
     for i in range(N):
         ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
-        rhs[:] = 0.0
+        _zero_rhs(rhs, k)
         if mode == 0:
             for j in range(k):
                 rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
@@ -423,7 +442,7 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
         oks_ = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2)
         ok = ok and oks_
         if ok:
-            out[i, :, :] = X[0]
+            _copy_rows(out, i, X, 0)
             if mode == 0:
                 out[i, 0, 1] = out[i, 1, 1] = 0.0
         oks[i] = ok
@@ -436,7 +455,7 @@ def _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max
     C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = scratch
     k = kinds.shape[0]
     ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
-    rhs[:] = 0.0
+    _zero_rhs(rhs, k)
     for j in range(k):
         rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
     ok = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2) and ok
@@ -752,8 +771,8 @@ def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, t
         e, f = np.inf, False
         pending[i] = _TRIG_TIR
     if accept:
-        F[i, :, :] = nF[m]
-        I[i, :, :] = nI[m]
+        _copy_rows(F, i, nF, m)
+        _copy_rows(I, i, nI, m)
         out_dir[i, 0], out_dir[i, 1], out_dir[i, 2] = nout[m, 0], nout[m, 1], nout[m, 2]
     if smbs and slow_on:
         slow = okp and not ul and e > tau * err[i]
@@ -925,8 +944,8 @@ def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, ma
             st = nstatus[m]
             if st == _OK and nI[m, 0, OBJ] != want_obj[s]:
                 st = _SEED_OBJECT
-            F[s, :, :] = nF[m]
-            I[s, :, :] = nI[m]
+            _copy_rows(F, s, nF, m)
+            _copy_rows(I, s, nI, m)
             for c in range(3):
                 out_dir[s, c] = nout[m, c]
             for j in range(k):
