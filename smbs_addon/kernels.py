@@ -991,7 +991,8 @@ def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, ma
 
 @TypedOnce
 @njit(**_JIT)
-def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, max_parallel, defensive, smbs, eps):
+def pool_refill(ended, found_end, pool, lane, samples, seeds, key, p0, max_trials, max_parallel, defensive, smbs,
+                eps):
     """The lane pool's bookkeeping, on one thread: the trials that ended (slots ended; found_end:
     they found their sample's solution) free their slots and lower their sample's first
     success; then every free slot takes the next trial of a sample that still needs one (trials
@@ -999,9 +1000,9 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, m
     half the number of its trials that ended: a sample whose trial t succeeds needs none after
     t, so trials run side by side only for samples that have needed many). A trial's seed ray aims
     at a uniform point on the casters (manifold.Seeder.directions for SMS), its random numbers
-    keyed by (key, sample, trial): whichever slot or thread runs it, trial t of a sample walks
-    the same way, so each sample's first success (and the image) does not depend on the
-    scheduling. New trials take the lowest free slots. Returns the slots that cast a seed ray,
+    keyed by (key, p0 + sample, trial) (p0: the stream's first sample in the batch): whichever
+    slot, stream or thread runs it, trial t of a sample walks the same way, so each sample's
+    first success (and the image) does not depend on the scheduling. New trials take the lowest free slots. Returns the slots that cast a seed ray,
     the rays' offset origins and directions."""
     phase, it, want_obj, sample, trial = pool
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
@@ -1051,9 +1052,9 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, m
         sample[s], trial[s], phase[s], it[s] = p, t, _SEEDING, 0
         for c in range(3):
             x0[s, c], ng0[s, c], ly[s, c] = sx0[p, c], sng[p, c], sly[p, c]
-        u0 = keyed_uniform(key, p, t, 0)
-        u1 = keyed_uniform(key, p, t, 1)
-        u2 = keyed_uniform(key, p, t, 2)
+        u0 = keyed_uniform(key, p0 + p, t, 0)
+        u1 = keyed_uniform(key, p0 + p, t, 1)
+        u2 = keyed_uniform(key, p0 + p, t, 2)
         tri = min(np.searchsorted(cdf, u0 * total, side="right"), cdf.shape[0] - 1)
         su = math.sqrt(u1)
         b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
@@ -1063,7 +1064,7 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, max_trials, m
         xs = _v(x0, s, 0)
         d = _normalize(_sub(q, xs))
         want_obj[s] = tobj[tri]
-        large_ok[s] = keyed_uniform(key, p, t, 3) >= defensive if smbs else True
+        large_ok[s] = keyed_uniform(key, p0 + p, t, 3) >= defensive if smbs else True
         g = _v(ng0, s, 0)
         side = 1.0 if _dot(d, g) >= 0 else -1.0
         on = _add(xs, _mul(eps * side, g))

@@ -15,6 +15,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import lanes
 from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
@@ -65,7 +66,8 @@ class Ctx:
 
     def count(self, key, n):
         key = self.ray_kind if key == "rays_walk" else key
-        self.stats[key] = self.stats.get(key, 0) + int(n)
+        with lanes.LOCK:  # walk streams on several threads count here
+            self.stats[key] = self.stats.get(key, 0) + int(n)
 
 
 def _closed(scene, obj) -> bool:

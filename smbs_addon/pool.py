@@ -19,7 +19,7 @@ import numpy as np
 
 from . import lanes
 from .kernels import NF, pool_advance, pool_refill
-from .walk import MIN_PART, _joined, kernel_config, trace_chain
+from .walk import MIN_PART, STREAM_MIN, _joined, kernel_config, trace_chain
 
 POOL = 16384  # lanes
 MAX_PARALLEL = 64  # trials of one sample at once (a sample found at trial t wastes those after t)
@@ -28,11 +28,32 @@ MAX_PARALLEL = 64  # trials of one sample at once (a sample found at trial t was
 def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, key: int) -> np.ndarray:
     """Per sample (x0, ng0, light row), the index of the first trial (0, 1, ...) whose walk finds
     the sample's solution (first segment d1, first vertex on object obj1); opts.max_trials where
-    none of the first max_trials does."""
+    none of the first max_trials does.
+
+    The samples are cut into one stream per thread (lanes.run, at least STREAM_MIN samples
+    each), each with a pool of its own: one stream's Python work overlaps the other's kernels
+    and rays. Trials are keyed by the sample's index in the whole batch: the result does not
+    depend on the cut."""
+    S = len(x0)
+    if S == 0:
+        return np.full(0, opts.max_trials, np.int64)
+
+    def part(a, b):
+        return _stream(ctx, opts, seeder, types, x0[a:b], ng0[a:b], light.take(slice(a, b)), d1[a:b], obj1[a:b],
+                       key, a)
+
+    parts = lanes.run(part, S, ctx.tracer.threads, STREAM_MIN)
+    st = ctx.stats
+    st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + sum(p[1] for p in parts)
+    st["bernoulli_mutations"] = st.get("bernoulli_mutations", 0) + sum(p[2] for p in parts)
+    return np.concatenate([p[0] for p in parts])
+
+
+def _stream(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, key: int, p0: int):
+    """bernoulli_trials on one stream of samples (p0: the index of its first sample in the
+    batch); returns (first trials, walks, Newton steps)."""
     S = len(x0)
     first = np.full(S, opts.max_trials, np.int64)
-    if S == 0:
-        return first
     cfg = opts.walk
     k = len(types)
     P = int(min(POOL, S * MAX_PARALLEL))
@@ -56,7 +77,7 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
     ended, found_end = np.zeros(0, np.int64), np.zeros(0, bool)
     walks = steps = 0
     while True:
-        new, o_new, d_new = pool_refill(ended, found_end, pool, lane, samples, seeds, key, opts.max_trials,
+        new, o_new, d_new = pool_refill(ended, found_end, pool, lane, samples, seeds, key, p0, opts.max_trials,
                                         MAX_PARALLEL, cfg.defensive, cfg.smbs, eps)
         walks += len(new)
         seeding = np.concatenate([np.zeros(len(rows), bool), np.ones(len(new), bool)])
@@ -80,7 +101,4 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
         rows, o, dirs, ul = _joined([p[:4] for p in parts])
         ended, found_end = _joined([p[4:6] for p in parts])
         steps += sum(int(p[6]) for p in parts)
-    st = ctx.stats
-    st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + walks
-    st["bernoulli_mutations"] = st.get("bernoulli_mutations", 0) + steps
-    return first
+    return first, walks, steps

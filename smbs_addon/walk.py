@@ -79,6 +79,7 @@ class Chain:
 
 
 MIN_PART = 512  # lanes per thread below which splitting a kernel call does not pay
+STREAM_MIN = 4096  # lanes per thread below which the walk runs as one stream (newton_walk)
 
 
 def _joined(parts):
@@ -181,7 +182,33 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
                 large_ok: np.ndarray | None = None) -> WalkResult:
     """Walk every lane's chain to the light end. Lanes whose seed failed keep
     their seed outcome. large_ok (N,) bool: lanes allowed SMBS's large mutations
-    (the rest walk as plain SMS)."""
+    (the rest walk as plain SMS).
+
+    The lanes are cut into one stream per thread (lanes.run, at least STREAM_MIN lanes each):
+    each stream walks its lanes in its own loop, with kernel and intersect calls on its own
+    thread, so one stream's Python work overlaps the other's kernels and rays (splitting each
+    call instead left a core idle whenever Python ran). Lanes walk independently of each
+    other: the result does not depend on the cut."""
+    n = len(x0)
+    if not lanes.splits(n, ctx.tracer.threads, STREAM_MIN):
+        return _walk_lanes(ctx, cfg, types, x0, ng0, light, chain, large_ok)
+
+    def part(a, b):
+        return _walk_lanes(ctx, cfg, types, x0[a:b], ng0[a:b], light.take(slice(a, b)), chain.take(slice(a, b)),
+                           None if large_ok is None else large_ok[a:b])
+
+    parts = lanes.run(part, n, ctx.tracer.threads, STREAM_MIN)
+    cat = lambda get: np.concatenate([get(p) for p in parts])  # noqa: E731
+    return WalkResult(chain=Chain(cat(lambda p: p.chain.F), cat(lambda p: p.chain.I), cat(lambda p: p.chain.status),
+                                  cat(lambda p: p.chain.out_dir)),
+                      converged=cat(lambda p: p.converged), outcome=cat(lambda p: p.outcome),
+                      mutations=cat(lambda p: p.mutations),
+                      large={t: sum(p.large[t] for p in parts) for t in parts[0].large})
+
+
+def _walk_lanes(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
+                large_ok: np.ndarray | None) -> WalkResult:
+    """newton_walk on one stream of lanes."""
     n = len(x0)
     k = len(types)
     chain = Chain(chain.F.copy(), chain.I.copy(), chain.status.copy(), chain.out_dir.copy())
