@@ -4,14 +4,16 @@ embree's ``run`` and the numba kernels (nogil) release the GIL, so a batch of la
 contiguous parts runs on several cores. Each part's result is the same whichever thread runs it,
 and parts are joined in order: the image does not depend on the thread count.
 
-A part can be a whole stream of work (walk.newton_walk and pool.bernoulli_trials cut their
-lanes into one stream per thread, each with its own Python loop, so one stream's Python work
-overlaps the other's kernels and rays). Inside a part, ``run`` does not split again: the
-stream's kernel and intersect calls run on its own thread.
+Whole streams of work run in blocks (``blocks``): walk.newton_walk and pool.bernoulli_trials
+cut their lanes into blocks of a fixed size, each walked with its own Python loop, and threads
+take the blocks in turn, so one block's Python work overlaps another's kernels and rays. The
+cut does not depend on the thread count. Inside a block, ``run`` does not split again: the
+block's kernel and intersect calls run on its own thread.
 """
 from __future__ import annotations
 
 import atexit
+import itertools
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
@@ -52,17 +54,41 @@ def bounds(n: int, threads: int, min_part: int) -> list:
     return [n * i // k for i in range(k + 1)]
 
 
-def splits(n: int, threads: int, min_part: int) -> bool:
-    """Whether run(call, n, threads, min_part) would cut the lanes into parts."""
-    return not nested() and len(bounds(n, threads, min_part)) > 2
-
-
 def run(call, n: int, threads: int, min_part: int) -> list:
     """[call(a, b) for each part [a, b)], the first part on the calling thread; one part when
     called from inside a part."""
-    if not splits(n, threads, min_part):
-        return [call(0, n)]
     b = bounds(n, threads, min_part)
+    if len(b) == 2 or nested():
+        return [call(0, n)]
     futures = [_pool(len(b) - 2).submit(_part, call, b[i], b[i + 1]) for i in range(1, len(b) - 1)]
     first = _part(call, b[0], b[1])
     return [first] + [f.result() for f in futures]
+
+
+def blocks(call, n: int, size: int, threads: int) -> list:
+    """[call(a, b) for the blocks [0, size), [size, 2 size), ... of n lanes], in block order.
+    With more than one block and thread, each thread (the calling one included) takes the next
+    block when it is done with one, and calls inside a block do not split; with one block, the
+    calls inside it split over the threads as usual."""
+    edges = list(range(0, n, max(size, 1))) + [n]
+    k = len(edges) - 1
+    if k <= 0:
+        return []
+    if k == 1 or threads <= 1 or nested():
+        return [call(edges[i], edges[i + 1]) for i in range(k)]
+    out = [None] * k
+    todo = itertools.count()  # next() is atomic under the GIL
+
+    def worker(_a, _b):
+        while True:
+            i = next(todo)
+            if i >= k:
+                return
+            out[i] = call(edges[i], edges[i + 1])
+
+    w = min(threads, k)
+    futures = [_pool(w - 1).submit(_part, worker, 0, 0) for _ in range(w - 1)]
+    _part(worker, 0, 0)
+    for f in futures:
+        f.result()
+    return out

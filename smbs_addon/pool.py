@@ -19,7 +19,7 @@ import numpy as np
 
 from . import lanes
 from .kernels import NF, pool_advance, pool_refill
-from .walk import MIN_PART, STREAM_MIN, _joined, kernel_config, trace_chain
+from .walk import MIN_PART, WALK_BLOCK, _joined, kernel_config, trace_chain
 
 POOL = 16384  # lanes
 MAX_PARALLEL = 64  # trials of one sample at once (a sample found at trial t wastes those after t)
@@ -30,10 +30,10 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
     the sample's solution (first segment d1, first vertex on object obj1); opts.max_trials where
     none of the first max_trials does.
 
-    The samples are cut into one stream per thread (lanes.run, at least STREAM_MIN samples
-    each), each with a pool of its own: one stream's Python work overlaps the other's kernels
-    and rays. Trials are keyed by the sample's index in the whole batch: the result does not
-    depend on the cut."""
+    The samples are cut into blocks of walk.WALK_BLOCK (lanes.blocks), each with a pool of its
+    own, taken by the threads in turn: one block's Python work overlaps another's kernels and
+    rays. Trials are keyed by the sample's index in the whole batch: the image does not depend
+    on the cut, and the cut not on the thread count."""
     S = len(x0)
     if S == 0:
         return np.full(0, opts.max_trials, np.int64)
@@ -42,7 +42,7 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
         return _stream(ctx, opts, seeder, types, x0[a:b], ng0[a:b], light.take(slice(a, b)), d1[a:b], obj1[a:b],
                        key, a)
 
-    parts = lanes.run(part, S, ctx.tracer.threads, STREAM_MIN)
+    parts = lanes.blocks(part, S, WALK_BLOCK, ctx.tracer.threads)
     st = ctx.stats
     st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + sum(p[1] for p in parts)
     st["bernoulli_mutations"] = st.get("bernoulli_mutations", 0) + sum(p[2] for p in parts)
@@ -50,7 +50,7 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
 
 
 def _stream(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, key: int, p0: int):
-    """bernoulli_trials on one stream of samples (p0: the index of its first sample in the
+    """bernoulli_trials on one block of samples (p0: the index of its first sample in the
     batch); returns (first trials, walks, Newton steps)."""
     S = len(x0)
     first = np.full(S, opts.max_trials, np.int64)

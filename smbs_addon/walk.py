@@ -79,7 +79,7 @@ class Chain:
 
 
 MIN_PART = 512  # lanes per thread below which splitting a kernel call does not pay
-STREAM_MIN = 4096  # lanes per thread below which the walk runs as one stream (newton_walk)
+WALK_BLOCK = 8192  # lanes per block of newton_walk (and samples per block of the Bernoulli trials)
 
 
 def _joined(parts):
@@ -184,20 +184,20 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     their seed outcome. large_ok (N,) bool: lanes allowed SMBS's large mutations
     (the rest walk as plain SMS).
 
-    The lanes are cut into one stream per thread (lanes.run, at least STREAM_MIN lanes each):
-    each stream walks its lanes in its own loop, with kernel and intersect calls on its own
-    thread, so one stream's Python work overlaps the other's kernels and rays (splitting each
-    call instead left a core idle whenever Python ran). Lanes walk independently of each
-    other: the result does not depend on the cut."""
+    The lanes are cut into blocks of WALK_BLOCK (lanes.blocks), each walked in its own loop
+    with kernel and intersect calls on the thread that took it, so one block's Python work
+    overlaps another's kernels and rays (splitting each call instead left a core idle whenever
+    Python ran). Lanes walk independently of each other: the result does not depend on the
+    cut."""
     n = len(x0)
-    if not lanes.splits(n, ctx.tracer.threads, STREAM_MIN):
+    if n <= WALK_BLOCK:
         return _walk_lanes(ctx, cfg, types, x0, ng0, light, chain, large_ok)
 
     def part(a, b):
         return _walk_lanes(ctx, cfg, types, x0[a:b], ng0[a:b], light.take(slice(a, b)), chain.take(slice(a, b)),
                            None if large_ok is None else large_ok[a:b])
 
-    parts = lanes.run(part, n, ctx.tracer.threads, STREAM_MIN)
+    parts = lanes.blocks(part, n, WALK_BLOCK, ctx.tracer.threads)
     cat = lambda get: np.concatenate([get(p) for p in parts])  # noqa: E731
     return WalkResult(chain=Chain(cat(lambda p: p.chain.F), cat(lambda p: p.chain.I), cat(lambda p: p.chain.status),
                                   cat(lambda p: p.chain.out_dir)),

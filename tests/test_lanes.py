@@ -1,6 +1,7 @@
 """Issue 11: the walks' lanes run split over threads (lanes.py), and their results must not
 depend on it: one seed gives the same image bit for bit with 1 or 2 threads, for every walk
-method and estimator, with one manifold chunk per batch or several."""
+method and estimator, with one manifold chunk per batch or several, and with the walks cut in
+blocks or not."""
 import importlib
 
 import pytest
@@ -37,6 +38,14 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     c = bake(make(), BakeSettings(**s, threads=1))
     d = bake(make(), BakeSettings(**s, threads=2))
     assert _same(c, d)
+    # the walks and the Bernoulli trials in blocks of 128 lanes that the threads take in turn
+    # (lanes.blocks): the image of the uncut walks, and the same rays whatever the threads
+    for mod in ("smbs_addon.walk", "smbs_addon.pool"):
+        monkeypatch.setattr(importlib.import_module(mod), "WALK_BLOCK", 128)
+    e = bake(make(), BakeSettings(**s, threads=1))
+    f = bake(make(), BakeSettings(**s, threads=2))
+    assert e.stats["rays"] == f.stats["rays"]
+    assert _same(e, f) and _same(e, c)
 
 
 @pytest.mark.parametrize("make, method", [
