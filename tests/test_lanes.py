@@ -64,3 +64,21 @@ def test_bernoulli_pool_scheduling_does_not_change_the_image(make, method, monke
     assert a.stats["lights"] and _same(a, b)
     walks = [sum(L.get("bernoulli_walks", 0) for L in r.stats["lights"].values()) for r in (a, b)]
     assert walks[0] >= walks[1] > 0  # the full pool may run trials a sample turns out not to need
+
+
+def test_blocks_run_each_block_once_in_order_and_do_not_split_inside():
+    """lanes.blocks: every block once, results in block order whichever thread ran it; inside a
+    block, lanes.run gives one part (the block's calls stay on its thread); one block is called
+    as it is, so the calls inside it may split."""
+    from smbs_addon import lanes
+
+    seen = []
+    out = lanes.blocks(lambda a, b: seen.append((a, b)) or (a, b, lanes.nested()), 10, 3, 2)
+    assert out == [(0, 3, True), (3, 6, True), (6, 9, True), (9, 10, True)]
+    assert sorted(seen) == [(0, 3), (3, 6), (6, 9), (9, 10)]
+    assert lanes.blocks(lambda a, b: (a, b, lanes.nested()), 10, 20, 2) == [(0, 10, False)]
+    assert lanes.blocks(lambda a, b: (a, b), 0, 3, 2) == []
+    assert lanes.run(lambda a, b: (a, b), 100, 2, 10) == [(0, 50), (50, 100)]
+    inner = lanes.blocks(lambda a, b: lanes.run(lambda c, d: (c, d), 100, 2, 10), 20, 10, 2)
+    assert inner == [[(0, 100)], [(0, 100)]]
+    assert lanes.blocks(lambda a, b: lanes.nested(), 20, 10, 1) == [False, False]  # one thread: no blocks apart
