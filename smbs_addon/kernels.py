@@ -1000,10 +1000,11 @@ def pool_refill(ended, found_end, pool, lane, samples, seeds, key, p0, max_trial
     half the number of its trials that ended: a sample whose trial t succeeds needs none after
     t, so trials run side by side only for samples that have needed many). A trial's seed ray aims
     at a uniform point on the casters (manifold.Seeder.directions for SMS), its random numbers
-    keyed by (key, p0 + sample, trial) (p0: the stream's first sample in the batch): whichever
-    slot, stream or thread runs it, trial t of a sample walks the same way, so each sample's
-    first success (and the image) does not depend on the scheduling. New trials take the lowest free slots. Returns the slots that cast a seed ray,
-    the rays' offset origins and directions."""
+    keyed by (key, p0 + sample, trial) (p0: the block's first sample in the batch): whichever
+    slot, block or thread runs it, trial t of a sample walks the same way, so each sample's
+    first success (and the image) does not depend on the scheduling. New trials take the
+    lowest free slots. Returns the slots that cast a seed ray, the rays' offset origins and
+    directions."""
     phase, it, want_obj, sample, trial = pool
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
     sx0, sng, sly, first, next_trial, inflight, active, free, cur = samples

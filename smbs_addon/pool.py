@@ -39,8 +39,8 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
         return np.full(0, opts.max_trials, np.int64)
 
     def part(a, b):
-        return _stream(ctx, opts, seeder, types, x0[a:b], ng0[a:b], light.take(slice(a, b)), d1[a:b], obj1[a:b],
-                       key, a)
+        return _block_trials(ctx, opts, seeder, types, x0[a:b], ng0[a:b], light.take(slice(a, b)), d1[a:b],
+                             obj1[a:b], key, a)
 
     parts = lanes.blocks(part, S, WALK_BLOCK, ctx.tracer.threads)
     st = ctx.stats
@@ -49,7 +49,7 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
     return np.concatenate([p[0] for p in parts])
 
 
-def _stream(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, key: int, p0: int):
+def _block_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, key: int, p0: int):
     """bernoulli_trials on one block of samples (p0: the index of its first sample in the
     batch); returns (first trials, walks, Newton steps)."""
     S = len(x0)

@@ -198,17 +198,17 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
                            None if large_ok is None else large_ok[a:b])
 
     parts = lanes.blocks(part, n, WALK_BLOCK, ctx.tracer.threads)
-    cat = lambda get: np.concatenate([get(p) for p in parts])  # noqa: E731
-    return WalkResult(chain=Chain(cat(lambda p: p.chain.F), cat(lambda p: p.chain.I), cat(lambda p: p.chain.status),
-                                  cat(lambda p: p.chain.out_dir)),
-                      converged=cat(lambda p: p.converged), outcome=cat(lambda p: p.outcome),
-                      mutations=cat(lambda p: p.mutations),
+    cols = zip(*[(p.chain.F, p.chain.I, p.chain.status, p.chain.out_dir) for p in parts])
+    return WalkResult(chain=Chain(*(np.concatenate(c) for c in cols)),
+                      converged=np.concatenate([p.converged for p in parts]),
+                      outcome=np.concatenate([p.outcome for p in parts]),
+                      mutations=np.concatenate([p.mutations for p in parts]),
                       large={t: sum(p.large[t] for p in parts) for t in parts[0].large})
 
 
 def _walk_lanes(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
                 large_ok: np.ndarray | None) -> WalkResult:
-    """newton_walk on one stream of lanes."""
+    """newton_walk on one block of lanes."""
     n = len(x0)
     k = len(types)
     chain = Chain(chain.F.copy(), chain.I.copy(), chain.status.copy(), chain.out_dir.copy())
