@@ -112,7 +112,6 @@ class TypedOnce:
 
     def __init__(self, dispatcher):
         self.dispatcher = dispatcher
-        self.py_func = dispatcher.py_func
         self.__doc__ = dispatcher.__doc__
         self._entries: dict = {}
 
@@ -394,9 +393,7 @@ def _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2):
     """constraints.block_solve for one lane, 2 right-hand columns; X[:] the solution; ok."""
     k = A.shape[0]
     ok = _inv2(A[0], Li[0])
-    for r in range(2):
-        for c in range(2):
-            Y[0, r, c] = rhs[0, r, c]
+    _copy_rows(Y, 0, rhs, 0)
     for j in range(1, k):
         _mm(B[j], Li[j - 1], Tm)
         _mm(Tm, D[j - 1], W)

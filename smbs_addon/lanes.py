@@ -19,7 +19,7 @@ from concurrent.futures import ThreadPoolExecutor
 
 _POOLS: dict = {}
 _local = threading.local()
-LOCK = threading.Lock()  # for counters that streams on several threads add to
+LOCK = threading.Lock()  # for counters that blocks on several threads add to
 
 
 def _pool(workers: int) -> ThreadPoolExecutor:

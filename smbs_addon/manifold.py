@@ -66,7 +66,7 @@ class Ctx:
 
     def count(self, key, n):
         key = self.ray_kind if key == "rays_walk" else key
-        with lanes.LOCK:  # walk streams on several threads count here
+        with lanes.LOCK:  # walk blocks on several threads count here
             self.stats[key] = self.stats.get(key, 0) + int(n)
 
 

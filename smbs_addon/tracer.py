@@ -86,7 +86,7 @@ class Tracer:
         o32 = np.ascontiguousarray(o, dtype=np.float32)
         d32 = np.ascontiguousarray(d, dtype=np.float32)
         t32 = None if tmax is None else np.ascontiguousarray(np.minimum(tmax, 3e37), np.float32)
-        with lanes.LOCK:  # walk streams on several threads cast here
+        with lanes.LOCK:  # walk blocks on several threads cast here
             self.rays_cast += n
 
         def job(sl):
