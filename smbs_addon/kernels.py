@@ -712,20 +712,34 @@ _SINGULAR, _MAX_ITER = 7, 8
 
 
 @njit(inline="always", **_JIT)
-def _lane_trigger(i, reflect_first, backlit_on, x0, F, ly, directional, pending):
-    """SMBS's trigger of lane i (SMBS's trigger 2, walk.backlit: for a reflection at x1, x0 and the light on different
-    sides of its surface; for a refraction, on the same side); clears pending."""
+def _lane_trigger(i, kinds, backlit_at, backlit_on, x0, F, ly, directional, pending):
+    """SMBS's trigger of lane i (trigger 2, back-lit, at chain vertex j = backlit_at: for a
+    reflection, the vertex before it (x0 for j = 0) and the light on different sides of its
+    surface; for a refraction, on the same side; walk.WalkConfig.backlit_vertex); clears pending."""
     tr = pending[i]
-    if backlit_on and tr == _NONE:
-        p1 = _vk(F, i, 0, P)
-        n1 = _vk(F, i, 0, NS)
-        to_light = _v(ly, i, 0) if directional else _sub(_v(ly, i, 0), p1)
-        a = _dot(_sub(_v(x0, i, 0), p1), n1) > 0
-        b = _dot(to_light, n1) > 0
-        if (a != b) if reflect_first else (a == b):
+    if backlit_on and tr == _NONE and backlit_at >= 0:
+        j = backlit_at
+        pj = _vk(F, i, j, P)
+        nj = _vk(F, i, j, NS)
+        prev = _v(x0, i, 0) if j == 0 else _vk(F, i, j - 1, P)
+        to_light = _v(ly, i, 0) if directional else _sub(_v(ly, i, 0), pj)
+        a = _dot(_sub(prev, pj), nj) > 0
+        b = _dot(to_light, nj) > 0
+        if (a != b) if kinds[j] == 0 else (a == b):
             tr = _TRIG_BACKLIT
     pending[i] = _NONE
     return tr
+
+
+@njit(**_JIT)
+def backlit_lanes(kinds, backlit_at, x0, F, ly, directional):
+    """_lane_trigger's back-lit test on every lane (walk.backlit)."""
+    n = F.shape[0]
+    out = np.zeros(n, np.bool_)
+    pending = np.zeros(n, np.int64)
+    for i in range(n):
+        out[i] = _lane_trigger(i, kinds, backlit_at, True, x0, F, ly, directional, pending) == _TRIG_BACKLIT
+    return out
 
 
 @njit(inline="always", **_JIT)
@@ -803,7 +817,7 @@ _DROP, _CONVERGED, _PROPOSE = 0, 1, 2
 def _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, scratch):
     """One Newton iteration of lane i (see walk_iterate). Returns (what: _DROP, _CONVERGED or
     _PROPOSE, the proposal ray's offset origin and direction, large or not, its trigger)."""
-    (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, reflect_first, tau, slow_run, min_beta,
+    (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, backlit_at, tau, slow_run, min_beta,
      threshold, max_step, eps, max_halvings) = cfg
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
     F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
@@ -824,7 +838,7 @@ def _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, la
     ul = False
     tr = _NONE
     if smbs:
-        tr = _lane_trigger(i, reflect_first, backlit_on, x0, F, ly, directional, pending)
+        tr = _lane_trigger(i, kinds, backlit_at, backlit_on, x0, F, ly, directional, pending)
         if tr != _NONE and large_ok[i]:
             dl, okl = _lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, lscale, max_halvings)
             if okl:

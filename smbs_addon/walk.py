@@ -25,7 +25,6 @@ from .geometry import vertex_view
 from . import kernels, lanes
 from .kernels import MAT, NF, propagate_step, spawn_aim, walk_iterate
 from .large_mutation import MAX_HALVINGS
-from .vec import dot
 
 # walk outcome codes
 (OK, MISS, NOT_CASTER, WRONG_MATERIAL, TIR, SIDE, SEED_OBJECT, SINGULAR, MAX_ITER, WRONG_END, OCCLUDED,
@@ -45,7 +44,13 @@ class WalkConfig:
     max_step: float = 0.25  # largest tangent step of x1, as a fraction of the scene size
     smbs: bool = False
     tir: bool = True  # SMBS trigger 1: total internal reflection during propagation
-    backlit: bool = True  # SMBS trigger 2: light on the wrong side of x1 for its interaction
+    backlit: bool = True  # SMBS trigger 2: light on the wrong side of a vertex for its interaction
+    backlit_vertex: str = "single"  # where trigger 2 looks: "single" (default): chains of one vertex
+    # only, where the light's side of that vertex decides; "first": x1 of any chain (the paper's
+    # x2); "last": the vertex the light meets, against the vertex before it. On chains of two or
+    # more the test also fires on valid paths: "first" cut a glass ball's T R T success from
+    # SMS's 0.49 to 0.055, "last" a bevelled cube's from 0.045 to 0.032-0.036, and neither
+    # raised any chain's success above SMS's (bench/results/backlit_vertex.md)
     slow: bool = True  # SMBS trigger 3: small steps shrank the mismatch by less than tau
     tau: float = 0.85
     slow_run: int = 2  # trigger 3 fires after this many slow small steps in a row. After one (the
@@ -146,19 +151,13 @@ def end_mismatch(chain: Chain, light: LightEnd):
     return kernels.end_mismatch(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
 
 
-def backlit(types: str, x0, chain: Chain, light: LightEnd):
-    """SMBS trigger 2 at x1: for a reflection, x0 and the light lie on different
-    sides of x1's surface; for a refraction, on the same side."""
-    v = chain.verts[0]
-    return backlit_at(types, x0, v.p, v.n, light)
-
-
-def backlit_at(types: str, x0, p1, n1, light: LightEnd):
-    """backlit for x1 at p1 with shading normal n1."""
-    to_light = light.y if light.directional else light.y - p1
-    a = dot(x0 - p1, n1) > 0
-    b = dot(to_light, n1) > 0
-    return (a != b) if types[0] == "R" else (a == b)
+def backlit(cfg: WalkConfig, types: str, x0, chain: Chain, light: LightEnd) -> np.ndarray:
+    """SMBS trigger 2 per lane, as the walk tests it (cfg.backlit_vertex): at chain vertex j,
+    for a reflection the vertex before it (x0 for j = 0) and the light lie on different sides
+    of its surface; for a refraction, on the same side."""
+    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
+    return kernels.backlit_lanes(kinds, _backlit_at(cfg.backlit_vertex, len(types)), np.asarray(x0, np.float64),
+                                 chain.F, np.asarray(light.y, np.float64), light.directional)
 
 
 @dataclass
@@ -170,11 +169,18 @@ class WalkResult:
     large: dict = field(default_factory=dict)  # trigger name -> count
 
 
+def _backlit_at(where: str, k: int) -> int:
+    """The chain vertex trigger 2 tests for WalkConfig.backlit_vertex; -1: none."""
+    if where not in ("single", "first", "last"):
+        raise ValueError(f"backlit_vertex must be 'single', 'first' or 'last', not {where!r}")
+    return {"first": 0, "last": k - 1}.get(where, 0 if k == 1 else -1)
+
+
 def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
     """The walk's settings as kernels.walk_iterate takes them."""
     kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
     return (cfg.form == HALF_VECTOR, kinds, cfg.smbs, cfg.tir, cfg.backlit, cfg.slow, cfg.tir_rejected,
-            types[0] == "R", cfg.tau, cfg.slow_run, cfg.min_beta, cfg.threshold, cfg.max_step * ctx.scale,
+            _backlit_at(cfg.backlit_vertex, len(types)), cfg.tau, cfg.slow_run, cfg.min_beta, cfg.threshold, cfg.max_step * ctx.scale,
             ctx.tracer.eps, MAX_HALVINGS)
 
 

@@ -173,3 +173,21 @@ def hammered_mirror_scene(resolution=(48, 36)):
     across, normals tilted up to 32 degrees, sampled on a 257 x 257 grid). Far from the
     mirror solution every bump is a local minimum of the walk."""
     return wavy_mirror_scene(resolution, amplitude=0.01, wavelength=0.1, n=256, normal_mapped=True)
+
+
+def pane_scene(thickness=0.1, resolution=(32, 24)):
+    """A standing glass pane (flat-shaded box) above a floor, lit from the floor's side of it:
+    the light reflected off the pane's back face is a T R T chain that enters and leaves by
+    the front face, with x0 and the light on the same side of it."""
+    b = SceneBuilder("pane")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    glass = b.material("glass", "dielectric", color=(1, 1, 1), ior=1.5)
+    b.plane("Floor", (0, 0, 0), 10, floor)
+    hx, hy, hz = 1.2, thickness / 2, 0.6
+    v = np.array([(x, y, z + 0.8) for x in (-hx, hx) for y in (-hy, hy) for z in (-hz, hz)])
+    f = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    b.mesh("Pane", v, f, glass, caster=True)
+    b.light("Key", "AREA", location=(0.3, -1.5, 2.5), target=(0.3, -0.5, 0.0), power=500.0, shape="DISK", size=0.3)
+    b.set_camera((0, -4.0, 2.0), (0, 0, 0.5), lens=35, resolution_x=resolution[0],
+                 resolution_y=resolution[1])
+    return b.build()

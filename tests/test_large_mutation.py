@@ -1,6 +1,9 @@
-"""SMBS's GetRatio (Algorithm 4) against a plain one-ray-at-a-time reading of it."""
+"""SMBS's large mutation: GetRatio (Algorithm 4) against a plain one-ray-at-a-time reading of it, and
+where trigger 2 (back-lit) looks."""
 import numpy as np
+import pytest
 
+import scenes
 from smbs_addon.large_mutation import MAX_HALVINGS, get_ratio
 
 
@@ -46,3 +49,64 @@ def test_get_ratio_matches_the_algorithm_ray_by_ray():
     assert np.array_equal(got, want)
     # every outcome occurs: full weight, halved, and given up (a = 0)
     assert (got == 1.0).any() and ((got > 0) & (got < 0.5)).any() and (got == 0).any()
+
+
+def _converged_chains(scene, types, n=4000, seed=5):
+    """Plain SMS walks of one chain type from floor points in front of the pane; the lanes
+    that converged (valid specular paths), with their receivers and light ends."""
+    from smbs_addon.manifold import Ctx, Seeder, sample_light
+    from smbs_addon.plan import make_plan
+    from smbs_addon.tracer import Tracer
+    from smbs_addon.walk import WalkConfig, newton_walk
+
+    tracer = Tracer(scene, threads=2)
+    plan = make_plan(scene, "OFF")
+    ctx = Ctx(scene, tracer, plan, {})
+    rng = np.random.default_rng(seed)
+    x0 = np.c_[rng.uniform(-1.0, 1.0, n), rng.uniform(-2.5, -0.2, n), np.zeros(n)]
+    ng0 = np.tile([0.0, 0.0, 1.0], (n, 1))
+    light = sample_light(scene, 0, n, rng)
+    seeder = Seeder(scene, plan.casters, types, "sms")
+    chain = seeder.seed(ctx, rng, types, x0, ng0, light)
+    res = newton_walk(ctx, WalkConfig(), types, x0, ng0, light, chain)
+    conv = np.flatnonzero(res.converged)
+    return x0[conv], res.chain.take(conv), light.take(conv)
+
+
+def test_back_lit_trigger_at_the_last_vertex_never_fires_on_a_valid_path():
+    """Trigger 2 (back-lit) reads the light's side of a chain vertex. At the vertex the light
+    meets, a valid path always has the light where the interaction sends it: the test there
+    fires on exactly 0 of the converged SMS paths. At x1 (the paper's x2) it reads the light
+    against x0, which only a chain of one vertex ties together: light reflected off a pane's
+    back face (T R T) enters and leaves by the front face, and the test fires on every such
+    valid path (on a pane seen behind a glass ball it cut SMBS's T R T success from SMS's 0.49
+    to 0.055). By default the trigger looks at chains of one vertex only."""
+    from smbs_addon.walk import WalkConfig, backlit
+
+    scene = scenes.pane_scene()
+    x0, chain, light = _converged_chains(scene, "TRT")
+    assert len(x0) > 500, len(x0)
+    assert backlit(WalkConfig(backlit_vertex="last"), "TRT", x0, chain, light).sum() == 0
+    assert backlit(WalkConfig(backlit_vertex="first"), "TRT", x0, chain, light).all()
+    assert not backlit(WalkConfig(), "TRT", x0, chain, light).any()  # "single": off for 2+ vertices
+    with pytest.raises(ValueError, match="backlit_vertex"):
+        backlit(WalkConfig(backlit_vertex="middle"), "TRT", x0, chain, light)
+
+
+def test_back_lit_trigger_on_one_vertex_reads_the_light_against_x0():
+    """A chain of one vertex: the default ("single") is the paper's test. A mirror's
+    reflection fires where x0 and the light are on different sides; a refraction where on
+    the same side (four hand-made lanes)."""
+    from smbs_addon.constraints import LightEnd
+    from smbs_addon.kernels import NF, NS, P
+    from smbs_addon.walk import Chain, WalkConfig, backlit
+
+    F = np.zeros((4, 1, NF))
+    F[:, 0, P:P + 3] = 0.0
+    F[:, 0, NS:NS + 3] = [0.0, 0.0, 1.0]
+    x0 = np.array([[0, 0, 1.0], [0, 0, -1.0], [0, 0, 1.0], [0, 0, -1.0]])
+    ly = np.tile([1.0, 0.0, 2.0], (4, 1))  # above the surface
+    light = LightEnd(False, ly, np.zeros((4, 3)), np.zeros((4, 3)))
+    chain = Chain(F, np.zeros((4, 1, 3), np.int64), np.zeros(4, np.int64), np.zeros((4, 3)))
+    assert backlit(WalkConfig(), "R", x0, chain, light).tolist() == [False, True, False, True]
+    assert backlit(WalkConfig(), "T", x0, chain, light).tolist() == [True, False, True, False]
