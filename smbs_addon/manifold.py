@@ -489,10 +489,14 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         return total
 
     # at receivers seen through mirrors or glass, paths focusing more than opts.handoff go to
-    # cosine sampling from x0 (indirect.handoff_gather) for the lights it can hit
-    # per light, only once an earlier chunk's walks found paths focusing past the threshold at
-    # such receivers (a decision on independent samples: each chunk stays unbiased, and chunks
-    # run in order, so the image does not depend on the thread count)
+    # cosine sampling from x0 (indirect.handoff_gather) for the lights it can hit; per light,
+    # from the first chunk on where a caster of the light is smooth-shaded (what can focus:
+    # through flat faces a path's concentration is constant, never a fold), otherwise once an
+    # earlier chunk's walks found paths focusing past the threshold at such receivers. Both are
+    # decided before the chunk's own samples (each chunk stays unbiased, and chunks run in
+    # order, so the image does not depend on the thread count). Waiting for an earlier chunk
+    # left the first chunk's walks with the fold: one path with G ~ 25 through a pane carried
+    # a quarter of a 2 spp bake's T T energy (through_glass_disk, SMBS)
     handoffs = {}
     if opts.handoff > 0 and types_list:
         from .reference import Handoff
@@ -500,7 +504,8 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         handoffs = {lp.index: Handoff({t: max(opts.handoff, SEEN_HANDOFF_MIN) for t in types_list},
                                       bool(scene.light_type[lp.index] == S.SUN))
                     for lp in plan.lights
-                    if light_can_be_hit(scene, lp.index) and ctxs[lp.index].stats.get("seen_focus", 0) > 0}
+                    if light_can_be_hit(scene, lp.index) and (ctxs[lp.index].stats.get("seen_focus", 0) > 0
+                                                               or can_focus(scene, lp))}
     for li, ctx in ctxs.items():
         ctx.handoff_seen = li in handoffs
         ctx.first_order = True
@@ -522,6 +527,12 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
 
         gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, lights_direct,
                physical=opts.physical, connect=caustic)
+
+
+def can_focus(scene, lp) -> bool:
+    """Can a path through this light's casters focus (a fold, where the walks' estimate has
+    no bound)? Only where shading normals vary over a face: a smooth-shaded caster."""
+    return bool(np.any(scene.object_smooth[np.asarray(lp.caster_objects, np.int64)]))
 
 
 def light_can_be_hit(scene, li) -> bool:

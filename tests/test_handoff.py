@@ -110,3 +110,26 @@ def test_handoff_off_walks_everything():
     assert "handoff" not in st and "handed_off" not in st and "weak_skips" not in st
     assert res.stats["guide"]["left_to_photons"] == []
     assert math.isfinite(res.image.sum())
+
+
+def test_seen_handoff_starts_with_the_first_chunk_where_a_caster_is_smooth():
+    """Receivers seen through glass hand their focusing paths to cosine sampling from x0
+    (indirect.handoff_gather). Where a light's caster is smooth-shaded (it can focus) that
+    starts with the first chunk: one chunk (1 spp of 32 x 24) already casts hand-off rays
+    through the glass ball. It used to wait for an earlier chunk's walks to meet a focus, and a
+    first chunk's fold path carried a quarter of a 2 spp bake's T T energy on a ball seen
+    through a pane. Through flat faces a path's concentration is constant (never a fold): the
+    pane alone casts no hand-off ray (exact count), though the floor is seen through it."""
+    from smbs_addon.manifold import can_focus
+
+    ball = scenes.glass_sphere_scene(resolution=(32, 24), height=0.9)
+    res = bake(ball, BakeSettings(method="sms", spp=1, batches=1, seed=1))
+    assert res.stats["lights"]["Area"]["walks_seen"] > 0
+    assert res.stats["eye_pass"]["rays_handoff"] > 0
+    pane = scenes.pane_scene()
+    res = bake(pane, BakeSettings(method="sms", spp=1, batches=1, seed=1))
+    assert res.stats["lights"]["Key"]["walks_seen"] > 0
+    assert res.stats["eye_pass"].get("rays_handoff", 0) == 0
+    plan = make_plan(pane)
+    assert [can_focus(pane, lp) for lp in plan.lights] == [False]
+    assert [can_focus(ball, lp) for lp in make_plan(ball).lights] == [True]
