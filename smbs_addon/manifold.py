@@ -495,8 +495,8 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     # earlier chunk's walks found paths focusing past the threshold at such receivers. Both are
     # decided before the chunk's own samples (each chunk stays unbiased, and chunks run in
     # order, so the image does not depend on the thread count). Waiting for an earlier chunk
-    # left the first chunk's walks with the fold: one path with G ~ 25 through a pane carried
-    # a quarter of a 2 spp bake's T T energy (through_glass_disk, SMBS)
+    # left the first chunk's walks with the fold: one path of concentration 25 seen through a
+    # pane carried a quarter of a 2 spp bake's T T energy (through_glass_disk, SMBS)
     handoffs = {}
     if opts.handoff > 0 and types_list:
         from .reference import Handoff

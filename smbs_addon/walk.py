@@ -48,9 +48,10 @@ class WalkConfig:
     backlit_vertex: str = "single"  # where trigger 2 looks: "single" (default): chains of one vertex
     # only, where the light's side of that vertex decides; "first": x1 of any chain (the paper's
     # x2); "last": the vertex the light meets, against the vertex before it. On chains of two or
-    # more the test also fires on valid paths: "first" cut a glass ball's T R T success from
-    # SMS's 0.49 to 0.055, "last" a bevelled cube's from 0.045 to 0.032-0.036, and neither
-    # raised any chain's success above SMS's (bench/results/backlit_vertex.md)
+    # more the test also fires on valid paths: "first" cut the T R T success of light off a
+    # pane's back face from SMS's 0.49 to 0.055, "last" a bevelled cube's from 0.045 to
+    # 0.032-0.036, and neither raised any chain's success above SMS's
+    # (bench/results/backlit_vertex.md)
     slow: bool = True  # SMBS trigger 3: small steps shrank the mismatch by less than tau
     tau: float = 0.85
     slow_run: int = 2  # trigger 3 fires after this many slow small steps in a row. After one (the
