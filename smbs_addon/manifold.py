@@ -490,13 +490,15 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
 
     # at receivers seen through mirrors or glass, paths focusing more than opts.handoff go to
     # cosine sampling from x0 (indirect.handoff_gather) for the lights it can hit; per light,
-    # from the first chunk on where a caster of the light is smooth-shaded (what can focus:
-    # through flat faces a path's concentration is constant, never a fold), otherwise once an
-    # earlier chunk's walks found paths focusing past the threshold at such receivers. Both are
-    # decided before the chunk's own samples (each chunk stays unbiased, and chunks run in
-    # order, so the image does not depend on the thread count). Waiting for an earlier chunk
-    # left the first chunk's walks with the fold: one path of concentration 25 seen through a
-    # pane carried a quarter of a 2 spp bake's T T energy (through_glass_disk, SMBS)
+    # once an earlier chunk's walks found paths focusing past the threshold at such receivers,
+    # and in the bake's first chunk (before any walk could tell) where a caster of the light is
+    # smooth-shaded (what can focus: through flat faces a path's concentration is constant,
+    # never a fold). Both are decided before the chunk's own samples (each chunk stays
+    # unbiased, and chunks run in order, so the image does not depend on the thread count).
+    # Without the first-chunk rule, that chunk walked the fold: one path of concentration 25
+    # seen through a pane carried a quarter of a 2 spp bake's T T energy (through_glass_disk,
+    # SMBS). Handing off in every chunk of a smooth caster instead cost the pool under a sun,
+    # seen through its water everywhere, 3x in samples (64 cosine rays per receiver and bounce)
     handoffs = {}
     if opts.handoff > 0 and types_list:
         from .reference import Handoff
@@ -504,8 +506,8 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         handoffs = {lp.index: Handoff({t: max(opts.handoff, SEEN_HANDOFF_MIN) for t in types_list},
                                       bool(scene.light_type[lp.index] == S.SUN))
                     for lp in plan.lights
-                    if light_can_be_hit(scene, lp.index) and (ctxs[lp.index].stats.get("seen_focus", 0) > 0
-                                                               or can_focus(scene, lp))}
+                    if light_can_be_hit(scene, lp.index) and (ctxs[lp.index].stats.get("seen_focus", 0) > 0 or (
+                        ctxs[lp.index].stats.get("walks", 0) == 0 and can_focus(scene, lp)))}
     for li, ctx in ctxs.items():
         ctx.handoff_seen = li in handoffs
         ctx.first_order = True

@@ -115,7 +115,7 @@ def test_handoff_off_walks_everything():
 def test_seen_handoff_starts_with_the_first_chunk_where_a_caster_is_smooth():
     """Receivers seen through glass hand their focusing paths to cosine sampling from x0
     (indirect.handoff_gather). Where a light's caster is smooth-shaded (it can focus) that
-    starts with the first chunk: one chunk (1 spp of 32 x 24) already casts hand-off rays
+    starts with the bake's first chunk: one chunk (1 spp of 32 x 24) already casts hand-off rays
     through the glass ball. It used to wait for an earlier chunk's walks to meet a focus, and a
     first chunk's fold path carried a quarter of a 2 spp bake's T T energy on a ball seen
     through a pane. Through flat faces a path's concentration is constant (never a fold): the
