@@ -25,6 +25,12 @@ from numba import njit
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
 NF = 21
+
+
+def chain_kinds(types: str) -> np.ndarray:
+    """A chain type's vertices as the kernels take them: 1 for a refraction (T), 0 for a
+    reflection (R)."""
+    return np.array([1 if c == "T" else 0 for c in types], np.int64)
 PRIM, OBJ, MAT = 0, 1, 2
 
 _R_MIN = 1e-6  # as constraints._R_MIN

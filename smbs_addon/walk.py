@@ -156,9 +156,9 @@ def backlit(cfg: WalkConfig, types: str, x0, chain: Chain, light: LightEnd) -> n
     """SMBS trigger 2 per lane, as the walk tests it (cfg.backlit_vertex): at chain vertex j,
     for a reflection the vertex before it (x0 for j = 0) and the light lie on different sides
     of its surface; for a refraction, on the same side."""
-    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
-    return kernels.backlit_lanes(kinds, _backlit_at(cfg.backlit_vertex, len(types)), np.asarray(x0, np.float64),
-                                 chain.F, np.asarray(light.y, np.float64), light.directional)
+    return kernels.backlit_lanes(kernels.chain_kinds(types), _backlit_at(cfg.backlit_vertex, len(types)),
+                                 np.asarray(x0, np.float64), chain.F, np.asarray(light.y, np.float64),
+                                 light.directional)
 
 
 @dataclass
@@ -179,10 +179,9 @@ def _backlit_at(where: str, k: int) -> int:
 
 def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
     """The walk's settings as kernels.walk_iterate takes them."""
-    kinds = np.array([1 if c == "T" else 0 for c in types], np.int64)
-    return (cfg.form == HALF_VECTOR, kinds, cfg.smbs, cfg.tir, cfg.backlit, cfg.slow, cfg.tir_rejected,
-            _backlit_at(cfg.backlit_vertex, len(types)), cfg.tau, cfg.slow_run, cfg.min_beta, cfg.threshold, cfg.max_step * ctx.scale,
-            ctx.tracer.eps, MAX_HALVINGS)
+    return (cfg.form == HALF_VECTOR, kernels.chain_kinds(types), cfg.smbs, cfg.tir, cfg.backlit, cfg.slow,
+            cfg.tir_rejected, _backlit_at(cfg.backlit_vertex, len(types)), cfg.tau, cfg.slow_run, cfg.min_beta,
+            cfg.threshold, cfg.max_step * ctx.scale, ctx.tracer.eps, MAX_HALVINGS)
 
 
 def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
