@@ -68,6 +68,24 @@ def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
     return d[keep], beta[keep], keep
 
 
+def _diffuse_bounces(rng, samples, w_in, ng, ns, beta, albedo):
+    """_diffuse_bounce (not adjoint) of `samples` lanes per vertex, the same lanes and numbers
+    as on the vertices repeated, with what depends only on the vertex (frame, side, albedo)
+    worked out once per vertex. Returns (directions, weights, vertex of each kept lane)."""
+    n = len(w_in) * samples
+    src = np.repeat(np.arange(len(w_in)), samples)
+    side = np.where(dot(w_in, ng) >= 0, 1.0, -1.0)[:, None]
+    nn = ns * side
+    s, t = frame(nn)
+    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), s[src], t[src], nn[src])
+    q = np.clip(np.maximum(np.maximum(albedo[:, 0], albedo[:, 1]), albedo[:, 2]), 0.0, 1.0)
+    survive = rng.random(n) < q[src]
+    beta = beta * (albedo / np.where(q > 0, q, 1.0)[:, None])  # f cos / pdf = albedo
+    front = (dot(w_in, nn) > 0) & (np.maximum(np.maximum(beta[:, 0], beta[:, 1]), beta[:, 2]) > 0)
+    keep = np.flatnonzero(survive & front[src] & (dot(d, (ng * side)[src]) > 0))
+    return d[keep], beta[src[keep]], src[keep]
+
+
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False, max_diffuse=MAX_DIFFUSE):
     """Light tracing of the layer's paths through two or more diffuse vertices, splatted
     at the receivers the camera sees directly (photons from lights.emit over the whole
@@ -278,10 +296,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
                            physical, samples)
         return
     K = max(h.max_chain for h in handoffs.values())
-    src = np.repeat(np.arange(n), samples)
-    d, beta, k = _diffuse_bounce(rng, rc.w_eye[src], rc.ng[src], rc.ns[src], rc.beta[src] / samples,
-                                 _albedo(scene, rc.mat[src]), False)
-    lane = src[k]
+    d, beta, lane = _diffuse_bounces(rng, samples, rc.w_eye, rc.ng, rc.ns, rc.beta / samples, _albedo(scene, rc.mat))
     o = tracer.spawn(rc.p[lane], rc.ng[lane], d)
     m = len(lane)
     h_prim = np.zeros((m, K), np.int64)
