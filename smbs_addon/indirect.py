@@ -31,6 +31,7 @@ import math
 
 import numpy as np
 
+from . import lanes
 from . import scene as S
 from .eye import Receivers, surface_at
 from .lights import light_radiance, soft_falloff_factor, spot_mask, area_light_shape
@@ -284,17 +285,36 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     handoffs: light index -> reference.Handoff (its ``others`` is ignored here); samples:
     cosine directions per receiver (rays are cheap next to the walks they replace, and a
     focus's light is a small target)."""
-    from .reference import Handoff, _handoff_select
-
     n = len(rc.p)
     if n == 0 or not handoffs:
         return
-    step = max(1, HANDOFF_LANES // samples)  # bounded memory: at most HANDOFF_LANES rays in flight
-    if n > step:
-        for s0 in range(0, n, step):
-            handoff_gather(scene, tracer, film, plan, rc.take(slice(s0, s0 + step)), rng, stats, handoffs,
-                           physical, samples)
-        return
+    # blocks of receivers (bounded memory: HANDOFF_LANES rays in flight per thread) taken by the
+    # threads in turn, each with its own generator keyed by one draw and the block's first
+    # receiver, and its own counters, added in block order: the image does not depend on the
+    # thread count
+    key = int(rng.integers(2**63))
+
+    def block(a, b):
+        st = {}
+        rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), np.random.default_rng([key, a]), st,
+                             handoffs, physical, samples)
+        return rad, st
+
+    parts = lanes.blocks(block, n, max(1, HANDOFF_LANES // samples), tracer.threads)
+    radiance = np.concatenate([p[0] for p in parts])
+    for _, st in parts:
+        for k, v in st.items():
+            stats[k] = stats.get(k, 0) + v
+    hit = np.flatnonzero(radiance.max(axis=1) > 0)
+    if hit.size:
+        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
+
+
+def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples):
+    """handoff_gather's radiance (n,3) at a block of receivers."""
+    from .reference import Handoff, _handoff_select
+
+    n = len(rc.p)
     K = max(h.max_chain for h in handoffs.values())
     d, beta, lane = _diffuse_bounces(rng, samples, rc.w_eye, rc.ng, rc.ns, rc.beta / samples, _albedo(scene, rc.mat))
     o = tracer.spawn(rc.p[lane], rc.ng[lane], d)
@@ -345,6 +365,4 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
         h_cast[r, bounce] = plan.casters[scene.tri_object[prim[sk]]]
         lane, row, beta, d = lane[sk], r, bb, dd
         o = tracer.spawn(h.p[sk], h.ng[sk], d)
-    hit = np.flatnonzero(radiance.max(axis=1) > 0)
-    if hit.size:
-        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
+    return radiance

@@ -1,7 +1,7 @@
 """Issue 11: the walks' lanes run split over threads (lanes.py), and their results must not
 depend on it: one seed gives the same image bit for bit with 1 or 2 threads, for every walk
-method and estimator, with one manifold chunk per batch or several, and with the walks cut in
-blocks or not."""
+method and estimator, with one manifold chunk per batch or several, and with the walks (and
+the hand-off's cosine bounces) cut in blocks or not."""
 import importlib
 
 import pytest
@@ -28,11 +28,15 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     # small parts, so that these small bakes really split every kernel and intersect call
     monkeypatch.setattr(importlib.import_module("smbs_addon.walk"), "MIN_PART", 16)
     monkeypatch.setattr(importlib.import_module("smbs_addon.tracer"), "_MIN_SPLIT", 64)
+    # and indirect.handoff_gather (the ball seen through itself, first chunk) in blocks of 16 receivers
+    monkeypatch.setattr(importlib.import_module("smbs_addon.indirect"), "HANDOFF_LANES", 16 * 64)
     a = bake(make(), BakeSettings(**s, threads=1))
     b = bake(make(), BakeSettings(**s, threads=2))
     assert a.stats["rays"] == b.stats["rays"]
     assert _same(a, b)
     assert a.image.max() > 0
+    if method != "mnee" and make().object_smooth.any():  # the hand-off ran (MNEE has none), in blocks
+        assert a.stats["eye_pass"]["rays_handoff"] > 4 * 16 * 64
     # several chunks per batch (the eye samples split in pieces of 1000): still the same
     monkeypatch.setattr(bake_module, "WALK_CHUNK", 1000)
     c = bake(make(), BakeSettings(**s, threads=1))
