@@ -273,7 +273,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
 
 
 def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
-                   samples=HANDOFF_SAMPLES):
+                   samples=HANDOFF_SAMPLES, found: dict | None = None):
     """The hand-off for receivers seen through mirrors or glass (rc), where no photon can
     reach the camera: one cosine bounce from x0 through up to K specular vertices, counting
     a light hit only when reference._handoff_select gives that path to the photons (its
@@ -284,7 +284,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
     handoffs: light index -> reference.Handoff (its ``others`` is ignored here); samples:
     cosine directions per receiver (rays are cheap next to the walks they replace, and a
-    focus's light is a small target)."""
+    focus's light is a small target); found: light index -> paths taken, added to."""
     n = len(rc.p)
     if n == 0 or not handoffs:
         return
@@ -295,23 +295,26 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     key = int(rng.integers(2**63))
 
     def block(a, b):
-        st = {}
+        st, per_light = {}, {}
         rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), np.random.default_rng([key, a]), st,
-                             handoffs, physical, samples)
-        return rad, st
+                             handoffs, physical, samples, per_light)
+        return rad, st, per_light
 
     parts = lanes.blocks(block, n, max(1, HANDOFF_LANES // samples), tracer.threads)
     radiance = np.concatenate([p[0] for p in parts])
-    for _, st in parts:
+    for _, st, per_light in parts:
         for k, v in st.items():
             stats[k] = stats.get(k, 0) + v
+        if found is not None:
+            for li, v in per_light.items():
+                found[li] = found.get(li, 0) + v
     hit = np.flatnonzero(radiance.max(axis=1) > 0)
     if hit.size:
         film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
 
 
-def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples):
-    """handoff_gather's radiance (n,3) at a block of receivers."""
+def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found):
+    """handoff_gather's radiance (n,3) at a block of receivers; found: light index -> paths taken."""
     from .reference import Handoff, _handoff_select
 
     n = len(rc.p)
@@ -348,6 +351,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
                 t = seen[take]
                 np.add.at(radiance, lane[t], beta[t] * L[t])
                 stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size)
+                found[li] = found.get(li, 0) + int(t.size)
         if bounce == K:
             break
         prim, hmat, kind = surface_at(scene, h)

@@ -133,3 +133,51 @@ def test_seen_handoff_starts_with_the_first_chunk_where_a_caster_is_smooth():
     plan = make_plan(pane)
     assert [can_focus(pane, lp) for lp in plan.lights] == [False]
     assert [can_focus(ball, lp) for lp in make_plan(ball).lights] == [True]
+
+
+def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(monkeypatch):
+    """After the first chunk, receivers seen through glass keep handing off where an earlier
+    chunk found focusing paths there, by its walks (seen_focus) or by the hand-off itself
+    (seen_handoff_paths): on the disk seen through a pane the first chunk's hand-off took 101
+    paths where its walks met none, and the second chunk, without the hand-off, walked the
+    fold. A mechanism test: the walks are made blind to focusing (their concentration reads
+    0), and the hand-off's threshold is brought down to every path (the floor seen through
+    this ball hardly ever sees the light through it), so only the hand-off's own evidence can
+    keep it on: exact counts of handoff_gather calls, one per chunk (that sees the floor through
+    the ball), and one in all once the
+    hand-off is made blind too."""
+    import importlib
+
+    bake_module = importlib.import_module("smbs_addon.bake")
+    indirect = importlib.import_module("smbs_addon.indirect")
+    manifold = importlib.import_module("smbs_addon.manifold")
+    monkeypatch.setattr(bake_module, "WALK_CHUNK", 32 * 24)  # 4 spp: 4 chunks or more
+    monkeypatch.setattr(manifold, "SEEN_HANDOFF_MIN", 0.0)
+    monkeypatch.setattr(manifold, "concentration", lambda types, x0, *a: np.zeros(len(x0)))
+    calls = []
+    gather = indirect.handoff_gather
+
+    def counted(*a, **k):
+        calls.append(len(a[4].p))
+        return gather(*a, **k)
+
+    monkeypatch.setattr(indirect, "handoff_gather", counted)
+    chunks = []  # per chunk: does it have receivers seen through the ball?
+    eye_receivers = manifold.eye_receivers
+
+    def seen_chunks(*a, **k):
+        rc = eye_receivers(*a, **k)
+        chunks.append(bool((rc.eye_specular > 0).any()))
+        return rc
+
+    monkeypatch.setattr(manifold, "eye_receivers", seen_chunks)
+    ball = scenes.glass_sphere_scene(resolution=(32, 24), height=1.2)
+    s = BakeSettings(method="sms", spp=4, batches=1, seed=1, handoff=1e-9)
+    st = bake(ball, s).stats["lights"]["Area"]
+    assert st["seen_focus"] == 0 and st["seen_handoff_paths"] > 0
+    assert sum(chunks) >= 4 and len(calls) == sum(chunks)
+    calls.clear()
+    monkeypatch.setattr(reference, "concentration", lambda types, x0, *a: np.zeros(len(x0)))
+    st = bake(ball, s).stats["lights"]["Area"]
+    assert st["seen_focus"] == 0 and st["seen_handoff_paths"] == 0
+    assert len(calls) == 1
