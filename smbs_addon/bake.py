@@ -208,20 +208,66 @@ class _Progress:
             self.progress(min(1.0, f), message)
 
 
+class _DeferredFilm:
+    """The film as a chunk on a worker thread sees it: reads go to the film, splats are kept
+    to be made on the calling thread, in chunk order (_threaded_chunks)."""
+
+    def __init__(self, film):
+        self._film = film
+        self.splats = []
+
+    def __getattr__(self, name):
+        return getattr(self._film, name)
+
+    def splat(self, rx, ry, rgb) -> None:
+        self.splats.append((rx, ry, rgb))
+
+
+def _threaded_chunks(tracer, film, prog, n_chunks, run_chunk, stats, message=None):
+    """run_chunk(c, film, stats) for the chunks c = 0 .. n_chunks-1 of a light-tracing pass, as
+    many at a time as there are threads (lanes.blocks), each with its own random stream (the
+    caller's, keyed by c), a deferred film and its own counters. Here, in chunk order, their
+    splats are made and their counters added: the film is written by one thread, and the image
+    is the one chunks run one after the other give, bit for bit. Cancel is checked and
+    progress stepped (message: once per chunk) here too."""
+    from collections import defaultdict
+
+    from . import lanes
+
+    per = max(1, tracer.threads)
+    for g0 in range(0, n_chunks, per):
+        prog.check()
+        group = range(g0, min(g0 + per, n_chunks))
+
+        def call(a, b):
+            f, st = _DeferredFilm(film), defaultdict(int)
+            run_chunk(group[a], f, st)
+            return f.splats, st
+
+        for splats, st in lanes.blocks(call, len(group), 1, tracer.threads):
+            for args in splats:
+                film.splat(*args)
+            lanes.add_stats(stats, st)
+            if message:
+                prog.step(message)
+
+
 def _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, st, prog, stream, handoff=None,
                  step=True):
     """per_batch photons of light lp in chunks, each chunk with its own random stream."""
     t_light = time.perf_counter()
-    for c, start in enumerate(range(0, per_batch, CHUNK)):
-        prog.check()
+
+    def run_chunk(c, film_c, st_c):
+        start = c * CHUNK
         n = min(CHUNK, per_batch - start)
         rng = _rng(settings.seed, stream, lp.key, b, c)
         ph = emit(scene, lp.index, lp.targets, n, rng)
         ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
-        reference.trace_photons(scene, tracer, cam, film, plan, ph, rng, st,
+        reference.trace_photons(scene, tracer, cam, film_c, plan, ph, rng, st_c,
                                 physical=settings.radiance == "physical", handoff=handoff)
-        if step:
-            prog.step(f"light '{lp.name}', batch {b + 1}/{settings.batches}")
+
+    _threaded_chunks(tracer, film, prog, -(-per_batch // CHUNK), run_chunk, st,
+                     f"light '{lp.name}', batch {b + 1}/{settings.batches}" if step else None)
     return time.perf_counter() - t_light
 
 
@@ -240,13 +286,15 @@ def _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indi
         st = indirect_stats.setdefault(scene.light_names[li], {"photons": 0, "rays_photon": 0, "rays_camera": 0,
                                                                 "splats": 0, "time_s": 0.0})
         t = time.perf_counter()
-        for c, start in enumerate(range(0, per_batch, CHUNK)):
-            prog.check()
-            n = min(CHUNK, per_batch - start)
+
+        def run_chunk(c, film_c, st_c, li=li):
+            n = min(CHUNK, per_batch - c * CHUNK)
             rng = _rng(settings.seed, 5, light_key(scene.light_names[li]), b, c)
             ph = emit(scene, li, plan.scene_sphere, n, rng)
             ph.w *= n / per_batch
-            trace_photons(scene, tracer, cam, film, plan, ph, rng, st, physical=settings.radiance == "physical")
+            trace_photons(scene, tracer, cam, film_c, plan, ph, rng, st_c, physical=settings.radiance == "physical")
+
+        _threaded_chunks(tracer, film, prog, -(-per_batch // CHUNK), run_chunk, st)
         st["time_s"] += time.perf_counter() - t
 
 
@@ -258,13 +306,15 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
     eye_per_batch = _eye_per_batch(cam, film, settings) if eye_stats["enabled"] else 0
     t_eye = time.perf_counter()
     light_ids = [lp.index for lp in plan.lights]
-    for c, start in enumerate(range(0, eye_per_batch, CHUNK)):
-        prog.check()
-        n = min(CHUNK, eye_per_batch - start)
-        reference.trace_eye(scene, tracer, cam, film, plan, light_ids, start, n, eye_per_batch,
-                            _rng(settings.seed, 1, 0, b, c), eye_stats, physical=settings.radiance == "physical",
-                            lights_direct=_indirect_lights(plan, settings))
-        prog.step(f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
+
+    def run_chunk(c, film_c, st_c):
+        start = c * CHUNK
+        reference.trace_eye(scene, tracer, cam, film_c, plan, light_ids, start, min(CHUNK, eye_per_batch - start),
+                            eye_per_batch, _rng(settings.seed, 1, 0, b, c), st_c,
+                            physical=settings.radiance == "physical", lights_direct=_indirect_lights(plan, settings))
+
+    _threaded_chunks(tracer, film, prog, -(-eye_per_batch // CHUNK), run_chunk, eye_stats,
+                     f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
     eye_stats["time_s"] += time.perf_counter() - t_eye
 
 

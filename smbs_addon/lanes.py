@@ -92,3 +92,15 @@ def blocks(call, n: int, size: int, threads: int) -> list:
     for f in futures:
         f.result()
     return out
+
+
+def add_stats(into: dict, part: dict) -> None:
+    """Add the counters of a part that ran on a thread (with its own dict) to the bake's, in
+    part order: numbers add, nested dicts merge, maxima (keys ending in _max) take the larger."""
+    for k, v in part.items():
+        if isinstance(v, dict):
+            add_stats(into.setdefault(k, {}), v)
+        elif k.endswith("_max"):
+            into[k] = max(into.get(k, v), v)
+        else:
+            into[k] = into.get(k, 0) + v

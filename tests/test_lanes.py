@@ -86,3 +86,26 @@ def test_blocks_run_each_block_once_in_order_and_do_not_split_inside():
     inner = lanes.blocks(lambda a, b: lanes.run(lambda c, d: (c, d), 100, 2, 10), 20, 10, 2)
     assert inner == [[(0, 100)], [(0, 100)]]
     assert lanes.blocks(lambda a, b: lanes.nested(), 20, 10, 1) == [False, False]  # one thread: no blocks apart
+
+
+def test_light_tracing_chunks_on_threads_give_the_image_of_chunks_in_turn(monkeypatch):
+    """The light tracer's chunks (its photons, the eye pass seen through glass, the indirect
+    photons; and the manifold bakes' photon hand-off) run as many at a time as there are
+    threads, each splatting into a deferred film (bake._threaded_chunks): the splats are made in
+    chunk order, so 1 and 2 threads give one image, bit for bit, and the same counts. Chunks of
+    500 lanes: a small bake runs several chunks per pass."""
+    monkeypatch.setattr(bake_module, "CHUNK", 500)
+    ball = lambda: scenes.glass_sphere_scene(resolution=(32, 24))  # noqa: E731
+    for method in ("reference", "smbs"):
+        s = dict(method=method, spp=4, batches=2, seed=3)
+        a = bake(ball(), BakeSettings(**s, threads=1))
+        b = bake(ball(), BakeSettings(**s, threads=2))
+        assert _same(a, b) and a.image.max() > 0
+        assert a.stats["rays"] == b.stats["rays"]
+        light = a.stats["lights"]["Area"]
+        other = b.stats["lights"]["Area"]
+        if method == "reference":
+            assert light["photons"] > 2 * 500 and light["photons"] == other["photons"]
+            assert a.stats["eye_pass"]["enabled"] is True  # the bake's own flag, untouched by the chunks' counts
+        else:
+            assert light["handoff"]["photons"] > 2 * 500 and light["handoff"] == other["handoff"]
