@@ -10,11 +10,12 @@ from __future__ import annotations
 import dataclasses
 import math
 import time
+from collections import defaultdict
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
-from . import convergence, reference
+from . import convergence, lanes, reference
 from . import scene as S
 from .camera import CameraModel
 from .errors import BakeCancelled, SceneError
@@ -230,10 +231,6 @@ def _threaded_chunks(tracer, film, prog, n_chunks, run_chunk, stats, message=Non
     splats are made and their counters added: the film is written by one thread, and the image
     is the one chunks run one after the other give, bit for bit. Cancel is checked and
     progress stepped (message: once per chunk) here too."""
-    from collections import defaultdict
-
-    from . import lanes
-
     per = max(1, tracer.threads)
     for g0 in range(0, n_chunks, per):
         prog.check()
@@ -368,8 +365,8 @@ def _summarise_walks(st: dict) -> None:
     for bc in st.get("by_chain", {}).values():
         bc["success_rate"] = bc["successes"] / bc["walks"] if bc["walks"] else 0.0
         bc["mutations_per_success"] = bc["mutations"] / bc["successes"] if bc["successes"] else 0.0
-    lanes = st.get("bernoulli_lanes", 0)
-    st["trials"] = {"mean": st.get("bernoulli_trials", 0) / lanes if lanes else 0.0,
+    n_lanes = st.get("bernoulli_lanes", 0)
+    st["trials"] = {"mean": st.get("bernoulli_trials", 0) / n_lanes if n_lanes else 0.0,
                     "max": st.get("bernoulli_max", 0), "capped": st.get("capped", 0)}
     st["rays"] = _rays(st)
     hs = st.get("handoff")

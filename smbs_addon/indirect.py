@@ -48,43 +48,36 @@ def _albedo(scene, mat):
     return scene.mat_color[mat]
 
 
-def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
-    """Cosine-sampled bounce off a diffuse vertex (about the shading normal on w_in's side),
-    with Russian roulette on the albedo. Returns (directions, weights, kept lanes)."""
-    n = len(w_in)
-    side = np.where(dot(w_in, ng) >= 0, 1.0, -1.0)[:, None]
-    nn = ns * side
-    s, t = frame(nn)
-    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), s, t, nn)
-    q = np.clip(albedo.max(axis=1), 0.0, 1.0)
-    survive = rng.random(n) < q
-    beta = beta * (albedo / np.where(q > 0, q, 1.0)[:, None])  # f cos / pdf = albedo
-    cout = dot(d, ng * side)
-    if adjoint:  # Veach's shading-normal correction for light carried from w_in to d
-        num = np.abs(dot(w_in, ns) * cout)
-        den = np.abs(dot(w_in, ng) * dot(d, ns))
-        beta = beta * np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
-    ok = survive & (cout > 0) & (dot(w_in, nn) > 0) & (beta.max(axis=1) > 0)
-    keep = np.flatnonzero(ok)
-    return d[keep], beta[keep], keep
+def _max3(a):
+    """Each row's largest of 3 (as a.max(axis=1), without numpy's slow reduction over short rows)."""
+    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
 
 
-def _diffuse_bounces(rng, samples, w_in, ng, ns, beta, albedo):
-    """_diffuse_bounce (not adjoint) of `samples` lanes per vertex, the same lanes and numbers
-    as on the vertices repeated, with what depends only on the vertex (frame, side, albedo)
-    worked out once per vertex. Returns (directions, weights, vertex of each kept lane)."""
+def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint, samples=1):
+    """Cosine-sampled bounce off diffuse vertices (about the shading normal on w_in's side),
+    with Russian roulette on the albedo; `samples` lanes per vertex (lane i of vertex i //
+    samples), with what depends only on the vertex (side, frame, albedo) worked out once per
+    vertex. Returns (directions, weights, vertex of each kept lane)."""
     n = len(w_in) * samples
-    src = np.repeat(np.arange(len(w_in)), samples)
+    rep = (lambda a: a) if samples == 1 else (lambda a: np.repeat(a, samples, axis=0))
     side = np.where(dot(w_in, ng) >= 0, 1.0, -1.0)[:, None]
     nn = ns * side
     s, t = frame(nn)
-    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), s[src], t[src], nn[src])
-    q = np.clip(np.maximum(np.maximum(albedo[:, 0], albedo[:, 1]), albedo[:, 2]), 0.0, 1.0)
-    survive = rng.random(n) < q[src]
+    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), rep(s), rep(t), rep(nn))
+    q = np.clip(_max3(albedo), 0.0, 1.0)
+    survive = rng.random(n) < rep(q)
     beta = beta * (albedo / np.where(q > 0, q, 1.0)[:, None])  # f cos / pdf = albedo
-    front = (dot(w_in, nn) > 0) & (np.maximum(np.maximum(beta[:, 0], beta[:, 1]), beta[:, 2]) > 0)
-    keep = np.flatnonzero(survive & front[src] & (dot(d, (ng * side)[src]) > 0))
-    return d[keep], beta[src[keep]], src[keep]
+    cout = dot(d, rep(ng * side))
+    front = dot(w_in, nn) > 0
+    if adjoint:  # Veach's shading-normal correction for light carried from w_in to d (per lane)
+        num = np.abs(rep(dot(w_in, ns)) * cout)
+        den = np.abs(rep(dot(w_in, ng)) * dot(d, rep(ns)))
+        beta = rep(beta) * np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
+        keep = np.flatnonzero(survive & (cout > 0) & rep(front) & (_max3(beta) > 0))
+        return d[keep], beta[keep], keep // samples
+    keep = np.flatnonzero(survive & (cout > 0) & rep(front & (_max3(beta) > 0)))
+    vertex = keep // samples
+    return d[keep], beta[vertex], vertex
 
 
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False, max_diffuse=MAX_DIFFUSE):
@@ -303,8 +296,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     parts = lanes.blocks(block, n, max(1, HANDOFF_LANES // samples), tracer.threads)
     radiance = np.concatenate([p[0] for p in parts])
     for _, st, per_light in parts:
-        for k, v in st.items():
-            stats[k] = stats.get(k, 0) + v
+        lanes.add_stats(stats, st)
         if found is not None:
             for li, v in per_light.items():
                 found[li] = found.get(li, 0) + v
@@ -319,7 +311,8 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
 
     n = len(rc.p)
     K = max(h.max_chain for h in handoffs.values())
-    d, beta, lane = _diffuse_bounces(rng, samples, rc.w_eye, rc.ng, rc.ns, rc.beta / samples, _albedo(scene, rc.mat))
+    d, beta, lane = _diffuse_bounce(rng, rc.w_eye, rc.ng, rc.ns, rc.beta / samples, _albedo(scene, rc.mat), False,
+                                    samples)
     o = tracer.spawn(rc.p[lane], rc.ng[lane], d)
     m = len(lane)
     h_prim = np.zeros((m, K), np.int64)

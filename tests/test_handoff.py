@@ -144,8 +144,7 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     0), and the hand-off's threshold is brought down to every path (the floor seen through
     this ball hardly ever sees the light through it), so only the hand-off's own evidence can
     keep it on: exact counts of handoff_gather calls, one per chunk (that sees the floor through
-    the ball), and one in all once the
-    hand-off is made blind too."""
+    the ball), and one in all once the hand-off is made blind too."""
     import importlib
 
     bake_module = importlib.import_module("smbs_addon.bake")
