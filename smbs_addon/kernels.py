@@ -20,7 +20,9 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
 
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
@@ -133,6 +135,39 @@ class TypedOnce:
             self._entries[key] = cres.entry_point if cres is not None else self.dispatcher
         return out
 
+
+
+# ------------------------------------------------------------------ borrowed arrays
+@intrinsic
+def _borrowed(typingctx, tup):
+    """The arrays of a tuple (or one array) without their reference to the memory they view
+    (numba's meminfo set to NULL; other items as they are). numba counts references to an array
+    each time a variable takes it, a tuple is unpacked or an inlined per-lane helper receives it
+    (an atomic increment and decrement per array and lane, which its pruning pass leaves where
+    the helper branches): a third of a Newton iteration's time in walk_iterate and pool_advance.
+    A borrowed array's counts do nothing. Only for arrays owned by someone else for as long as
+    the borrowed ones are used: the arguments of the (not inlined) kernel that borrows them,
+    which its caller holds; never returned or stored."""
+    items = tup.types if isinstance(tup, types.BaseTuple) else (tup,)
+    if not all(isinstance(t, (types.Array, types.Number, types.Boolean)) for t in items):
+        return None  # anything else counted by reference would be released once too often
+
+    def one(context, builder, ty, v):
+        if not isinstance(ty, types.Array):
+            return v
+        a = context.make_array(ty)(context, builder, value=v)
+        a.meminfo = cgutils.get_null_value(a.meminfo.type)
+        a.parent = cgutils.get_null_value(a.parent.type)
+        return a._getvalue()
+
+    def codegen(context, builder, sig, args):
+        ty, v = sig.args[0], args[0]
+        if isinstance(ty, types.BaseTuple):
+            return context.make_tuple(builder, sig.return_type, [
+                one(context, builder, t, builder.extract_value(v, i)) for i, t in enumerate(ty.types)])
+        return one(context, builder, ty, v)
+
+    return tup(tup), codegen
 
 
 # ------------------------------------------------------------------ 3-vectors as tuples
@@ -348,24 +383,39 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
     return ok
 
 
+# 2x2 matrices as tuples (m00, m01, m10, m11): held in registers. A view of a (k, 2, 2) array
+# (A[j]) takes a reference to the array's memory (an atomic increment and decrement in numba's
+# runtime) each time it is made, a tenth of a Newton iteration's time when made per lane.
 @njit(inline="always", **_JIT)
-def _inv2(M, out):
-    """constraints.inv2 of one 2x2 into out; returns ok."""
-    a, b, c, d = M[0, 0], M[0, 1], M[1, 0], M[1, 1]
+def _m2(M, j):
+    return (M[j, 0, 0], M[j, 0, 1], M[j, 1, 0], M[j, 1, 1])
+
+
+@njit(inline="always", **_JIT)
+def _put2(M, j, v):
+    M[j, 0, 0], M[j, 0, 1], M[j, 1, 0], M[j, 1, 1] = v
+
+
+@njit(inline="always", **_JIT)
+def _sub2(X, Y):
+    return (X[0] - Y[0], X[1] - Y[1], X[2] - Y[2], X[3] - Y[3])
+
+
+@njit(inline="always", **_JIT)
+def _inv2(M):
+    """constraints.inv2 of one 2x2: (inverse, ok)."""
+    a, b, c, d = M
     det = a * d - b * c
     scale = a * a + b * b + c * c + d * d
     ok = abs(det) > 1e-12 * scale
     inv_det = 1.0 / det if ok else 0.0
-    out[0, 0], out[0, 1] = d * inv_det, -b * inv_det
-    out[1, 0], out[1, 1] = -c * inv_det, a * inv_det
-    return ok
+    return (d * inv_det, -b * inv_det, -c * inv_det, a * inv_det), ok
 
 
 @njit(inline="always", **_JIT)
-def _mm(X, Y, out):
-    for r in range(2):
-        for c in range(2):
-            out[r, c] = X[r, 0] * Y[0, c] + X[r, 1] * Y[1, c]
+def _mm(X, Y):
+    return (X[0] * Y[0] + X[1] * Y[2], X[0] * Y[1] + X[1] * Y[3],
+            X[2] * Y[0] + X[3] * Y[2], X[2] * Y[1] + X[3] * Y[3])
 
 
 @njit(inline="always", **_JIT)
@@ -388,36 +438,27 @@ def _zero_rhs(rhs, k):
 @njit(**_JIT)
 def _lane_scratch(k):
     """Per-lane work arrays of _lane_blocks and _lane_solve for a chain of k vertices:
-    C, A, B, D, rhs, Li, Y, X (per vertex) and Tm, W, W2 (2x2)."""
+    C, A, B, D, rhs, Li, Y, X (per vertex)."""
     return (np.zeros((k, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)),
-            np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)),
-            np.zeros((2, 2)), np.zeros((2, 2)), np.zeros((2, 2)))
+            np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)))
 
 
 @njit(inline="always", **_JIT)
-def _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2):
+def _lane_solve(A, B, D, rhs, Li, Y, X):
     """constraints.block_solve for one lane, 2 right-hand columns; X[:] the solution; ok."""
     k = A.shape[0]
-    ok = _inv2(A[0], Li[0])
-    _copy_rows(Y, 0, rhs, 0)
+    L, ok = _inv2(_m2(A, 0))
+    _put2(Li, 0, L)
+    _put2(Y, 0, _m2(rhs, 0))
     for j in range(1, k):
-        _mm(B[j], Li[j - 1], Tm)
-        _mm(Tm, D[j - 1], W)
-        for r in range(2):
-            for c in range(2):
-                W2[r, c] = A[j, r, c] - W[r, c]
-        ok = _inv2(W2, Li[j]) and ok
-        _mm(Tm, Y[j - 1], W)
-        for r in range(2):
-            for c in range(2):
-                Y[j, r, c] = rhs[j, r, c] - W[r, c]
-    _mm(Li[k - 1], Y[k - 1], X[k - 1])
+        Tm = _mm(_m2(B, j), _m2(Li, j - 1))
+        L, okj = _inv2(_sub2(_m2(A, j), _mm(Tm, _m2(D, j - 1))))
+        ok = okj and ok
+        _put2(Li, j, L)
+        _put2(Y, j, _sub2(_m2(rhs, j), _mm(Tm, _m2(Y, j - 1))))
+    _put2(X, k - 1, _mm(_m2(Li, k - 1), _m2(Y, k - 1)))
     for j in range(k - 2, -1, -1):
-        _mm(D[j], X[j + 1], W)
-        for r in range(2):
-            for c in range(2):
-                W2[r, c] = Y[j, r, c] - W[r, c]
-        _mm(Li[j], W2, X[j])
+        _put2(X, j, _mm(_m2(Li, j), _sub2(_m2(Y, j), _mm(_m2(D, j), _m2(X, j + 1)))))
     return ok
 
 
@@ -431,7 +472,7 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
     k = kinds.shape[0]
     out = np.zeros((N, 2, 2))
     oks = np.zeros(N, np.bool_)
-    C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = _lane_scratch(k)
+    C, A, B, D, rhs, Li, Y, X = _lane_scratch(k)
     for i in range(N):
         ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
         _zero_rhs(rhs, k)
@@ -442,7 +483,7 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
             for r in range(2):
                 for c in range(2):
                     rhs[k - 1, r, c] = -D[k - 1, r, c]
-        oks_ = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2)
+        oks_ = _lane_solve(A, B, D, rhs, Li, Y, X)
         ok = ok and oks_
         if ok:
             _copy_rows(out, i, X, 0)
@@ -453,15 +494,18 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
 
 
 @njit(inline="always", **_JIT)
-def _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch):
-    """The small mutation of lane i (see newton_proposal): (ok, proposed x1, direction)."""
-    C, A, B, D, rhs, Li, Y, X, Tm, W, W2 = scratch
+def _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step,
+                 C, A, B, D, rhs, Li, Y, X):
+    """The small mutation of lane i (see newton_proposal): (ok, proposed x1, direction). The
+    work arrays (_lane_scratch) come one by one, unpacked by the caller before its loop over
+    lanes (a tuple of arrays unpacked per lane costs reference counts per array and lane: see
+    _borrowed)."""
     k = kinds.shape[0]
     ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
     _zero_rhs(rhs, k)
     for j in range(k):
         rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
-    ok = _lane_solve(A, B, D, rhs, Li, Y, X, Tm, W, W2) and ok
+    ok = _lane_solve(A, B, D, rhs, Li, Y, X) and ok
     p1 = _vk(F, i, 0, P)
     if not ok:
         return False, p1, (0.0, 0.0, 0.0)
@@ -484,9 +528,10 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
     p_out = np.zeros((M, 3))
     d_out = np.zeros((M, 3))
     oks = np.zeros(M, np.bool_)
-    scratch = _lane_scratch(kinds.shape[0])
+    C, A, B, D, rhs, Li, Y, X = _lane_scratch(kinds.shape[0])
     for m in range(M):
-        ok, p, d = _lane_newton(idx[m], hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch)
+        ok, p, d = _lane_newton(idx[m], hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step,
+                                C, A, B, D, rhs, Li, Y, X)
         oks[m] = ok
         p_out[m, 0], p_out[m, 1], p_out[m, 2] = p
         d_out[m, 0], d_out[m, 1], d_out[m, 2] = d
@@ -819,44 +864,76 @@ def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, t
 _DROP, _CONVERGED, _PROPOSE = 0, 1, 2
 
 
-@njit(inline="always", **_JIT)
-def _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, scratch):
-    """One Newton iteration of lane i (see walk_iterate). Returns (what: _DROP, _CONVERGED or
-    _PROPOSE, the proposal ray's offset origin and direction, large or not, its trigger)."""
+@njit(**_JIT)
+def _iterate_rows(slots, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, scratch, outputs):
+    """One Newton iteration of the lanes slots[m] (rows m with slots[m] >= 0; has_new[m]: row m
+    of the proposal chain nF/nI/nstatus/nout and ul_new is that lane's last proposal, to accept
+    or reject; last_it[m]: its last iteration): the acceptance (_lane_update), the convergence
+    test, MAX_ITER at the last iteration, the small mutation (_lane_newton), SMBS's trigger and
+    large mutation (_lane_trigger, _lane_large), the singular test, and the proposal's ray
+    (_spawn_aim1). Writes per row what (_DROP, _CONVERGED or _PROPOSE) and, for a proposal, its
+    ray's offset origin and direction, large or not, its trigger. The settings, lane inputs and
+    state (cfg, lane, state: tuples, see walk.newton_walk), the work arrays (scratch:
+    _lane_scratch) and the outputs (what, ray origins, directions, large, trigger: _row_outputs)
+    are unpacked once, before the loop, and borrowed (_borrowed): not inlined, so that its caller
+    holds every array it uses."""
+    nF, nI, nstatus, nout, ul_new, slots, has_new, last_it = _borrowed((nF, nI, nstatus, nout, ul_new, slots,
+                                                                        has_new, last_it))
     (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, backlit_at, tau, slow_run, min_beta,
-     threshold, max_step, eps, max_halvings) = cfg
-    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
-    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
-    zero = (0.0, 0.0, 0.0)
-    if has_new:
-        e, f = _lane_mismatch(nF, m, nout, ly, i, directional)
-        if not _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul_new, smbs, tir_on, slow_on, tir_rejected, tau,
-                            slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n,
-                            outcome):
-            return _DROP, zero, zero, False, _NONE
-    if err[i] < threshold and front[i] and valid[i]:
-        converged[i] = True
-        return _CONVERGED, zero, zero, False, _NONE
-    if last_it:
-        outcome[i] = _MAX_ITER
-        return _DROP, zero, zero, False, _NONE
-    ok, p, d = _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step, scratch)
-    ul = False
-    tr = _NONE
-    if smbs:
-        tr = _lane_trigger(i, kinds, backlit_at, backlit_on, x0, F, ly, directional, pending)
-        if tr != _NONE and large_ok[i]:
-            dl, okl = _lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, lscale, max_halvings)
-            if okl:
-                ul = True
-                d = dl
-                p = _add(_v(x0, i, 0), dl)
-    if not (ok or ul):
-        outcome[i] = _SINGULAR
-        return _DROP, zero, zero, False, _NONE
-    mutations[i] += 1
-    on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), d, p, eps)
-    return _PROPOSE, on, w, ul, tr
+     threshold, max_step, eps, max_halvings) = _borrowed(cfg)
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = _borrowed(lane)
+    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = _borrowed(state)
+    C, A, B, D, rhs, Li, Y, X = _borrowed(scratch)
+    what, o_out, d_out, ul_out, tr_out = _borrowed(outputs)
+    for m in range(slots.shape[0]):
+        i = slots[m]
+        what[m] = _DROP
+        if i < 0:
+            continue
+        if has_new[m]:
+            e, f = _lane_mismatch(nF, m, nout, ly, i, directional)
+            if not _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul_new[m], smbs, tir_on, slow_on, tir_rejected,
+                                tau, slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending,
+                                slow_n, outcome):
+                continue
+        if err[i] < threshold and front[i] and valid[i]:
+            converged[i] = True
+            what[m] = _CONVERGED
+            continue
+        if last_it[m]:
+            outcome[i] = _MAX_ITER
+            continue
+        ok, p, d = _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step,
+                                C, A, B, D, rhs, Li, Y, X)
+        ul = False
+        tr = _NONE
+        if smbs:
+            tr = _lane_trigger(i, kinds, backlit_at, backlit_on, x0, F, ly, directional, pending)
+            if tr != _NONE and large_ok[i]:
+                dl, okl = _lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, lscale,
+                                      max_halvings)
+                if okl:
+                    ul = True
+                    d = dl
+                    p = _add(_v(x0, i, 0), dl)
+        if not (ok or ul):
+            outcome[i] = _SINGULAR
+            continue
+        mutations[i] += 1
+        on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), d, p, eps)
+        what[m] = _PROPOSE
+        ul_out[m] = ul
+        tr_out[m] = tr
+        for c in range(3):
+            o_out[m, c] = on[c]
+            d_out[m, c] = w[c]
+
+
+@njit(inline="always", **_JIT)
+def _row_outputs(M):
+    """what, ray origin, ray direction, large, trigger per row (_iterate_rows)."""
+    return (np.zeros(M, np.int8), np.zeros((M, 3)), np.zeros((M, 3)), np.zeros(M, np.bool_),
+            np.zeros(M, np.int64))
 
 
 @njit(inline="always", **_JIT)
@@ -871,32 +948,32 @@ def _put_ray(rows, o_out, d_out, cnt, lane, on, w):
 @TypedOnce
 @njit(**_JIT)
 def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, lane, state):
-    """One Newton iteration of walk.newton_walk for lanes act, in one pass per lane: the
-    acceptance of the last proposals (has_new: row m of the proposal chain nF/nI/nstatus/nout
-    and use_large belongs to lane act[m]; _lane_update), the convergence test, MAX_ITER at the
-    last iteration (last_it), the small mutation (newton_proposal), SMBS's trigger and large
-    mutation (_lane_trigger, large_proposal), the singular test, and the ray of the proposal
-    (spawn_aim). cfg, lane and state: walk.newton_walk's settings, per-lane input and state
-    (tuples, see there). Returns the lanes that propose, their rays' offset origins and
-    directions, which proposals are large, and the large mutations per trigger (4,)."""
+    """One Newton iteration of walk.newton_walk for lanes act (_iterate_rows: the acceptance of
+    the last proposals, has_new: row m of the proposal chain nF/nI/nstatus/nout and use_large
+    belongs to lane act[m]; the convergence test; MAX_ITER at the last iteration, last_it; the
+    small and large mutations; the proposal's ray). cfg, lane and state: walk.newton_walk's
+    settings, per-lane input and state (tuples, see there). Returns the lanes that propose, their
+    rays' offset origins and directions, which proposals are large, and the large mutations per
+    trigger (4,)."""
     M = act.shape[0]
+    outputs = _row_outputs(M)
+    new = np.full(M, has_new)
+    _iterate_rows(act, new, np.full(M, last_it), nF, nI, nstatus, nout, use_large if has_new else new, cfg, lane,
+                  state, _lane_scratch(cfg[1].shape[0]), outputs)
+    what, o_row, d_row, ul_row, tr_row = outputs
     nxt = np.zeros(M, np.int64)
     o_out = np.zeros((M, 3))
     d_out = np.zeros((M, 3))
     ul_out = np.zeros(M, np.bool_)
     counts = np.zeros(4, np.int64)
-    scratch = _lane_scratch(cfg[1].shape[0])
     cnt = 0
     for m in range(M):
-        i = act[m]
-        what, on, w, ul, tr = _lane_iterate(m, i, has_new, last_it, nF, nI, nstatus, nout,
-                                            use_large[m] if has_new else False, cfg, lane, state, scratch)
-        if what != _PROPOSE:
+        if what[m] != _PROPOSE:
             continue
-        if ul:
-            counts[tr] += 1
-        ul_out[cnt] = ul
-        _put_ray(nxt, o_out, d_out, cnt, i, on, w)
+        if ul_row[m]:
+            counts[tr_row[m]] += 1
+        ul_out[cnt] = ul_row[m]
+        _put_ray(nxt, o_out, d_out, cnt, act[m], _v(o_row, m, 0), _v(d_row, m, 0))
         cnt += 1
     return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], counts
 
@@ -933,7 +1010,7 @@ def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, ma
                  max_iterations):
     """The lane pool's work on the chains traced last (row m for pool slot rows[m]): a seed chain
     starts its slot's walk (walk.newton_walk's set-up, SEED_OBJECT where it landed off the
-    caster it aimed at), a walked one goes through _lane_iterate. Returns the slots that cast next
+    caster it aimed at), a walked one goes through _iterate_rows. Returns the slots that cast next
     (their rays' offset origins and directions, large or not), and the trials that ended:
     (slot, whether it found the solution of its sample (d1, obj1: the first segment's direction
     and the first vertex's object, estimators.same_solution)), and the proposals made."""
@@ -943,21 +1020,13 @@ def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, ma
     smbs_tir = cfg[2] and cfg[3]
     M = rows.shape[0]
     k = cfg[1].shape[0]
-    nxt = np.zeros(M, np.int64)
-    o_out = np.zeros((M, 3))
-    d_out = np.zeros((M, 3))
-    ul_out = np.zeros(M, np.bool_)
-    ended = np.zeros(M, np.int64)
-    found = np.zeros(M, np.bool_)
-    scratch = _lane_scratch(k)
-    cnt = 0
-    n_end = 0
-    steps = 0
+    slots = rows.copy()  # -1: a seed that ends here
+    has_new = np.ones(M, np.bool_)
+    last_it = np.zeros(M, np.bool_)
     for m in range(M):
         s = rows[m]
-        has_new = True
         if phase[s] == _SEEDING:
-            has_new = False
+            has_new[m] = False
             st = nstatus[m]
             if st == _OK and nI[m, 0, OBJ] != want_obj[s]:
                 st = _SEED_OBJECT
@@ -985,20 +1054,34 @@ def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, ma
             phase[s] = _WALKING
             it[s] = 0
             if not walkable:
-                ended[n_end] = s
-                n_end += 1
+                slots[m] = -1
                 continue
-        what, on, w, ul, tr = _lane_iterate(m, s, has_new, it[s] == max_iterations, nF, nI, nstatus, nout,
-                                            ul_new[m] if has_new else False, cfg, lane, state, scratch)
-        it[s] += 1
-        if what == _PROPOSE:
-            steps += 1
-            ul_out[cnt] = ul
-            _put_ray(nxt, o_out, d_out, cnt, s, on, w)
-            cnt += 1
-            continue
+        last_it[m] = it[s] == max_iterations
+    outputs = _row_outputs(M)
+    _iterate_rows(slots, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, _lane_scratch(k),
+                  outputs)
+    what, o_row, d_row, ul_row, tr_row = outputs
+    nxt = np.zeros(M, np.int64)
+    o_out = np.zeros((M, 3))
+    d_out = np.zeros((M, 3))
+    ul_out = np.zeros(M, np.bool_)
+    ended = np.zeros(M, np.int64)
+    found = np.zeros(M, np.bool_)
+    cnt = 0
+    n_end = 0
+    steps = 0
+    for m in range(M):
+        s = rows[m]
+        if slots[m] >= 0:
+            it[s] += 1
+            if what[m] == _PROPOSE:
+                steps += 1
+                ul_out[cnt] = ul_row[m]
+                _put_ray(nxt, o_out, d_out, cnt, s, _v(o_row, m, 0), _v(d_row, m, 0))
+                cnt += 1
+                continue
         ended[n_end] = s
-        if what == _CONVERGED:
+        if what[m] == _CONVERGED:
             d2 = _normalize(_sub(_vk(F, s, 0, P), _v(x0, s, 0)))
             p = sample[s]
             found[n_end] = abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[s, 0, OBJ] == obj1[p]

@@ -227,3 +227,37 @@ def test_typed_once_types_a_long_tuple_once(monkeypatch):
     assert h(3) == 1.5 and h(3) == 1.5  # int -> float64: converted by the dispatcher, each time
     assert h._entries[K._arg_key((3,))] is half
     assert h(3.0) == 1.5 and h._entries[K._arg_key((3.0,))] is not half
+
+
+def test_borrowed_arrays_view_the_same_memory_and_leave_their_owners_counts_alone():
+    """kernels._borrowed: a kernel writes through borrowed arrays into its arguments' memory,
+    reads them back, and the arrays' owners keep exactly the references they had (numba's runtime
+    neither releases nor keeps anything for a borrowed array); a tuple holding something other
+    than arrays and numbers is refused at compile time."""
+    import sys
+
+    from numba import njit
+    from numba.core.errors import TypingError
+
+    @njit
+    def through(t, scale):
+        a, b, n = K._borrowed(t)
+        for i in range(a.shape[0]):
+            b[i] = a[i] * scale + n
+        return b.sum()
+
+    a = np.arange(5.0)
+    b = np.zeros(5)
+    before = sys.getrefcount(a), sys.getrefcount(b)
+    for _ in range(3):
+        assert through((a, b, 1), 2.0) == pytest.approx(25.0)
+    assert np.array_equal(b, 2.0 * np.arange(5.0) + 1)
+    assert (sys.getrefcount(a), sys.getrefcount(b)) == before
+
+    @njit
+    def refused(t):
+        x, y = K._borrowed(t)
+        return x[0]
+
+    with pytest.raises(TypingError):
+        refused((np.zeros(2), [1.0]))
