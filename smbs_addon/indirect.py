@@ -34,7 +34,7 @@ import numpy as np
 from . import lanes
 from . import scene as S
 from .eye import Receivers, surface_at
-from .lights import light_radiance, soft_falloff_factor, spot_mask, area_light_shape
+from .lights import light_radiance, soft_falloff_factor, area_light_shape
 from .reference import scatter_specular, splat_to_camera
 from .vec import cosine_hemisphere, dot, frame, normalize, to_world
 
