@@ -958,8 +958,10 @@ def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, l
     M = act.shape[0]
     outputs = _row_outputs(M)
     new = np.full(M, has_new)
-    _iterate_rows(act, new, np.full(M, last_it), nF, nI, nstatus, nout, use_large if has_new else new, cfg, lane,
-                  state, _lane_scratch(cfg[1].shape[0]), outputs)
+    # before the first proposals use_large is empty; _iterate_rows reads ul_new[m] only where has_new[m]
+    ul_new = use_large if has_new else new
+    _iterate_rows(act, new, np.full(M, last_it), nF, nI, nstatus, nout, ul_new, cfg, lane, state,
+                  _lane_scratch(cfg[1].shape[0]), outputs)
     what, o_row, d_row, ul_row, tr_row = outputs
     nxt = np.zeros(M, np.int64)
     o_out = np.zeros((M, 3))
