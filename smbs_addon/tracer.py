@@ -1,10 +1,11 @@
-"""Ray casting with embree (embreex), hit records re-computed in float64.
+"""Ray casting with embree, hit records re-computed in float64.
 
-One ``EmbreeScene`` holds every triangle. A single ``run`` call uses one core and
-releases the GIL, so large batches are split across a thread pool. Embree works
-in float32; positions, normals and barycentrics are re-computed in float64 from
-the primitive id (ray-plane intersection), and spawned rays are offset along the
-geometric normal by a distance relative to the scene's size.
+One embree scene holds every triangle (embree.Scene: embreex's library, called from compiled
+kernels). A kernel call casts its rays on one core without the GIL, so large batches are split
+across a thread pool; the walks cast theirs from their own kernels (kernels.walk_lanes).
+Embree works in float32; positions, normals and barycentrics are re-computed in float64 from
+the primitive id (ray-plane intersection), and spawned rays are offset along the geometric
+normal by a distance relative to the scene's size.
 """
 from __future__ import annotations
 
@@ -13,10 +14,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import lanes
+from . import embree, lanes
 from .vec import cross, dot, normalize
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
+
+# bench/throughput.py records the rays a bake casts: a list to collect (ray logs of
+# embree.LOG_COLUMNS), every RAY_LOG_STRIDE-th ray of each kernel call, at most RAY_LOG_ROWS each
+RAY_LOG: list | None = None
+RAY_LOG_ROWS = 1 << 16
+RAY_LOG_STRIDE = 4
 
 
 def default_threads() -> int:
@@ -38,9 +45,6 @@ class Hits:
 
 class Tracer:
     def __init__(self, scene, threads: int | None = None):
-        import embreex.mesh_construction as emc
-        import embreex.rtcore_scene as ers
-
         self.scene = scene
         self.threads = threads or default_threads()
         self.v = np.ascontiguousarray(scene.tri_vertices, dtype=np.float64)
@@ -60,10 +64,7 @@ class Tracer:
         self.obj_lo = np.where(self.obj_has_tris[:, None], lo_o, 0.0)
         self.obj_hi = np.where(self.obj_has_tris[:, None], hi_o, 0.0)
         self.set_extent(*scene.bounds())
-        self._embree = None
-        if scene.n_tris:
-            self._embree = ers.EmbreeScene()
-            emc.TriangleMesh(self._embree, np.ascontiguousarray(self.v, dtype=np.float32))
+        self._embree = embree.Scene(self.v) if scene.n_tris else None
         self.rays_cast = 0
 
     def set_extent(self, lo, hi) -> None:
@@ -77,33 +78,44 @@ class Tracer:
         self.degenerate = ~(self.area2 > 1e-14 * max(scale, 1e-30) ** 2)
 
     # ------------------------------------------------------------- low level
+    def rays(self) -> tuple:
+        """What a kernel that casts rays takes (embree.rays), with a fresh ray log while
+        bench/throughput.py records (RAY_LOG)."""
+        log = None if RAY_LOG is None else np.zeros((RAY_LOG_ROWS, embree.LOG_COLUMNS), np.float32)
+        return embree.rays(self._embree, log, RAY_LOG_STRIDE)
+
+    def cast_by_kernel(self, rt, counts) -> None:
+        """Count the rays a kernel cast (counts: embree.ray_state's counters) and keep its log."""
+        with lanes.LOCK:  # kernels on several threads count here
+            self.rays_cast += int(counts[embree.KINDS:].sum())
+            if RAY_LOG is not None and counts[0]:
+                RAY_LOG.append(rt[1][:counts[0]].copy())
+
     def _run(self, o, d, tmax, query):
         n = len(o)
         if n == 0:
             return np.zeros(0, np.int64), np.zeros(0)
         if self._embree is None:
+            with lanes.LOCK:
+                self.rays_cast += n
             return np.full(n, -1, np.int64), np.full(n, np.inf)
-        o32 = np.ascontiguousarray(o, dtype=np.float32)
-        d32 = np.ascontiguousarray(d, dtype=np.float32)
-        t32 = None if tmax is None else np.ascontiguousarray(np.minimum(tmax, 3e37), np.float32)
-        with lanes.LOCK:  # walk blocks on several threads cast here
-            self.rays_cast += n
+        o = np.ascontiguousarray(o, dtype=np.float64)
+        d = np.ascontiguousarray(d, dtype=np.float64)
+        tmax = np.zeros(0) if tmax is None else np.ascontiguousarray(np.broadcast_to(tmax, (n,)), np.float64)
+        occl = query == "OCCLUDED"
+        prim = np.empty(n, np.int64)
+        t = np.empty(0 if occl else n)
 
-        def job(sl):
-            kw = {} if t32 is None else {"dists": t32[sl]}
-            if query == "OCCLUDED":
-                r = self._embree.run(o32[sl], d32[sl], query="OCCLUDED", **kw)
-                return np.asarray(r), None
-            r = self._embree.run(o32[sl], d32[sl], output=1, **kw)
-            return r["primID"], r["tfar"]
+        def job(a, b):
+            rt = self.rays()
+            logged = embree.cast_rays(rt, o[a:b], d[a:b], tmax[a:b] if tmax.size else tmax, occl, prim[a:b],
+                                      t[a:b] if t.size else t)
+            counts = np.zeros(embree.KINDS + 1, np.int64)
+            counts[0], counts[embree.KINDS] = logged, b - a
+            self.cast_by_kernel(rt, counts)
 
-        res = lanes.run(lambda a, b: job(slice(a, b)), n, self.threads, _MIN_SPLIT)
-        if len(res) == 1:
-            prim, t = res[0]
-            return prim.astype(np.int64), None if t is None else t.astype(np.float64)
-        prim = np.concatenate([r[0] for r in res]).astype(np.int64)
-        t = None if query == "OCCLUDED" else np.concatenate([r[1] for r in res]).astype(np.float64)
-        return prim, t
+        lanes.run(job, n, self.threads, _MIN_SPLIT)
+        return prim, None if occl else t
 
     # -------------------------------------------------------------- queries
     def occluded(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:

@@ -256,6 +256,41 @@ def test_threads_give_identical_results():
     assert np.array_equal(Tracer(scene, threads=1).occluded(o, d, tmax), tr2.occluded(o, d, tmax))
 
 
+def test_embree_from_the_kernels_answers_as_embreex_does():
+    """smbs_addon/embree.py builds the scene with embree's C API and casts from compiled code;
+    embreex's own run, on a scene embreex builds from the same triangles, must give the same
+    primitives and float32 distances bit for bit (closest hits without and with a segment
+    length, and occlusion), on rays that hit, graze and miss a ball and a floor."""
+    import embreex.mesh_construction as emc
+    import embreex.rtcore_scene as ers
+
+    b = SceneBuilder()
+    m = b.material("m", "diffuse")
+    b.uv_sphere("Ball", (0, 0, 0), 1.0, m, segments=48, rings=24)
+    b.plane("Floor", (0, 0, -1.5), 6, m)
+    scene = b.build()
+    tr = Tracer(scene, threads=2)
+    es = ers.EmbreeScene()
+    emc.TriangleMesh(es, np.ascontiguousarray(scene.tri_vertices, dtype=np.float32))
+    rng = np.random.default_rng(12)
+    N = 200_000
+    o = rng.uniform(-2, 2, (N, 3)) + np.array([0, 0, 3.0])
+    d = unit(rng.uniform(-2.5, 2.5, (N, 3)) - o)
+    o32, d32 = o.astype(np.float32), d.astype(np.float32)
+    prim, t = tr.cast(o, d)
+    ref = es.run(o32, d32, output=1)
+    assert 0.2 < (prim >= 0).mean() < 0.9
+    assert np.array_equal(prim, ref["primID"]) and np.array_equal(t[prim >= 0], ref["tfar"][prim >= 0])
+    tmax = rng.uniform(0, 6, N)
+    occl = tr.occluded(o, d, tmax)
+    ref_occl = es.run(o32, d32, dists=tmax.astype(np.float32), query="OCCLUDED") >= 0
+    assert np.array_equal(occl, ref_occl) and 0.1 < occl.mean() < 0.9
+    h = tr.intersect(o, d, tmax)
+    ref_t = es.run(o32, d32, dists=tmax.astype(np.float32), output=1)
+    assert np.array_equal(h.prim, ref_t["primID"])
+    assert tr.rays_cast == 3 * N
+
+
 # ------------------------------------------------------------- degenerates
 def test_degenerate_triangles_and_zero_normals_give_no_nan():
     b = SceneBuilder()
