@@ -11,7 +11,7 @@ Per scene and method, in one run on the same geometry:
   large mutations) per second;
 - ``ratio``: effective / raw;
 - embree's rate on the bake's own rays (``same rays``): every 4th ray the bake cast (offset
-  origin, direction, segment length for shadow rays), replayed through plain embreex the same
+  origin, direction, segment length; tracer.RAY_LOG, also from inside the walk kernels), replayed through plain embreex the same
   way, closest-hit or occlusion as cast. Rays from a diffuse floor into a glass ball hit and
   cost about 4x random rays in the scene's box (two thirds of which leave it without a hit);
   ``ratio (same rays)`` is the bake's rate over this one, the share of the time it spends
@@ -42,7 +42,7 @@ sys.path.insert(0, str(ROOT))
 
 import scenes  # noqa: E402
 from smbs_addon import BakeSettings, bake  # noqa: E402
-from smbs_addon.tracer import Tracer  # noqa: E402
+import smbs_addon.tracer as tracer_mod  # noqa: E402
 from smbs_addon.tracer import default_threads  # noqa: E402
 
 SCENES = {
@@ -75,59 +75,43 @@ def raw_rate(scene, n: int, seed: int = 0) -> float:
 
 
 class RayRecorder:
-    """Keeps every `stride`-th ray of each embree call the bake makes (Tracer._run), as float32."""
-
-    def __init__(self, stride: int = 4):
-        self.stride = stride
-        self.calls = []
+    """Keeps every 4th ray of each embree call the bake makes, from Python or from the walk
+    kernels (tracer.RAY_LOG: at most tracer.RAY_LOG_ROWS per kernel call), as float32."""
 
     def __enter__(self):
-        real = self._real = Tracer._run
-        rec = self
-
-        def _run(tracer, o, d, tmax, query):
-            if len(o):
-                sl = slice(0, None, rec.stride)
-                t = None if tmax is None else np.minimum(np.asarray(tmax)[sl], 3e37).astype(np.float32)
-                rec.calls.append((np.asarray(o, np.float32)[sl], np.asarray(d, np.float32)[sl], t, query))
-            return real(tracer, o, d, tmax, query)
-
-        Tracer._run = _run
+        tracer_mod.RAY_LOG = self.logs = []
+        self._rows, tracer_mod.RAY_LOG_ROWS = tracer_mod.RAY_LOG_ROWS, 1 << 20
         return self
 
     def __exit__(self, *exc):
-        Tracer._run = self._real
+        tracer_mod.RAY_LOG = None
+        tracer_mod.RAY_LOG_ROWS = self._rows
 
 
-def replay_rate(scene, calls: list) -> float:
-    """Rays per second of plain embreex on the recorded rays, each call's kind (closest hit or
-    occlusion), all calls' rays of a kind joined and cut in parts of 65536, threaded over all cores."""
+def replay_rate(scene, logs: list) -> float:
+    """Rays per second of plain embreex on the recorded rays, each ray's kind (closest hit or
+    occlusion within its segment), all rays of a kind joined and cut in parts of 65536,
+    threaded over all cores."""
     import embreex.mesh_construction as emc
     import embreex.rtcore_scene as ers
 
     es = ers.EmbreeScene()
     emc.TriangleMesh(es, np.ascontiguousarray(scene.tri_vertices, dtype=np.float32))
+    rays = np.concatenate(logs) if logs else np.zeros((0, 8), np.float32)
     jobs = []
-    for kind in ("INTERSECT", "OCCLUDED"):
-        cs = [c for c in calls if c[3] == kind]
-        if not cs:
-            continue
-        o = np.ascontiguousarray(np.concatenate([c[0] for c in cs]))
-        d = np.ascontiguousarray(np.concatenate([c[1] for c in cs]))
-        t = None
-        if kind == "OCCLUDED":
-            t = np.ascontiguousarray(np.concatenate([c[2] if c[2] is not None else np.full(len(c[0]), 3e37, np.float32)
-                                                     for c in cs]))
-        for a in range(0, len(o), 65536):
+    for occl in (False, True):
+        r = rays[(rays[:, 7] > 0) == occl]
+        o, d, t = np.ascontiguousarray(r[:, 0:3]), np.ascontiguousarray(r[:, 3:6]), np.ascontiguousarray(r[:, 6])
+        for a in range(0, len(r), 65536):
             sl = slice(a, a + 65536)
-            jobs.append((o[sl], d[sl], None if t is None else t[sl], kind))
+            jobs.append((o[sl], d[sl], t[sl], occl))
 
     def run(job):
-        o, d, t, kind = job
-        if kind == "OCCLUDED":
+        o, d, t, occl = job
+        if occl:
             es.run(o, d, query="OCCLUDED", dists=t)
         else:
-            es.run(o, d, output=1)
+            es.run(o, d, dists=t, output=1)
 
     n = sum(len(j[0]) for j in jobs)
     if n == 0:
@@ -151,7 +135,7 @@ def measure(name: str, method: str, size: int, spp: int) -> dict:
     st = r.stats
     rays = int(st["rays"])
     raw = raw_rate(sc, int(min(max(rays, 100_000), 8_000_000)))
-    same = replay_rate(sc, rec.calls)
+    same = replay_rate(sc, rec.logs)
     del rec
     # Newton steps of the primary walks and of the unbiased estimator's Bernoulli re-walks
     steps = int(st.get("mutations", 0)) + sum(int(L.get("bernoulli_mutations", 0)) for L in st["lights"].values())

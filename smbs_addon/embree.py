@@ -30,7 +30,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-_JIT = dict(cache=True, nogil=True, error_model="numpy")
+from .jit import JIT as _JIT
 
 # embree4/rtcore_*.h
 _SCENE_FLAG_ROBUST = 1 << 2

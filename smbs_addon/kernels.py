@@ -1,6 +1,10 @@
-"""Compiled (numba) per-lane kernels of the manifold walk: the Newton step of a chain, and a
-chain vertex from a ray hit. Issue 11: the walks spent their time on numpy's per-call overhead
-(dozens of tiny (N,3) operations per Newton step on a few hundred lanes), not on rays.
+"""Compiled (numba) per-lane kernels of the manifold walk: the Newton step of a chain, a chain
+vertex from a ray hit, and whole walks. Issue 11: the walks spent their time on numpy's
+per-call overhead (dozens of tiny (N,3) operations per Newton step on a few hundred lanes),
+then on the round trips through Python between each Newton step and its rays; now a walk runs
+from its seed to its outcome inside one kernel call, casting its rays through embree itself
+(embree.py): walk_lanes for the primary walks, bernoulli_lanes for the unbiased estimator's
+trials.
 
 Each kernel is a loop over lanes doing, per lane, the same IEEE operations in the same order
 as the numpy reference it replaces (constraints.blocks + block_solve, geometry.vertex_from_hits,
@@ -9,8 +13,9 @@ no fastmath, so results agree with the reference to rounding (tests/test_kernels
 input gives ok False and zeros, never an exception (error_model="numpy": x / 0 is inf or NaN
 as in numpy, and the ok flags catch it).
 
-Compiled on first use and cached on disk (cache=True; numba falls back to a user cache folder
-when the package folder is read-only). nogil: threads can run lanes side by side.
+Compiled on first use and cached on disk (jit.py). nogil: threads run blocks of lanes side by
+side (lanes.blocks); each lane's walk depends on its own inputs alone, so the cut changes
+nothing.
 
 Chain vertices are packed: F (N, k, NF) float64 with the columns below, I (N, k, 3) int64
 (prim, obj, mat).
@@ -23,6 +28,9 @@ import numpy as np
 from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
+
+from .embree import intersect1, ray_state
+from .jit import JIT
 
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
@@ -42,56 +50,7 @@ _OK, _MISS, _NOT_CASTER, _WRONG_MATERIAL, _TIR, _SIDE = 0, 1, 2, 3, 4, 5
 _TIR_INNER, _SIDE_INNER = 11, 12
 _CONDUCTOR, _DIELECTRIC = 1, 2
 
-_JIT = dict(cache=True, nogil=True, error_model="numpy")
-
-
-def _cache_per_module_name():
-    """Keep one disk cache per name this module is imported under. numba's cache is keyed by
-    the source file, but a cached kernel rebuilds its environment by importing the module by the
-    name it was compiled under: the same file imported as smbs_addon.kernels (command line) and
-    as bl_ext.<repo>.smbs_caustics.smbs_addon.kernels (Blender) would each fail to load the
-    other's entries (ModuleNotFoundError). The module's name goes into the cache file names."""
-    try:
-        import hashlib
-
-        from numba.core import caching
-    except ImportError:  # pragma: no cover - numba's layout changed: default caching
-        return
-    name = __name__
-
-    class Locator(caching._CacheLocator):
-        def __init__(self, inner):
-            self._inner = inner
-            self._tag = hashlib.sha1(name.encode()).hexdigest()[:10]
-
-        def ensure_cache_path(self):
-            self._inner.ensure_cache_path()
-
-        def get_cache_path(self):
-            return self._inner.get_cache_path()
-
-        def get_source_stamp(self):
-            return self._inner.get_source_stamp()
-
-        def get_disambiguator(self):
-            return f"{self._inner.get_disambiguator()}-{self._tag}"
-
-        @classmethod
-        def from_function(cls, py_func, py_file):
-            if getattr(py_func, "__module__", None) != name:
-                return None
-            for base in caching.CacheImpl._locator_classes:
-                if base is not cls and not getattr(base, "_smbs_per_module", False):
-                    inner = base.from_function(py_func, py_file)
-                    if inner is not None:
-                        return cls(inner)
-            return None
-
-    Locator._smbs_per_module = True
-    caching.CacheImpl._locator_classes.insert(0, Locator)
-
-
-_cache_per_module_name()
+_JIT = JIT
 
 # numpy's flag bits that change an array's numba type: C_CONTIGUOUS, F_CONTIGUOUS, ALIGNED, WRITEABLE
 _TYPE_FLAGS = 0x1 | 0x2 | 0x100 | 0x400
@@ -144,7 +103,7 @@ def _borrowed(typingctx, tup):
     (numba's meminfo set to NULL; other items as they are). numba counts references to an array
     each time a variable takes it, a tuple is unpacked or an inlined per-lane helper receives it
     (an atomic increment and decrement per array and lane, which its pruning pass leaves where
-    the helper branches): a third of a Newton iteration's time in walk_iterate and pool_advance.
+    the helper branches): a third of a Newton iteration's time before it was used.
     A borrowed array's counts do nothing. Only for arrays owned by someone else for as long as
     the borrowed ones are used: the arguments of the (not inlined) kernel that borrows them,
     which its caller holds; never returned or stored."""
@@ -539,128 +498,175 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
 
 
 # ------------------------------------------------------------------ a vertex from a ray hit
-@njit(**_JIT)
-def propagate_step(refract, last, j, act, o, d, prev, exact, prim, t32, tv, tng, tns, eps,
-                   tri_material, mat_kind, tri_object, casters, mat_ior, F, I, status, out):
-    """walk.propagate's work after the intersect call for vertex j, per lane (rows act of the
-    chain's F, I, status, out): tracer.intersect's float64 hit point (the plane of the hit
-    triangle re-intersected from prev, the ray's true start, when exact, else from o),
-    geometry.vertex_from_hits, the material checks, the reflection or refraction of
+@njit(inline="always", **_JIT)
+def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tns, eps, tri_material, mat_kind,
+                 tri_object, casters, mat_ior, F, I, status, out):
+    """walk.propagate's work for vertex j of chain row `lane` once its ray o + t d (3-tuples)
+    hit primitive pr at embree's distance t32: tracer.intersect's float64 hit point (the plane
+    of the hit triangle re-intersected from prev, the ray's true start, when exact, else from
+    o), geometry.vertex_from_hits, the material checks, the reflection or refraction of
     w_in = normalize(prev - p) and the side checks. Writes the walk outcome to status, the
     vertex to F and I where it is kept (valid, or at the last vertex TIR or SIDE), the unit
-    outgoing direction to out; returns the lanes that go on (act, the next ray's offset origin
-    and direction, the vertex)."""
-    M = o.shape[0]
-    nxt = np.zeros(M, np.int64)
-    o_next = np.zeros((M, 3))
-    d_next = np.zeros((M, 3))
-    p_next = np.zeros((M, 3))
-    cnt = 0
-    for i in range(M):
-        lane = act[i]
-        pr = prim[i]
+    outgoing direction to out; returns whether the chain goes on, and the next ray's offset
+    origin and direction, and the vertex."""
+    zero = (0.0, 0.0, 0.0)
+    # tracer.intersect: the hit re-computed in float64
+    oi = prev if exact else o
+    di = d
+    tt = t32
+    if exact:
+        tt = tt + _dot(_sub(o, oi), di)
+    g = _v(tng, pr, 0)
+    v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
+    v1 = (tv[pr, 1, 0], tv[pr, 1, 1], tv[pr, 1, 2])
+    v2 = (tv[pr, 2, 0], tv[pr, 2, 1], tv[pr, 2, 2])
+    den = _dot(di, g)
+    num = _dot(_sub(v0, oi), g)
+    ti = num / den if abs(den) > 1e-12 else tt
+    if not math.isfinite(ti) or abs(ti - tt) > 1e-3 * abs(tt) + eps:
+        ti = tt
+    p = _add(oi, _mul(ti, di))
+    e1, e2, q = _sub(v1, v0), _sub(v2, v0), _sub(p, v0)
+    d11, d12, d22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
+    q1, q2 = _dot(q, e1), _dot(q, e2)
+    det = d11 * d22 - d12 * d12
+    if det > 0:
+        inv = 1.0 / det
+        b1 = (d22 * q1 - d12 * q2) * inv
+        b2 = (d11 * q2 - d12 * q1) * inv
+    else:
+        b1 = b2 = 1.0 / 3.0
+    # geometry.vertex_from_hits
+    s = _normalize(e1)
+    t = _cross(g, s)
+    c0 = (tns[pr, 0, 0], tns[pr, 0, 1], tns[pr, 0, 2])
+    c1 = (tns[pr, 1, 0], tns[pr, 1, 1], tns[pr, 1, 2])
+    c2 = (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2])
+    b0 = 1.0 - b1 - b2
+    nraw = _add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2))
+    ln = math.sqrt(_dot(nraw, nraw))
+    good = ln > 1e-3
+    n = _div(nraw, ln) if good else g
+    dns = dnt = zero
+    if good:
+        g11, g12, g22 = d11, d12, d22
+        det2 = g11 * g22 - g12 * g12
+        inv2 = 1.0 / det2 if det2 > 1e-300 else 0.0
+        dn1, dn2 = _sub(c1, c0), _sub(c2, c0)
+        for col in range(2):
+            w = s if col == 0 else t
+            r1, r2 = _dot(w, e1), _dot(w, e2)
+            alpha = (g22 * r1 - g12 * r2) * inv2
+            beta = (g11 * r2 - g12 * r1) * inv2
+            dN = _add(_mul(alpha, dn1), _mul(beta, dn2))
+            dv = _div(_sub(dN, _mul(_dot(dN, n), n)), ln)
+            if col == 0:
+                dns = dv
+            else:
+                dnt = dv
+    mat = tri_material[pr]
+    mk = mat_kind[mat]
+    obj = tri_object[pr]
+    code = _OK
+    if not casters[obj]:
+        code = _NOT_CASTER
+    need = (mk == _DIELECTRIC) if refract else (mk == _CONDUCTOR or mk == _DIELECTRIC)
+    if not need and code == _OK:
+        code = _WRONG_MATERIAL
+    w_in = _normalize(_sub(prev, p))
+    w_out, okm = smap(refract, w_in, n, mat_ior[mat])
+    if not okm and code == _OK:
+        code = _TIR if last else _TIR_INNER
+    cin, cout = _dot(w_in, g), _dot(w_out, g)
+    side_ok = ((cin * cout < 0) if refract else (cin * cout > 0)) and (_dot(w_in, n) * _dot(n, g) * cin > 0)
+    if not side_ok and code == _OK:
+        code = _SIDE if last else _SIDE_INNER
+    status[lane] = code
+    keep = code == _OK or (last and (code == _TIR or code == _SIDE))
+    if not keep:
+        return False, zero, zero, zero
+    wn = _normalize(w_out)
+    for c in range(3):
+        F[lane, j, P + c] = p[c]
+        F[lane, j, NG + c] = g[c]
+        F[lane, j, NS + c] = n[c]
+        F[lane, j, S + c] = s[c]
+        F[lane, j, T + c] = t[c]
+        F[lane, j, DNS + c] = dns[c]
+        F[lane, j, DNT + c] = dnt[c]
+    I[lane, j, PRIM], I[lane, j, OBJ], I[lane, j, MAT] = pr, obj, mat
+    if code == _TIR:
+        return False, zero, zero, zero
+    out[lane, 0], out[lane, 1], out[lane, 2] = wn
+    if code != _OK:
+        return False, zero, zero, zero
+    side = 1.0 if _dot(wn, g) >= 0 else -1.0
+    return True, _add(p, _mul(eps * side, g)), wn, p
+
+
+@njit(inline="always", **_JIT)
+def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
+    """walk.propagate for chain row `lane`: the ray from x0 (its offset origin o, direction d;
+    3-tuples) and its reflections and refractions through the chain's vertices, each ray cast
+    here (embree.intersect1, counted as `kind`). The row of F, I, status (walk outcome, OK
+    where every vertex is valid) and out (the direction leaving the last vertex) is written
+    from scratch. geo: (tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior)."""
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior = geo
+    k = kinds.shape[0]
+    for j in range(k):
+        for c in range(NF):
+            F[lane, j, c] = 0.0
+        I[lane, j, 0] = I[lane, j, 1] = I[lane, j, 2] = 0
+    status[lane] = _OK
+    out[lane, 0] = out[lane, 1] = out[lane, 2] = 0.0
+    prev = x0
+    for j in range(k):
+        pr, t32 = intersect1(ray, o, d, np.inf, kind)
         if pr < 0:
             status[lane] = _MISS
-            continue
-        # tracer.intersect: the hit re-computed in float64
-        oi = _v(prev, i, 0) if exact else _v(o, i, 0)
-        di = _v(d, i, 0)
-        tt = t32[i]
-        if exact:
-            tt = tt + _dot(_sub(_v(o, i, 0), oi), di)
-        g = _v(tng, pr, 0)
-        v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
-        v1 = (tv[pr, 1, 0], tv[pr, 1, 1], tv[pr, 1, 2])
-        v2 = (tv[pr, 2, 0], tv[pr, 2, 1], tv[pr, 2, 2])
-        den = _dot(di, g)
-        num = _dot(_sub(v0, oi), g)
-        ti = num / den if abs(den) > 1e-12 else tt
-        if not math.isfinite(ti) or abs(ti - tt) > 1e-3 * abs(tt) + eps:
-            ti = tt
-        p = _add(oi, _mul(ti, di))
-        e1, e2, q = _sub(v1, v0), _sub(v2, v0), _sub(p, v0)
-        d11, d12, d22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
-        q1, q2 = _dot(q, e1), _dot(q, e2)
-        det = d11 * d22 - d12 * d12
-        if det > 0:
-            inv = 1.0 / det
-            b1 = (d22 * q1 - d12 * q2) * inv
-            b2 = (d11 * q2 - d12 * q1) * inv
-        else:
-            b1 = b2 = 1.0 / 3.0
-        # geometry.vertex_from_hits
-        s = _normalize(e1)
-        t = _cross(g, s)
-        c0 = (tns[pr, 0, 0], tns[pr, 0, 1], tns[pr, 0, 2])
-        c1 = (tns[pr, 1, 0], tns[pr, 1, 1], tns[pr, 1, 2])
-        c2 = (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2])
-        b0 = 1.0 - b1 - b2
-        nraw = _add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2))
-        ln = math.sqrt(_dot(nraw, nraw))
-        good = ln > 1e-3
-        n = _div(nraw, ln) if good else g
-        dns = dnt = (0.0, 0.0, 0.0)
-        if good:
-            g11, g12, g22 = d11, d12, d22
-            det2 = g11 * g22 - g12 * g12
-            inv2 = 1.0 / det2 if det2 > 1e-300 else 0.0
-            dn1, dn2 = _sub(c1, c0), _sub(c2, c0)
-            for col in range(2):
-                w = s if col == 0 else t
-                r1, r2 = _dot(w, e1), _dot(w, e2)
-                alpha = (g22 * r1 - g12 * r2) * inv2
-                beta = (g11 * r2 - g12 * r1) * inv2
-                dN = _add(_mul(alpha, dn1), _mul(beta, dn2))
-                dv = _div(_sub(dN, _mul(_dot(dN, n), n)), ln)
-                if col == 0:
-                    dns = dv
-                else:
-                    dnt = dv
-        mat = tri_material[pr]
-        mk = mat_kind[mat]
-        obj = tri_object[pr]
-        code = _OK
-        if not casters[obj]:
-            code = _NOT_CASTER
-        need = (mk == _DIELECTRIC) if refract else (mk == _CONDUCTOR or mk == _DIELECTRIC)
-        if not need and code == _OK:
-            code = _WRONG_MATERIAL
-        w_in = _normalize(_sub(_v(prev, i, 0), p))
-        w_out, okm = smap(refract, w_in, n, mat_ior[mat])
-        if not okm and code == _OK:
-            code = _TIR if last else _TIR_INNER
-        cin, cout = _dot(w_in, g), _dot(w_out, g)
-        side_ok = ((cin * cout < 0) if refract else (cin * cout > 0)) and (_dot(w_in, n) * _dot(n, g) * cin > 0)
-        if not side_ok and code == _OK:
-            code = _SIDE if last else _SIDE_INNER
-        status[lane] = code
-        keep = code == _OK or (last and (code == _TIR or code == _SIDE))
-        if not keep:
-            continue
-        wn = _normalize(w_out)
-        for c in range(3):
-            F[lane, j, P + c] = p[c]
-            F[lane, j, NG + c] = g[c]
-            F[lane, j, NS + c] = n[c]
-            F[lane, j, S + c] = s[c]
-            F[lane, j, T + c] = t[c]
-            F[lane, j, DNS + c] = dns[c]
-            F[lane, j, DNT + c] = dnt[c]
-        I[lane, j, PRIM], I[lane, j, OBJ], I[lane, j, MAT] = pr, obj, mat
-        if code == _TIR:
-            continue
-        out[lane, 0], out[lane, 1], out[lane, 2] = wn
-        if code != _OK:
-            continue
-        side = 1.0 if _dot(wn, g) >= 0 else -1.0
-        on = _add(p, _mul(eps * side, g))
-        nxt[cnt] = lane
-        for c in range(3):
-            o_next[cnt, c] = on[c]
-            d_next[cnt, c] = wn[c]
-            p_next[cnt, c] = p[c]
-        cnt += 1
-    return nxt[:cnt], o_next[:cnt], d_next[:cnt], p_next[:cnt]
+            return
+        # from the true previous vertex, not the offset ray origin: the chain stays exact. At the
+        # last vertex the vertex of a chain whose exit is TIR (SMBS can mutate from it) and of one
+        # whose exit dips below the geometric surface (a shading normal leaning away, as on a
+        # normal-mapped mirror) is kept: every walk goes on from it, as SMS does from any seed on
+        # the caster, and converges only once the exit is valid
+        go, o, d, prev = _lane_vertex(kinds[j] == 1, j == k - 1, j, lane, o, d, prev, j > 0, pr, t32, tv, tng, tns,
+                                      eps, tri_material, mat_kind, tri_object, casters, mat_ior, F, I, status, out)
+        if not go:
+            return
+
+
+@njit(**_JIT)
+def _seed_rows(ray, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
+    """trace_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
+    ray, geo = _borrowed(ray), _borrowed(geo)
+    x0, ng0, d, want_obj, F, I, status, out = _borrowed((x0, ng0, d, want_obj, F, I, status, out))
+    for i in range(x0.shape[0]):
+        _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out)
+
+
+@TypedOnce
+@njit(**_JIT)
+def trace_lanes(rt, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
+    """walk.propagate of every lane: the ray from x0 (offset along ng0 to the side d leaves
+    on, as tracer.spawn) in direction d through the chain; where want_obj[i] >= 0, a chain
+    whose first vertex lies on another object ends as SEED_OBJECT. Returns the ray counters
+    (embree.ray_state)."""
+    ray = ray_state(rt)
+    _seed_rows(ray, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out)
+    return ray[6]
+
+
+@njit(inline="always", **_JIT)
+def _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out):
+    """The seed chain of lane i (trace_lanes), its rays counted as seeds."""
+    xi = _v(x0, i, 0)
+    di = _v(d, i, 0)
+    g = _v(ng0, i, 0)
+    side = 1.0 if _dot(di, g) >= 0 else -1.0
+    _trace_lane(ray, _RAYS_SEED, i, xi, _add(xi, _mul(eps * side, g)), di, kinds, geo, eps, F, I, status, out)
+    if want_obj[i] >= 0 and status[i] == _OK and I[i, 0, OBJ] != want_obj[i]:
+        status[i] = _SEED_OBJECT
 
 
 @njit(inline="always", **_JIT)
@@ -801,20 +807,6 @@ def _spawn_aim1(x0, g, d, target, eps):
     return on, _normalize(_sub(target, on))
 
 
-@njit(**_JIT)
-def spawn_aim(x0, ng0, d, target, eps):
-    """tracer.spawn of x0 towards d, and the unit direction from that origin to target."""
-    M = x0.shape[0]
-    o = np.zeros((M, 3))
-    dirs = np.zeros((M, 3))
-    for i in range(M):
-        on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), _v(d, i, 0), _v(target, i, 0), eps)
-        for c in range(3):
-            o[i, c] = on[c]
-            dirs[i, c] = w[c]
-    return o, dirs
-
-
 @njit(inline="always", **_JIT)
 def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, tir_rejected, tau, slow_run,
                  min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome):
@@ -861,52 +853,72 @@ def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, t
     return True
 
 
-_DROP, _CONVERGED, _PROPOSE = 0, 1, 2
+# ray kinds the walk kernels count (embree.ray_state's counters)
+_RAYS_SEED, _RAYS_WALK = 0, 1
 
 
 @njit(**_JIT)
-def _iterate_rows(slots, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, scratch, outputs):
-    """One Newton iteration of the lanes slots[m] (rows m with slots[m] >= 0; has_new[m]: row m
-    of the proposal chain nF/nI/nstatus/nout and ul_new is that lane's last proposal, to accept
-    or reject; last_it[m]: its last iteration): the acceptance (_lane_update), the convergence
-    test, MAX_ITER at the last iteration, the small mutation (_lane_newton), SMBS's trigger and
-    large mutation (_lane_trigger, _lane_large), the singular test, and the proposal's ray
-    (_spawn_aim1). Writes per row what (_DROP, _CONVERGED or _PROPOSE) and, for a proposal, its
-    ray's offset origin and direction, large or not, its trigger. The settings, lane inputs and
-    state (cfg, lane, state: tuples, see walk.newton_walk), the work arrays (scratch:
-    _lane_scratch) and the outputs (what, ray origins, directions, large, trigger: _row_outputs)
-    are unpacked once, before the loop, and borrowed (_borrowed): not inlined, so that its caller
-    holds every array it uses."""
-    nF, nI, nstatus, nout, ul_new, slots, has_new, last_it = _borrowed((nF, nI, nstatus, nout, ul_new, slots,
-                                                                        has_new, last_it))
-    (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, backlit_at, tau, slow_run, min_beta,
-     threshold, max_step, eps, max_halvings) = _borrowed(cfg)
-    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = _borrowed(lane)
-    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = _borrowed(state)
-    C, A, B, D, rhs, Li, Y, X = _borrowed(scratch)
-    what, o_out, d_out, ul_out, tr_out = _borrowed(outputs)
-    for m in range(slots.shape[0]):
-        i = slots[m]
-        what[m] = _DROP
-        if i < 0:
-            continue
-        if has_new[m]:
-            e, f = _lane_mismatch(nF, m, nout, ly, i, directional)
-            if not _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul_new[m], smbs, tir_on, slow_on, tir_rejected,
-                                tau, slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending,
-                                slow_n, outcome):
-                continue
+def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
+    """walk.newton_walk of lane i (row i of lane and state) from the seed chain in its row of
+    state (F, I, out_dir, and its walk outcome in outcome): the set-up (etas of the seed's
+    vertices, the mismatch, beta 1; a seed whose last refraction is TIR starts with a large
+    mutation), then per iteration the acceptance of the last proposal (_lane_update), the
+    convergence test, MAX_ITER at the last iteration, the small mutation (_lane_newton), SMBS's
+    trigger and large mutation (_lane_trigger, _lane_large; large[trigger] counts them), the
+    singular test, and the proposal's chain (_trace_lane into row 0 of proposal). Not inlined:
+    one call per walk (its arguments are borrowed by the kernel that calls it, see _borrowed)."""
+    (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, backlit_at, tau, slow_run, min_beta, threshold,
+     max_step, eps, max_halvings, max_iterations) = cfg
+    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
+    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
+    C, A, B, D, rhs, Li, Y, X = scratch
+    nF, nI, nstatus, nout = proposal
+    mat_ior = geo[7]
+    k = kinds.shape[0]
+    st = outcome[i]
+    for j in range(k):
+        etas[i, j] = mat_ior[I[i, j, MAT]]
+    err[i], front[i] = _lane_mismatch(F, i, out_dir, ly, i, directional)
+    valid[i] = st == _OK  # a lane converges only from a valid chain
+    beta[i] = 1.0
+    # SMBS: GetRatio's bisection, carried on across iterations: a large mutation whose ray missed
+    # the caster (or failed otherwise) would repeat itself exactly from the same vertex, so the
+    # next one from there starts at half the weight; an accepted one resets it
+    lscale[i] = 1.0
+    pending[i] = _NONE  # SMBS: the trigger for the next step
+    slow_n[i] = 0  # slow small steps in a row
+    converged[i] = False
+    mutations[i] = 0
+    walkable = st == _OK or st == _SIDE  # an exit below the surface is walkable, not yet valid
+    if walkable:
+        outcome[i] = _OK
+    if smbs and tir_on and st == _TIR and large_ok[i]:  # a seed whose last refraction is TIR mutates first
+        pending[i] = _TRIG_TIR
+        err[i] = np.inf
+        front[i] = False
+        outcome[i] = _OK
+        walkable = True
+    if not walkable:
+        return
+    xi = _v(x0, i, 0)
+    gi = _v(ng0, i, 0)
+    ul = False
+    for it in range(max_iterations + 1):
+        if it > 0:
+            e, f = _lane_mismatch(nF, 0, nout, ly, i, directional)
+            if not _lane_update(0, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, tir_rejected, tau,
+                                slow_run, min_beta, F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n,
+                                outcome):
+                return
         if err[i] < threshold and front[i] and valid[i]:
             converged[i] = True
-            what[m] = _CONVERGED
-            continue
-        if last_it[m]:
+            return
+        if it == max_iterations:
             outcome[i] = _MAX_ITER
-            continue
+            return
         ok, p, d = _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step,
                                 C, A, B, D, rhs, Li, Y, X)
         ul = False
-        tr = _NONE
         if smbs:
             tr = _lane_trigger(i, kinds, backlit_at, backlit_on, x0, F, ly, directional, pending)
             if tr != _NONE and large_ok[i]:
@@ -915,76 +927,58 @@ def _iterate_rows(slots, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, l
                 if okl:
                     ul = True
                     d = dl
-                    p = _add(_v(x0, i, 0), dl)
+                    p = _add(xi, dl)
+                    large[tr] += 1
         if not (ok or ul):
             outcome[i] = _SINGULAR
-            continue
+            return
         mutations[i] += 1
-        on, w = _spawn_aim1(_v(x0, i, 0), _v(ng0, i, 0), d, p, eps)
-        what[m] = _PROPOSE
-        ul_out[m] = ul
-        tr_out[m] = tr
-        for c in range(3):
-            o_out[m, c] = on[c]
-            d_out[m, c] = w[c]
+        on, w = _spawn_aim1(xi, gi, d, p, eps)
+        _trace_lane(ray, _RAYS_WALK, 0, xi, on, w, kinds, geo, eps, nF, nI, nstatus, nout)
 
 
 @njit(inline="always", **_JIT)
-def _row_outputs(M):
-    """what, ray origin, ray direction, large, trigger per row (_iterate_rows)."""
-    return (np.zeros(M, np.int8), np.zeros((M, 3)), np.zeros((M, 3)), np.zeros(M, np.bool_),
-            np.zeros(M, np.int64))
+def _walk_scratch(k):
+    """The work arrays of one thread's walks: the constraint blocks and solve (_lane_scratch) and
+    one proposal chain (F, I, status, out_dir)."""
+    return _lane_scratch(k), (np.zeros((1, k, NF)), np.zeros((1, k, 3), np.int64), np.zeros(1, np.int64),
+                              np.zeros((1, 3)))
 
 
-@njit(inline="always", **_JIT)
-def _put_ray(rows, o_out, d_out, cnt, lane, on, w):
-    """Row cnt of a kernel's rays: the lane, the ray's offset origin and direction."""
-    rows[cnt] = lane
-    for c in range(3):
-        o_out[cnt, c] = on[c]
-        d_out[cnt, c] = w[c]
+@njit(**_JIT)
+def _walk_rows(seeded, d, want_obj, cfg, geo, lane, state, scratch, proposal, ray, large):
+    """walk_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
+    d, want_obj = _borrowed((d, want_obj))
+    cfg, ray = _borrowed(cfg), _borrowed(ray)
+    geo, lane, state, scratch, proposal = _borrowed(geo), _borrowed(lane), _borrowed(state), _borrowed(scratch), \
+        _borrowed(proposal)
+    F, I, out_dir, outcome = state[0], state[1], state[2], state[10]
+    for i in range(lane[0].shape[0]):
+        if not seeded:
+            _seed_lane(ray, i, lane[0], lane[1], d, want_obj, cfg[1], geo, cfg[13], F, I, outcome, out_dir)
+        _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large)
 
 
 @TypedOnce
 @njit(**_JIT)
-def walk_iterate(act, has_new, last_it, nF, nI, nstatus, nout, use_large, cfg, lane, state):
-    """One Newton iteration of walk.newton_walk for lanes act (_iterate_rows: the acceptance of
-    the last proposals, has_new: row m of the proposal chain nF/nI/nstatus/nout and use_large
-    belongs to lane act[m]; the convergence test; MAX_ITER at the last iteration, last_it; the
-    small and large mutations; the proposal's ray). cfg, lane and state: walk.newton_walk's
-    settings, per-lane input and state (tuples, see there). Returns the lanes that propose, their
-    rays' offset origins and directions, which proposals are large, and the large mutations per
-    trigger (4,)."""
-    M = act.shape[0]
-    outputs = _row_outputs(M)
-    new = np.full(M, has_new)
-    # before the first proposals use_large is empty; _iterate_rows reads ul_new[m] only where has_new[m]
-    ul_new = use_large if has_new else new
-    _iterate_rows(act, new, np.full(M, last_it), nF, nI, nstatus, nout, ul_new, cfg, lane, state,
-                  _lane_scratch(cfg[1].shape[0]), outputs)
-    what, o_row, d_row, ul_row, tr_row = outputs
-    nxt = np.zeros(M, np.int64)
-    o_out = np.zeros((M, 3))
-    d_out = np.zeros((M, 3))
-    ul_out = np.zeros(M, np.bool_)
-    counts = np.zeros(4, np.int64)
-    cnt = 0
-    for m in range(M):
-        if what[m] != _PROPOSE:
-            continue
-        if ul_row[m]:
-            counts[tr_row[m]] += 1
-        ul_out[cnt] = ul_row[m]
-        _put_ray(nxt, o_out, d_out, cnt, act[m], _v(o_row, m, 0), _v(d_row, m, 0))
-        cnt += 1
-    return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], counts
+def walk_lanes(rt, seeded, d, want_obj, cfg, geo, lane, state):
+    """walk.newton_walk of every lane, one after the other, each from its seed to its outcome
+    with every ray cast here: seeded, from the seed chains in state (F, I, out_dir, outcome);
+    else from seed rays in directions d (a chain whose first vertex is off want_obj[i] >= 0
+    ends as SEED_OBJECT, as trace_lanes). cfg (walk.kernel_config), geo (_trace_lane), lane
+    and state: see walk.newton_walk. Returns the large mutations per trigger (4,) and the ray
+    counters (embree.ray_state)."""
+    ray = ray_state(rt)
+    scratch, proposal = _walk_scratch(cfg[1].shape[0])
+    large = np.zeros(4, np.int64)
+    _walk_rows(seeded, d, want_obj, cfg, geo, lane, state, scratch, proposal, ray, large)
+    return large, ray[6]
 
 
-# ------------------------------------------------------------------ the lane pool (Bernoulli trials)
+# ------------------------------------------------------------------ Bernoulli trials
 _GOLD = np.uint64(0x9E3779B97F4A7C15)
 _M1 = np.uint64(0xBF58476D1CE4E5B9)
 _M2 = np.uint64(0x94D049BB133111EB)
-_SEEDING, _WALKING = 1, 2
 _SEED_OBJECT = 6
 
 
@@ -1006,174 +1000,75 @@ def keyed_uniform(key, a, b, dim):
     return np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
-@TypedOnce
 @njit(**_JIT)
-def pool_advance(rows, nF, nI, nstatus, nout, ul_new, cfg, lane, state, pool, mat_ior, d1, obj1, uniqueness,
-                 max_iterations):
-    """The lane pool's work on the chains traced last (row m for pool slot rows[m]): a seed chain
-    starts its slot's walk (walk.newton_walk's set-up, SEED_OBJECT where it landed off the
-    caster it aimed at), a walked one goes through _iterate_rows. Returns the slots that cast next
-    (their rays' offset origins and directions, large or not), and the trials that ended:
-    (slot, whether it found the solution of its sample (d1, obj1: the first segment's direction
-    and the first vertex's object, estimators.same_solution)), and the proposals made."""
+def _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first, tally, d, want):
+    """bernoulli_lanes' loop over its samples, on borrowed arrays (its caller holds them)."""
+    sx0, sng, sly, d1, obj1 = _borrowed(samples)
+    cdf, tv, tobj = _borrowed(seeds)
+    cfg, ray, d, want = _borrowed(cfg), _borrowed(ray), _borrowed(d), _borrowed(want)
+    total, key, p0, max_trials, defensive, uniqueness = trials
+    geo, lane, state, scratch, proposal = _borrowed(geo), _borrowed(lane), _borrowed(state), _borrowed(scratch), \
+        _borrowed(proposal)
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
-    F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
-    phase, it, want_obj, sample, trial = pool
-    smbs_tir = cfg[2] and cfg[3]
-    M = rows.shape[0]
-    k = cfg[1].shape[0]
-    slots = rows.copy()  # -1: a seed that ends here
-    has_new = np.ones(M, np.bool_)
-    last_it = np.zeros(M, np.bool_)
-    for m in range(M):
-        s = rows[m]
-        if phase[s] == _SEEDING:
-            has_new[m] = False
-            st = nstatus[m]
-            if st == _OK and nI[m, 0, OBJ] != want_obj[s]:
-                st = _SEED_OBJECT
-            _copy_rows(F, s, nF, m)
-            _copy_rows(I, s, nI, m)
-            for c in range(3):
-                out_dir[s, c] = nout[m, c]
-            for j in range(k):
-                etas[s, j] = mat_ior[I[s, j, MAT]]
-            err[s], front[s] = _lane_mismatch(F, s, out_dir, ly, s, directional)
-            valid[s] = st == _OK
-            beta[s] = 1.0
-            lscale[s] = 1.0
-            pending[s] = _NONE
-            slow_n[s] = 0
-            converged[s] = False
-            mutations[s] = 0
-            outcome[s] = _OK
-            walkable = st == _OK or st == _SIDE
-            if smbs_tir and st == _TIR and large_ok[s]:  # as newton_walk: a TIR seed mutates first
-                pending[s] = _TRIG_TIR
-                err[s] = np.inf
-                front[s] = False
-                walkable = True
-            phase[s] = _WALKING
-            it[s] = 0
-            if not walkable:
-                slots[m] = -1
-                continue
-        last_it[m] = it[s] == max_iterations
-    outputs = _row_outputs(M)
-    _iterate_rows(slots, has_new, last_it, nF, nI, nstatus, nout, ul_new, cfg, lane, state, _lane_scratch(k),
-                  outputs)
-    what, o_row, d_row, ul_row, tr_row = outputs
-    nxt = np.zeros(M, np.int64)
-    o_out = np.zeros((M, 3))
-    d_out = np.zeros((M, 3))
-    ul_out = np.zeros(M, np.bool_)
-    ended = np.zeros(M, np.int64)
-    found = np.zeros(M, np.bool_)
-    cnt = 0
-    n_end = 0
-    steps = 0
-    for m in range(M):
-        s = rows[m]
-        if slots[m] >= 0:
-            it[s] += 1
-            if what[m] == _PROPOSE:
-                steps += 1
-                ul_out[cnt] = ul_row[m]
-                _put_ray(nxt, o_out, d_out, cnt, s, _v(o_row, m, 0), _v(d_row, m, 0))
-                cnt += 1
-                continue
-        ended[n_end] = s
-        if what[m] == _CONVERGED:
-            d2 = _normalize(_sub(_vk(F, s, 0, P), _v(x0, s, 0)))
-            p = sample[s]
-            found[n_end] = abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[s, 0, OBJ] == obj1[p]
-        n_end += 1
-    return nxt[:cnt], o_out[:cnt], d_out[:cnt], ul_out[:cnt], ended[:n_end], found[:n_end], steps
-
-
-@TypedOnce
-@njit(**_JIT)
-def pool_refill(ended, found_end, pool, lane, samples, seeds, key, p0, max_trials, max_parallel, defensive, smbs,
-                eps):
-    """The lane pool's bookkeeping, on one thread: the trials that ended (slots ended; found_end:
-    they found their sample's solution) free their slots and lower their sample's first
-    success; then every free slot takes the next trial of a sample that still needs one (trials
-    in order per sample; at most max_parallel of a sample at once, and no more than one plus
-    half the number of its trials that ended: a sample whose trial t succeeds needs none after
-    t, so trials run side by side only for samples that have needed many). A trial's seed ray aims
-    at a uniform point on the casters (manifold.Seeder.directions for SMS), its random numbers
-    keyed by (key, p0 + sample, trial) (p0: the block's first sample in the batch): whichever
-    slot, block or thread runs it, trial t of a sample walks the same way, so each sample's
-    first success (and the image) does not depend on the scheduling. New trials take the
-    lowest free slots. Returns the slots that cast a seed ray, the rays' offset origins and
-    directions."""
-    phase, it, want_obj, sample, trial = pool
-    x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
-    sx0, sng, sly, first, next_trial, inflight, active, free, cur = samples
-    cdf, total, tv, tobj = seeds
-    for e in range(ended.shape[0]):
-        s = ended[e]
-        p = sample[s]
-        inflight[p] -= 1
-        if found_end[e] and trial[s] < first[p]:
-            first[p] = trial[s]
-        phase[s] = 0
-    # the free slots, lowest first: the busy slots stay packed at the front of the pool's arrays,
-    # which stay in cache when few lanes are busy
-    n_free = 0
-    for s in range(phase.shape[0]):
-        if phase[s] == 0:
-            free[n_free] = s
-            n_free += 1
-    rows = np.zeros(n_free, np.int64)
-    o_out = np.zeros((n_free, 3))
-    d_out = np.zeros((n_free, 3))
-    cnt = 0
-    while cnt < n_free and cur[0] > 0:
-        got = -1
-        scanned = 0
-        while scanned < cur[0] and cur[0] > 0:
-            if cur[1] >= cur[0]:
-                cur[1] = 0
-            p = active[cur[1]]
-            if next_trial[p] >= min(first[p], max_trials):  # needs no more trials, ever
-                cur[0] -= 1
-                active[cur[1]] = active[cur[0]]
-                continue
-            cur[1] += 1
-            scanned += 1
-            if inflight[p] < min(max_parallel, 1 + (next_trial[p] - inflight[p]) // 2):  # 1 + half the trials ended
-                got = p
-                break
-        if got < 0:
-            break
-        p = got
-        s = free[cnt]
-        t = next_trial[p]
-        next_trial[p] += 1
-        inflight[p] += 1
-        sample[s], trial[s], phase[s], it[s] = p, t, _SEEDING, 0
+    F, I, out_dir, outcome, converged, mutations = state[0], state[1], state[2], state[10], state[11], state[12]
+    kinds, smbs, eps = cfg[1], cfg[2], cfg[13]
+    for p in range(sx0.shape[0]):
         for c in range(3):
-            x0[s, c], ng0[s, c], ly[s, c] = sx0[p, c], sng[p, c], sly[p, c]
-        u0 = keyed_uniform(key, p0 + p, t, 0)
-        u1 = keyed_uniform(key, p0 + p, t, 1)
-        u2 = keyed_uniform(key, p0 + p, t, 2)
-        tri = min(np.searchsorted(cdf, u0 * total, side="right"), cdf.shape[0] - 1)
-        su = math.sqrt(u1)
-        b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
-        q = (b0 * tv[tri, 0, 0] + b1 * tv[tri, 1, 0] + b2 * tv[tri, 2, 0],
-             b0 * tv[tri, 0, 1] + b1 * tv[tri, 1, 1] + b2 * tv[tri, 2, 1],
-             b0 * tv[tri, 0, 2] + b1 * tv[tri, 1, 2] + b2 * tv[tri, 2, 2])
-        xs = _v(x0, s, 0)
-        d = _normalize(_sub(q, xs))
-        want_obj[s] = tobj[tri]
-        large_ok[s] = keyed_uniform(key, p0 + p, t, 3) >= defensive if smbs else True
-        g = _v(ng0, s, 0)
-        side = 1.0 if _dot(d, g) >= 0 else -1.0
-        on = _add(xs, _mul(eps * side, g))
-        _put_ray(rows, o_out, d_out, cnt, s, on, d)
-        cnt += 1
-    return rows[:cnt], o_out[:cnt], d_out[:cnt]
+            x0[0, c], ng0[0, c], ly[0, c] = sx0[p, c], sng[p, c], sly[p, c]
+        for t in range(max_trials):
+            # trial t of sample p: a seed aimed at a uniform point on the casters (manifold.Seeder
+            # for SMS), its random numbers keyed by (key, p0 + p, t)
+            u0 = keyed_uniform(key, p0 + p, t, 0)
+            u1 = keyed_uniform(key, p0 + p, t, 1)
+            u2 = keyed_uniform(key, p0 + p, t, 2)
+            tri = min(np.searchsorted(cdf, u0 * total, side="right"), cdf.shape[0] - 1)
+            su = math.sqrt(u1)
+            b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
+            q = (b0 * tv[tri, 0, 0] + b1 * tv[tri, 1, 0] + b2 * tv[tri, 2, 0],
+                 b0 * tv[tri, 0, 1] + b1 * tv[tri, 1, 1] + b2 * tv[tri, 2, 1],
+                 b0 * tv[tri, 0, 2] + b1 * tv[tri, 1, 2] + b2 * tv[tri, 2, 2])
+            dq = _normalize(_sub(q, _v(x0, 0, 0)))
+            d[0, 0], d[0, 1], d[0, 2] = dq
+            want[0] = tobj[tri]
+            large_ok[0] = keyed_uniform(key, p0 + p, t, 3) >= defensive if smbs else True
+            _seed_lane(ray, 0, x0, ng0, d, want, kinds, geo, eps, F, I, outcome, out_dir)
+            _walk_lane(0, cfg, geo, lane, state, scratch, proposal, ray, large)
+            tally[0] += 1
+            tally[1] += mutations[0]
+            if converged[0]:
+                d2 = _normalize(_sub(_vk(F, 0, 0, P), _v(x0, 0, 0)))
+                if abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[0, 0, OBJ] == obj1[p]:
+                    first[p] = t
+                    break
+
+
+@TypedOnce
+@njit(**_JIT)
+def bernoulli_lanes(rt, samples, seeds, trials, cfg, geo, directional, obj_lo, obj_hi):
+    """trials.bernoulli_trials for samples (x0, ng0, light point or direction, first segment's
+    direction d1, first vertex's object obj1; (S, ...) each): per sample, walks from seeds at
+    uniform points on the casters (seeds: the casters' triangle area cdf, vertices and objects)
+    one after the other until one finds the sample's solution (estimators.same_solution) or
+    max_trials have not. trials: (the cdf's total, key, p0 (the index of the first sample in the
+    batch), max_trials, SMBS's defensive share, uniqueness threshold). Trial t of sample p draws
+    from keyed_uniform(key, p0 + p, t, .): each sample's first success does not depend on which
+    thread or block runs it. Returns the first successful trial per sample (max_trials: none),
+    the walks and Newton steps made, and the ray counters (embree.ray_state)."""
+    k = cfg[1].shape[0]
+    z3 = np.zeros((1, 3))
+    lane = (z3.copy(), z3.copy(), z3.copy(), z3, z3, directional, np.zeros((1, k)), np.ones(1, np.bool_),
+            obj_lo, obj_hi)
+    state = (np.zeros((1, k, NF)), np.zeros((1, k, 3), np.int64), np.zeros((1, 3)), np.zeros(1),
+             np.zeros(1, np.bool_), np.zeros(1, np.bool_), np.ones(1), np.ones(1), np.zeros(1, np.int64),
+             np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.bool_), np.zeros(1, np.int64))
+    ray = ray_state(rt)
+    scratch, proposal = _walk_scratch(k)
+    large = np.zeros(4, np.int64)
+    first = np.full(samples[0].shape[0], trials[3], np.int64)
+    tally = np.zeros(2, np.int64)
+    _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first, tally,
+                np.zeros((1, 3)), np.zeros(1, np.int64))
+    return first, tally[0], tally[1], ray[6]
 
 
 # ------------------------------------------------------------------ the film

@@ -4,11 +4,11 @@ embree's ``run`` and the numba kernels (nogil) release the GIL, so a batch of la
 contiguous parts runs on several cores. Each part's result is the same whichever thread runs it,
 and parts are joined in order: the image does not depend on the thread count.
 
-Whole streams of work run in blocks (``blocks``): walk.newton_walk and pool.bernoulli_trials
-cut their lanes into blocks of a fixed size, each walked with its own Python loop, and threads
-take the blocks in turn, so one block's Python work overlaps another's kernels and rays. The
-cut does not depend on the thread count. Inside a block, ``run`` does not split again: the
-block's kernel and intersect calls run on its own thread.
+Whole streams of work run in blocks (``blocks``): walk.newton_walk and trials.bernoulli_trials
+cut their lanes into blocks of a fixed size, each one kernel call that walks its lanes and casts
+their rays without the GIL, and threads take the blocks in turn. The cut does not depend on the
+thread count. Inside a block, ``run`` does not split again: the block's calls run on its own
+thread.
 """
 from __future__ import annotations
 

@@ -22,9 +22,9 @@ from .estimators import chain_throughput, concentration, geometric_term, light_e
 from .eye import eye_receivers
 from .lights import area_light_points
 from .optics import has_reflection
-from .pool import bernoulli_trials
+from .trials import bernoulli_trials
 from .vec import dot, normalize, uniform_cone, frame, to_world
-from .walk import OK, OCCLUDED, OUTCOMES, SEED_OBJECT, TRIGGERS, WalkConfig, newton_walk, propagate
+from .walk import OUTCOMES, TRIGGERS, WalkConfig, newton_walk, propagate
 
 
 @dataclass
@@ -57,7 +57,6 @@ class Ctx:
         cast = np.flatnonzero(plan.casters & tracer.obj_has_tris)
         self.caster_lo = self.obj_lo[cast].min(axis=0) if cast.size else np.zeros(3)
         self.caster_hi = self.obj_hi[cast].max(axis=0) if cast.size else np.zeros(3)
-        self.ray_kind = "rays_walk"
         self.physical = False
         self.clamp = 0.0  # cap on a solution's luminance (ManifoldOptions.clamp_g); 0: off
         self.clamp_cut = None  # per solution of the last _contribution: luminance the cap removed
@@ -65,7 +64,6 @@ class Ctx:
         self.first_order = False  # walking from receivers the camera sees (not later diffuse vertices)
 
     def count(self, key, n):
-        key = self.ray_kind if key == "rays_walk" else key
         with lanes.LOCK:  # walk blocks on several threads count here
             self.stats[key] = self.stats.get(key, 0) + int(n)
 
@@ -248,27 +246,18 @@ class Seeder:
         return normalize(q - x0), self.obj[t]
 
     def seed(self, ctx, rng, types, x0, ng0, light):
+        """Seed chains (a seed off the caster it aimed at ends as SEED_OBJECT)."""
         d, want_obj = self.directions(rng, x0, light, ctx)
-        ctx.ray_kind = "rays_seed"
-        ch = propagate(ctx, x0, ng0, d, types)
-        ctx.ray_kind = "rays_walk"
-        if want_obj is not None:
-            wrong = (ch.status == OK) & (ch.verts[0].obj != want_obj)
-            ch.status[wrong] = SEED_OBJECT
-        return ch
+        return propagate(ctx, x0, ng0, d, types, want_obj)
 
 
-def _walk(ctx, opts, seeder, types, x0, ng0, light, rng, primary=True):
-    """Seed and walk; statistics count primary walks (the paper's SR and mpp),
-    Bernoulli re-walks are counted apart."""
-    ch = seeder.seed(ctx, rng, types, x0, ng0, light)
+def _walk(ctx, opts, seeder, types, x0, ng0, light, rng):
+    """Seed and walk (in one kernel call per block of lanes: walk.newton_walk); the statistics
+    count these primary walks (the paper's SR and mpp), Bernoulli re-walks apart."""
+    d, want_obj = seeder.directions(rng, x0, light, ctx)
     large_ok = rng.random(len(x0)) >= opts.walk.defensive if opts.walk.smbs else None
-    res = newton_walk(ctx, opts.walk, types, x0, ng0, light, ch, large_ok)
+    res = newton_walk(ctx, opts.walk, types, x0, ng0, light, large_ok=large_ok, seed=(d, want_obj))
     st = ctx.stats
-    if not primary:
-        st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + len(x0)
-        st["bernoulli_mutations"] = st.get("bernoulli_mutations", 0) + int(res.mutations.sum())
-        return res
     st["walks"] = st.get("walks", 0) + len(x0)
     st["successes"] = st.get("successes", 0) + int(res.converged.sum())
     st["mutations"] = st.get("mutations", 0) + int(res.mutations.sum())
@@ -437,8 +426,8 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
         _count_clamped(ctx, None if cut is None else cut[keep & ok])
         return out
     # unbiased: 1/p by Bernoulli trials, only where the contribution is non-zero: the count is
-    # that of the first trial that finds the same solution again (pool.py: the trials of all
-    # samples in one wavefront, random numbers keyed by sample and trial)
+    # that of the first trial that finds the same solution again (trials.py: each sample's trials
+    # in turn inside a kernel, random numbers keyed by sample and trial)
     pend = np.flatnonzero(ok)
     own = owner[pend]
     first = bernoulli_trials(ctx, opts, seeder, types, x0[own], ng_eye[own], light.take(own), d1[pend], obj1[pend],

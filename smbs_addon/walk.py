@@ -22,8 +22,8 @@ import numpy as np
 
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .geometry import vertex_view
-from . import kernels, lanes
-from .kernels import MAT, NF, propagate_step, spawn_aim, walk_iterate
+from . import embree, kernels, lanes
+from .kernels import NF
 from .large_mutation import MAX_HALVINGS
 
 # walk outcome codes
@@ -84,65 +84,45 @@ class Chain:
         return Chain(self.F[idx], self.I[idx], self.status[idx], self.out_dir[idx])
 
 
-MIN_PART = 512  # lanes per thread below which splitting a kernel call does not pay
-WALK_BLOCK = 8192  # lanes per block of newton_walk (and samples per block of the Bernoulli trials)
+WALK_BLOCK = 2048  # lanes per block of newton_walk and propagate (lanes.blocks)
 
 
-def _joined(parts):
-    """The parts' result arrays joined in lane order."""
-    if len(parts) == 1:
-        return parts[0]
-    return tuple(np.concatenate(x) for x in zip(*parts))
-
-
-def propagate(ctx, x0, ng0, d, types: str, target=None) -> Chain:
-    """Trace x0 -> d and follow the chain's reflections/refractions (shading normals).
-
-    Every vertex must be a specular caster; a T vertex must be glass. The
-    geometric normal must agree with the interaction (reflection stays on its
-    side, refraction crosses), else the chain is rejected (SIDE). With a target, the
-    ray is aimed from the offset origin itself, so the hit lands on the proposed point."""
-    if target is None:
-        o, dirs = ctx.tracer.spawn(x0, ng0, d), d
-    else:
-        o, dirs = spawn_aim(x0, ng0, d, target, ctx.tracer.eps)
-    return trace_chain(ctx, x0, o, dirs, types)
-
-
-def trace_chain(ctx, x0, o, dirs, types: str, seeding=None) -> Chain:
-    """propagate from x0 with the first ray's offset origins o and directions dirs given: one
-    intersect call and one kernels.propagate_step call per vertex. seeding (N,) bool: the rows
-    whose rays count as seed rays (the lane pool casts seeds and walks together)."""
+def _geo(ctx) -> tuple:
+    """The scene as the kernels trace chains through it (kernels._trace_lane)."""
     scene, tracer = ctx.scene, ctx.tracer
-    n = len(x0)
-    k = len(types)
-    F = np.zeros((n, k, NF))
-    I = np.zeros((n, k, 3), np.int64)
-    status = np.full(n, OK, np.int64)
-    out = np.zeros((n, 3))
-    act = np.arange(n)
-    prev = x0
-    for j, kind in enumerate(types):
-        if act.size == 0:
-            break
-        prim, t = tracer.cast(o, dirs)
-        n_seed = 0
-        if seeding is not None:
-            n_seed = int(np.count_nonzero(seeding[act]))
-            ctx.count("rays_seed", n_seed)
-        ctx.count("rays_walk", len(o) - n_seed)
-        # from the true previous vertex, not the offset ray origin: the chain stays exact. At the
-        # last vertex the kernel keeps the vertex of a chain whose exit is TIR (SMBS can mutate
-        # from it) and of one whose exit dips below the geometric surface (a shading normal
-        # leaning away, as on a normal-mapped mirror): every walk goes on from it, as SMS does
-        # from any seed on the caster, and converges only once the exit is valid
-        def part(a, b, act=act, o=o, dirs=dirs, prev=prev, prim=prim, t=t, j=j, kind=kind):
-            return propagate_step(
-                kind == "T", j == k - 1, j, act[a:b], o[a:b], dirs[a:b], prev[a:b], j > 0, prim[a:b], t[a:b],
-                tracer.v, tracer.ng, tracer.ns_corner, tracer.eps, scene.tri_material, scene.mat_kind,
-                scene.tri_object, ctx.casters, scene.mat_ior, F, I, status, out)
+    return (tracer.v, tracer.ng, tracer.ns_corner, scene.tri_material, scene.mat_kind, scene.tri_object,
+            ctx.casters, scene.mat_ior)
 
-        act, o, dirs, prev = _joined(lanes.run(part, act.size, tracer.threads, MIN_PART))
+
+def _count_rays(ctx, counts) -> None:
+    ctx.count("rays_seed", counts[embree.KINDS + kernels._RAYS_SEED])
+    ctx.count("rays_walk", counts[embree.KINDS + kernels._RAYS_WALK])
+
+
+def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
+    """Trace x0 -> d and follow the chain's reflections/refractions (shading normals): seed
+    chains, their rays counted as seed rays.
+
+    Every vertex must be a specular caster; a T vertex must be glass. The geometric normal
+    must agree with the interaction (reflection stays on its side, refraction crosses), else
+    the chain is rejected (SIDE). want_obj (N,): a chain whose first vertex lies on another
+    object ends as SEED_OBJECT (None: any caster)."""
+    n, k = len(x0), len(types)
+    F, I = np.zeros((n, k, NF)), np.zeros((n, k, 3), np.int64)
+    status, out = np.zeros(n, np.int64), np.zeros((n, 3))
+    x0, ng0, d = (np.ascontiguousarray(a, np.float64) for a in (x0, ng0, d))
+    want = np.full(n, -1, np.int64) if want_obj is None else np.ascontiguousarray(want_obj, np.int64)
+    kinds, geo, tracer = kernels.chain_kinds(types), _geo(ctx), ctx.tracer
+
+    def part(a, b):
+        rt = tracer.rays()
+        counts = kernels.trace_lanes(rt, kinds, x0[a:b], ng0[a:b], d[a:b], want[a:b], geo, tracer.eps, F[a:b],
+                                     I[a:b], status[a:b], out[a:b])
+        tracer.cast_by_kernel(rt, counts)
+        return counts
+
+    counts = sum(lanes.blocks(part, n, WALK_BLOCK, tracer.threads), np.zeros(embree.KINDS + 6, np.int64))
+    _count_rays(ctx, counts)
     return Chain(F, I, status, out)
 
 
@@ -178,100 +158,51 @@ def _backlit_at(where: str, k: int) -> int:
 
 
 def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
-    """The walk's settings as kernels.walk_iterate takes them."""
+    """The walk's settings as the kernels take them (kernels._walk_lane)."""
     return (cfg.form == HALF_VECTOR, kernels.chain_kinds(types), cfg.smbs, cfg.tir, cfg.backlit, cfg.slow,
             cfg.tir_rejected, _backlit_at(cfg.backlit_vertex, len(types)), cfg.tau, cfg.slow_run, cfg.min_beta,
-            cfg.threshold, cfg.max_step * ctx.scale, ctx.tracer.eps, MAX_HALVINGS)
+            cfg.threshold, cfg.max_step * ctx.scale, ctx.tracer.eps, MAX_HALVINGS, cfg.max_iterations)
 
 
-def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
-                large_ok: np.ndarray | None = None) -> WalkResult:
-    """Walk every lane's chain to the light end. Lanes whose seed failed keep
-    their seed outcome. large_ok (N,) bool: lanes allowed SMBS's large mutations
-    (the rest walk as plain SMS).
+def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain | None = None,
+                large_ok: np.ndarray | None = None, seed: tuple | None = None) -> WalkResult:
+    """Walk every lane's chain to the light end, from its seed chain (chain) or from a seed ray
+    (seed = (directions, want_obj), as propagate takes them), traced in the same kernel call
+    as the walk. Lanes whose seed failed keep their seed outcome. large_ok (N,) bool: lanes
+    allowed SMBS's large mutations (the rest walk as plain SMS).
 
-    The lanes are cut into blocks of WALK_BLOCK (lanes.blocks), each walked in its own loop
-    with kernel and intersect calls on the thread that took it, so one block's Python work
-    overlaps another's kernels and rays (splitting each call instead left a core idle whenever
-    Python ran). Lanes walk independently of each other: the result does not depend on the
-    cut."""
-    n = len(x0)
-    if n <= WALK_BLOCK:
-        return _walk_lanes(ctx, cfg, types, x0, ng0, light, chain, large_ok)
+    kernels.walk_lanes walks each lane from its seed to its outcome, casting its rays itself;
+    the lanes are cut into blocks of WALK_BLOCK that the threads take in turn (lanes.blocks).
+    Lanes walk independently of each other: the result does not depend on the cut."""
+    n, k = len(x0), len(types)
+    if chain is None:
+        F, I = np.zeros((n, k, NF)), np.zeros((n, k, 3), np.int64)
+        outcome, out_dir = np.zeros(n, np.int64), np.zeros((n, 3))
+        d = np.ascontiguousarray(seed[0], np.float64)
+        want = np.full(n, -1, np.int64) if seed[1] is None else np.ascontiguousarray(seed[1], np.int64)
+    else:
+        F, I, outcome, out_dir = chain.F.copy(), chain.I.copy(), chain.status.copy(), chain.out_dir.copy()
+        d, want = np.zeros((n, 3)), np.full(n, -1, np.int64)
+    x0, ng0, ly, lys, lyt = (np.ascontiguousarray(a, np.float64) for a in (x0, ng0, light.y, light.ys, light.yt))
+    large_ok = np.ones(n, bool) if large_ok is None else np.ascontiguousarray(large_ok, bool)
+    etas = np.zeros((n, k))
+    state = (F, I, out_dir, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool), np.ones(n), np.ones(n),
+             np.zeros(n, np.int64), np.zeros(n, np.int64), outcome, np.zeros(n, bool), np.zeros(n, np.int64))
+    cfg_t, geo, tracer = kernel_config(ctx, cfg, types), _geo(ctx), ctx.tracer
 
     def part(a, b):
-        return _walk_lanes(ctx, cfg, types, x0[a:b], ng0[a:b], light.take(slice(a, b)), chain.take(slice(a, b)),
-                           None if large_ok is None else large_ok[a:b])
+        rt = tracer.rays()
+        lane = (x0[a:b], ng0[a:b], ly[a:b], lys[a:b], lyt[a:b], light.directional, etas[a:b], large_ok[a:b],
+                ctx.obj_lo, ctx.obj_hi)
+        large, counts = kernels.walk_lanes(rt, chain is not None, d[a:b], want[a:b], cfg_t, geo, lane,
+                                           tuple(x[a:b] for x in state))
+        tracer.cast_by_kernel(rt, counts)
+        return large, counts
 
-    parts = lanes.blocks(part, n, WALK_BLOCK, ctx.tracer.threads)
-    cols = zip(*[(p.chain.F, p.chain.I, p.chain.status, p.chain.out_dir) for p in parts])
-    return WalkResult(chain=Chain(*(np.concatenate(c) for c in cols)),
-                      converged=np.concatenate([p.converged for p in parts]),
-                      outcome=np.concatenate([p.outcome for p in parts]),
-                      mutations=np.concatenate([p.mutations for p in parts]),
-                      large={t: sum(p.large[t] for p in parts) for t in parts[0].large})
-
-
-def _walk_lanes(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain,
-                large_ok: np.ndarray | None) -> WalkResult:
-    """newton_walk on one block of lanes."""
-    n = len(x0)
-    k = len(types)
-    chain = Chain(chain.F.copy(), chain.I.copy(), chain.status.copy(), chain.out_dir.copy())
-    outcome = chain.status.copy()
-    converged = np.zeros(n, bool)
-    mutations = np.zeros(n, np.int64)
-    beta = np.ones(n)
-    err, front = end_mismatch(chain, light)
-    pending = np.zeros(n, np.int64)  # SMBS: trigger for the next step
-    # SMBS: GetRatio's bisection, carried on across iterations: a large mutation whose ray missed
-    # the caster (or failed otherwise) would repeat itself exactly from the same vertex, so the
-    # next one from there starts at half the weight; an accepted one resets it
-    lscale = np.ones(n)
-    large_counts = dict.fromkeys(TRIGGERS[1:], 0)
-    slow_n = np.zeros(n, np.int64)  # slow small steps in a row
-    etas = ctx.scene.mat_ior[chain.I[:, :, MAT]]  # (N,k), of the seed's vertices
-    valid = outcome == OK  # a lane converges only from a valid chain
-    outcome[outcome == SIDE] = OK  # an exit below the surface is walkable, not yet valid
-    act = np.flatnonzero(outcome == OK)
-    if large_ok is None:
-        large_ok = np.ones(n, bool)
-    if cfg.smbs and cfg.tir:  # a seed whose last refraction is TIR starts with a large mutation
-        tir_seed = np.flatnonzero((outcome == TIR) & large_ok)
-        pending[tir_seed] = TRIG_TIR
-        err[tir_seed] = np.inf
-        front[tir_seed] = False
-        outcome[tir_seed] = OK
-        act = np.sort(np.concatenate([act, tir_seed]))
-    # one kernel per iteration (kernels.walk_iterate: the acceptance of the last proposals, the
-    # convergence test, the next proposal and its ray), then one per chain vertex after each
-    # intersect call (trace_chain)
-    cfg_t = kernel_config(ctx, cfg, types)
-    lane_t = (x0, ng0, light.y, light.ys, light.yt, light.directional, etas, large_ok, ctx.obj_lo, ctx.obj_hi)
-    state = (chain.F, chain.I, chain.out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged,
-             mutations)
-    new, use_large = None, np.zeros(0, bool)
-    for it in range(cfg.max_iterations + 1):
-        if act.size == 0:
-            break
-
-        def part(a, b, act=act, new=new, use_large=use_large, it=it):
-            if new is None:
-                nF = np.zeros((0, k, NF))
-                nI = np.zeros((0, k, 3), np.int64)
-                nst, nout = np.zeros(0, np.int64), np.zeros((0, 3))
-            else:
-                nF, nI, nst, nout = new.F[a:b], new.I[a:b], new.status[a:b], new.out_dir[a:b]
-            return walk_iterate(act[a:b], new is not None, it == cfg.max_iterations, nF, nI, nst, nout,
-                                use_large[a:b], cfg_t, lane_t, state)
-
-        parts = lanes.run(part, act.size, ctx.tracer.threads, MIN_PART)
-        for *_, counts in parts:
-            for t_id in (TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW):
-                large_counts[TRIGGERS[t_id]] += int(counts[t_id])
-        act, o, dirs, use_large = _joined([p[:4] for p in parts])
-        if act.size == 0:
-            break
-        new = trace_chain(ctx, x0[act], o, dirs, types)
-    outcome[converged] = OK
-    return WalkResult(chain=chain, converged=converged, outcome=outcome, mutations=mutations, large=large_counts)
+    parts = lanes.blocks(part, n, WALK_BLOCK, tracer.threads)
+    large = sum((p[0] for p in parts), np.zeros(4, np.int64))
+    _count_rays(ctx, sum((p[1] for p in parts), np.zeros(embree.KINDS + 6, np.int64)))
+    converged, mutations = state[11], state[12]
+    return WalkResult(chain=Chain(F, I, outcome.copy(), out_dir), converged=converged, outcome=outcome,
+                      mutations=mutations, large={TRIGGERS[t]: int(large[t]) for t in (TRIG_TIR, TRIG_BACKLIT,
+                                                                                      TRIG_SLOW)})

@@ -149,16 +149,17 @@ def test_large_proposal_matches_numpy(types, directional):
 
 
 _CACHE_USE = r"""
-import importlib.util, sys
+import importlib, sys, types
 import numpy as np
 name, path = sys.argv[1], sys.argv[2]
-if name == "smbs_addon.kernels":
-    import smbs_addon.kernels as K
-else:  # the same file under another name, as Blender imports the extension
-    spec = importlib.util.spec_from_file_location(name, path)
-    K = importlib.util.module_from_spec(spec)
-    sys.modules[name] = K
-    spec.loader.exec_module(K)
+if name != "smbs_addon.kernels":  # the same files under another package name, as Blender imports the extension
+    top, sub = name.split(".")[:2]
+    for pkg, where in ((top, []), (top + "." + sub, [path])):
+        m = types.ModuleType(pkg)
+        m.__path__ = where
+        sys.modules[pkg] = m
+K = importlib.import_module(name)
+assert K.__file__.startswith(path)
 F = np.zeros((3, 1, K.NF))
 F[:, 0, 2] = 1.0
 err, front = K.end_mismatch(np.arange(3), F, np.tile([0.0, 0.0, 1.0], (3, 1)), np.tile([0.0, 0.0, 5.0], (3, 1)), False)
@@ -169,20 +170,51 @@ print("CACHE-OK")
 
 def test_disk_cache_survives_two_module_names(tmp_path):
     """A kernel cached under one module name (Blender's bl_ext.*.smbs_caustics...) must not break
-    a later process importing the same file as smbs_addon.kernels, and the other way round."""
+    a later process importing the same file as smbs_addon.kernels, and the other way round
+    (jit.py's cache locator)."""
     import os
     import subprocess
     import sys
     from pathlib import Path
 
     root = Path(__file__).resolve().parent.parent
-    path = str(root / "smbs_addon" / "kernels.py")
+    path = str(root / "smbs_addon")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
     for name in ("smbs_caustics_test.smbs_addon.kernels", "smbs_addon.kernels", "smbs_caustics_test.smbs_addon.kernels",
                  "smbs_addon.kernels"):
         proc = subprocess.run([sys.executable, "-c", _CACHE_USE, name, path], env=env, capture_output=True,
                               text=True, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
+
+
+def test_disk_cache_follows_every_file_with_kernels(tmp_path):
+    """A kernel of kernels.py inlines embree.py's ray calls, and numba's own stamp covers only
+    the kernel's file: jit.py's stamp covers every file with kernels, so after an edit of
+    embree.py alone a cached kernel is compiled again instead of loaded stale."""
+    import os
+    import shutil
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    src = Path(__file__).resolve().parent.parent / "smbs_addon"
+    pkg = tmp_path / "copy" / "smbs_addon"
+    pkg.mkdir(parents=True)
+    for f in ("jit.py", "embree.py", "kernels.py"):
+        shutil.copy(src / f, pkg / f)
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
+    use = _CACHE_USE + "print('HITS', sum(K.end_mismatch.stats.cache_hits.values()))\n"
+
+    def hits():
+        proc = subprocess.run([sys.executable, "-c", use, "copied.smbs_addon.kernels", str(pkg)], env=env,
+                              capture_output=True, text=True, timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
+        return int(proc.stdout.split("HITS")[1])
+
+    assert hits() == 0 and hits() == 1  # compiled, then loaded
+    with open(pkg / "embree.py", "a") as f:
+        f.write("# an edit\n")
+    assert hits() == 0 and hits() == 1
 
 
 def test_typed_once_types_a_long_tuple_once(monkeypatch):

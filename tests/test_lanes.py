@@ -25,8 +25,7 @@ def _same(a, b):
 ])
 def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monkeypatch):
     s = dict(method=method, estimator=estimator, spp=2, batches=2, seed=5)
-    # small parts, so that these small bakes really split every kernel and intersect call
-    monkeypatch.setattr(importlib.import_module("smbs_addon.walk"), "MIN_PART", 16)
+    # small parts, so that these small bakes really split every intersect call made from Python
     monkeypatch.setattr(importlib.import_module("smbs_addon.tracer"), "_MIN_SPLIT", 64)
     # and indirect.handoff_gather (the ball seen through itself, first chunk) in blocks of 16 receivers
     monkeypatch.setattr(importlib.import_module("smbs_addon.indirect"), "HANDOFF_LANES", 16 * 64)
@@ -42,10 +41,11 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     c = bake(make(), BakeSettings(**s, threads=1))
     d = bake(make(), BakeSettings(**s, threads=2))
     assert _same(c, d)
-    # the walks and the Bernoulli trials in blocks of 128 lanes that the threads take in turn
-    # (lanes.blocks): the image of the uncut walks, and the same rays whatever the threads
-    for mod in ("smbs_addon.walk", "smbs_addon.pool"):
-        monkeypatch.setattr(importlib.import_module(mod), "WALK_BLOCK", 128)
+    # the walks in blocks of 128 lanes and the Bernoulli trials in blocks of 8 samples that the
+    # threads take in turn (lanes.blocks): the image of the uncut walks, and the same rays
+    # whatever the threads
+    monkeypatch.setattr(importlib.import_module("smbs_addon.walk"), "WALK_BLOCK", 128)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.trials"), "TRIAL_BLOCK", 8)
     e = bake(make(), BakeSettings(**s, threads=1))
     f = bake(make(), BakeSettings(**s, threads=2))
     assert e.stats["rays"] == f.stats["rays"]
@@ -56,18 +56,22 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     (lambda: scenes.ring_scene(resolution=(48, 36)), "sms"),
     (lambda: scenes.glass_sphere_scene(resolution=(48, 36)), "smbs"),
 ])
-def test_bernoulli_pool_scheduling_does_not_change_the_image(make, method, monkeypatch):
-    """The lane pool's trials are keyed by (sample, trial): a pool of 64 lanes that runs every
-    sample's trials one at a time gives the image of a full pool that runs them side by side."""
-    pool = importlib.import_module("smbs_addon.pool")
+def test_bernoulli_trials_run_exactly_the_trials_each_sample_needs(make, method, monkeypatch):
+    """The trials are keyed by (sample, trial) and run one after the other per sample: blocks
+    of one sample give the image of the default blocks, and every sample runs exactly the
+    trials up to its first success (count = first success + 1), or max_trials if none."""
+    trials = importlib.import_module("smbs_addon.trials")
     s = BakeSettings(method=method, spp=2, batches=2, seed=7)
     a = bake(make(), s)
-    monkeypatch.setattr(pool, "POOL", 64)
-    monkeypatch.setattr(pool, "MAX_PARALLEL", 1)
+    monkeypatch.setattr(trials, "TRIAL_BLOCK", 1)
     b = bake(make(), s)
     assert a.stats["lights"] and _same(a, b)
-    walks = [sum(L.get("bernoulli_walks", 0) for L in r.stats["lights"].values()) for r in (a, b)]
-    assert walks[0] >= walks[1] > 0  # the full pool may run trials a sample turns out not to need
+    for r in (a, b):
+        L = list(r.stats["lights"].values())
+        walks = sum(x.get("bernoulli_walks", 0) for x in L)
+        counted = sum(x.get("bernoulli_trials", 0) for x in L)
+        capped = sum(x.get("capped", 0) for x in L)
+        assert walks > 0 and walks == counted - capped
 
 
 def test_blocks_run_each_block_once_in_order_and_do_not_split_inside():

@@ -1,0 +1,75 @@
+"""How the package's kernels compile with numba: the settings they share and their disk cache.
+
+Kernels (kernels.py, embree.py) compile on first use and are cached on disk (cache=True; numba
+falls back to a user cache folder when the package folder is read-only). nogil: threads run
+them side by side. error_model="numpy": x / 0 is inf or NaN as in numpy, never an exception.
+
+The cache locator installed here does two things numba's own does not:
+- one disk cache per name the package is imported under. numba's cache is keyed by the
+  source file, but a cached kernel rebuilds its environment by importing its module by the
+  name it was compiled under: the same file imported as smbs_addon.kernels (command line) and
+  as bl_ext.<repo>.smbs_caustics.smbs_addon.kernels (Blender) would each fail to load the
+  other's entries (ModuleNotFoundError). The module's name goes into the cache file names;
+- a stamp over every file that holds kernels. A kernel of kernels.py inlines embree.py's ray
+  calls, and numba's stamp covers only the kernel's own file: an edit of embree.py would load
+  a stale kernel.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+
+JIT = dict(cache=True, nogil=True, error_model="numpy")
+
+_PACKAGE = __name__.rpartition(".")[0]
+_FILES = [os.path.join(os.path.dirname(os.path.abspath(__file__)), f) for f in ("jit.py", "embree.py", "kernels.py")]
+
+
+def _stamp():
+    out = []
+    for f in _FILES:
+        st = os.stat(f)
+        out += [st.st_mtime, st.st_size]
+    return tuple(out)
+
+
+def _install_locator():
+    try:
+        from numba.core import caching
+    except ImportError:  # pragma: no cover - numba's layout changed: default caching
+        return
+
+    class Locator(caching._CacheLocator):
+        def __init__(self, inner, module):
+            self._inner = inner
+            self._tag = hashlib.sha1(module.encode()).hexdigest()[:10]
+
+        def ensure_cache_path(self):
+            self._inner.ensure_cache_path()
+
+        def get_cache_path(self):
+            return self._inner.get_cache_path()
+
+        def get_source_stamp(self):
+            return _stamp()
+
+        def get_disambiguator(self):
+            return f"{self._inner.get_disambiguator()}-{self._tag}"
+
+        @classmethod
+        def from_function(cls, py_func, py_file):
+            module = getattr(py_func, "__module__", None) or ""
+            if module.rpartition(".")[0] != _PACKAGE:
+                return None
+            for base in caching.CacheImpl._locator_classes:
+                if base is not cls and not getattr(base, "_smbs_per_module", False):
+                    inner = base.from_function(py_func, py_file)
+                    if inner is not None:
+                        return cls(inner, module)
+            return None
+
+    Locator._smbs_per_module = True
+    caching.CacheImpl._locator_classes.insert(0, Locator)
+
+
+_install_locator()
