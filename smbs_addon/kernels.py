@@ -251,6 +251,17 @@ def smap_d(refract, w, pre, dw, dn):
 
 
 @njit(inline="always", **_JIT)
+def smap_d_w(refract, w, pre, dw):
+    """smap_d where the normal does not move (dn = 0): the derivative by the vertex before."""
+    no, eta_r, sg, c, r = pre
+    if not refract:
+        return _sub(_mul(2.0, _mul(_dot(dw, no), no)), dw)
+    dc = _dot(dw, no)
+    dr = eta_r**2 * c * dc / r
+    return _sub(_mul(-eta_r, _sub(dw, _mul(dc, no))), _mul(dr, no))
+
+
+@njit(inline="always", **_JIT)
 def _unit_d(u, length, a):
     return _div(_sub(a, _mul(_dot(u, a), u)), length)
 
@@ -326,10 +337,17 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
             dwo = _neg(_unit_d(wo, lo, a)) if has_lo else zero
             A[j, 0, col], A[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
                                              dwi, dna, dwo)
+            # B (by the vertex before) moves only w_i, D (by the vertex after or the light) only
+            # w_o: in the angle-difference form the specular map's terms in what does not move
+            # are left out (they are zeros)
             if j > 0:
                 a = _vk(F, lane, j - 1, S if col == 0 else T)
-                B[j, 0, col], B[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2,
-                                                 hn, _unit_d(wi, li, a), zero, zero)
+                if hv:
+                    B[j, 0, col], B[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2,
+                                                     hn, _unit_d(wi, li, a), zero, zero)
+                else:
+                    dw = smap_d_w(refract, wi, pre, _unit_d(wi, li, a))
+                    B[j, 0, col], B[j, 1, col] = _dot(e1, dw), _dot(e2, dw)
             else:
                 B[j, 0, col] = B[j, 1, col] = 0.0
             if j < k - 1:
@@ -337,8 +355,11 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
             else:
                 a = _v(lys, lane, 0) if col == 0 else _v(lyt, lane, 0)
             dwo = _unit_d(wo, lo, a) if has_lo else a
-            D[j, 0, col], D[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
-                                             zero, zero, dwo)
+            if hv:
+                D[j, 0, col], D[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
+                                                 zero, zero, dwo)
+            else:
+                D[j, 0, col], D[j, 1, col] = -_dot(e1, dwo), -_dot(e2, dwo)
     return ok
 
 
