@@ -518,6 +518,108 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
     return p_out, d_out, oks
 
 
+# ------------------------------------------------------------------ a ray's hit in float64
+@njit(inline="always", **_JIT)
+def _hit_point(o, d, xo, exact, t32, pr, tv, tng, eps):
+    """tracer.intersect's float64 hit of the ray o + t d (the offset origin embree traced from;
+    xo, where it really starts when exact, else o) on primitive pr at embree's float32 distance
+    t32: the plane of the triangle re-intersected from xo, embree's distance kept where the two
+    disagree badly (its own error is absolute: float32 vertices, ~1e-7 of the extent, hence
+    + eps). Returns (t from xo, the point, the unit geometric normal, corner 0, edges 1 and 2)."""
+    tt = t32 + _dot(_sub(o, xo), d) if exact else t32
+    g = _v(tng, pr, 0)
+    v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
+    v1 = (tv[pr, 1, 0], tv[pr, 1, 1], tv[pr, 1, 2])
+    v2 = (tv[pr, 2, 0], tv[pr, 2, 1], tv[pr, 2, 2])
+    den = _dot(d, g)
+    num = _dot(_sub(v0, xo), g)
+    ti = num / den if abs(den) > 1e-12 else tt
+    if not math.isfinite(ti) or abs(ti - tt) > 1e-3 * abs(tt) + eps:
+        ti = tt
+    return ti, _add(xo, _mul(ti, d)), g, v0, _sub(v1, v0), _sub(v2, v0)
+
+
+@njit(inline="always", **_JIT)
+def _barycentric(e1, e2, q):
+    """Barycentrics (b1, b2) of corners 1 and 2 for q = p - v0 on the triangle of edges e1, e2
+    (1/3 each where the triangle is degenerate), and the edges' dot products d11, d12, d22."""
+    d11, d12, d22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
+    q1, q2 = _dot(q, e1), _dot(q, e2)
+    det = d11 * d22 - d12 * d12
+    if det > 0:
+        inv = 1.0 / det
+        return (d22 * q1 - d12 * q2) * inv, (d11 * q2 - d12 * q1) * inv, d11, d12, d22
+    return 1.0 / 3.0, 1.0 / 3.0, d11, d12, d22
+
+
+@njit(inline="always", **_JIT)
+def _shading_normal(tns, pr, b1, b2, g):
+    """tracer.shading_normal: the corner normals interpolated and normalised (not flipped towards
+    the geometric normal g, as Cycles' triangle_smooth_normal), g where they give none."""
+    b0 = 1.0 - b1 - b2
+    c0 = (tns[pr, 0, 0], tns[pr, 0, 1], tns[pr, 0, 2])
+    c1 = (tns[pr, 1, 0], tns[pr, 1, 1], tns[pr, 1, 2])
+    c2 = (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2])
+    n = _normalize(_add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2)))
+    return g if _dot(n, n) < 0.5 else n
+
+
+@njit(**_JIT)
+def _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b):
+    """intersect_rays' loop over its rays, on borrowed arrays (its caller holds them)."""
+    ray = _borrowed(ray)
+    o, d, tmax, xo, tv, tng, tns = _borrowed((o, d, tmax, xo, tv, tng, tns))
+    prim, t, p, ng, ns, b = _borrowed((prim, t, p, ng, ns, b))
+    for i in range(o.shape[0]):
+        oi, di = _v(o, i, 0), _v(d, i, 0)
+        pr, t32 = intersect1(ray, oi, di, tmax[i] if tmax.shape[0] else np.inf, 0)
+        prim[i] = pr
+        if pr < 0:
+            t[i] = np.inf
+            continue
+        ti, pi, g, v0, e1, e2 = _hit_point(oi, di, _v(xo, i, 0) if exact else oi, exact, t32, pr, tv, tng, eps)
+        b1, b2, _, _, _ = _barycentric(e1, e2, _sub(pi, v0))
+        n = _shading_normal(tns, pr, b1, b2, g)
+        t[i] = ti
+        b[i, 0], b[i, 1] = b1, b2
+        for c in range(3):
+            p[i, c], ng[i, c], ns[i, c] = pi[c], g[c], n[c]
+
+
+@njit(**_JIT)
+def intersect_rays(rt, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b):
+    """tracer.intersect: closest hits of rays o + t d (offset origins o; xo where they really
+    start when exact), t < tmax (empty: no limit), with float64 hit records (_hit_point,
+    _barycentric, _shading_normal) written to prim (-1 on a miss), t (inf on a miss), p, ng,
+    ns, b (left as they are on a miss). Returns the ray counters (embree.ray_state)."""
+    ray = ray_state(rt)
+    _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b)
+    return ray[6]
+
+
+@njit(**_JIT)
+def barycentric_rows(tv, prim, p):
+    """tracer.barycentrics: (b1, b2) of points p on triangles prim."""
+    out = np.zeros((prim.shape[0], 2))
+    for i in range(prim.shape[0]):
+        pr = prim[i]
+        v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
+        e1 = (tv[pr, 1, 0] - v0[0], tv[pr, 1, 1] - v0[1], tv[pr, 1, 2] - v0[2])
+        e2 = (tv[pr, 2, 0] - v0[0], tv[pr, 2, 1] - v0[1], tv[pr, 2, 2] - v0[2])
+        out[i, 0], out[i, 1], _, _, _ = _barycentric(e1, e2, _sub(_v(p, i, 0), v0))
+    return out
+
+
+@njit(**_JIT)
+def shading_normal_rows(tns, tng, prim, b):
+    """tracer.shading_normal at barycentrics b on triangles prim."""
+    out = np.zeros((prim.shape[0], 3))
+    for i in range(prim.shape[0]):
+        n = _shading_normal(tns, prim[i], b[i, 0], b[i, 1], _v(tng, prim[i], 0))
+        out[i, 0], out[i, 1], out[i, 2] = n
+    return out
+
+
 # ------------------------------------------------------------------ a vertex from a ray hit
 @njit(inline="always", **_JIT)
 def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tns, eps, tri_material, mat_kind,
@@ -531,32 +633,8 @@ def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tn
     outgoing direction to out; returns whether the chain goes on, and the next ray's offset
     origin and direction, and the vertex."""
     zero = (0.0, 0.0, 0.0)
-    # tracer.intersect: the hit re-computed in float64
-    oi = prev if exact else o
-    di = d
-    tt = t32
-    if exact:
-        tt = tt + _dot(_sub(o, oi), di)
-    g = _v(tng, pr, 0)
-    v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
-    v1 = (tv[pr, 1, 0], tv[pr, 1, 1], tv[pr, 1, 2])
-    v2 = (tv[pr, 2, 0], tv[pr, 2, 1], tv[pr, 2, 2])
-    den = _dot(di, g)
-    num = _dot(_sub(v0, oi), g)
-    ti = num / den if abs(den) > 1e-12 else tt
-    if not math.isfinite(ti) or abs(ti - tt) > 1e-3 * abs(tt) + eps:
-        ti = tt
-    p = _add(oi, _mul(ti, di))
-    e1, e2, q = _sub(v1, v0), _sub(v2, v0), _sub(p, v0)
-    d11, d12, d22 = _dot(e1, e1), _dot(e1, e2), _dot(e2, e2)
-    q1, q2 = _dot(q, e1), _dot(q, e2)
-    det = d11 * d22 - d12 * d12
-    if det > 0:
-        inv = 1.0 / det
-        b1 = (d22 * q1 - d12 * q2) * inv
-        b2 = (d11 * q2 - d12 * q1) * inv
-    else:
-        b1 = b2 = 1.0 / 3.0
+    ti, p, g, v0, e1, e2 = _hit_point(o, d, prev if exact else o, exact, t32, pr, tv, tng, eps)
+    b1, b2, d11, d12, d22 = _barycentric(e1, e2, _sub(p, v0))
     # geometry.vertex_from_hits
     s = _normalize(e1)
     t = _cross(g, s)
@@ -678,9 +756,11 @@ def trace_lanes(rt, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
     return ray[6]
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out):
-    """The seed chain of lane i (trace_lanes), its rays counted as seeds."""
+    """The seed chain of lane i (trace_lanes), its rays counted as seeds. Not inlined: one call
+    per walk, and one compiled copy of _trace_lane for every kernel that seeds (inlined into
+    each, the walk kernels took minutes to compile)."""
     xi = _v(x0, i, 0)
     di = _v(d, i, 0)
     g = _v(ng0, i, 0)
@@ -1033,9 +1113,10 @@ def _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
     F, I, out_dir, outcome, converged, mutations = state[0], state[1], state[2], state[10], state[11], state[12]
     kinds, smbs, eps = cfg[1], cfg[2], cfg[13]
+    row = x0.shape[0] - 1  # the one row of lane and state (0, but not a literal 0: one compiled _walk_lane)
     for p in range(sx0.shape[0]):
         for c in range(3):
-            x0[0, c], ng0[0, c], ly[0, c] = sx0[p, c], sng[p, c], sly[p, c]
+            x0[row, c], ng0[row, c], ly[row, c] = sx0[p, c], sng[p, c], sly[p, c]
         for t in range(max_trials):
             # trial t of sample p: a seed aimed at a uniform point on the casters (manifold.Seeder
             # for SMS), its random numbers keyed by (key, p0 + p, t)
@@ -1048,17 +1129,17 @@ def _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal
             q = (b0 * tv[tri, 0, 0] + b1 * tv[tri, 1, 0] + b2 * tv[tri, 2, 0],
                  b0 * tv[tri, 0, 1] + b1 * tv[tri, 1, 1] + b2 * tv[tri, 2, 1],
                  b0 * tv[tri, 0, 2] + b1 * tv[tri, 1, 2] + b2 * tv[tri, 2, 2])
-            dq = _normalize(_sub(q, _v(x0, 0, 0)))
-            d[0, 0], d[0, 1], d[0, 2] = dq
-            want[0] = tobj[tri]
-            large_ok[0] = keyed_uniform(key, p0 + p, t, 3) >= defensive if smbs else True
-            _seed_lane(ray, 0, x0, ng0, d, want, kinds, geo, eps, F, I, outcome, out_dir)
-            _walk_lane(0, cfg, geo, lane, state, scratch, proposal, ray, large)
+            dq = _normalize(_sub(q, _v(x0, row, 0)))
+            d[row, 0], d[row, 1], d[row, 2] = dq
+            want[row] = tobj[tri]
+            large_ok[row] = keyed_uniform(key, p0 + p, t, 3) >= defensive if smbs else True
+            _seed_lane(ray, row, x0, ng0, d, want, kinds, geo, eps, F, I, outcome, out_dir)
+            _walk_lane(row, cfg, geo, lane, state, scratch, proposal, ray, large)
             tally[0] += 1
-            tally[1] += mutations[0]
-            if converged[0]:
-                d2 = _normalize(_sub(_vk(F, 0, 0, P), _v(x0, 0, 0)))
-                if abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[0, 0, OBJ] == obj1[p]:
+            tally[1] += mutations[row]
+            if converged[row]:
+                d2 = _normalize(_sub(_vk(F, row, 0, P), _v(x0, row, 0)))
+                if abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[row, 0, OBJ] == obj1[p]:
                     first[p] = t
                     break
 

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import embree, lanes
+from .kernels import barycentric_rows, intersect_rays, shading_normal_rows
 from .vec import cross, dot, normalize
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
@@ -126,77 +127,52 @@ class Tracer:
     def cast(self, o: np.ndarray, d: np.ndarray):
         """Embree's closest hits of rays o + t d as they come: primitive ids (int64, -1 on a
         miss) and float32 distances as float64, for callers that re-compute the hits
-        themselves (kernels.hit_vertices does intersect's work per lane)."""
+        themselves."""
         return self._run(o, d, None, "INTERSECT")
 
     def intersect(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray | None = None,
                   exact_origin: np.ndarray | None = None) -> Hits:
-        """Closest hits of rays o + t d (d unit), re-computed in float64.
+        """Closest hits of rays o + t d (d unit), re-computed in float64 (kernels.intersect_rays:
+        the plane of the hit triangle re-intersected, barycentrics, the shading normal).
 
         exact_origin: where the ray really starts (o is then only the offset
         origin embree traces from); the hit is re-computed on the line
         exact_origin + t d, so chains of specular vertices stay exact."""
-        prim, t32 = self._run(o, d, tmax, "INTERSECT")
-        hit = prim >= 0
         n = len(o)
-        p = np.zeros((n, 3))
-        ng = np.zeros((n, 3))
-        ns = np.zeros((n, 3))
-        b = np.zeros((n, 2))
+        prim = np.full(n, -1, np.int64)
         t = np.full(n, np.inf)
-        if hit.any():
-            idx = np.flatnonzero(hit)
-            pi = prim[idx]
-            oi, di = (o if exact_origin is None else exact_origin)[idx], d[idx]
-            if exact_origin is not None:
-                t32 = t32.copy()
-                t32[idx] += dot(o[idx] - oi, di)
-            v0 = self.v[pi, 0]
-            g = self.ng[pi]
-            den = dot(di, g)
-            num = dot(v0 - oi, g)
-            ok = np.abs(den) > 1e-12
-            ti = np.where(ok, num / np.where(ok, den, 1.0), t32[idx])
-            # keep embree's distance where the plane re-intersection disagrees badly; embree's
-            # own error is absolute (float32 vertices: ~1e-7 of the extent), hence + eps
-            bad = ~np.isfinite(ti) | (np.abs(ti - t32[idx]) > 1e-3 * np.abs(t32[idx]) + self.eps)
-            ti = np.where(bad, t32[idx], ti)
-            pi_pos = oi + ti[:, None] * di
-            bi = self.barycentrics(pi, pi_pos)
-            t[idx] = ti
-            p[idx] = pi_pos
-            ng[idx] = g
-            ns[idx] = self.shading_normal(pi, bi)
-            b[idx] = bi
-        return Hits(hit=hit, prim=prim, t=t, p=p, ng=ng, ns=ns, b=b)
+        p, ng, ns, b = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 3)), np.zeros((n, 2))
+        if n and self._embree is None:
+            with lanes.LOCK:
+                self.rays_cast += n
+        elif n:
+            o = np.ascontiguousarray(o, dtype=np.float64)
+            d = np.ascontiguousarray(d, dtype=np.float64)
+            tmax = np.zeros(0) if tmax is None else np.ascontiguousarray(np.broadcast_to(tmax, (n,)), np.float64)
+            exact = exact_origin is not None
+            xo = np.ascontiguousarray(exact_origin, dtype=np.float64) if exact else o
+
+            def job(a, c):
+                rt = self.rays()
+                counts = intersect_rays(rt, o[a:c], d[a:c], tmax[a:c] if tmax.size else tmax, xo[a:c], exact,
+                                        self.v, self.ng, self.ns_corner, self.eps, prim[a:c], t[a:c], p[a:c],
+                                        ng[a:c], ns[a:c], b[a:c])
+                self.cast_by_kernel(rt, counts)
+
+            lanes.run(job, n, self.threads, _MIN_SPLIT)
+        return Hits(hit=prim >= 0, prim=prim, t=t, p=p, ng=ng, ns=ns, b=b)
 
     # ------------------------------------------------------------- geometry
     def barycentrics(self, prim: np.ndarray, p: np.ndarray) -> np.ndarray:
-        v0, v1, v2 = self.v[prim, 0], self.v[prim, 1], self.v[prim, 2]
-        e1, e2, q = v1 - v0, v2 - v0, p - v0
-        d11, d12, d22 = dot(e1, e1), dot(e1, e2), dot(e2, e2)
-        q1, q2 = dot(q, e1), dot(q, e2)
-        det = d11 * d22 - d12 * d12
-        ok = det > 0
-        inv = np.divide(1.0, det, out=np.zeros_like(det), where=ok)
-        b1 = (d22 * q1 - d12 * q2) * inv
-        b2 = (d11 * q2 - d12 * q1) * inv
-        b1 = np.where(ok, b1, 1.0 / 3.0)
-        b2 = np.where(ok, b2, 1.0 / 3.0)
-        return np.stack([b1, b2], -1)
+        """(b1, b2) of points p on triangles prim (1/3 each on a degenerate triangle)."""
+        return barycentric_rows(self.v, np.ascontiguousarray(prim, np.int64), np.ascontiguousarray(p, np.float64))
 
     def shading_normal(self, prim: np.ndarray, b: np.ndarray) -> np.ndarray:
         """Interpolated, normalised corner normal (not flipped towards the geometric
         normal, like Cycles' triangle_smooth_normal); falls back to the geometric
         normal where the interpolated corner normals are zero."""
-        c = self.ns_corner[prim]
-        b0 = 1.0 - b[:, 0] - b[:, 1]
-        nraw = b0[:, None] * c[:, 0] + b[:, 0:1] * c[:, 1] + b[:, 1:2] * c[:, 2]
-        n = normalize(nraw)
-        g = self.ng[prim]
-        bad = dot(n, n) < 0.5
-        n = np.where(bad[:, None], g, n)
-        return n
+        return shading_normal_rows(self.ns_corner, self.ng, np.ascontiguousarray(prim, np.int64),
+                                   np.ascontiguousarray(b, np.float64))
 
     def differentials(self, prim: np.ndarray, b: np.ndarray) -> dict:
         """dp/du, dp/dv from the triangle's UVs (per-triangle default UVs when
