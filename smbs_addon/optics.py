@@ -1,68 +1,98 @@
-"""Reflection, refraction and Fresnel on (N,3) direction arrays.
+"""Reflection, refraction, Fresnel and the specular scatter of a path, per lane.
 
 Convention: ``w`` points AWAY from the surface (towards where light comes
 from or goes to), ``n`` is a unit normal (either side). Results point away from
 the surface on the other side of the interaction.
+
+Each function is written once, per lane, compiled with numba (jit.py), and called by the
+kernels of the light paths (scatter_rows: the light tracer, the eye pass, the hand-off, the
+photon pre-pass) and, through the array wrappers below, by the plan and the estimators.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
+from numba import njit
 
 from . import scene as S
-from .vec import dot
+from .jit import JIT
+
+_CONDUCTOR, _DIELECTRIC = S.CONDUCTOR, S.DIELECTRIC
+_SCHLICK, _REFRACTION_ONLY = S.FRESNEL_SCHLICK, S.REFRACTION_ONLY
 
 
-def reflect(w: np.ndarray, n: np.ndarray) -> np.ndarray:
+# ------------------------------------------------------------------ per lane
+@njit(inline="always", **JIT)
+def _dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+@njit(inline="always", **JIT)
+def reflect1(w, n):
     """Mirror w about n: 2 (w.n) n - w."""
-    return 2.0 * dot(w, n)[..., None] * n - w
+    c = 2.0 * _dot(w, n)
+    return (c * n[0] - w[0], c * n[1] - w[1], c * n[2] - w[2])
 
 
-def refract(w: np.ndarray, n: np.ndarray, eta) -> tuple[np.ndarray, np.ndarray]:
-    """Refract w through an interface with relative IOR eta = n_inside / n_outside,
-    where n points to the outside. Returns (direction, ok); ok is False on total
-    internal reflection (the direction is then zero, never NaN)."""
-    eta = np.asarray(eta, float)
-    c = dot(w, n)
+@njit(inline="always", **JIT)
+def refract1(w, n, eta):
+    """Refract w through an interface with relative IOR eta = n_inside / n_outside, where n
+    points to the outside: (direction, ok); ok False on total internal reflection (the
+    direction is then zero, never NaN)."""
+    c = _dot(w, n)
     outside = c >= 0
-    eta_r = np.where(outside, 1.0 / eta, eta)  # n_from / n_to
-    nn = np.where(outside[..., None], n, -n)
-    c = np.abs(c)
+    eta_r = 1.0 / eta if outside else eta  # n_from / n_to
+    nn = n if outside else (-n[0], -n[1], -n[2])
+    c = abs(c)
     r2 = 1.0 - eta_r**2 * (1.0 - c * c)
-    ok = r2 > 0.0
-    r = np.sqrt(np.where(ok, r2, 0.0))
-    t = -eta_r[..., None] * (w - c[..., None] * nn) - r[..., None] * nn
-    return np.where(ok[..., None], t, 0.0), ok
+    if not r2 > 0.0:
+        return (0.0, 0.0, 0.0), False
+    r = math.sqrt(r2)
+    return (-eta_r * (w[0] - c * nn[0]) - r * nn[0], -eta_r * (w[1] - c * nn[1]) - r * nn[1],
+            -eta_r * (w[2] - c * nn[2]) - r * nn[2]), True
 
 
-def fresnel_dielectric(cos_i: np.ndarray, eta) -> np.ndarray:
-    """Unpolarised Fresnel reflectance. cos_i = w.n (sign tells the side);
-    eta = n_inside / n_outside with n pointing outside. 1 on total internal reflection."""
-    eta = np.asarray(eta, float)
-    cos_i = np.asarray(cos_i, float)
-    outside = cos_i >= 0
-    eta_r = np.where(outside, 1.0 / eta, eta)  # n_from / n_to
-    ci = np.minimum(np.abs(cos_i), 1.0)
+@njit(inline="always", **JIT)
+def fresnel_dielectric1(cos_i, eta):
+    """Unpolarised Fresnel reflectance. cos_i = w.n (its sign tells the side); eta =
+    n_inside / n_outside with n pointing outside. 1 on total internal reflection."""
+    eta_r = 1.0 / eta if cos_i >= 0 else eta  # n_from / n_to
+    ci = abs(cos_i)
+    if ci > 1.0:
+        ci = 1.0
     s2t = eta_r**2 * (1.0 - ci * ci)
-    tir = s2t >= 1.0
-    ct = np.sqrt(np.maximum(0.0, 1.0 - s2t))
+    if s2t >= 1.0:
+        return 1.0
+    x = 1.0 - s2t
+    ct = math.sqrt(0.0 if 0.0 >= x else x)  # np.maximum(0, x): NaN stays
     # with n1/n2 = eta_r: rs = (n1 ci - n2 ct)/(n1 ci + n2 ct) = (eta_r ci - ct)/(eta_r ci + ct)
     den_s = eta_r * ci + ct
     den_p = ci + eta_r * ct
-    rs = np.divide(eta_r * ci - ct, den_s, out=np.ones_like(ci), where=den_s > 0)
-    rp = np.divide(ci - eta_r * ct, den_p, out=np.ones_like(ci), where=den_p > 0)
-    f = 0.5 * (rs * rs + rp * rp)
-    return np.where(tir, 1.0, np.clip(f, 0.0, 1.0))
+    rs = (eta_r * ci - ct) / den_s if den_s > 0 else 1.0
+    rp = (ci - eta_r * ct) / den_p if den_p > 0 else 1.0
+    return _clip01(0.5 * (rs * rs + rp * rp))
 
 
-def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
-    """Schlick's approximation, (N,) cosines and (N,3) or (3,) F0 -> (N,3)."""
-    m = np.clip(1.0 - np.abs(cos_i), 0.0, 1.0)[..., None]
-    return f0 + (1.0 - f0) * m**5
+@njit(inline="always", **JIT)
+def _clip01(x):
+    """np.clip(x, 0, 1): NaN stays NaN."""
+    if x < 0.0:
+        return 0.0
+    if x > 1.0:
+        return 1.0
+    return x
 
 
-def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
-    """Weights (R, T), each (N,3), of the mirror and refraction lobes of materials mat
-    for incidence cos_i = w_i . n (its sign tells the side; Cycles' conventions):
+@njit(inline="always", **JIT)
+def _schlick(m5, f0):
+    return f0 + (1.0 - f0) * m5
+
+
+@njit(inline="always", **JIT)
+def specular_weights1(kind, fres, color, rcolor, eta, cos_i):
+    """Weights (R, T) (3-tuples) of the mirror and refraction lobes of a material for
+    incidence cos_i = w_i . n (its sign tells the side; Cycles' conventions):
 
     - conductor: R = colour (Glossy BSDF) or Schlick from F0 = colour (Principled
       metallic); T = 0;
@@ -72,24 +102,188 @@ def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
 
     Radiance is not scaled by eta^2 here (Cycles does not); callers that need the
     physical convention scale refractions themselves."""
-    kind = scene.mat_kind[mat]
-    color = scene.mat_color[mat]
-    fres = scene.mat_fresnel[mat]
-    n = len(mat)
+    zero = (0.0, 0.0, 0.0)
+    if kind == _CONDUCTOR:
+        if fres == _SCHLICK:
+            m5 = math.pow(_clip01(1.0 - abs(cos_i)), 5.0)
+            return (_schlick(m5, color[0]), _schlick(m5, color[1]), _schlick(m5, color[2])), zero
+        return color, zero
+    if kind == _DIELECTRIC:
+        F = fresnel_dielectric1(cos_i, eta)
+        if fres == _REFRACTION_ONLY:
+            t = 1.0 if F < 1.0 else 0.0
+            return (0.0 * rcolor[0], 0.0 * rcolor[1], 0.0 * rcolor[2]), (t * color[0], t * color[1], t * color[2])
+        t = 1.0 - F
+        return (F * rcolor[0], F * rcolor[1], F * rcolor[2]), (t * color[0], t * color[1], t * color[2])
+    return zero, zero
+
+
+@njit(inline="always", **JIT)
+def _row3(a, i):
+    return (a[i, 0], a[i, 1], a[i, 2])
+
+
+@njit(inline="always", **JIT)
+def _material(mats, m):
+    """Material m's (kind, Fresnel model, colour, reflection tint, IOR) from the scene's tables
+    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior)."""
+    kind, fres, color, rcolor, ior = mats
+    return kind[m], fres[m], _row3(color, m), _row3(rcolor, m), ior[m]
+
+
+@njit(inline="always", **JIT)
+def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
+    """One perfect-specular interaction, as Cycles makes it (reference.scatter_specular):
+    returns (ok, the new direction (unit), the new weight). u: the uniform number that picks
+    the lobe; kind_m: the kind the caller found (material m's)."""
+    zero = (0.0, 0.0, 0.0)
+    kind, fres, color, rcolor, eta = _material(mats, m)
+    if _dot(ns, ng) < 0:  # a shading normal on the geometric one's side
+        ns = (-ns[0], -ns[1], -ns[2])
+    cin = _dot(w_in, ng)
+    cs = _dot(w_in, ns)
+    sgn = 1.0 if cin > 0 else (-1.0 if cin < 0 else 0.0)
+    front = cs * sgn > 0  # Cycles: N.wi <= 0 after the flip -> no scattering
+    R, T = specular_weights1(kind, fres, color, rcolor, eta, cs)
+    r_lum, t_lum = R[0] + R[1] + R[2], T[0] + T[1] + T[2]
+    tot = r_lum + t_lum
+    p_r = r_lum / tot if tot > 0 else 0.0
+    choose_r = u < p_r
+    t_dir, t_ok = refract1(w_in, ns, eta)
+    n_out = reflect1(w_in, ns) if choose_r else t_dir
+    p_sel = p_r if choose_r else 1.0 - p_r
+    W = R if choose_r else T
+    den = p_sel if p_sel > 0 else 1.0
+    b = (beta[0] * (W[0] / den), beta[1] * (W[1] / den), beta[2] * (W[2] / den))
+    if scale_eta and not (choose_r or kind_m != _DIELECTRIC):
+        ratio = eta if cin < 0 else 1.0 / eta  # eta(w_in side) / eta(other side)
+        r2 = ratio**2
+        b = (b[0] * r2, b[1] * r2, b[2] * r2)
+    cout = _dot(n_out, ng)
+    if adjoint:
+        num = abs(cs * cout)
+        dn = abs(cin * _dot(n_out, ns))
+        corr = num / dn if dn > 0 else 0.0
+        b = (b[0] * corr, b[1] * corr, b[2] * corr)
+    side = (cin * cout > 0) if choose_r else ((cin * cout < 0) and t_ok)
+    finite = b[0] == b[0] and b[1] == b[1] and b[2] == b[2]  # numpy's max of a row with a NaN is NaN
+    if not (front and side and p_sel > 0 and finite and (b[0] > 0 or b[1] > 0 or b[2] > 0)):
+        return False, zero, zero
+    ln = math.sqrt(_dot(n_out, n_out))
+    inv = 1.0 / ln if ln > 0 else 0.0
+    return True, (n_out[0] * inv, n_out[1] * inv, n_out[2] * inv), b
+
+
+# ------------------------------------------------------------------ over arrays
+@njit(**JIT)
+def scatter_rows(u, w_in, ns, ng, mat, kind, mats, beta, scale_eta, adjoint):
+    """scatter1 per lane: (new directions, new weights, kept lanes)."""
+    n = u.shape[0]
+    d_out = np.zeros((n, 3))
+    b_out = np.zeros((n, 3))
+    keep = np.zeros(n, np.int64)
+    cnt = 0
+    for i in range(n):
+        ok, d, b = scatter1(u[i], _row3(w_in, i), _row3(ns, i), _row3(ng, i), mat[i], kind[i], mats,
+                            _row3(beta, i), scale_eta, adjoint)
+        if ok:
+            keep[cnt] = i
+            for c in range(3):
+                d_out[cnt, c] = d[c]
+                b_out[cnt, c] = b[c]
+            cnt += 1
+    return d_out[:cnt], b_out[:cnt], keep[:cnt]
+
+
+@njit(**JIT)
+def _weights_rows(mat, mats, cos_i):
+    n = mat.shape[0]
     R = np.zeros((n, 3))
     T = np.zeros((n, 3))
-    cond = kind == S.CONDUCTOR
-    if cond.any():
-        c = np.flatnonzero(cond)
-        R[c] = np.where((fres[c] == S.FRESNEL_SCHLICK)[:, None], fresnel_schlick(cos_i[c], color[c]), color[c])
-    diel = kind == S.DIELECTRIC
-    if diel.any():
-        d = np.flatnonzero(diel)
-        F = fresnel_dielectric(cos_i[d], scene.mat_ior[mat[d]])
-        only_t = fres[d] == S.REFRACTION_ONLY
-        R[d] = np.where(only_t, 0.0, F)[:, None] * scene.mat_reflect_color[mat[d]]
-        T[d] = np.where(only_t, (F < 1.0).astype(float), 1.0 - F)[:, None] * color[d]
+    for i in range(n):
+        kind, fres, color, rcolor, eta = _material(mats, mat[i])
+        r, t = specular_weights1(kind, fres, color, rcolor, eta, cos_i[i])
+        for c in range(3):
+            R[i, c], T[i, c] = r[c], t[c]
     return R, T
+
+
+@njit(**JIT)
+def _fresnel_rows(cos_i, eta):
+    out = np.zeros(cos_i.shape[0])
+    for i in range(cos_i.shape[0]):
+        out[i] = fresnel_dielectric1(cos_i[i], eta[i])
+    return out
+
+
+@njit(**JIT)
+def _reflect_rows(w, n):
+    out = np.zeros(w.shape)
+    for i in range(w.shape[0]):
+        out[i, 0], out[i, 1], out[i, 2] = reflect1(_row3(w, i), _row3(n, i))
+    return out
+
+
+@njit(**JIT)
+def _refract_rows(w, n, eta):
+    out = np.zeros(w.shape)
+    ok = np.zeros(w.shape[0], np.bool_)
+    for i in range(w.shape[0]):
+        t, ok[i] = refract1(_row3(w, i), _row3(n, i), eta[i])
+        out[i, 0], out[i, 1], out[i, 2] = t
+    return out, ok
+
+
+def materials(scene) -> tuple:
+    """The scene's material tables as scatter1 takes them."""
+    return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
+            np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
+            np.ascontiguousarray(scene.mat_ior, np.float64))
+
+
+def _rows3(*arrays):
+    """(N,3) float64 C arrays of (..., 3) inputs broadcast together, and the leading shape."""
+    b = np.broadcast_arrays(*[np.asarray(a, np.float64) for a in arrays])
+    shape = b[0].shape[:-1]
+    return [np.ascontiguousarray(x.reshape(-1, 3)) for x in b], shape
+
+
+def reflect(w: np.ndarray, n: np.ndarray) -> np.ndarray:
+    """Mirror w about n: 2 (w.n) n - w, over (..., 3) arrays."""
+    (w, n), shape = _rows3(w, n)
+    return _reflect_rows(w, n).reshape(shape + (3,))
+
+
+def refract(w: np.ndarray, n: np.ndarray, eta) -> tuple[np.ndarray, np.ndarray]:
+    """refract1 over (..., 3) arrays (eta broadcast over the leading shape): (directions, ok)."""
+    (w, n), shape = _rows3(w, n)
+    eta = np.ascontiguousarray(np.broadcast_to(np.asarray(eta, np.float64), shape).reshape(-1))
+    t, ok = _refract_rows(w, n, eta)
+    return t.reshape(shape + (3,)), ok.reshape(shape)
+
+
+def fresnel_dielectric(cos_i: np.ndarray, eta) -> np.ndarray:
+    """fresnel_dielectric1 over arrays (eta broadcast to cos_i's shape)."""
+    cos_i = np.asarray(cos_i, np.float64)
+    eta = np.broadcast_to(np.asarray(eta, np.float64), cos_i.shape)
+    return _fresnel_rows(np.ascontiguousarray(cos_i.reshape(-1)), np.ascontiguousarray(eta.reshape(-1))).reshape(
+        cos_i.shape)
+
+
+def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
+    """Schlick's approximation, (N,) cosines and (N,3) or (3,) F0 -> (N,3) (a conductor's R in
+    specular_weights1)."""
+    cos_i = np.ascontiguousarray(cos_i, np.float64).reshape(-1)
+    f0 = np.ascontiguousarray(np.broadcast_to(np.asarray(f0, np.float64), (len(cos_i), 3)))
+    n = len(cos_i)
+    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.zeros((n, 3)), np.ones(n))
+    return _weights_rows(np.arange(n), mats, cos_i)[0]
+
+
+def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
+    """specular_weights1 per lane: (R, T), each (N,3), of materials mat at incidence cos_i."""
+    return _weights_rows(np.ascontiguousarray(mat, np.int64), materials(scene),
+                         np.ascontiguousarray(cos_i, np.float64))
 
 
 def has_reflection(scene, mat) -> bool:

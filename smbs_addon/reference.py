@@ -18,11 +18,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import scene as S
-from .optics import reflect, refract, specular_weights
+from .optics import materials, scatter_rows
 from .lights import soft_falloff_factor
 from .estimators import concentration
 from .geometry import vertex_from_hits
-from .vec import dot, normalize
+from .vec import dot
 
 MAX_SPECULAR_BOUNCES = 32
 
@@ -58,7 +58,7 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False,
     normal decides the side (a back-facing hit flips both normals and inverts the IOR);
     a lane whose shading normal faces away from w_in dies; a mirror reflects, glass
     reflects or refracts, chosen in proportion to the lobes' weights
-    (optics.specular_weights), so the lane's weight is the lobe's weight over its
+    (optics.specular_weights1), so the lane's weight is the lobe's weight over its
     probability; the new direction must leave on the side the interaction calls for,
     by the geometric and the shading normal alike. w_in points away from the surface.
 
@@ -73,33 +73,12 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False,
     agrees with the radiance view (Cycles, the walks) on bumpy or normal-mapped casters.
 
     Returns (new unit directions, new weights, kept lane indices)."""
-    ns = ns * np.where(dot(ns, ng) < 0, -1.0, 1.0)[:, None]  # a shading normal on the geometric one's side
-    cin = dot(w_in, ng)
-    cs = dot(w_in, ns)
-    front = cs * np.sign(cin) > 0  # Cycles: N.wi <= 0 after the flip -> no scattering
-    R, T = specular_weights(scene, mat, cs)
-    r_lum, t_lum = R.sum(axis=1), T.sum(axis=1)
-    tot = r_lum + t_lum
-    p_r = np.divide(r_lum, tot, out=np.zeros_like(tot), where=tot > 0)
-    choose_r = rng.random(len(w_in)) < p_r
-    t_dir, t_ok = refract(w_in, ns, scene.mat_ior[mat])
-    n_out = np.where(choose_r[:, None], reflect(w_in, ns), t_dir)
-    p_sel = np.where(choose_r, p_r, 1.0 - p_r)
-    w = np.where(choose_r[:, None], R, T) / np.where(p_sel > 0, p_sel, 1.0)[:, None]
-    beta = beta * w
-    if scale_eta:
-        eta = scene.mat_ior[mat]
-        ratio = np.where(cin < 0, eta, 1.0 / eta)  # eta(w_in side) / eta(other side)
-        beta = beta * np.where(choose_r | (kind != S.DIELECTRIC), 1.0, ratio**2)[:, None]
-    cout = dot(n_out, ng)
-    if adjoint:
-        num = np.abs(cs * cout)
-        den = np.abs(cin * dot(n_out, ns))
-        beta *= np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
-    side = np.where(choose_r, cin * cout > 0, (cin * cout < 0) & t_ok)
-    ok = front & side & (p_sel > 0) & (beta.max(axis=1) > 0)
-    keep = np.flatnonzero(ok)
-    return normalize(n_out[keep]), beta[keep], keep
+    u = rng.random(len(w_in))
+    d, beta, keep = scatter_rows(u, *(np.ascontiguousarray(a, np.float64) for a in (w_in, ns, ng)),
+                                 np.ascontiguousarray(mat, np.int64), np.ascontiguousarray(kind, np.int64),
+                                 materials(scene), np.ascontiguousarray(beta, np.float64), bool(scale_eta),
+                                 bool(adjoint))
+    return d, beta, keep
 
 
 @dataclass
