@@ -199,9 +199,7 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
 
     src = Path(__file__).resolve().parent.parent / "smbs_addon"
     pkg = tmp_path / "copy" / "smbs_addon"
-    pkg.mkdir(parents=True)
-    for f in ("jit.py", "embree.py", "kernels.py"):
-        shutil.copy(src / f, pkg / f)
+    shutil.copytree(src, pkg, ignore=shutil.ignore_patterns("__pycache__"))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
     use = _CACHE_USE + "print('HITS', sum(K.end_mismatch.stats.cache_hits.values()))\n"
 
