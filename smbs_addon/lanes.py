@@ -65,12 +65,26 @@ def run(call, n: int, threads: int, min_part: int) -> list:
     return [first] + [f.result() for f in futures]
 
 
-def blocks(call, n: int, size: int, threads: int) -> list:
-    """[call(a, b) for the blocks [0, size), [size, 2 size), ... of n lanes], in block order.
-    With more than one block and thread, each thread (the calling one included) takes the next
-    block when it is done with one, and calls inside a block do not split; with one block, the
-    calls inside it split over the threads as usual."""
-    edges = list(range(0, n, max(size, 1))) + [n]
+def block_edges(n: int, size: int, min_size: int = 0) -> list:
+    """Block boundaries of n lanes: blocks of `size`; with min_size, blocks that shrink towards
+    the end (an eighth of what is left, between min_size and size), so that a heavy last block
+    does not keep one thread busy while the others wait. They depend on n alone."""
+    size = max(size, 1)
+    if min_size <= 0:
+        return list(range(0, n, size)) + [n]
+    out, a = [0], 0
+    while a < n:
+        a = min(n, a + max(min_size, min(size, (n - a) // 8)))
+        out.append(a)
+    return out
+
+
+def blocks(call, n: int, size: int, threads: int, min_size: int = 0) -> list:
+    """[call(a, b) for the blocks [0, size), [size, 2 size), ... of n lanes (block_edges)], in block
+    order. With more than one block and thread, each thread (the calling one included) takes
+    the next block when it is done with one, and calls inside a block do not split; with one
+    block, the calls inside it split over the threads as usual."""
+    edges = block_edges(n, size, min_size)
     k = len(edges) - 1
     if k <= 0:
         return []

@@ -74,6 +74,22 @@ def test_bernoulli_trials_run_exactly_the_trials_each_sample_needs(make, method,
         assert walks > 0 and walks == counted - capped
 
 
+def test_block_edges_shrink_towards_the_end_and_cover_every_lane():
+    """lanes.block_edges: fixed blocks without a minimum; with one, blocks of an eighth of what
+    is left, between the minimum and the size, never growing, every lane in exactly one."""
+    from smbs_addon import lanes
+
+    assert lanes.block_edges(300, 128) == [0, 128, 256, 300]
+    assert lanes.block_edges(0, 128, 8) == [0]
+    for n in (1, 7, 9, 1000, 5000, 65536):
+        e = lanes.block_edges(n, 128, 8)
+        sizes = [b - a for a, b in zip(e, e[1:])]
+        assert e[0] == 0 and e[-1] == n and all(s > 0 for s in sizes)
+        assert max(sizes) <= 128 and all(s >= 8 for s in sizes[:-1])
+        assert all(a >= b for a, b in zip(sizes, sizes[1:-1]))  # the last one may be cut short
+    assert lanes.block_edges(5000, 128, 8)[:3] == [0, 128, 256]  # full blocks while an eighth of the rest is more
+
+
 def test_blocks_run_each_block_once_in_order_and_do_not_split_inside():
     """lanes.blocks: every block once, results in block order whichever thread ran it; inside a
     block, lanes.run gives one part (the block's calls stay on its thread); one block is called
