@@ -168,8 +168,14 @@ _rtc_occluded1 = _call("rtcOccluded1")
 
 
 # counters of a kernel call's ray_state: rays logged, rays seen by the log's stride, then rays
-# cast per kind (the kernels' own kinds: seed, walk, shadow, ...)
+# cast per kind (the kernels' own kinds: seed, walk, ...; up to 6)
 _LOGGED, _SEEN, KINDS = 0, 1, 2
+COUNTERS = KINDS + 6
+
+
+def counters() -> np.ndarray:
+    """Zero counters, to add kernel calls' counters to."""
+    return np.zeros(COUNTERS, np.int64)
 
 
 @njit(inline="always", **_JIT)
@@ -181,7 +187,7 @@ def ray_state(rt):
     buf = np.zeros(_RAYHIT_WORDS + 4, np.float32)
     off = ((16 - buf.ctypes.data % 16) % 16) // 4
     rh = buf[off:off + _RAYHIT_WORDS]
-    return scene, rh, rh.view(np.uint32), rh.ctypes.data, log, stride, np.zeros(KINDS + 6, np.int64)
+    return scene, rh, rh.view(np.uint32), rh.ctypes.data, log, stride, np.zeros(COUNTERS, np.int64)
 
 
 @njit(inline="always", **_JIT)
@@ -233,7 +239,8 @@ def occluded1(ray, o, d, tmax, kind):
 @njit(**_JIT)
 def cast_rays(rt, o, d, tmax, occl, prim, t):
     """Closest hits (occl False: prim, t) or occlusion (occl True: prim 0 where occluded, -1
-    where not) of rays o + t d (N, 3), tmax (N,) (empty: no limit); returns the rays logged."""
+    where not) of rays o + t d (N, 3), tmax (N,) (empty: no limit); returns the counters
+    (ray_state)."""
     ray = ray_state(rt)
     for i in range(o.shape[0]):
         oi = (o[i, 0], o[i, 1], o[i, 2])
@@ -243,4 +250,4 @@ def cast_rays(rt, o, d, tmax, occl, prim, t):
             prim[i] = 0 if occluded1(ray, oi, di, tm, 0) else -1
         else:
             prim[i], t[i] = intersect1(ray, oi, di, tm, 0)
-    return ray[6][_LOGGED]
+    return ray[6]

@@ -49,6 +49,8 @@ _R_MIN2 = _R_MIN**2
 _OK, _MISS, _NOT_CASTER, _WRONG_MATERIAL, _TIR, _SIDE = 0, 1, 2, 3, 4, 5
 _TIR_INNER, _SIDE_INNER = 11, 12
 _CONDUCTOR, _DIELECTRIC = 1, 2
+# ray kinds the walk kernels count (embree.ray_state's counters)
+RAYS_SEED, RAYS_WALK = 0, 1
 
 _JIT = JIT
 
@@ -765,7 +767,7 @@ def _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out)
     di = _v(d, i, 0)
     g = _v(ng0, i, 0)
     side = 1.0 if _dot(di, g) >= 0 else -1.0
-    _trace_lane(ray, _RAYS_SEED, i, xi, _add(xi, _mul(eps * side, g)), di, kinds, geo, eps, F, I, status, out)
+    _trace_lane(ray, RAYS_SEED, i, xi, _add(xi, _mul(eps * side, g)), di, kinds, geo, eps, F, I, status, out)
     if want_obj[i] >= 0 and status[i] == _OK and I[i, 0, OBJ] != want_obj[i]:
         status[i] = _SEED_OBJECT
 
@@ -954,10 +956,6 @@ def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, t
     return True
 
 
-# ray kinds the walk kernels count (embree.ray_state's counters)
-_RAYS_SEED, _RAYS_WALK = 0, 1
-
-
 @njit(**_JIT)
 def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
     """walk.newton_walk of lane i (row i of lane and state) from the seed chain in its row of
@@ -1035,7 +1033,7 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
             return
         mutations[i] += 1
         on, w = _spawn_aim1(xi, gi, d, p, eps)
-        _trace_lane(ray, _RAYS_WALK, 0, xi, on, w, kinds, geo, eps, nF, nI, nstatus, nout)
+        _trace_lane(ray, RAYS_WALK, 0, xi, on, w, kinds, geo, eps, nF, nI, nstatus, nout)
 
 
 @njit(inline="always", **_JIT)

@@ -109,11 +109,8 @@ class Tracer:
 
         def job(a, b):
             rt = self.rays()
-            logged = embree.cast_rays(rt, o[a:b], d[a:b], tmax[a:b] if tmax.size else tmax, occl, prim[a:b],
-                                      t[a:b] if t.size else t)
-            counts = np.zeros(embree.KINDS + 1, np.int64)
-            counts[0], counts[embree.KINDS] = logged, b - a
-            self.cast_by_kernel(rt, counts)
+            self.cast_by_kernel(rt, embree.cast_rays(rt, o[a:b], d[a:b], tmax[a:b] if tmax.size else tmax, occl,
+                                                     prim[a:b], t[a:b] if t.size else t))
 
         lanes.run(job, n, self.threads, _MIN_SPLIT)
         return prim, None if occl else t

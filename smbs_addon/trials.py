@@ -52,7 +52,7 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
         return walks, steps, counts
 
     parts = lanes.blocks(part, S, TRIAL_BLOCK, tracer.threads, TRIAL_BLOCK_MIN)
-    _count_rays(ctx, sum((p[2] for p in parts), np.zeros(embree.KINDS + 6, np.int64)))
+    _count_rays(ctx, sum((p[2] for p in parts), embree.counters()))
     st = ctx.stats
     st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + sum(int(p[0]) for p in parts)
     st["bernoulli_mutations"] = st.get("bernoulli_mutations", 0) + sum(int(p[1]) for p in parts)

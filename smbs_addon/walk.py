@@ -95,8 +95,8 @@ def _geo(ctx) -> tuple:
 
 
 def _count_rays(ctx, counts) -> None:
-    ctx.count("rays_seed", counts[embree.KINDS + kernels._RAYS_SEED])
-    ctx.count("rays_walk", counts[embree.KINDS + kernels._RAYS_WALK])
+    ctx.count("rays_seed", counts[embree.KINDS + kernels.RAYS_SEED])
+    ctx.count("rays_walk", counts[embree.KINDS + kernels.RAYS_WALK])
 
 
 def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
@@ -121,7 +121,7 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
         tracer.cast_by_kernel(rt, counts)
         return counts
 
-    counts = sum(lanes.blocks(part, n, WALK_BLOCK, tracer.threads), np.zeros(embree.KINDS + 6, np.int64))
+    counts = sum(lanes.blocks(part, n, WALK_BLOCK, tracer.threads), embree.counters())
     _count_rays(ctx, counts)
     return Chain(F, I, status, out)
 
@@ -201,7 +201,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
 
     parts = lanes.blocks(part, n, WALK_BLOCK, tracer.threads)
     large = sum((p[0] for p in parts), np.zeros(4, np.int64))
-    _count_rays(ctx, sum((p[1] for p in parts), np.zeros(embree.KINDS + 6, np.int64)))
+    _count_rays(ctx, sum((p[1] for p in parts), embree.counters()))
     converged, mutations = state[11], state[12]
     return WalkResult(chain=Chain(F, I, outcome.copy(), out_dir), converged=converged, outcome=outcome,
                       mutations=mutations, large={TRIGGERS[t]: int(large[t]) for t in (TRIG_TIR, TRIG_BACKLIT,
