@@ -80,8 +80,8 @@ def light_end_at_solution(scene, li, light: LightEnd, xk):
         nrm = normalize(xk - c)  # a point light: the tangent plane faces the chain
         e = np.broadcast_to(color / (4.0 * math.pi), (n, 3)).copy()  # intensity, per unit dA_perp
     ys, yt = frame(nrm)
-    if typ == S.SPOT:
-        e = e * spot_mask(scene, li, normalize(xk - c))[:, None]
+    if typ == S.SPOT:  # Cycles masks the ray leaving the light's point, not its centre (the light tracer too)
+        e = e * spot_mask(scene, li, normalize(xk - light.y))[:, None]
     if r > 0 and scene.light_soft_falloff[li]:
         e = e * soft_falloff_factor(c, r, xk)[:, None]
     return LightEnd(False, light.y, ys, yt), e
