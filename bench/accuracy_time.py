@@ -4,7 +4,9 @@
         [--budgets 2,5,12,30,60,120] [--seeds 1] [--cycles] [--out bench/results]
 
 For each conformance scene (sample_blends/conformance_scenes.py; its converged Cycles reference
-is the truth, tests/data/conformance), each method and each budget: one bake with that time
+is the truth, tests/data/conformance) or sample scene with a reference (sample_mirror,
+sample_glass_sphere, sample_glass_spot: sample_blends/*.blend, tests/data/cycles_*; see
+tools/conformance.SAMPLES), each method and each budget: one bake with that time
 budget (BakeSettings.time_budget: the whole bake, plan and pre-pass included; passes of one
 sample per pixel), and its relative RMS error per pixel against the truth over the reference's
 caustic region, the reference's own noise taken out (tools/conformance.relative_rmse). Beside
@@ -60,7 +62,7 @@ METHODS = {
 BIASED = {"mnee", "sms-b1", "sms-b4", "smbs-b1", "smbs-b4"}
 SCENES = ("lens_area", "gold_cylinder", "pool_sun4", "mirror_point_hard", "sphere_point_soft",
           "sphere_refraction_spot", "wavy_mirror_sun2", "water_flat_sun0", "through_glass_disk", "prism_tir",
-          "cube_grey", "cube_white_rect")
+          "cube_grey", "cube_white_rect") + tuple(conf.SAMPLES)
 BATCHES = 4  # per pass of BATCHES samples per pixel: one sample per pixel per batch
 CELLS = ROOT / ".cache" / "accuracy_time"  # every measured cell, kept as soon as it is measured
 
@@ -144,8 +146,7 @@ def cycles(scene, budget, seed):
 
     ref = conf.load_reference(scene)
     with tempfile.TemporaryDirectory() as tmp:
-        blend = scenes.build(scene, Path(tmp))
-        bpy.ops.wm.open_mainfile(filepath=str(blend))
+        bpy.ops.wm.open_mainfile(filepath=str(conf.blend_of(scene, Path(tmp))))
         s = bpy.context.scene
         _set_render(s, 1 << 20, seed, True, 2, keep_mnee=scene in scenes.MNEE_REFERENCE)
         s.cycles.time_limit = budget

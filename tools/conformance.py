@@ -50,26 +50,42 @@ NOT_APPLICABLE = {
 }
 
 
+# the sample scenes users open first (sample_blends/*.blend) that have a Cycles reference of their
+# caustic layer (tests/data/cycles_<name>_{on_a,on_b,off}.exr, tools/cycles_reference.py, 2 x 8192
+# spp): usable wherever a conformance scene is, under the name sample_<name>
+SAMPLES = {"sample_mirror": "mirror", "sample_glass_sphere": "glass_sphere", "sample_glass_spot": "glass_spot"}
+
+
+def blend_of(name: str, folder: Path) -> Path:
+    """The .blend of scene NAME: a sample scene's own file, or a conformance scene built into folder."""
+    if name in SAMPLES:
+        return ROOT / "sample_blends" / f"{SAMPLES[name]}.blend"
+    import conformance_scenes as scenes
+
+    return scenes.build(name, Path(folder))
+
+
 def scene_arrays(name: str):
     """The exported scene (smbs_addon.Scene) of conformance scene NAME: built with the bpy
-    module and exported the way the add-on exports, cached by the builder's source."""
+    module and exported the way the add-on exports, cached by the builder's source (a sample
+    scene: its .blend file)."""
     import hashlib
 
     from smbs_addon.scene import Scene
 
     src = (ROOT / "sample_blends" / "conformance_scenes.py").read_bytes() + \
         (ROOT / "sample_blends" / "build.py").read_bytes() + (ROOT / "smbs_addon" / "export.py").read_bytes()
+    if name in SAMPLES:
+        src += (ROOT / "sample_blends" / f"{SAMPLES[name]}.blend").read_bytes()
     key = hashlib.sha1(src).hexdigest()[:12]
     path = CACHE / f"{name}-{key}.npz"
     if path.exists():
         return Scene.load(path)
-    import conformance_scenes as scenes
     from smbs_addon.__main__ import load_input
 
     CACHE.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
-        blend = scenes.build(name, Path(tmp))
-        scene = load_input(str(blend), warn=lambda m: None)
+        scene = load_input(str(blend_of(name, Path(tmp))), warn=lambda m: None)
     scene.save(path)
     return scene
 
@@ -79,10 +95,22 @@ def reference_path(name: str) -> Path:
 
 
 def load_reference(name: str) -> dict:
+    if name in SAMPLES:
+        return _sample_reference(SAMPLES[name])
     with np.load(reference_path(name), allow_pickle=False) as z:
         ref = {k: z[k] for k in z.files}
     ref["meta"] = json.loads(str(ref["meta"]))
     return ref
+
+
+def _sample_reference(sample: str) -> dict:
+    """A sample scene's Cycles reference in the conformance form: halves A and B less "off"."""
+    from cycles_reference import _read_exr
+
+    base = ROOT / "tests" / "data" / f"cycles_{sample}"
+    on_a, on_b, off = (_read_exr(f"{base}_{t}.exr") for t in ("on_a", "on_b", "off"))
+    meta = json.loads(Path(f"{base}.json").read_text())
+    return {"a": on_a - off, "b": on_b - off, "off": off, "spp_half": meta["renders"]["on_a"]["spp"], "meta": meta}
 
 
 def _box5(x):
