@@ -21,7 +21,7 @@ from .camera import CameraModel
 from .errors import BakeCancelled, SceneError
 from .film import Film
 from .lights import emit
-from .plan import _rng, light_key, make_plan, refine_plan
+from .plan import _rng, light_key, make_plan, refine_plan, spot_target
 from .tracer import Tracer
 
 METHODS = ("auto", "reference", "mnee", "sms", "smbs")
@@ -278,16 +278,19 @@ def _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indi
     scene, spp per pixel and light."""
     from .indirect import trace_photons
 
-    per_batch = max(1, per_light // settings.batches)
     for li in _indirect_lights(plan, settings):
         st = indirect_stats.setdefault(scene.light_names[li], {"photons": 0, "rays_photon": 0, "rays_camera": 0,
                                                                 "splats": 0, "time_s": 0.0})
         t = time.perf_counter()
+        # a narrow spot's photons go into its cone, as many as its cone let through when they were
+        # aimed at the whole scene: the same noise, without tracing the masked ones
+        target, share = spot_target(scene, li, plan.scene_sphere)
+        per_batch = max(1, round(per_light * share) // settings.batches)
 
-        def run_chunk(c, film_c, st_c, li=li):
+        def run_chunk(c, film_c, st_c, li=li, target=target, per_batch=per_batch):
             n = min(CHUNK, per_batch - c * CHUNK)
             rng = _rng(settings.seed, 5, light_key(scene.light_names[li]), b, c)
-            ph = emit(scene, li, plan.scene_sphere, n, rng)
+            ph = emit(scene, li, target, n, rng)
             ph.w *= n / per_batch
             trace_photons(scene, tracer, cam, film_c, plan, ph, rng, st_c, physical=settings.radiance == "physical")
 

@@ -371,22 +371,34 @@ def _letters(row) -> str:
     return "".join("R" if c == 1 else "T" for c in row[::-1] if c)
 
 
-def _spot_target(scene, li: int, sphere: np.ndarray) -> np.ndarray:
-    """Where light li's pilot photons aim at the diffuse surfaces (sphere (1,4)): for a narrow
-    spot, a sphere filling its cone instead, so the pilots are not masked away. Aimed at the
-    whole diffuse bounding sphere, a 16 deg spot kept 2% of them, and a crescent of floor it
-    lights past a glass ball (glass_spot.blend) got none: the plan dropped its light through a
-    diffuse bounce, 1.3% of the layer, 5-25% of it 30-200 px from the focus."""
+def spot_target(scene, li: int, sphere: np.ndarray) -> np.ndarray:
+    """Where light li's photons aim at a sphere (1,4) that holds what they may light (the
+    diffuse surfaces for the plan's pilots, the scene for the bake's photons after a diffuse
+    bounce): for a narrow spot, a sphere filling its cone instead, so the photons are not
+    masked away. Aimed at the whole diffuse bounding sphere, a 16 deg spot kept 2% of its pilots,
+    and a crescent of floor it lights past a glass ball (glass_spot.blend) got none: the plan
+    dropped its light through a diffuse bounce, 1.3% of the layer, 5-25% of it 30-200 px from
+    the focus.
+
+    Returns (the target, the share of the photons aimed at the sphere that the spot lets
+    through at most: the solid angle of the new aim over the old one's, 1 where unchanged)."""
     if scene.light_type[li] != S.SPOT:
-        return sphere
+        return sphere, 1.0
     m = scene.light_matrix[li]
     c = m[:3, 3]
     axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
     dist = float(np.linalg.norm(sphere[0, :3] - c))
     half = 0.5 * float(scene.light_spot_size[li])  # the cone masks directions (lights.spot_mask)
     if not (dist > 0 and half < math.radians(60.0)):
-        return sphere
-    return np.concatenate([c + dist * axis, [dist * math.sin(half)]])[None, :]
+        return sphere, 1.0
+    target = np.concatenate([c + dist * axis, [dist * math.sin(half)]])[None, :]
+    r = float(scene.light_radius[li])  # lights.emit widens each aim by the light's radius
+
+    def solid_angle(radius):
+        s = (radius + r) / dist
+        return 4.0 * math.pi if s >= 1.0 else 2.0 * math.pi * (1.0 - math.sqrt(1.0 - s * s))
+
+    return target, min(1.0, solid_angle(target[0, 3]) / solid_angle(float(sphere[0, 3])))
 
 
 def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: int = PILOT_PHOTONS,
@@ -442,7 +454,7 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
         for li in plan.indirect_lights:
             name = scene.light_names[li]
             rng = _rng(seed, 8, light_key(name))
-            ph = emit(scene, li, _spot_target(scene, li, dif_sphere), n_ind, rng)  # onto the diffuse surfaces
+            ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng)  # onto the diffuse surfaces
             photons += n_ind
             lit = np.flatnonzero(ph.w.max(axis=1) > 0)
             h = tracer.intersect(ph.o[lit], ph.d[lit])

@@ -127,20 +127,26 @@ def test_a_narrow_spots_pilots_aim_into_its_cone():
     and any other light, aims at the diffuse surfaces' bounding sphere as before. Aimed there,
     glass_spot.blend's 16 deg spot lost its light through a diffuse bounce (the sample plans
     above say it now)."""
-    from smbs_addon.plan import _spot_target
+    from smbs_addon.plan import spot_target
 
     scene = scenes.water_scene("point", resolution=8)
-    target = np.array([[0.3, -0.2, 0.0, 5.0]])
-    assert _spot_target(scene, 0, target) is target  # a point light
+    target = np.array([[0.3, -0.2, 0.0, 1.5]])
+    same, share = spot_target(scene, 0, target)
+    assert same is target and share == 1.0  # a point light
     scene.light_type[0] = S.SPOT
     scene.light_spot_size[0] = math.radians(16.0)
-    got = _spot_target(scene, 0, target)
+    got, share = spot_target(scene, 0, target)
     c = scene.light_matrix[0][:3, 3]
     axis = -scene.light_matrix[0][:3, 2] / np.linalg.norm(scene.light_matrix[0][:3, 2])
     dist = np.linalg.norm(target[0, :3] - c)
     assert np.allclose(got[0, :3], c + dist * axis) and math.isclose(math.asin(got[0, 3] / dist), math.radians(8.0))
+    # the share: the new aim's solid angle over the old one's (both widened by the light's radius)
+    r = scene.light_radius[0]
+    omega = [2 * math.pi * (1 - math.sqrt(1 - ((rad + r) / dist) ** 2)) for rad in (got[0, 3], target[0, 3])]
+    assert 0 < share < 1 and math.isclose(share, omega[0] / omega[1])
     scene.light_spot_size[0] = math.radians(150.0)
-    assert _spot_target(scene, 0, target) is target
+    same, share = spot_target(scene, 0, target)
+    assert same is target and share == 1.0
 
 
 def test_only_mirrors_walk_no_refraction():
