@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from . import lanes
+from . import embree, kernels, lanes, optics
 from . import scene as S
 from .eye import Receivers, surface_at
 from .lights import light_radiance, soft_falloff_factor, area_light_shape
@@ -306,60 +306,51 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
 
 def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found):
-    """handoff_gather's radiance (n,3) at a block of receivers; found: light index -> paths taken."""
+    """handoff_gather's radiance (n,3) at a block of receivers; found: light index -> paths taken.
+    The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
+    segments and the paths taken are found here, per number of specular vertices."""
     from .reference import Handoff, _handoff_select
 
     n = len(rc.p)
     K = max(h.max_chain for h in handoffs.values())
-    d, beta, lane = _diffuse_bounce(rng, rc.w_eye, rc.ng, rc.ns, rc.beta / samples, _albedo(scene, rc.mat), False,
-                                    samples)
-    o = tracer.spawn(rc.p[lane], rc.ng[lane], d)
-    m = len(lane)
-    h_prim = np.zeros((m, K), np.int64)
-    h_p = np.zeros((m, K, 3))
-    h_bary = np.zeros((m, K, 2))
-    h_refl = np.zeros((m, K), np.int64)
-    h_cast = np.zeros((m, K), bool)
-    row = np.arange(m)  # each lane's row in the history
+    m = n * samples
+    u = rng.random((m, 3 + K))
+    # the kernel writes every entry read below (a lane's first seg_n segments, and the specular
+    # vertices before each of them)
+    seg, seg_n = np.empty((m, K, 10)), np.zeros(m, np.int64)
+    hist, h_prim = np.empty((m, K, 7)), np.empty((m, K), np.int64)
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    rt = tracer.rays()
+    counts = kernels.handoff_lanes(rt, u, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
+                                   f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
+                                   tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
+                                   tracer.eps, seg, seg_n, hist, h_prim)
+    tracer.cast_by_kernel(rt, counts)
+    stats["rays_handoff"] = stats.get("rays_handoff", 0) + int(counts[embree.KINDS:].sum())
     radiance = np.zeros((n, 3))
-    for bounce in range(K + 1):
-        if len(lane) == 0:
+    for k in range(K):  # the segments after bounce = k + 1 specular vertices
+        row = np.flatnonzero(seg_n > k)
+        if row.size == 0:
             break
-        h = tracer.intersect(o, d)
-        stats["rays_handoff"] = stats.get("rays_handoff", 0) + len(o)
-        if bounce > 0:
-            surf_t = np.where(h.hit, h.t, np.inf)
-            for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
-                L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
-                seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
-                if seen.size == 0:
-                    continue
-                y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]
-                r = row[seen]
-                # _handoff_select reads the history light side first: reverse the bounces
-                rev = np.arange(bounce)[::-1]
-                take = _handoff_select(scene, tracer, Handoff(ho.tau, ho.directional), rc.p[lane[seen]],
-                                       np.full(seen.size, bounce), h_prim[r][:, rev], h_p[r][:, rev],
-                                       h_bary[r][:, rev], h_refl[r][:, rev], h_cast[r][:, rev], y)
-                t = seen[take]
-                np.add.at(radiance, lane[t], beta[t] * L[t])
-                stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size)
-                found[li] = found.get(li, 0) + int(t.size)
-        if bounce == K:
-            break
-        prim, hmat, kind = surface_at(scene, h)
-        spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
-        if spec.size == 0:
-            break
-        dd, bb, keep = scatter_specular(scene, rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
-                                        beta[spec], scale_eta=physical)
-        sk = spec[keep]
-        r = row[sk]
-        h_prim[r, bounce] = prim[sk]
-        h_p[r, bounce] = h.p[sk]
-        h_bary[r, bounce] = h.b[sk]
-        h_refl[r, bounce] = (dot(d[sk], h.ns[sk]) * dot(dd, h.ns[sk]) < 0).astype(np.int64)
-        h_cast[r, bounce] = plan.casters[scene.tri_object[prim[sk]]]
-        lane, row, beta, d = lane[sk], r, bb, dd
-        o = tracer.spawn(h.p[sk], h.ng[sk], d)
+        bounce = k + 1
+        sk = seg[row, k]
+        o, d, surf_t, beta = sk[:, 0:3], sk[:, 3:6], sk[:, 6], sk[:, 7:10]
+        for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
+            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t))
+            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
+            if seen.size == 0:
+                continue
+            y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]
+            r = row[seen]
+            # _handoff_select reads the history light side first: reverse the bounces
+            rev = np.arange(bounce)[::-1]
+            hr = hist[r][:, rev]
+            take = _handoff_select(scene, tracer, Handoff(ho.tau, ho.directional), rc.p[r // samples],
+                                   np.full(seen.size, bounce), h_prim[r][:, rev], hr[:, :, 0:3], hr[:, :, 3:5],
+                                   hr[:, :, 5].astype(np.int64), hr[:, :, 6] > 0, y)
+            t = seen[take]
+            np.add.at(radiance, row[t] // samples, beta[t] * L[t])
+            stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size)
+            found[li] = found.get(li, 0) + int(t.size)
     return radiance
+

@@ -31,6 +31,7 @@ from numba.extending import intrinsic
 
 from .embree import intersect1, ray_state
 from .jit import JIT
+from .optics import scatter1
 
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
@@ -1216,3 +1217,90 @@ def splat(cur, W, x0, x1, y0, y1, r, k, rx, ry, rgb):
                 idx = int(py) * W + int(px)
                 for c in range(3):
                     cur[idx, c] += rgb[i, c] * w
+
+
+# ------------------------------------------------------------------ the hand-off's cosine paths
+@njit(inline="always", **_JIT)
+def _cosine_bounce(u1, u2, w, g, n):
+    """indirect._diffuse_bounce's direction: cosine-distributed about the shading normal n on
+    w's side of the geometric normal g (vec.frame, vec.cosine_hemisphere); also that side."""
+    side = 1.0 if _dot(w, g) >= 0 else -1.0
+    nn = _mul(side, n)
+    s, t = _frame(nn)
+    r = math.sqrt(u1)
+    phi = 2.0 * np.pi * u2
+    x, y, z = r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - u1))
+    return _add(_add(_mul(x, s), _mul(y, t)), _mul(z, nn)), side, nn
+
+
+@njit(**_JIT)
+def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
+                  h_prim):
+    """handoff_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
+    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
+    u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim = _borrowed(
+        (u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim))
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
+    for lane in range(u.shape[0]):
+        seg_n[lane] = 0
+        i = lane // samples
+        w, g = _v(w0, i, 0), _v(ng0, i, 0)
+        d, side, nn = _cosine_bounce(u[lane, 0], u[lane, 1], w, g, _v(ns0, i, 0))
+        a = _v(alb, i, 0)
+        q = min(max(_max(_max(a[0], a[1]), a[2]), 0.0), 1.0)  # Russian roulette on the albedo
+        if not u[lane, 2] < q:
+            continue
+        b = (beta0[i, 0] * (a[0] / q), beta0[i, 1] * (a[1] / q), beta0[i, 2] * (a[2] / q))
+        if not (_dot(d, _mul(side, g)) > 0 and _dot(w, nn) > 0 and _max(_max(b[0], b[1]), b[2]) > 0):
+            continue
+        o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
+        for bounce in range(K + 1):
+            pr, t32 = intersect1(ray, o, d, np.inf, 0)
+            t = np.inf
+            p = gg = v0 = e1 = e2 = (0.0, 0.0, 0.0)
+            if pr >= 0:
+                t, p, gg, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
+            if bounce > 0:  # a segment after a specular vertex: the caller looks for lights on it
+                k = seg_n[lane]
+                for c in range(3):
+                    seg[lane, k, c], seg[lane, k, 3 + c], seg[lane, k, 7 + c] = o[c], d[c], b[c]
+                seg[lane, k, 6] = t
+                seg_n[lane] = k + 1
+            if pr < 0 or bounce == K:
+                break
+            m = tri_material[pr]
+            kind = mat_kind[m]
+            if kind != _CONDUCTOR and kind != _DIELECTRIC:
+                break
+            b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
+            n = _shading_normal(tns, pr, b1, b2, gg)
+            ok, dd, bb = scatter1(u[lane, 3 + bounce], _neg(d), n, gg, m, kind, mats, b, physical, False)
+            if not ok:
+                break
+            h_prim[lane, bounce] = pr
+            for c in range(3):
+                hist[lane, bounce, c] = p[c]
+            hist[lane, bounce, 3], hist[lane, bounce, 4] = b1, b2
+            hist[lane, bounce, 5] = 1.0 if _dot(d, n) * _dot(dd, n) < 0 else 0.0
+            hist[lane, bounce, 6] = 1.0 if casters[tri_object[pr]] else 0.0
+            o = _add(p, _mul(eps if _dot(dd, gg) >= 0 else -eps, gg))
+            d, b = dd, bb
+
+
+@TypedOnce
+@njit(**_JIT)
+def handoff_lanes(rt, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
+                  h_prim):
+    """indirect.handoff_gather's paths, lane i // samples's receiver (x0, ng0, ns0, w0: the
+    direction back to the eye, beta0: the throughput, alb: the albedo): a cosine bounce with
+    Russian roulette on the albedo (indirect._diffuse_bounce), then through up to K specular
+    vertices (optics.scatter1, not adjoint; physical: scale_eta), every ray cast here. u: (lanes,
+    3 + K) uniform numbers (direction, roulette, then one per specular vertex). Writes per lane
+    the segments after each specular vertex, in order, seg_n of them (seg[lane, k]: origin,
+    direction, distance to the next surface (inf: none), throughput), and the specular vertices
+    (hist[lane, j]: point, barycentrics, 1 for a reflection, 1 on a caster; h_prim[lane, j]: the
+    triangle). Returns the ray counters (embree.ray_state)."""
+    ray = ray_state(rt)
+    _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
+                  h_prim)
+    return ray[6]

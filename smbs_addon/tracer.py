@@ -159,6 +159,12 @@ class Tracer:
             lanes.run(job, n, self.threads, _MIN_SPLIT)
         return Hits(hit=prim >= 0, prim=prim, t=t, p=p, ng=ng, ns=ns, b=b)
 
+    def kernel_geometry(self, casters: np.ndarray) -> tuple:
+        """The scene as the kernels trace paths through it (kernels._trace_lane's geo), with the
+        plan's caster flags per object."""
+        sc = self.scene
+        return self.v, self.ng, self.ns_corner, sc.tri_material, sc.mat_kind, sc.tri_object, casters, sc.mat_ior
+
     # ------------------------------------------------------------- geometry
     def barycentrics(self, prim: np.ndarray, p: np.ndarray) -> np.ndarray:
         """(b1, b2) of points p on triangles prim (1/3 each on a degenerate triangle)."""

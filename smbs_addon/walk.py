@@ -89,9 +89,7 @@ WALK_BLOCK = 2048  # lanes per block of newton_walk and propagate (lanes.blocks)
 
 def _geo(ctx) -> tuple:
     """The scene as the kernels trace chains through it (kernels._trace_lane)."""
-    scene, tracer = ctx.scene, ctx.tracer
-    return (tracer.v, tracer.ng, tracer.ns_corner, scene.tri_material, scene.mat_kind, scene.tri_object,
-            ctx.casters, scene.mat_ior)
+    return ctx.tracer.kernel_geometry(ctx.casters)
 
 
 def _count_rays(ctx, counts) -> None:

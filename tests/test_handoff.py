@@ -171,7 +171,9 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
 
     monkeypatch.setattr(manifold, "eye_receivers", seen_chunks)
     ball = scenes.glass_sphere_scene(resolution=(32, 24), height=1.2)
-    s = BakeSettings(method="sms", spp=4, batches=1, seed=1, handoff=1e-9)
+    # seed 2: its first chunk's hand-off finds paths (seeds 2-5 do since the hand-off's paths are
+    # compiled, with their own random numbers; seed 1 did before)
+    s = BakeSettings(method="sms", spp=4, batches=1, seed=2, handoff=1e-9)
     st = bake(ball, s).stats["lights"]["Area"]
     assert st["seen_focus"] == 0 and st["seen_handoff_paths"] > 0
     assert sum(chunks) >= 4 and len(calls) == sum(chunks)
@@ -180,3 +182,66 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     st = bake(ball, s).stats["lights"]["Area"]
     assert st["seen_focus"] == 0 and st["seen_handoff_paths"] == 0
     assert len(calls) == 1
+
+
+def test_handoff_kernel_paths_are_the_numpy_steps():
+    """kernels.handoff_lanes (handoff_gather's paths, compiled) against the steps it stands for,
+    each done apart in numpy from the same uniform numbers: the cosine bounce off the receiver
+    (vec.frame / cosine_hemisphere / to_world, Russian roulette on the albedo), tracer.spawn and
+    tracer.intersect, the specular scatter (optics.scatter_rows), and the segment after the first
+    specular vertex (origin, direction, distance, throughput) and that vertex's record, to 1e-9;
+    the same lanes alive. Glass sphere under an area light: receivers on the floor, K = 2."""
+    from smbs_addon import embree, kernels, optics
+    from smbs_addon.vec import cosine_hemisphere, dot, frame, to_world
+
+    scene = scenes.glass_sphere_scene(resolution=(16, 12))
+    plan = make_plan(scene)
+    tracer = Tracer(scene)
+    rng = np.random.default_rng(5)
+    n, samples, K = 40, 64, 2
+    x0 = np.column_stack([rng.uniform(-0.6, 0.6, n), rng.uniform(-0.6, 0.6, n), np.zeros(n)])
+    h0 = tracer.intersect(x0 + [0.0, 0.0, 1e-3], np.tile([0.0, 0.0, -1.0], (n, 1)))
+    assert h0.hit.all()
+    x0, ng, ns = h0.p, h0.ng, h0.ns
+    w0 = np.tile([0.0, 0.0, 1.0], (n, 1))
+    beta0 = np.full((n, 3), 1.0 / samples)
+    alb = scene.mat_color[scene.tri_material[h0.prim]]
+    m = n * samples
+    u = rng.random((m, 3 + K))
+    seg, seg_n = np.zeros((m, K, 10)), np.zeros(m, np.int64)
+    hist, h_prim = np.zeros((m, K, 7)), np.zeros((m, K), np.int64)
+    rt = tracer.rays()
+    counts = kernels.handoff_lanes(rt, u, samples, K, x0, ng, ns, w0, beta0, alb, tracer.kernel_geometry(plan.casters),
+                                   optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim)
+    # numpy, step by step
+    i = np.arange(m) // samples
+    side = np.where(dot(w0[i], ng[i]) >= 0, 1.0, -1.0)[:, None]
+    nn = ns[i] * side
+    s, t = frame(nn)
+    d = to_world(cosine_hemisphere(u[:, 0], u[:, 1]), s, t, nn)
+    q = np.clip(alb[i].max(axis=1), 0.0, 1.0)
+    live = (u[:, 2] < q) & (dot(d, ng[i] * side) > 0) & (dot(w0[i], nn) > 0)
+    beta = beta0[i] * alb[i] / q[:, None]
+    h = tracer.intersect(tracer.spawn(x0[i], ng[i], d), d)
+    kind = np.where(h.hit, scene.mat_kind[scene.tri_material[np.maximum(h.prim, 0)]], -1)
+    spec = np.flatnonzero(live & ((kind == 1) | (kind == 2)))
+    d1, b1, keep = optics.scatter_rows(u[spec, 3], -d[spec], h.ns[spec], h.ng[spec],
+                                       scene.tri_material[h.prim[spec]], kind[spec], optics.materials(scene),
+                                       beta[spec], False, False)
+    lanes_1 = spec[keep]
+    p1 = h.p[lanes_1]
+    o1 = tracer.spawn(p1, h.ng[lanes_1], d1)
+    h1 = tracer.intersect(o1, d1)
+    assert np.array_equal(np.flatnonzero(seg_n >= 1), lanes_1) and lanes_1.size > 200
+    got = seg[lanes_1, 0]
+    assert np.allclose(got[:, 0:3], o1, atol=1e-9) and np.allclose(got[:, 3:6], d1, atol=1e-9)
+    assert np.allclose(got[:, 7:10], b1, rtol=1e-9)
+    assert np.array_equal(np.isfinite(got[:, 6]), h1.hit)
+    assert np.allclose(got[h1.hit, 6], h1.t[h1.hit], rtol=1e-9)
+    assert np.array_equal(h_prim[lanes_1, 0], h.prim[lanes_1])
+    assert np.allclose(hist[lanes_1, 0, 0:3], p1, atol=1e-12) and np.allclose(hist[lanes_1, 0, 3:5], h.b[lanes_1])
+    refl = (dot(d[lanes_1], h.ns[lanes_1]) * dot(d1, h.ns[lanes_1]) < 0)
+    assert np.array_equal(hist[lanes_1, 0, 5] > 0, refl) and refl.any() and (~refl).any()
+    assert np.all(hist[lanes_1, 0, 6] == 1.0)  # the sphere is the caster
+    # every live lane cast its first ray, every lane with a segment one more per segment
+    assert counts[embree.KINDS:].sum() == live.sum() + seg_n.sum()
