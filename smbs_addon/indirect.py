@@ -53,31 +53,26 @@ def _max3(a):
     return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
 
 
-def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint, samples=1):
+def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
     """Cosine-sampled bounce off diffuse vertices (about the shading normal on w_in's side),
-    with Russian roulette on the albedo; `samples` lanes per vertex (lane i of vertex i //
-    samples), with what depends only on the vertex (side, frame, albedo) worked out once per
-    vertex. Returns (directions, weights, vertex of each kept lane)."""
-    n = len(w_in) * samples
-    rep = (lambda a: a) if samples == 1 else (lambda a: np.repeat(a, samples, axis=0))
+    with Russian roulette on the albedo (the hand-off's many bounces per receiver are
+    kernels._cosine_bounce). Returns (directions, weights, kept vertices)."""
+    n = len(w_in)
     side = np.where(dot(w_in, ng) >= 0, 1.0, -1.0)[:, None]
     nn = ns * side
     s, t = frame(nn)
-    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), rep(s), rep(t), rep(nn))
+    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), s, t, nn)
     q = np.clip(_max3(albedo), 0.0, 1.0)
-    survive = rng.random(n) < rep(q)
+    survive = rng.random(n) < q
     beta = beta * (albedo / np.where(q > 0, q, 1.0)[:, None])  # f cos / pdf = albedo
-    cout = dot(d, rep(ng * side))
+    cout = dot(d, ng * side)
     front = dot(w_in, nn) > 0
-    if adjoint:  # Veach's shading-normal correction for light carried from w_in to d (per lane)
-        num = np.abs(rep(dot(w_in, ns)) * cout)
-        den = np.abs(rep(dot(w_in, ng)) * dot(d, rep(ns)))
-        beta = rep(beta) * np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
-        keep = np.flatnonzero(survive & (cout > 0) & rep(front) & (_max3(beta) > 0))
-        return d[keep], beta[keep], keep // samples
-    keep = np.flatnonzero(survive & (cout > 0) & rep(front & (_max3(beta) > 0)))
-    vertex = keep // samples
-    return d[keep], beta[vertex], vertex
+    if adjoint:  # Veach's shading-normal correction for light carried from w_in to d
+        num = np.abs(dot(w_in, ns) * cout)
+        den = np.abs(dot(w_in, ng) * dot(d, ns))
+        beta = beta * np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
+    keep = np.flatnonzero(survive & (cout > 0) & front & (_max3(beta) > 0))
+    return d[keep], beta[keep], keep
 
 
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False, max_diffuse=MAX_DIFFUSE):

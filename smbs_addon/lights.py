@@ -46,10 +46,15 @@ def soft_falloff_factor(center, radius, x):
     return d2 / (d2 + radius * radius)
 
 
+def light_axis(scene, li: int) -> np.ndarray:
+    """The unit direction light li points along (its local -Z): a spot's cone axis, a sun's light."""
+    m = scene.light_matrix[li]
+    return -m[:3, 2] / np.linalg.norm(m[:3, 2])
+
+
 def spot_mask(scene, li: int, d: np.ndarray) -> np.ndarray:
     """Cycles 4.x spot attenuation of directions d leaving the light."""
-    axis = -scene.light_matrix[li][:3, 2]
-    axis = axis / np.linalg.norm(axis)
+    axis = light_axis(scene, li)
     cos_half = math.cos(0.5 * scene.light_spot_size[li])
     blend = scene.light_spot_blend[li]
     c = dot(d, axis)
@@ -144,7 +149,7 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
         w = radiance[None, :] * (cos_l * area / (pdf * n))[:, None]
         return Photons(o, d, w)
     if typ == S.SUN:
-        axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+        axis = light_axis(scene, li)
         half = 0.5 * float(scene.light_angle[li])
         if half > 0:
             s, t = frame(np.broadcast_to(axis, (n, 3)))
@@ -178,7 +183,7 @@ def light_covers(scene, li: int, center: np.ndarray, radius: float) -> bool:
     typ = scene.light_type[li]
     m = scene.light_matrix[li]
     if typ == S.SPOT:
-        axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+        axis = light_axis(scene, li)
         v = center - m[:3, 3]
         dist = float(np.linalg.norm(v))
         r = radius + float(scene.light_radius[li])
@@ -247,7 +252,7 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
         half = 0.5 * float(scene.light_angle[li])
         if half <= 0:
             return L, t
-        axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+        axis = light_axis(scene, li)
         inside = escaped & (dot(-d, axis) >= math.cos(half))
         omega = 2.0 * math.pi * (1.0 - math.cos(half))
         L = np.where(inside[:, None], color / omega, 0.0)

@@ -20,7 +20,7 @@ from . import scene as S
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
-from .lights import area_light_points
+from .lights import area_light_points, light_axis
 from .optics import has_reflection
 from .trials import bernoulli_trials
 from .vec import dot, normalize, uniform_cone, frame, to_world
@@ -157,7 +157,7 @@ def sample_light(scene, li, n, rng, cap=None) -> LightEnd:
     m = scene.light_matrix[li]
     z = np.zeros((n, 3))
     if typ == S.SUN:
-        axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+        axis = light_axis(scene, li)
         half = 0.5 * float(scene.light_angle[li])
         to_sun = np.broadcast_to(-axis, (n, 3)).copy()
         if half > 0:

@@ -18,7 +18,7 @@ import numpy as np
 
 from . import scene as S
 from .errors import SceneError
-from .lights import light_covers
+from .lights import light_axis, light_covers
 from .vec import dot
 
 
@@ -371,7 +371,7 @@ def _letters(row) -> str:
     return "".join("R" if c == 1 else "T" for c in row[::-1] if c)
 
 
-def spot_target(scene, li: int, sphere: np.ndarray) -> np.ndarray:
+def spot_target(scene, li: int, sphere: np.ndarray) -> tuple[np.ndarray, float]:
     """Where light li's photons aim at a sphere (1,4) that holds what they may light (the
     diffuse surfaces for the plan's pilots, the scene for the bake's photons after a diffuse
     bounce): for a narrow spot, a sphere filling its cone instead, so the photons are not
@@ -384,9 +384,8 @@ def spot_target(scene, li: int, sphere: np.ndarray) -> np.ndarray:
     through at most: the solid angle of the new aim over the old one's, 1 where unchanged)."""
     if scene.light_type[li] != S.SPOT:
         return sphere, 1.0
-    m = scene.light_matrix[li]
-    c = m[:3, 3]
-    axis = -m[:3, 2] / np.linalg.norm(m[:3, 2])
+    c = scene.light_matrix[li][:3, 3]
+    axis = light_axis(scene, li)
     dist = float(np.linalg.norm(sphere[0, :3] - c))
     half = 0.5 * float(scene.light_spot_size[li])  # the cone masks directions (lights.spot_mask)
     if not (dist > 0 and half < math.radians(60.0)):
