@@ -56,6 +56,8 @@ METHODS = {
     "sms-b4": dict(method="sms", estimator="biased", trials=4),
     "smbs-b1": dict(method="smbs", estimator="biased", trials=1),
     "smbs-b4": dict(method="smbs", estimator="biased", trials=4),
+    "sms-published": dict(method="sms", first_step=1.0, stall_stop=False),  # the walk before
+    "smbs-published": dict(method="smbs", first_step=1.0, stall_stop=False),  # first_step, stall_stop
     "auto": dict(method="auto"),
     "default": dict(),
 }

@@ -54,6 +54,12 @@ class BakeSettings:
     trials: int = 4  # biased estimator: walks per receiver, light and chain type
     max_trials: int = 10000  # unbiased estimator: cap on the Bernoulli count
     max_iterations: int = 20
+    first_step: float = 0.125  # unbiased SMS, SMBS: the share of the full Newton step a walk's first
+    # small step takes (doubled on acceptance, halved on rejection); 1: the walk as published.
+    # MNEE and the biased estimator (whose energy depends on what a walk finds): always 1
+    stall_stop: bool = True  # unbiased SMS, SMBS: a walk that cannot mutate large gives up when its
+    # last 4 steps shrank the mismatch by less than 10% (outcome "stalled"; walk.STALL). MNEE and
+    # the biased estimator: never
     solver_threshold: float = 1e-6  # radians, scale-free
     uniqueness: float = 1e-7
     tau: float = 0.85  # SMBS slow-progress threshold
@@ -90,6 +96,8 @@ class BakeSettings:
         if not (self.noise_target >= 0 and math.isfinite(self.noise_target)):
             raise SceneError(f"noise_target must be 0 (off) or a positive relative error such as 0.05, "
                              f"not {self.noise_target}")
+        if not (0 < self.first_step <= 1):
+            raise SceneError(f"first_step must lie in (0, 1], not {self.first_step}")
         if not (0 < self.tau < 1):
             raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
         if not (self.solver_threshold > 0 and self.uniqueness > 0):
@@ -108,15 +116,21 @@ class BakeSettings:
     def manifold_options(self, method: str | None = None):
         """The walks' options; method overrides settings.method (auto: per light)."""
         from .manifold import ManifoldOptions
-        from .walk import WalkConfig
+        from .walk import STALL, WalkConfig
 
         method = method or ("smbs" if self.method == "auto" else self.method)
         self = dataclasses.replace(self, method=method)
 
-        walk = WalkConfig(form="hv" if self.method == "mnee" else "ad", max_iterations=self.max_iterations,
+        mnee = self.method == "mnee"
+        # first_step and stall_stop change what a walk finds, so only where the Bernoulli trials
+        # weigh each solution by 1/p do they leave the mean alone
+        counted = not mnee and self.estimator == "unbiased"
+        walk = WalkConfig(form="hv" if mnee else "ad", max_iterations=self.max_iterations,
                           threshold=self.solver_threshold, smbs=self.method == "smbs",
                           tir=self.large_mutation_tir, backlit=self.large_mutation_backlit,
-                          slow=self.large_mutation_slow, tau=self.tau)
+                          slow=self.large_mutation_slow, tau=self.tau,
+                          beta0=float(self.first_step) if counted else 1.0,
+                          **(STALL if self.stall_stop and counted else {}))
         return ManifoldOptions(method=self.method, estimator=self.estimator, trials=self.trials,
                                max_trials=self.max_trials, uniqueness=self.uniqueness,
                                chains=tuple(self.chains), max_chain=self.max_chain, walk=walk,

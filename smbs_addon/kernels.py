@@ -869,7 +869,7 @@ def large_proposal(idx, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, 
 
 # ------------------------------------------------------------------ the walk's bookkeeping
 _NONE, _TRIG_TIR, _TRIG_BACKLIT, _TRIG_SLOW = 0, 1, 2, 3
-_SINGULAR, _MAX_ITER = 7, 8
+_SINGULAR, _MAX_ITER, _STALLED = 7, 8, 13
 
 
 @njit(inline="always", **_JIT)
@@ -968,11 +968,11 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
     singular test, and the proposal's chain (_trace_lane into row 0 of proposal). Not inlined:
     one call per walk (its arguments are borrowed by the kernel that calls it, see _borrowed)."""
     (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, backlit_at, tau, slow_run, min_beta, threshold,
-     max_step, eps, max_halvings, max_iterations) = cfg
+     max_step, eps, max_halvings, max_iterations, beta0, stall_window, stall_factor, stall_from) = cfg
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
     F, I, out_dir, err, front, valid, beta, lscale, pending, slow_n, outcome, converged, mutations = state
     C, A, B, D, rhs, Li, Y, X = scratch
-    nF, nI, nstatus, nout = proposal
+    nF, nI, nstatus, nout, hist = proposal
     mat_ior = geo[7]
     k = kinds.shape[0]
     st = outcome[i]
@@ -980,7 +980,7 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
         etas[i, j] = mat_ior[I[i, j, MAT]]
     err[i], front[i] = _lane_mismatch(F, i, out_dir, ly, i, directional)
     valid[i] = st == _OK  # a lane converges only from a valid chain
-    beta[i] = 1.0
+    beta[i] = beta0
     # SMBS: GetRatio's bisection, carried on across iterations: a large mutation whose ray missed
     # the caster (or failed otherwise) would repeat itself exactly from the same vertex, so the
     # next one from there starts at half the weight; an accepted one resets it
@@ -1003,6 +1003,9 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
     xi = _v(x0, i, 0)
     gi = _v(ng0, i, 0)
     ul = False
+    # a walk that cannot mutate large (SMS, MNEE, SMBS's defensive lanes) gives up when its last
+    # stall_window steps shrank the mismatch by less than stall_factor (from step stall_from on)
+    stalls = stall_window > 0 and not (smbs and large_ok[i])
     for it in range(max_iterations + 1):
         if it > 0:
             e, f = _lane_mismatch(nF, 0, nout, ly, i, directional)
@@ -1013,6 +1016,11 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
         if err[i] < threshold and front[i] and valid[i]:
             converged[i] = True
             return
+        if stalls:
+            if it >= stall_from and err[i] > stall_factor * hist[it % stall_window]:
+                outcome[i] = _STALLED
+                return
+            hist[it % stall_window] = err[i]
         if it == max_iterations:
             outcome[i] = _MAX_ITER
             return
@@ -1038,11 +1046,11 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
 
 
 @njit(inline="always", **_JIT)
-def _walk_scratch(k):
-    """The work arrays of one thread's walks: the constraint blocks and solve (_lane_scratch) and
-    one proposal chain (F, I, status, out_dir)."""
+def _walk_scratch(k, stall_window):
+    """The work arrays of one thread's walks: the constraint blocks and solve (_lane_scratch),
+    one proposal chain (F, I, status, out_dir) and the last stall_window mismatches of a walk."""
     return _lane_scratch(k), (np.zeros((1, k, NF)), np.zeros((1, k, 3), np.int64), np.zeros(1, np.int64),
-                              np.zeros((1, 3)))
+                              np.zeros((1, 3)), np.zeros(max(stall_window, 1)))
 
 
 @njit(**_JIT)
@@ -1069,7 +1077,7 @@ def walk_lanes(rt, seeded, d, want_obj, cfg, geo, lane, state):
     and state: see walk.newton_walk. Returns the large mutations per trigger (4,) and the ray
     counters (embree.ray_state)."""
     ray = ray_state(rt)
-    scratch, proposal = _walk_scratch(cfg[1].shape[0])
+    scratch, proposal = _walk_scratch(cfg[1].shape[0], cfg[17])
     large = np.zeros(4, np.int64)
     _walk_rows(seeded, d, want_obj, cfg, geo, lane, state, scratch, proposal, ray, large)
     return large, ray[6]
@@ -1163,7 +1171,7 @@ def bernoulli_lanes(rt, samples, seeds, trials, cfg, geo, directional, obj_lo, o
              np.zeros(1, np.bool_), np.zeros(1, np.bool_), np.ones(1), np.ones(1), np.zeros(1, np.int64),
              np.zeros(1, np.int64), np.zeros(1, np.int64), np.zeros(1, np.bool_), np.zeros(1, np.int64))
     ray = ray_state(rt)
-    scratch, proposal = _walk_scratch(k)
+    scratch, proposal = _walk_scratch(k, cfg[17])
     large = np.zeros(4, np.int64)
     first = np.full(samples[0].shape[0], trials[3], np.int64)
     tally = np.zeros(2, np.int64)

@@ -361,6 +361,10 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         col = layout.column(heading="Solver")
         col.active = settings.method != "reference"
         col.prop(settings, "max_iterations")
+        sub = col.column()
+        sub.active = settings.method != "mnee" and settings.estimator == "unbiased"
+        sub.prop(settings, "first_step")
+        sub.prop(settings, "stall_stop")
         col.prop(settings, "solver_threshold")
         col.prop(settings, "uniqueness")
         col.prop(settings, "max_chain")

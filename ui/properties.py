@@ -18,7 +18,8 @@ from bpy.props import (
 # Properties passed to BakeSettings by name (each must be a BakeSettings field).
 BAKE_FIELDS = (
     "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
-    "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "solver_threshold",
+    "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "first_step",
+    "stall_stop", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
     "max_chain", "clamp_g", "handoff", "indirect", "pilots",
 )
@@ -165,6 +166,18 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
     max_iterations: IntProperty(
         name="Max Iterations", default=20, min=1, soft_max=200, max=10_000,
         description="Newton steps (small and large mutations) before a walk gives up",
+    )
+    first_step: FloatProperty(
+        name="First Step", default=0.125, min=1e-3, max=1.0, subtype='FACTOR',
+        description="Unbiased SMS and SMBS: the share of the full Newton step a walk's first step "
+                    "takes (doubled while steps succeed). 1: the walk as published. MNEE and the "
+                    "biased estimator always take 1",
+    )
+    stall_stop: BoolProperty(
+        name="Stop Stalled Walks", default=True,
+        description="Unbiased SMS and SMBS: a walk that cannot make large mutations gives up when "
+                    "four steps in a row shrank its distance to the light by less than 10%; the "
+                    "estimate stays unbiased. MNEE and the biased estimator never give up early",
     )
     solver_threshold: FloatProperty(
         name="Threshold", default=1e-6, min=1e-12, soft_min=1e-9, max=1e-1,
