@@ -15,7 +15,6 @@ walk_steps.md.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -71,11 +70,10 @@ def main(argv=None) -> None:
     for item in args.scenes.split(","):
         name, _, size = item.partition(":")
         scene = SCENES[name](resolution=(int(size or 256),) * 2)
-        for ctx, cfg, types, x0, ng0, light, chain, large_ok, seed in captured_walks(scene, args.method):
+        for ctx, _, types, x0, ng0, light, chain, large_ok, seed in captured_walks(scene, args.method):
             ctx.tracer.threads = 1
             for v in variants:
-                opts = dataclasses.replace(BakeSettings(method=args.method), **_variant(v)).manifold_options()
-                c2 = dataclasses.replace(cfg, beta0=opts.walk.beta0, **{f: getattr(opts.walk, f) for f in walk.STALL})
+                c2 = BakeSettings(method=args.method, **_variant(v)).manifold_options().walk
                 t = time.perf_counter()
                 r = walk.newton_walk(ctx, c2, types, x0, ng0, light, chain, large_ok, seed)
                 dt = time.perf_counter() - t

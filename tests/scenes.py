@@ -191,3 +191,19 @@ def pane_scene(thickness=0.1, resolution=(32, 24)):
     b.set_camera((0, -4.0, 2.0), (0, 0, 0.5), lens=35, resolution_x=resolution[0],
                  resolution_y=resolution[1])
     return b.build()
+
+
+def seed_chains(scene, types: str, x0, rng):
+    """Plain SMS seed chains of one chain type from floor points x0 (normal +z), as a bake seeds
+    its walks: (ctx, ng0, light, chain), the light's points and the seeds drawn from rng."""
+    from smbs_addon.manifold import Ctx, Seeder, sample_light
+    from smbs_addon.plan import make_plan
+    from smbs_addon.tracer import Tracer
+
+    plan = make_plan(scene, "OFF")
+    ctx = Ctx(scene, Tracer(scene, threads=2), plan, {})
+    n = len(x0)
+    ng0 = np.tile([0.0, 0.0, 1.0], (n, 1))
+    light = sample_light(scene, 0, n, rng)
+    chain = Seeder(scene, plan.casters, types, "sms").seed(ctx, rng, types, x0, ng0, light)
+    return ctx, ng0, light, chain

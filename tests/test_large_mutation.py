@@ -54,20 +54,11 @@ def test_get_ratio_matches_the_algorithm_ray_by_ray():
 def _converged_chains(scene, types, n=4000, seed=5):
     """Plain SMS walks of one chain type from floor points in front of the pane; the lanes
     that converged (valid specular paths), with their receivers and light ends."""
-    from smbs_addon.manifold import Ctx, Seeder, sample_light
-    from smbs_addon.plan import make_plan
-    from smbs_addon.tracer import Tracer
     from smbs_addon.walk import WalkConfig, newton_walk
 
-    tracer = Tracer(scene, threads=2)
-    plan = make_plan(scene, "OFF")
-    ctx = Ctx(scene, tracer, plan, {})
     rng = np.random.default_rng(seed)
     x0 = np.c_[rng.uniform(-1.0, 1.0, n), rng.uniform(-2.5, -0.2, n), np.zeros(n)]
-    ng0 = np.tile([0.0, 0.0, 1.0], (n, 1))
-    light = sample_light(scene, 0, n, rng)
-    seeder = Seeder(scene, plan.casters, types, "sms")
-    chain = seeder.seed(ctx, rng, types, x0, ng0, light)
+    ctx, ng0, light, chain = scenes.seed_chains(scene, types, x0, rng)
     res = newton_walk(ctx, WalkConfig(), types, x0, ng0, light, chain)
     conv = np.flatnonzero(res.converged)
     return x0[conv], res.chain.take(conv), light.take(conv)

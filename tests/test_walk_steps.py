@@ -14,20 +14,11 @@ from smbs_addon.errors import SceneError
 
 def _walks(types="TT", n=3000, seed=4):
     """Seed chains of the glass ball from floor points around it, as SMS walks them."""
-    from smbs_addon.manifold import Ctx, Seeder, sample_light
-    from smbs_addon.plan import make_plan
-    from smbs_addon.tracer import Tracer
-
     scene = scenes.glass_sphere_scene(resolution=(32, 32))
-    tracer = Tracer(scene, threads=2)
-    plan = make_plan(scene, "OFF")
-    ctx = Ctx(scene, tracer, plan, {})
     rng = np.random.default_rng(seed)
     r, a = rng.uniform(0.0, 2.0, n), rng.uniform(0, 2 * np.pi, n)
     x0 = np.c_[r * np.cos(a), r * np.sin(a), np.zeros(n)]
-    ng0 = np.tile([0.0, 0.0, 1.0], (n, 1))
-    light = sample_light(scene, 0, n, rng)
-    chain = Seeder(scene, plan.casters, types, "sms").seed(ctx, rng, types, x0, ng0, light)
+    ctx, ng0, light, chain = scenes.seed_chains(scene, types, x0, rng)
     return ctx, x0, ng0, light, chain
 
 
