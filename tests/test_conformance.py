@@ -67,3 +67,24 @@ def test_the_judge_sees_a_five_percent_error():
     scaled = conf.judge(res.batch_luminance * 0.95, conf.load_reference("water_flat_sun0"))
     assert not scaled["within"]
     assert scaled["ratio"] == pytest.approx(0.95 * j["ratio"], rel=1e-6)
+
+
+def test_the_judge_takes_pixels_seen_directly_and_in_the_mirror_apart():
+    """view_masks splits the image into pixels whose primary rays all meet the floor and pixels
+    whose rays all meet the mirror; judge(mask=) reads only the region's pixels of one kind:
+    scaling our bake by 0.9 in the mirror's pixels alone moves that judgement by exactly 0.9 and
+    leaves the other's unchanged."""
+    name = "mirror_point_hard"
+    sc = conf.scene_arrays(name)
+    direct, through = conf.view_masks(sc)
+    assert not (direct & through).any()
+    assert direct.sum() > 100 and through.sum() > 100, (direct.sum(), through.sum())
+    res, whole = _judge(name, "sms", 4)
+    ref = conf.load_reference(name)
+    jd, jt = conf.judge(res.batch_luminance, ref, direct), conf.judge(res.batch_luminance, ref, through)
+    assert jd["pixels"] > 20 and jt["pixels"] > 20, (jd["pixels"], jt["pixels"])
+    dimmed = (np.where(through, 0.9, 1.0)[None] * res.batch_luminance).astype(res.batch_luminance.dtype)
+    assert conf.judge(dimmed, ref, direct)["ratio"] == jd["ratio"]
+    assert conf.judge(dimmed, ref, through)["ratio"] == pytest.approx(0.9 * jt["ratio"], rel=1e-6)
+    assert conf.judge(dimmed, ref)["ratio"] < whole["ratio"]
+

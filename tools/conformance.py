@@ -150,10 +150,12 @@ def relative_rmse(lum: np.ndarray, ref: dict, region: np.ndarray | None = None) 
     return math.sqrt(max(mse, 0.0)) / float(truth[region].mean())
 
 
-def judge(batch_luminance: np.ndarray, ref: dict) -> dict:
+def judge(batch_luminance: np.ndarray, ref: dict, mask: np.ndarray | None = None) -> dict:
     """Our mean over the caustic region relative to Cycles', with standard errors.
 
-    batch_luminance: (B,H,W) our independent batches (BakeResult.batch_luminance)."""
+    batch_luminance: (B,H,W) our independent batches (BakeResult.batch_luminance); mask (H,W)
+    bool: judge only the region's pixels inside it (view_masks: seen directly, or through
+    mirrors and glass)."""
     A, Bh = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
     var_half = ((A - Bh) ** 2) / 2.0  # per-pixel variance of one half (Cycles' pixels are independent)
     ours_img = batch_luminance.mean(axis=0)
@@ -161,7 +163,11 @@ def judge(batch_luminance: np.ndarray, ref: dict) -> dict:
     ratios, se_refs, se_ours, pix = [], [], [], []
     for sel, judge_img in ((A, Bh), (Bh, A)):
         region = region_of(sel)
+        if mask is not None:
+            region &= mask
         n = int(region.sum())
+        if n == 0:
+            raise ValueError("no pixel of the caustic region lies in the mask")
         m_ref = float(judge_img[region].mean())
         se_ref = math.sqrt(float(var_half[region].sum())) / n
         means = batch_luminance[:, region].mean(axis=1)
@@ -178,6 +184,30 @@ def judge(batch_luminance: np.ndarray, ref: dict) -> dict:
     return {"ratio": ratio, "se_ours": se_o, "se_ref": se_ref, "sigma": sigma,
             "pixels": int(np.mean(pix)), "whole_image_ratio": float(ours_img.sum() / (0.5 * (A + Bh)).sum()),
             "within": abs(ratio - 1.0) <= 0.03 + 3.0 * sigma}
+
+
+def view_masks(scene, sub: int = 4) -> tuple[np.ndarray, np.ndarray]:
+    """(direct, through) (H,W) bool over the camera's image: pixels all of whose sub x sub
+    primary rays meet a diffuse surface first, and those all of whose rays meet a mirror or
+    glass first (the camera sees a receiver through them, or nothing). Pixels on an edge
+    between the two are in neither."""
+    from smbs_addon import scene as S
+    from smbs_addon.camera import CameraModel
+    from smbs_addon.tracer import Tracer
+
+    cam = CameraModel(scene.camera)
+    tracer = Tracer(scene, threads=2)
+    H, W = scene.camera.height, scene.camera.width
+    yy, xx = (a.ravel().astype(float) for a in np.mgrid[0:H, 0:W])
+    specular = np.zeros(H * W)
+    for sy in range(sub):
+        for sx in range(sub):
+            o, d, tnear = cam.rays(xx + (sx + 0.5) / sub, yy + (sy + 0.5) / sub)
+            h = tracer.intersect(o + tnear[:, None] * d, d)
+            kind = np.where(h.hit, scene.mat_kind[scene.tri_material[np.maximum(h.prim, 0)]], -1)
+            specular += (kind == S.DIELECTRIC) | (kind == S.CONDUCTOR)
+    specular = specular.reshape(H, W) / (sub * sub)
+    return specular == 0, specular == 1
 
 
 # ------------------------------------------------------------------------- rendering
