@@ -28,12 +28,13 @@ def _true_error(res, ref):
 
 
 @pytest.mark.bpy
-@pytest.mark.parametrize("name,method,spp", [("lens_area", "reference", 8), ("mirror_point_hard", "sms", 8)])
+@pytest.mark.parametrize("name,method,spp", [("lens_area", "reference", 4), ("mirror_point_hard", "sms", 8)])
 def test_relative_error_tracks_the_true_error(name, method, spp):
     """Within a factor of 1.5 of the relative RMS error against Cycles, over the same pixels.
-    Measured, estimated / true, seeds 1-3: lens (light tracer, 8 spp) 1.01, 0.89, 1.16 at a
-    true error of 0.06-0.09 (the reference's own noise, taken out, is 0.048); mirror (SMS,
-    8 spp) 1.00, 0.98, 1.05 at 0.39-0.41."""
+    Measured, estimated / true, seeds 1-3: lens (light tracer, 4 spp) 1.13, 1.01, 0.96 at a
+    true error of 0.08-0.11 (the reference's own noise, taken out, is 0.052; at 8 spp the
+    true error, 0.05-0.08, comes too near it to be read); mirror (SMS, 8 spp) 0.99, 0.98,
+    1.02 at 0.40-0.41."""
     ref = conf.load_reference(name)
     sc = conf.scene_arrays(name)
     for seed in (1, 2):

@@ -1,11 +1,11 @@
 """Cycles is the judge of our radiometry (issue 2).
 
 tests/data/cycles_mirror_* hold a converged Cycles render of
-sample_blends/mirror.blend with caustics on (two seeds, 2 x 8192 spp) and off,
-made by ``python tools/cycles_reference.py sample_blends/mirror.blend --spp 16384
---off-spp 1024 --out tests/data/cycles_mirror``. Cycles' caustic component is
-on - off; the scene lights the floor only through the mirror, so that is the
-caustic alone. Our layer must match it within 3% in mean over the caustic
+sample_blends/mirror.blend with caustics on and off in two halves (seeds 1 and 2,
+8192 spp each, every "off" render with its "on" render's seed), made by ``python
+tools/cycles_reference.py sample_blends/mirror.blend --spp 16384 --out
+tests/data/cycles_mirror``. Cycles' caustic component is on - off; the scene lights
+the floor only through the mirror, so that is the caustic alone. Our layer must match it within 3% in mean over the caustic
 region, and pixel by pixel within the two estimates' combined noise.
 
 The region is chosen on one Cycles seed and the means are taken on the other:
@@ -35,12 +35,13 @@ def _box5(x):
 def _load(name):
     on_a = read_exr(DATA / f"cycles_{name}_on_a.exr")[0][..., :3]
     on_b = read_exr(DATA / f"cycles_{name}_on_b.exr")[0][..., :3]
-    off = read_exr(DATA / f"cycles_{name}_off.exr")[0][..., :3]
-    region = caustic_region(on_a - off)  # chosen on seed a ...
-    caustic_b = (on_b - off).mean(axis=2)  # ... judged on seed b
+    off_a = read_exr(DATA / f"cycles_{name}_off_a.exr")[0][..., :3]
+    off_b = read_exr(DATA / f"cycles_{name}_off_b.exr")[0][..., :3]
+    region = caustic_region(on_a - off_a)  # chosen on seed a ...
+    caustic_b = (on_b - off_b).mean(axis=2)  # ... judged on seed b
     # per-pixel variance of one half is (a - b)^2 / 2, a one-degree-of-freedom
     # estimate; averaged over 5 x 5 neighbours it has ~25
-    var = _box5(((on_a - on_b) ** 2).mean(axis=2) / 2.0)
+    var = _box5((((on_a - off_a) - (on_b - off_b)) ** 2).mean(axis=2) / 2.0)
     return caustic_b, var, region, (on_a.mean(axis=2), on_b.mean(axis=2))
 
 
@@ -111,7 +112,7 @@ def test_glass_ball_under_a_spot_walked_matches_cycles_pixel_by_pixel(method):
 
 def test_glass_sphere_final_image_matches_cycles():
     """sample_blends/glass_sphere.blend: a glass ball under an area light that also lights
-    the floor (Cycles reference 2 x 8192 spp on, 1024 off, made like the mirror's). The
+    the floor (Cycles reference 2 x 8192 spp on and off, made like the mirror's). The
     final image, Cycles without caustics plus our layer (the compositor's sum is checked
     exactly in test_addon_roundtrip), must match Cycles with caustics within 5% over the
     caustic region, baked with the defaults an artist gets (SMBS, walks plus the photon
@@ -121,7 +122,7 @@ def test_glass_sphere_final_image_matches_cycles():
     caustic alone was 8% under Cycles' while the final image was 3% under. Measured
     here: final image -1.5%, caustic alone -1.6%."""
     cyc, cyc_var, region, _ = _load("glass_sphere")
-    off = read_exr(DATA / "cycles_glass_sphere_off.exr")[0][..., :3].mean(axis=2)
+    off = read_exr(DATA / "cycles_glass_sphere_off_b.exr")[0][..., :3].mean(axis=2)
     on_b = read_exr(DATA / "cycles_glass_sphere_on_b.exr")[0][..., :3].mean(axis=2)
     scene = load_input(str(ROOT / "sample_blends" / "glass_sphere.blend"), warn=lambda m: None)
     res = bake(scene, BakeSettings(method="smbs", spp=8, seed=1))

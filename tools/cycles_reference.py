@@ -1,15 +1,19 @@
 """Render a Cycles reference for the caustic layer of a sample scene.
 
     python tools/cycles_reference.py sample_blends/mirror.blend --spp 4096 \\
-        --out tests/data/cycles_mirror [--off-spp 512] [--threads 2]
+        --out tests/data/cycles_mirror [--threads 2]
 
-Renders the scene with Cycles (bpy module, CPU):
-  * twice with caustics on (``caustics_reflective = caustics_refractive = True``),
-    with two different seeds, each with half of ``--spp`` samples:
+Renders the scene with Cycles (bpy module, CPU), in two halves with different seeds,
+each with half of ``--spp`` samples:
+  * with caustics on (``caustics_reflective = caustics_refractive = True``):
     ``<out>_on_a.exr``, ``<out>_on_b.exr``;
-  * once with caustics off: ``<out>_off.exr``.
-The caustic component is ``(on_a + on_b) / 2 - off``, and half the RMS of
-``on_a - on_b`` is the reference's own noise. The images are the Combined pass,
+  * with caustics off, with the seed and samples of the half's "on" render:
+    ``<out>_off_a.exr``, ``<out>_off_b.exr``.
+A half's caustic component is ``on - off`` of its own pair: Cycles draws the same
+random numbers for a camera path up to its first diffuse vertex, so what the camera
+sees through glass or in a mirror without a diffuse bounce (a light's image in a
+glass ball) is the same sample for sample in both and cancels exactly. The caustic
+is the mean of the halves, and half the RMS of their difference is its own noise. The images are the Combined pass,
 scene linear, 32-bit float OpenEXR (zip), RGB, with an opaque film; the view
 transform is set to Standard with no look (EXR output is scene linear either
 way; this only keeps any preview consistent). A JSON file ``<out>.json`` holds
@@ -97,17 +101,18 @@ def render(blend, spp, seed, caustics, threads, path, keep_mnee=False):
     return dt
 
 
-def caustic_stats(on_a, on_b, off, frac=0.05, pct=99.5):
+def caustic_stats(on_a, on_b, off_a, off_b, frac=0.05, pct=99.5):
     """Mean caustic over the region above frac x its pct-th percentile, and the noise there."""
-    on = 0.5 * (on_a + on_b)
-    caus = (on - off).mean(axis=2)
+    ca, cb = on_a - off_a, on_b - off_b
+    caus_rgb = 0.5 * (ca + cb)
+    caus = caus_rgb.mean(axis=2)
     thr = frac * float(np.percentile(caus, pct))
     region = caus > thr
-    half_rms = 0.5 * float(np.sqrt(np.mean(((on_a - on_b).mean(axis=2)[region]) ** 2))) \
+    half_rms = 0.5 * float(np.sqrt(np.mean(((ca - cb).mean(axis=2)[region]) ** 2))) \
         if region.any() else 0.0
     return dict(threshold=thr, region_pixels=int(region.sum()),
                 mean_caustic=float(caus[region].mean()) if region.any() else 0.0,
-                mean_caustic_rgb=[float(x) for x in (on - off)[region].mean(axis=0)]
+                mean_caustic_rgb=[float(x) for x in caus_rgb[region].mean(axis=0)]
                 if region.any() else [0.0, 0.0, 0.0],
                 # noise of one half-image pixel is rms(a-b)/sqrt(2); of the mean of both, rms/2
                 half_rms_difference=half_rms,
@@ -119,8 +124,6 @@ def main(argv=None):
     ap.add_argument("blend", type=Path)
     ap.add_argument("--spp", type=int, default=4096, help="total samples of the 'on' render "
                     "(split over two seeds)")
-    ap.add_argument("--off-spp", type=int, default=None,
-                    help="samples of the 'off' render (default spp/8, at least 64)")
     ap.add_argument("--out", type=Path, required=True, help="output prefix")
     ap.add_argument("--threads", type=int, default=2)
     ap.add_argument("--seeds", type=int, nargs=2, default=(1, 2))
@@ -135,9 +138,8 @@ def main(argv=None):
     out = args.out.resolve()
     out.parent.mkdir(parents=True, exist_ok=True)
     half = max(1, args.spp // 2)
-    off_spp = args.off_spp or max(64, args.spp // 8)
-    jobs = [("on_a", half, args.seeds[0], True), ("on_b", half, args.seeds[1], True),
-            ("off", off_spp, 3, False)]
+    jobs = [("on_a", half, args.seeds[0], True), ("off_a", half, args.seeds[0], False),
+            ("on_b", half, args.seeds[1], True), ("off_b", half, args.seeds[1], False)]
     timings = {}
     for tag, spp, seed, caustics in jobs:
         path = Path(f"{out}_{tag}.exr")
@@ -146,8 +148,7 @@ def main(argv=None):
         print(f"{tag}: {spp} spp, seed {seed}, caustics {'on' if caustics else 'off'}: "
               f"{dt:.1f} s -> {path.name}", flush=True)
 
-    on_a, on_b, off = (_read_exr(f"{out}_{t}.exr") for t in ("on_a", "on_b", "off"))
-    stats = caustic_stats(on_a, on_b, off)
+    stats = caustic_stats(*(_read_exr(f"{out}_{t}.exr") for t in ("on_a", "on_b", "off_a", "off_b")))
     import bpy
 
     scene = bpy.context.scene
@@ -168,8 +169,9 @@ def main(argv=None):
                       filter=scene.cycles.pixel_filter_type, filter_width=scene.cycles.filter_width,
                       film_transparent=False, view_transform="Standard", exr="32-bit float ZIP RGB"),
         caustic=stats,
-        how="caustic = (on_a + on_b)/2 - off; region = caustic > 5% of its 99.5th percentile; "
-            "half_rms_difference = 0.5 * rms(on_a - on_b) over the region (noise of the mean)",
+        how="caustic = ((on_a - off_a) + (on_b - off_b))/2, each off render with its on render's seed "
+            "and samples; region = caustic > 5% of its 99.5th percentile; half_rms_difference = 0.5 * "
+            "rms of the halves' difference over the region (noise of the mean)",
     )
     Path(f"{out}.json").write_text(json.dumps(meta, indent=2) + "\n")
     print(json.dumps(stats, indent=2))
