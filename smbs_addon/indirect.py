@@ -42,6 +42,11 @@ MAX_DIFFUSE = 4  # Cycles' default Light Paths > Diffuse bounces
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
 HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
+# specular vertices handoff_gather follows for the paths no walk takes (chains longer than
+# max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
+# bounces): of the light a bevelled glass cube brings into the frame, chains of more than 8
+# vertices carry 0.8-2.0%, of more than 16 0.3-0.7% (photons, cube_grey and cube_white_rect)
+OTHERS_DEPTH = 16
 
 
 def _albedo(scene, mat):
@@ -270,7 +275,11 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     walks' estimate is heavy-tailed, the light seen from x0 through the caster is large
     and cosine sampling finds it easily.
 
-    handoffs: light index -> reference.Handoff (its ``others`` is ignored here); samples:
+    With a Handoff's ``others``, the paths no walk takes (a chain type not walked, longer than
+    the longest walked, or through a specular vertex that is no planned caster; up to
+    OTHERS_DEPTH vertices) count too, as the photons take them at receivers seen directly.
+
+    handoffs: light index -> reference.Handoff; samples:
     cosine directions per receiver (rays are cheap next to the walks they replace, and a
     focus's light is a small target); found: light index -> paths taken, added to."""
     n = len(rc.p)
@@ -288,7 +297,10 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
                              handoffs, physical, samples, per_light)
         return rad, st, per_light
 
-    parts = lanes.blocks(block, n, max(1, HANDOFF_LANES // samples), tracer.threads)
+    # receivers per block: HANDOFF_LANES rays in flight at up to 4 specular vertices (each lane
+    # keeps a record per vertex), fewer when the paths no walk takes are followed further
+    per_block = max(1, HANDOFF_LANES // samples * 4 // max(4, _handoff_depth(handoffs)))
+    parts = lanes.blocks(block, n, per_block, tracer.threads)
     radiance = np.concatenate([p[0] for p in parts])
     for _, st, per_light in parts:
         lanes.add_stats(stats, st)
@@ -300,14 +312,20 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
         film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
 
 
+def _handoff_depth(handoffs: dict) -> int:
+    """Specular vertices handoff_gather follows: the longest walked chain, or OTHERS_DEPTH where
+    it takes the paths no walk takes (Handoff.others)."""
+    return max(max(h.max_chain, OTHERS_DEPTH) if h.others else h.max_chain for h in handoffs.values())
+
+
 def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found):
     """handoff_gather's radiance (n,3) at a block of receivers; found: light index -> paths taken.
     The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
     segments and the paths taken are found here, per number of specular vertices."""
-    from .reference import Handoff, _handoff_select
+    from .reference import _handoff_select, other_paths
 
     n = len(rc.p)
-    K = max(h.max_chain for h in handoffs.values())
+    K = _handoff_depth(handoffs)
     m = n * samples
     u = rng.random((m, 3 + K))
     # the kernel writes every entry read below (a lane's first seg_n segments, and the specular
@@ -340,12 +358,16 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
             # _handoff_select reads the history light side first: reverse the bounces
             rev = np.arange(bounce)[::-1]
             hr = hist[r][:, rev]
-            take = _handoff_select(scene, tracer, Handoff(ho.tau, ho.directional), rc.p[r // samples],
-                                   np.full(seen.size, bounce), h_prim[r][:, rev], hr[:, :, 0:3], hr[:, :, 3:5],
-                                   hr[:, :, 5].astype(np.int64), hr[:, :, 6] > 0, y)
+            kb, refl, caster = np.full(seen.size, bounce), hr[:, :, 5].astype(np.int64), hr[:, :, 6] > 0
+            take = _handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev], hr[:, :, 0:3],
+                                   hr[:, :, 3:5], refl, caster, y)
             t = seen[take]
             np.add.at(radiance, row[t] // samples, beta[t] * L[t])
-            stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size)
-            found[li] = found.get(li, 0) + int(t.size)
+            # the focusing paths of walked types (what tells later chunks to hand off) apart from
+            # the paths no walk takes
+            other = other_paths(ho, kb, refl, caster)[take] if ho.others else np.zeros(t.size, bool)
+            stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size - other.sum())
+            stats["other_paths"] = stats.get("other_paths", 0) + int(other.sum())
+            found[li] = found.get(li, 0) + int(t.size - other.sum())
     return radiance
 

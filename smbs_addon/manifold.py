@@ -45,6 +45,12 @@ class ManifoldOptions:
 # At receivers seen through mirrors or glass the hand-off goes to cosine sampling, weaker than
 # light tracing: only paths focusing more than this (the default hand-off) go there
 SEEN_HANDOFF_MIN = 4.0
+# ... and there the paths no walk takes (chains longer than max_chain, ...) go to it too, for each
+# light whose photon pre-pass (the guide) found them carrying at least this share of the light it
+# brought into the frame: below, they are left out at those receivers (their cosine rays cost as
+# much as a focus's, and over a pool under a sun, seen through its water everywhere, would find
+# next to nothing). At receivers seen directly the photons take them whatever their share
+OTHERS_MIN_SHARE = 0.01
 
 
 class Ctx:
@@ -492,16 +498,32 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     # hand-off's own evidence is the surer: on the disk seen through a pane its first chunk
     # took 101 paths where the walks of that chunk met none, and a second chunk without the
     # hand-off met the fold (seed 1: 0.915 relative RMSE at 20 s against 0.165 with it)
-    handoffs = {}
+    # The same gather also takes, at these receivers, the paths no walk takes (a chain type not
+    # walked, longer than max_chain, or through a specular vertex that is no planned caster), as
+    # the photons take them at receivers seen directly (bake._handoff_batch, Handoff.others):
+    # for each light whose pre-pass (the guide) saw them bring OTHERS_MIN_SHARE of its light into
+    # the frame or more (every light without the guide). They used to be lost wherever the camera
+    # looks through glass: on a bevelled cube's floor seen through the cube, chains of 5 and more
+    # vertices carry 8% of the light reaching the frame.
+    handoffs, focus = {}, set()
     if opts.handoff > 0 and types_list:
         from .reference import Handoff
 
-        handoffs = {lp.index: Handoff({t: max(opts.handoff, SEEN_HANDOFF_MIN) for t in types_list},
-                                      bool(scene.light_type[lp.index] == S.SUN))
-                    for lp in plan.lights
-                    if light_can_be_hit(scene, lp.index) and _hand_off_seen(scene, lp, ctxs[lp.index].stats)}
+        for lp in plan.lights:
+            if not light_can_be_hit(scene, lp.index):
+                continue
+            seen_focus = _hand_off_seen(scene, lp, ctxs[lp.index].stats)
+            others = guide is None or guide.stats.get("other_share", {}).get(lp.name, 1.0) >= OTHERS_MIN_SHARE
+            if seen_focus or others:
+                tau = max(opts.handoff, SEEN_HANDOFF_MIN) if seen_focus else math.inf
+                handoffs[lp.index] = Handoff({t: tau for t in types_list}, bool(scene.light_type[lp.index] == S.SUN),
+                                             others=others)
+            if seen_focus:
+                focus.add(lp.index)
+                st = ctxs[lp.index].stats
+                st["seen_handoff_chunks"] = st.get("seen_handoff_chunks", 0) + 1
     for li, ctx in ctxs.items():
-        ctx.handoff_seen = li in handoffs
+        ctx.handoff_seen = li in focus
         ctx.first_order = True
     total = caustic(rc)
     for ctx in ctxs.values():  # the walks at later diffuse vertices (indirect.gather) keep every path

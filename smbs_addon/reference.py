@@ -107,35 +107,57 @@ class Handoff:
         return max(len(t) for t in self.types)
 
 
+def _chain_codes(refl, lanes, k):
+    """Chain letters as codes (bit j: 1 for an R at vertex j from the receiver's side) of the
+    lanes' first k vertices in history order (light side first)."""
+    codes = np.zeros(lanes.size, np.int64)
+    for j in range(k):
+        codes = codes * 2 + refl[lanes, k - 1 - j]
+    return codes
+
+
+def _letters(code, k) -> str:
+    return "".join("R" if (code >> (k - 1 - j)) & 1 else "T" for j in range(k))
+
+
+def other_paths(handoff, kb, refl, caster):
+    """Which paths (kb bounces; history per bounce, light side first) no walk takes: longer
+    than the longest walked type, through a specular vertex that is no planned caster, or of
+    a chain type not walked."""
+    other = kb > handoff.max_chain
+    for k in np.unique(kb[(kb >= 1) & (kb <= handoff.max_chain)]):
+        lanes = np.flatnonzero(kb == k)
+        on = np.all(caster[lanes, :k], axis=1)
+        codes = _chain_codes(refl, lanes, k)
+        walked = np.isin(codes, [c for c in np.unique(codes) if _letters(c, k) in handoff.types])
+        other[lanes] = ~on | ~walked
+    return other
+
+
 def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caster, y):
     """Which photons arriving at x0 after kb bounces (history per bounce, light side
     first) carry a handed-off path."""
     take = np.zeros(len(x0), bool)
-    K = handoff.max_chain
-    ok = (kb >= 1) & (kb <= K)
     if handoff.others:
-        take[kb > K] = True
+        take |= other_paths(handoff, kb, refl, caster)
+    K = handoff.max_chain
+    ok = (kb >= 1) & (kb <= K) & ~take
     for k in np.unique(kb[ok]):
         lanes = np.flatnonzero(ok & (kb == k))
-        on_casters = np.all(caster[lanes, :k], axis=1)
-        if handoff.others:
-            take[lanes[~on_casters]] = True
-        lanes = lanes[on_casters]
+        lanes = lanes[np.all(caster[lanes, :k], axis=1)]
         # chain letters from the receiver's side: the photon's last bounce comes first
-        codes = np.zeros(lanes.size, np.int64)
-        for j in range(k):
-            codes = codes * 2 + refl[lanes, k - 1 - j]
+        codes = _chain_codes(refl, lanes, k)
         for code in np.unique(codes):
-            types = "".join("R" if (code >> (k - 1 - j)) & 1 else "T" for j in range(k))
+            types = _letters(code, k)
             if types not in handoff.types:
-                if handoff.others:
-                    take[lanes[codes == code]] = True
                 continue
             g = lanes[codes == code]
             verts = [vertex_from_hits(scene, tracer, prim[g, k - 1 - j], pts[g, k - 1 - j], bary[g, k - 1 - j])
                      for j in range(k)]
             etas = [scene.mat_ior[v.mat] for v in verts]
             tau = handoff.tau[types]
+            if tau == math.inf:  # a walked type none of whose paths is handed off
+                continue
             if tau <= 0:
                 take[g] = True
                 continue
