@@ -42,6 +42,7 @@ SPP_BY_SCENE = {
     # 3 sigma was 8-25%, too wide to see a 10% error
     "cube_grey": {"reference": 1024, "sms": 32, "smbs": 32},
     "cube_white_rect": {"reference": 1024, "sms": 32, "smbs": 32},
+    "cube_white_glossy1": {"reference": 1024, "sms": 32, "smbs": 32},
     "prism_tir": {"reference": 1024, "sms": 32, "smbs": 32},
     "wavy_mirror_sun2": {"reference": 1024, "sms": 16, "smbs": 16},
     "gold_cylinder": {"sms": 16, "smbs": 16},

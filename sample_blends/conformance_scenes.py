@@ -331,6 +331,17 @@ def cube_white_rect():
     return scene
 
 
+def cube_white_glossy1():
+    """cube_white_rect with Light Paths > Glossy bounces 1 (the rest as Blender's defaults: max
+    12, diffuse 4, transmission 12): Cycles then drops every caustic path with more than one
+    reflection before its last vertex (T R R T, the floor seen through two inner reflections)."""
+    scene = cube_white_rect()
+    scene.name = "cube_white_glossy1"
+    c = scene.cycles
+    c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = 12, 4, 1, 12
+    return scene
+
+
 SCENES = {
     # name: (builder, what it covers)
     "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
@@ -347,6 +358,8 @@ SCENES = {
     "prism_tir": (prism_tir, "Glass BSDF 1.5 prism, flat, total internal reflection (T R T)"),
     "cube_white_rect": (cube_white_rect, "Principled glass white, bevelled cube, rectangle area, "
                         "T R T and T R R T"),
+    "cube_white_glossy1": (cube_white_glossy1, "the white cube with Light Paths glossy 1, max 12, "
+                           "transmission 12 (bounce limits)"),
 }
 # scenes whose reference is Cycles' MNEE (the light cannot be found by path tracing)
 MNEE_REFERENCE = {"water_flat_sun0"}

@@ -599,6 +599,12 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         opts = settings.manifold_options()
         opts_by_light = {li: settings.manifold_options(c.walk) for li, c in choices.items()}
         types = chain_types(scene, plan, opts)
+        cut = [t for t in chain_types(scene, plan, opts, light_paths=False) if t not in types]
+        if cut:
+            from .bounces import Limits
+
+            plan.notes.append(f"{Limits.of(scene).words()}: Cycles renders no caustic along "
+                              f"{', '.join(cut)}, so neither do we")
         eye_stats = {"eye_paths": 0, "rays_eye": 0}
         per_batch = _eye_per_batch(cam, film, settings)
         guide = None

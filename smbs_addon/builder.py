@@ -43,6 +43,7 @@ class SceneBuilder:
         self.lights: list[dict] = []
         self.camera = S.Camera()
         self.world_color = np.zeros(3)
+        self.light_paths = np.full(4, -1, np.int64)  # Cycles' bounce limits (scene.Scene.light_paths)
 
     # ------------------------------------------------------------ materials
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
@@ -224,6 +225,7 @@ class SceneBuilder:
             light_angle=np.array([x["angle"] for x in lt], float),
             light_caustics=np.array([x["caustics"] for x in lt], bool),
             camera=self.camera, world_color=np.asarray(self.world_color, float), name=self.name,
+            light_paths=np.asarray(self.light_paths, np.int64),
         )
         sc.validate()
         return sc

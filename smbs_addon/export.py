@@ -452,6 +452,10 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
     b = SceneBuilder(bpy_scene.name)
     b.camera = camera
     b.world_color = _world_color(bpy_scene, _warn)
+    c = getattr(bpy_scene, "cycles", None)
+    if c is not None:  # Light Paths > Max Bounces, as Cycles renders with them (bounces.py)
+        b.light_paths = np.array([c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces],
+                                 np.int64)
 
     mat_index = {}  # material name_full -> builder index
 

@@ -27,6 +27,9 @@ class Receivers:
     mat: np.ndarray  # (M,) material at x0
     eye_specular: np.ndarray  # (M,) specular vertices between the camera and x0
     weight: np.ndarray  # (M,) splat weight of the eye sample
+    # (M,3) int: Cycles' diffuse, glossy and transmission bounces the camera's path took before
+    # x0 (bounces.Limits; a reflection is glossy, a refraction transmission)
+    prior: np.ndarray
 
     def take(self, idx) -> "Receivers":
         return Receivers(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
@@ -64,6 +67,7 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
                   max_bounces=32, scale_eta=False) -> Receivers:
     """Trace n eye samples to their first diffuse receiver, keeping those with at
     least min_specular specular vertices on the way (glass by Fresnel choice)."""
+    from .bounces import specular_kind
     from .reference import scatter_specular
 
     rx, ry, weight = film_samples(cam, film, start, n, n_batch, rng)
@@ -71,7 +75,8 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     o = o + tnear[:, None] * d
     lane = np.arange(n)
     beta = np.ones((n, 3))
-    out = {k: [] for k in ("lane", "p", "ng", "ns", "w", "beta", "mat", "spec")}
+    out = {k: [] for k in ("lane", "p", "ng", "ns", "w", "beta", "mat", "spec", "prior")}
+    prior = np.zeros((n, 3), np.int64)  # bounces so far (bounces.Limits): diffuse, glossy, transmission
     stats["eye_paths"] = stats.get("eye_paths", 0) + n
     depth = 0
     while len(o):
@@ -82,17 +87,20 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
             r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[scene.tri_object[prim]])
             for key, val in (("lane", lane[r]), ("p", h.p[r]), ("ng", h.ng[r]), ("ns", h.ns[r]),
                              ("w", -d[r]), ("beta", beta[r]), ("mat", mat[r]),
-                             ("spec", np.full(r.size, depth))):
+                             ("spec", np.full(r.size, depth)), ("prior", prior[r])):
                 out[key].append(val)
         if depth >= max_bounces:
             break
         si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
         if si.size == 0:
             break
+        d_in = d[si]
         d, beta, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], mat[si], kind[si], beta[si],
                                          scale_eta=scale_eta)
         o = tracer.spawn(h.p[si][keep], h.ng[si][keep], d)
         lane = lane[si][keep]
+        prior = prior[si][keep]
+        prior[np.arange(len(d)), specular_kind(d_in[keep], d, h.ng[si][keep])] += 1
         depth += 1
 
     def cat(key, shape, dtype=float):
@@ -101,4 +109,5 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     ln = cat("lane", (0,), np.int64)
     return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=cat("p", (0, 3)), ng=cat("ng", (0, 3)), ns=cat("ns", (0, 3)),
                      w_eye=cat("w", (0, 3)), beta=cat("beta", (0, 3)), mat=cat("mat", (0,), np.int64),
-                     eye_specular=cat("spec", (0,), np.int64))
+                     eye_specular=cat("spec", (0,), np.int64), prior=cat("prior", (0, 3), np.int64))
+

@@ -22,8 +22,8 @@ Two estimators, split by how the camera sees x0:
   specular vertex lies behind, and the caustic at xi (xi -> specular+ -> light)
   is estimated by the caller's ``connect`` (the manifold walks), or, for the
   light tracer, by lights hit after a specular vertex.
-Diffuse vertices are counted as Cycles counts diffuse bounces (Light Paths >
-Diffuse, 4 by default): a path is kept while it needs at most ``max_diffuse``.
+Bounces are counted as Cycles counts them, within the scene's Light Paths limits
+(bounces.py; without limits, 4 diffuse bounces).
 """
 from __future__ import annotations
 
@@ -33,12 +33,12 @@ import numpy as np
 
 from . import embree, kernels, lanes, optics
 from . import scene as S
+from .bounces import Limits, specular_kind
 from .eye import Receivers, surface_at
 from .lights import light_radiance, soft_falloff_factor, area_light_shape
 from .reference import scatter_specular, splat_to_camera
 from .vec import cosine_hemisphere, dot, frame, normalize, to_world
 
-MAX_DIFFUSE = 4  # Cycles' default Light Paths > Diffuse bounces
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
 HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
@@ -80,61 +80,68 @@ def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
     return d[keep], beta[keep], keep
 
 
-def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False, max_diffuse=MAX_DIFFUSE):
+def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False):
     """Light tracing of the layer's paths through two or more diffuse vertices, splatted
     at the receivers the camera sees directly (photons from lights.emit over the whole
-    scene, not only towards the casters)."""
+    scene, not only towards the casters), within the scene's Light Paths limits."""
+    lim = Limits.of(scene)
     o, d, beta = photons.o, photons.d, photons.w
     keep = beta.max(axis=1) > 0
     o, d, beta = o[keep], d[keep], beta[keep]
     n = len(o)
     has_s = np.zeros(n, bool)  # a specular vertex on a planned caster so far
     n_diff = np.zeros(n, np.int64)  # diffuse vertices so far
-    # Seen from the camera, the path takes a diffuse bounce at every diffuse vertex but the
-    # one nearest the light, and at that one too when the light is reached through a
-    # specular vertex (found by sampling, not by a light sample)
-    extra = np.zeros(n, np.int64)
+    # Seen from the camera, the path's events are x0's diffuse bounce and the photon's, the one
+    # nearest the light (the photon's first) last: that one is free (bounces.py), the others
+    # are counted here (diffuse, glossy, transmission), x0's own added where the photon splats
+    cnt = np.zeros((n, 3), np.int64)
+    at_x0 = np.array([1, 0, 0])
     first = True
     soft = photons.soft_center is not None
     stats["photons"] = stats.get("photons", 0) + n
-    for _ in range(MAX_SPECULAR + max_diffuse + 1):
+    for _ in range(MAX_SPECULAR + min(lim.diffuse, 64) + 1):
         if len(o) == 0:
             break
         h = tracer.intersect(o, d)
         stats["rays_photon"] = stats.get("rays_photon", 0) + len(o)
         idx = np.flatnonzero(h.hit)
-        o, d, beta, has_s, n_diff, extra = o[idx], d[idx], beta[idx], has_s[idx], n_diff[idx], extra[idx]
+        o, d, beta, has_s, n_diff, cnt = o[idx], d[idx], beta[idx], has_s[idx], n_diff[idx], cnt[idx]
         p, ng, ns, prim = h.p[idx], h.ng[idx], h.ns[idx], h.prim[idx]
         mat = scene.tri_material[prim]
         obj = scene.tri_object[prim]
         kind = scene.mat_kind[mat]
-        if first:
-            if soft:
-                beta = beta * soft_falloff_factor(photons.soft_center, photons.soft_radius, p)[:, None]
-            extra = (kind != S.DIFFUSE).astype(np.int64)
-        first = False
+        if first and soft:
+            beta = beta * soft_falloff_factor(photons.soft_center, photons.soft_radius, p)[:, None]
         w_in = -d
         diffuse = kind == S.DIFFUSE
         # splat where the camera's first diffuse vertex would be: the history holds both kinds
-        sp = np.flatnonzero(diffuse & plan.receivers[obj] & has_s & (n_diff >= 1) & (n_diff + extra <= max_diffuse))
+        sp = np.flatnonzero(diffuse & plan.receivers[obj] & has_s & (n_diff >= 1) & _fits(lim, cnt + at_x0))
         if sp.size:
             splat_to_camera(scene, tracer, cam, film, p[sp], ng[sp], ns[sp], w_in[sp], beta[sp],
                             _albedo(scene, mat[sp]), stats)
-        # go on: diffuse bounces while the path can still take one, specular always
-        di = np.flatnonzero(diffuse & (n_diff + 1 + extra <= max_diffuse))
+        # go on while a splat can still fit the limits: this vertex's event counts unless it is
+        # the photon's first
+        step = 0 if first else 1
+        cnt_d = cnt + np.array([step, 0, 0])
+        di = np.flatnonzero(diffuse & _fits(lim, cnt_d + at_x0))
         si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
         d_d, b_d, k_d = _diffuse_bounce(rng, w_in[di], ng[di], ns[di], beta[di], _albedo(scene, mat[di]), True)
         d_s, b_s, k_s = scatter_specular(scene, rng, w_in[si], ns[si], ng[si], mat[si], kind[si], beta[si],
                                          scale_eta=not physical, adjoint=True)
         dd, ss = di[k_d], si[k_s]
+        c_s = cnt[ss].copy()
+        c_s[np.arange(len(ss)), specular_kind(d[ss], d_s, ng[ss])] += step
+        live = _fits(lim, c_s + at_x0)
+        ss, d_s, b_s, c_s = ss[live], d_s[live], b_s[live], c_s[live]
         new_p = np.concatenate([p[dd], p[ss]])
         new_ng = np.concatenate([ng[dd], ng[ss]])
         d = np.concatenate([d_d, d_s])
         beta = np.concatenate([b_d, b_s])
         n_diff = np.concatenate([n_diff[dd] + 1, n_diff[ss]])
-        extra = np.concatenate([extra[dd], extra[ss]])
+        cnt = np.concatenate([cnt_d[dd], c_s])
         has_s = np.concatenate([has_s[dd], has_s[ss] | plan.casters[obj[ss]]])
         o = tracer.spawn(new_p, new_ng, d)
+        first = False
 
 
 def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
@@ -180,7 +187,7 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
 
 
 def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
-           lights_hit=(), count_first=False, max_diffuse=MAX_DIFFUSE):
+           lights_hit=(), count_first=False):
     """Path tracing from receivers x0 (seen through mirrors or glass) for the layer's paths
     with more diffuse vertices; splats the radiance found at the eye samples' film positions.
 
@@ -192,20 +199,26 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
       receivers (x_i -> specular+ -> light, throughput included: the manifold walks), counts
       always; without connect, lights_hit seen right after a specular vertex on a caster
       count instead (the light tracer's way), x0's own caustic only when count_first.
-    A bounce from x_k is Cycles' diffuse bounce k + 1, allowed up to max_diffuse."""
+    Every path keeps to the scene's Light Paths limits as Cycles counts them (bounces.py:
+    the events before the last one, from the camera, rc.prior before x0)."""
     n = len(rc.p)
     if n == 0:
         return
+    lim = Limits.of(scene)
+    one_diffuse = np.array([1, 0, 0])
     radiance = np.zeros((n, 3))
-    # the frontier: diffuse vertices to bounce from
+    # the frontier: diffuse vertices to bounce from, with the events before them
     f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
-    f_beta, f_mat = rc.beta, rc.mat
+    f_beta, f_mat, f_cnt = rc.beta, rc.mat, rc.prior
     f_has_s, f_depth = np.zeros(n, bool), np.zeros(n, np.int64)
     while len(f_lane):
-        go = np.flatnonzero(f_depth + 1 <= max_diffuse)
+        # a diffuse bounce is never a caustic path's last event: it must fit the limits
+        go = np.flatnonzero(_fits(lim, f_cnt + one_diffuse))
         d, beta, k = _diffuse_bounce(rng, f_w[go], f_ng[go], f_ns[go], f_beta[go], _albedo(scene, f_mat[go]), False)
         sel = go[k]
         lane, has_s, depth = f_lane[sel], f_has_s[sel], f_depth[sel]
+        cnt = f_cnt[sel] + one_diffuse  # every event so far
+        before = cnt.copy()  # the events before the latest
         o = tracer.spawn(f_p[sel], f_ng[sel], d)
         last_caster = np.zeros(len(lane), bool)
         nxt = []
@@ -222,47 +235,64 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 for li in lights_hit:
                     L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
                     seen_l += np.where((tl < surf_t)[:, None], L, 0.0)
-                count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0))
+                count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
+                                       & _fits(lim, before))
                 np.add.at(radiance, lane[count], beta[count] * seen_l[count])
             prim, hmat, kind = surface_at(scene, h)
             diff = np.flatnonzero(kind == S.DIFFUSE)
             if diff.size:  # the next diffuse vertex
                 g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
-                         mat=hmat[diff], has_s=has_s[diff], depth=depth[diff] + 1)
+                         mat=hmat[diff], has_s=has_s[diff], depth=depth[diff] + 1, cnt=cnt[diff])
                 alb = _albedo(scene, g["mat"])
-                lit = np.flatnonzero(g["has_s"])
+                lit = np.flatnonzero(g["has_s"] & _fits(lim, g["cnt"]))  # direct light: every event before fits
                 for li in lights_direct:
                     if lit.size:
                         rad = direct_light(scene, tracer, li, g["p"][lit], g["ng"][lit], g["ns"][lit], g["w"][lit],
                                            rng, stats)
                         np.add.at(radiance, g["lane"][lit], g["beta"][lit] * alb[lit] * rad)
                 if connect is not None:
-                    rec = np.flatnonzero(plan.receivers[scene.tri_object[prim[diff]]] & (g["depth"] + 1 <= max_diffuse))
+                    rec = np.flatnonzero(plan.receivers[scene.tri_object[prim[diff]]]
+                                         & _fits(lim, g["cnt"] + one_diffuse))
                     if rec.size:
                         ln = g["lane"][rec]
                         sub = Receivers(rx=rc.rx[ln], ry=rc.ry[ln], p=g["p"][rec], ng=g["ng"][rec], ns=g["ns"][rec],
                                         w_eye=g["w"][rec], beta=g["beta"][rec], mat=g["mat"][rec],
-                                        eye_specular=np.maximum(rc.eye_specular[ln], 1), weight=rc.weight[ln])
+                                        eye_specular=np.maximum(rc.eye_specular[ln], 1), weight=rc.weight[ln],
+                                        prior=g["cnt"][rec])
                         np.add.at(radiance, ln, connect(sub))
                 nxt.append(g)
             spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
             if spec.size == 0 or bounce == MAX_SPECULAR:
                 break
+            d_in = d[spec]
             dd, bb, keep = scatter_specular(scene, rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
                                             beta[spec], scale_eta=physical)
             sk = spec[keep]
             last_caster = plan.casters[scene.tri_object[prim[sk]]]
             lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
+            before = cnt[sk]
+            cnt = before.copy()
+            cnt[np.arange(len(sk)), specular_kind(d_in[keep], dd, h.ng[sk])] += 1
+            # a path whose events before the latest no longer fit cannot fit later
+            alive = np.flatnonzero(_fits(lim, before))
+            if alive.size < len(lane):
+                lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
+                last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
             o = tracer.spawn(h.p[sk], h.ng[sk], d)
         if not nxt:
             break
         cat = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
         f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
-        f_beta, f_mat, f_has_s, f_depth = cat["beta"], cat["mat"], cat["has_s"], cat["depth"]
+        f_beta, f_mat, f_has_s, f_depth, f_cnt = cat["beta"], cat["mat"], cat["has_s"], cat["depth"], cat["cnt"]
     hit = np.flatnonzero(radiance.max(axis=1) > 0)
     if hit.size:
         film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
         stats["eye_splats"] = stats.get("eye_splats", 0) + int(hit.size)
+
+
+def _fits(lim, cnt):
+    """bounces.Limits.allowed of event counts (M,3): diffuse, glossy, transmission."""
+    return lim.allowed(cnt[:, 0], cnt[:, 1], cnt[:, 2])
 
 
 def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
@@ -341,6 +371,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
     tracer.cast_by_kernel(rt, counts)
     stats["rays_handoff"] = stats.get("rays_handoff", 0) + int(counts[embree.KINDS:].sum())
     radiance = np.zeros((n, 3))
+    lim = Limits.of(scene)
     for k in range(K):  # the segments after bounce = k + 1 specular vertices
         row = np.flatnonzero(seg_n > k)
         if row.size == 0:
@@ -348,9 +379,14 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
         bounce = k + 1
         sk = seg[row, k]
         o, d, surf_t, beta = sk[:, 0:3], sk[:, 3:6], sk[:, 6], sk[:, 7:10]
+        # Light Paths: the camera's events before x0, x0's diffuse bounce and the specular vertices
+        # before the last (bounces.py)
+        refl = hist[row, :k, 5].sum(axis=1) if k else np.zeros(row.size)
+        pr = rc.prior[row // samples]
+        fits = lim.allowed(pr[:, 0] + 1, pr[:, 1] + refl, pr[:, 2] + (k - refl))
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
             L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t))
-            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
+            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits)
             if seen.size == 0:
                 continue
             y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]

@@ -17,6 +17,7 @@ import numpy as np
 
 from . import lanes
 from . import scene as S
+from .bounces import Limits
 from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
@@ -94,7 +95,9 @@ def _plane(scene, obj):
     return (vt[-1], c) if sv[-1] <= 1e-9 * max(sv[0], 1e-300) else None
 
 
-def chain_types(scene, plan, opts: ManifoldOptions) -> list:
+def chain_types(scene, plan, opts: ManifoldOptions, light_paths: bool = True) -> list:
+    """The chain types the materials call for, up to opts.max_chain (opts.chains: the user's);
+    light_paths: leave out those the scene's Light Paths limits cut even seen directly."""
     if opts.chains:
         return [c for c in opts.chains if 1 <= len(c) <= opts.max_chain]
     kinds = scene.mat_kind[scene.tri_material]
@@ -128,8 +131,9 @@ def chain_types(scene, plan, opts: ManifoldOptions) -> list:
             else:
                 types.append("T")
     out = []
-    for t in types:
-        if t not in out and len(t) <= opts.max_chain:
+    lim = Limits.of(scene)
+    for t in types:  # a chain the scene's Light Paths limits cut even seen directly is not walked
+        if t not in out and len(t) <= opts.max_chain and (lim.chain_fits(t) or not light_paths):
             out.append(t)
     return out
 
@@ -360,6 +364,12 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     M = 1 if (unbiased or opts.method == "mnee") else max(1, opts.trials)
     feasible = seeder.feasible(x0, light, 1e-9 * ctx.scale)
     ctx.stats["culled_lanes"] = ctx.stats.get("culled_lanes", 0) + int((~feasible).sum())
+    # Cycles' Light Paths limits on the whole path: the camera's events before x0, x0's diffuse
+    # bounce and the chain's vertices but the last (bounces.py)
+    fits = Limits.of(ctx.scene).chain_fits(types, rc.prior[:, 0] + 1, rc.prior[:, 1], rc.prior[:, 2])
+    if not fits.all():
+        ctx.stats["light_paths_skips"] = ctx.stats.get("light_paths_skips", 0) + int((feasible & ~fits).sum())
+        feasible &= fits
     rr_weight = np.ones(n)
     if guide is not None and guide.is_weak(li, types):  # the photon hand-off serves direct receivers
         weak = feasible & (rc.eye_specular == 0)

@@ -21,6 +21,7 @@ from . import scene as S
 from .optics import materials, scatter_rows
 from .lights import soft_falloff_factor
 from .estimators import concentration
+from .bounces import Limits, specular_kind
 from .geometry import vertex_from_hits
 from .vec import dot
 
@@ -176,6 +177,11 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
     soft = photons.soft_center is not None
     stats["photons"] += int(keep.sum())
     bounces = 0
+    # the scene's Light Paths limits, as Cycles counts the path from the camera (bounces.py): x0's
+    # diffuse bounce and the photon's specular events but its first (the free last one)
+    lim = Limits.of(scene)
+    cnt = np.zeros((len(o), 3), np.int64)
+    at_x0 = np.array([1, 0, 0])
     if handoff is not None:  # per photon: each bounce's triangle, barycentrics, kind, caster flag
         K = handoff.max_chain
         if not handoff.others:
@@ -193,7 +199,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         idx = np.flatnonzero(h.hit)
         if idx.size == 0:
             break
-        o, d, beta = o[idx], d[idx], beta[idx]
+        o, d, beta, cnt = o[idx], d[idx], beta[idx], cnt[idx]
         p, ng, ns, prim = h.p[idx], h.ng[idx], h.ns[idx], h.prim[idx]
         if handoff is not None:
             lane = lane[idx]
@@ -208,7 +214,8 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
         if bounces == 0:
             spec &= plan.casters[obj]
-        diffuse = (kind == S.DIFFUSE) & plan.receivers[obj] & (bounces > 0)
+        diffuse = (kind == S.DIFFUSE) & plan.receivers[obj] & (bounces > 0) & \
+            lim.allowed(cnt[:, 0] + 1, cnt[:, 1], cnt[:, 2])
         if handoff is not None and diffuse.any():
             di = np.flatnonzero(diffuse)
             ln = lane[di]
@@ -230,6 +237,13 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         d, beta, keep = scatter_specular(scene, rng, -d[si], ns[si], ng[si], mat[si], kind[si], beta[si],
                                          scale_eta=not physical, adjoint=True)
         stats["lost_shading_normal"] += int(si.size - keep.size)
+        cnt = cnt[si[keep]]
+        cnt[np.arange(len(keep)), specular_kind(d_in[keep], d, ng[si[keep]])] += 0 if bounces == 0 else 1
+        # photons whose events no longer fit can splat nowhere
+        live = lim.allowed(cnt[:, 0] + 1, cnt[:, 1], cnt[:, 2])
+        if not live.all():
+            stats["beyond_light_paths"] = stats.get("beyond_light_paths", 0) + int((~live).sum())
+            keep, d, beta, cnt = keep[live], d[live], beta[live], cnt[live]
         if handoff is not None:
             sk = si[keep]
             ln = lane[sk]

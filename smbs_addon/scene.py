@@ -38,6 +38,9 @@ SQUARE, RECTANGLE, DISK, ELLIPSE = 0, 1, 2, 3
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 
 PERSP, ORTHO = 0, 1
+
+# fields a scene file may lack (saved before they were exported): their defaults hold
+OPTIONAL = ("light_paths",)
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 
 
@@ -121,6 +124,9 @@ class Scene:
     camera: Camera = field(default_factory=Camera)
     world_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
     name: str = "scene"
+    # Cycles' Light Paths bounce limits (bounces.Limits): max, diffuse, glossy, transmission;
+    # -1: none (a scene built in code, or saved before they were exported)
+    light_paths: np.ndarray = field(default_factory=lambda: np.full(4, -1, np.int64))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -203,6 +209,8 @@ class Scene:
         bad = np.flatnonzero((self.mat_kind == DIELECTRIC) & ~(self.mat_ior > 0))
         if bad.size:
             raise SceneError(f"material '{self.mat_names[bad[0]]}': IOR must be positive")
+        if np.shape(self.light_paths) != (4,):
+            raise SceneError("scene array 'light_paths' must hold 4 bounce limits (max, diffuse, glossy, transmission)")
         if np.any(self.light_color < 0):
             i = int(np.flatnonzero((self.light_color < 0).any(axis=1))[0])
             raise SceneError(f"light '{self.light_names[i]}': negative power")
@@ -254,6 +262,8 @@ class Scene:
             if f.name == "camera":
                 continue
             if f.name not in data:
+                if f.name in OPTIONAL:  # written by a later version than the file's
+                    continue
                 raise SceneError(f"{path}: missing array '{f.name}'")
             v = data[f.name]
             if f.name in ("object_names", "mat_names", "light_names"):

@@ -33,6 +33,7 @@ CASES = [
     ("sphere_refraction_spot", "smbs", 4),
     ("pool_sun4", "smbs", 4),
     ("water_flat_sun0", "smbs", 4),
+    ("cube_white_glossy1", "reference", 256),  # Light Paths: 0.86 of the caustic without the limit
 ]
 
 

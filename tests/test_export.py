@@ -723,3 +723,16 @@ def test_library_linked_objects_are_exported(tmp_path):
     assert sc.object_names == ["LibCube"] and sc.n_tris == 12 and sc.object_caster[0]
     assert np.isclose(sc.tri_vertices[..., 2].mean(), 7.0)
     assert sc.mat_kind[0] == S.DIELECTRIC and warnings == []
+
+
+def test_light_paths_bounce_limits():
+    """Cycles' Light Paths > Max Bounces go with the scene (bounces.py applies them): Blender's
+    defaults are 12 in all, 4 diffuse, 4 glossy, 12 transmission."""
+    add_camera()
+    mesh_with(None)
+    sc, _ = export()
+    assert sc.light_paths.tolist() == [12, 4, 4, 12]
+    c = scene().cycles
+    c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces = 8, 2, 1, 6
+    sc, _ = export()
+    assert sc.light_paths.tolist() == [8, 2, 1, 6]
