@@ -31,6 +31,7 @@ import numpy as np
 
 UNLIMITED = 1 << 30
 DEFAULT_DIFFUSE = 4  # Cycles' default Light Paths > Diffuse, for scenes that carry no limits
+ONE_DIFFUSE = np.array([1, 0, 0])  # one diffuse bounce (x0's own, or a later vertex's) as event counts
 
 
 @dataclass(frozen=True)
@@ -46,16 +47,9 @@ class Limits:
     def of(cls, scene) -> "Limits":
         """The scene's limits (Scene.light_paths: total, diffuse, glossy, transmission; a
         negative entry is no limit, and a negative diffuse entry the default 4)."""
-        v = [int(x) for x in np.asarray(scene.light_paths).ravel()]
-        if len(v) != 4:
-            return cls()
-        total, diffuse, glossy, transmission = v
+        total, diffuse, glossy, transmission = (int(x) for x in scene.light_paths)  # 4: Scene.validate
         return cls(total if total >= 0 else UNLIMITED, diffuse if diffuse >= 0 else DEFAULT_DIFFUSE,
                    glossy if glossy >= 0 else UNLIMITED, transmission if transmission >= 0 else UNLIMITED)
-
-    @property
-    def limited(self) -> bool:
-        return (self.total, self.glossy, self.transmission) != (UNLIMITED,) * 3
 
     def allowed(self, d, g, t):
         """Whether events counted d diffuse, g glossy and t transmission (scalars or arrays)
@@ -63,6 +57,10 @@ class Limits:
         light is taken."""
         d, g, t = np.asarray(d), np.asarray(g), np.asarray(t)
         return (d <= self.diffuse) & (g <= self.glossy) & (t <= self.transmission) & (d + g + t <= self.total)
+
+    def fits(self, cnt):
+        """allowed of event counts (M,3): diffuse, glossy, transmission per row."""
+        return self.allowed(cnt[:, 0], cnt[:, 1], cnt[:, 2])
 
     def chain_fits(self, types: str, d=1, g=0, t=0):
         """Whether a chain of type ``types`` (letters from the receiver's side) ending at the

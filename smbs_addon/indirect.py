@@ -33,7 +33,7 @@ import numpy as np
 
 from . import embree, kernels, lanes, optics
 from . import scene as S
-from .bounces import Limits, specular_kind
+from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .eye import Receivers, surface_at
 from .lights import light_radiance, soft_falloff_factor, area_light_shape
 from .reference import scatter_specular, splat_to_camera
@@ -95,7 +95,6 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=
     # nearest the light (the photon's first) last: that one is free (bounces.py), the others
     # are counted here (diffuse, glossy, transmission), x0's own added where the photon splats
     cnt = np.zeros((n, 3), np.int64)
-    at_x0 = np.array([1, 0, 0])
     first = True
     soft = photons.soft_center is not None
     stats["photons"] = stats.get("photons", 0) + n
@@ -115,7 +114,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=
         w_in = -d
         diffuse = kind == S.DIFFUSE
         # splat where the camera's first diffuse vertex would be: the history holds both kinds
-        sp = np.flatnonzero(diffuse & plan.receivers[obj] & has_s & (n_diff >= 1) & _fits(lim, cnt + at_x0))
+        sp = np.flatnonzero(diffuse & plan.receivers[obj] & has_s & (n_diff >= 1) & lim.fits(cnt + ONE_DIFFUSE))
         if sp.size:
             splat_to_camera(scene, tracer, cam, film, p[sp], ng[sp], ns[sp], w_in[sp], beta[sp],
                             _albedo(scene, mat[sp]), stats)
@@ -123,7 +122,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=
         # the photon's first
         step = 0 if first else 1
         cnt_d = cnt + np.array([step, 0, 0])
-        di = np.flatnonzero(diffuse & _fits(lim, cnt_d + at_x0))
+        di = np.flatnonzero(diffuse & lim.fits(cnt_d + ONE_DIFFUSE))
         si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
         d_d, b_d, k_d = _diffuse_bounce(rng, w_in[di], ng[di], ns[di], beta[di], _albedo(scene, mat[di]), True)
         d_s, b_s, k_s = scatter_specular(scene, rng, w_in[si], ns[si], ng[si], mat[si], kind[si], beta[si],
@@ -131,7 +130,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=
         dd, ss = di[k_d], si[k_s]
         c_s = cnt[ss].copy()
         c_s[np.arange(len(ss)), specular_kind(d[ss], d_s, ng[ss])] += step
-        live = _fits(lim, c_s + at_x0)
+        live = lim.fits(c_s + ONE_DIFFUSE)
         ss, d_s, b_s, c_s = ss[live], d_s[live], b_s[live], c_s[live]
         new_p = np.concatenate([p[dd], p[ss]])
         new_ng = np.concatenate([ng[dd], ng[ss]])
@@ -205,7 +204,6 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     if n == 0:
         return
     lim = Limits.of(scene)
-    one_diffuse = np.array([1, 0, 0])
     radiance = np.zeros((n, 3))
     # the frontier: diffuse vertices to bounce from, with the events before them
     f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
@@ -213,11 +211,11 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     f_has_s, f_depth = np.zeros(n, bool), np.zeros(n, np.int64)
     while len(f_lane):
         # a diffuse bounce is never a caustic path's last event: it must fit the limits
-        go = np.flatnonzero(_fits(lim, f_cnt + one_diffuse))
+        go = np.flatnonzero(lim.fits(f_cnt + ONE_DIFFUSE))
         d, beta, k = _diffuse_bounce(rng, f_w[go], f_ng[go], f_ns[go], f_beta[go], _albedo(scene, f_mat[go]), False)
         sel = go[k]
         lane, has_s, depth = f_lane[sel], f_has_s[sel], f_depth[sel]
-        cnt = f_cnt[sel] + one_diffuse  # every event so far
+        cnt = f_cnt[sel] + ONE_DIFFUSE  # every event so far
         before = cnt.copy()  # the events before the latest
         o = tracer.spawn(f_p[sel], f_ng[sel], d)
         last_caster = np.zeros(len(lane), bool)
@@ -236,7 +234,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                     L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
                     seen_l += np.where((tl < surf_t)[:, None], L, 0.0)
                 count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
-                                       & _fits(lim, before))
+                                       & lim.fits(before))
                 np.add.at(radiance, lane[count], beta[count] * seen_l[count])
             prim, hmat, kind = surface_at(scene, h)
             diff = np.flatnonzero(kind == S.DIFFUSE)
@@ -244,7 +242,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
                          mat=hmat[diff], has_s=has_s[diff], depth=depth[diff] + 1, cnt=cnt[diff])
                 alb = _albedo(scene, g["mat"])
-                lit = np.flatnonzero(g["has_s"] & _fits(lim, g["cnt"]))  # direct light: every event before fits
+                lit = np.flatnonzero(g["has_s"] & lim.fits(g["cnt"]))  # direct light: every event before fits
                 for li in lights_direct:
                     if lit.size:
                         rad = direct_light(scene, tracer, li, g["p"][lit], g["ng"][lit], g["ns"][lit], g["w"][lit],
@@ -252,7 +250,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                         np.add.at(radiance, g["lane"][lit], g["beta"][lit] * alb[lit] * rad)
                 if connect is not None:
                     rec = np.flatnonzero(plan.receivers[scene.tri_object[prim[diff]]]
-                                         & _fits(lim, g["cnt"] + one_diffuse))
+                                         & lim.fits(g["cnt"] + ONE_DIFFUSE))
                     if rec.size:
                         ln = g["lane"][rec]
                         sub = Receivers(rx=rc.rx[ln], ry=rc.ry[ln], p=g["p"][rec], ng=g["ng"][rec], ns=g["ns"][rec],
@@ -274,7 +272,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             cnt = before.copy()
             cnt[np.arange(len(sk)), specular_kind(d_in[keep], dd, h.ng[sk])] += 1
             # a path whose events before the latest no longer fit cannot fit later
-            alive = np.flatnonzero(_fits(lim, before))
+            alive = np.flatnonzero(lim.fits(before))
             if alive.size < len(lane):
                 lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
                 last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
@@ -288,11 +286,6 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     if hit.size:
         film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
         stats["eye_splats"] = stats.get("eye_splats", 0) + int(hit.size)
-
-
-def _fits(lim, cnt):
-    """bounces.Limits.allowed of event counts (M,3): diffuse, glossy, transmission."""
-    return lim.allowed(cnt[:, 0], cnt[:, 1], cnt[:, 2])
 
 
 def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
@@ -382,8 +375,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
         # Light Paths: the camera's events before x0, x0's diffuse bounce and the specular vertices
         # before the last (bounces.py)
         refl = hist[row, :k, 5].sum(axis=1) if k else np.zeros(row.size)
-        pr = rc.prior[row // samples]
-        fits = lim.allowed(pr[:, 0] + 1, pr[:, 1] + refl, pr[:, 2] + (k - refl))
+        fits = lim.fits(rc.prior[row // samples] + ONE_DIFFUSE + np.stack([np.zeros(row.size), refl, k - refl], axis=1))
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
             L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t))
             seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits)

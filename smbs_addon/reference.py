@@ -21,7 +21,7 @@ from . import scene as S
 from .optics import materials, scatter_rows
 from .lights import soft_falloff_factor
 from .estimators import concentration
-from .bounces import Limits, specular_kind
+from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .geometry import vertex_from_hits
 from .vec import dot
 
@@ -181,7 +181,6 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
     # diffuse bounce and the photon's specular events but its first (the free last one)
     lim = Limits.of(scene)
     cnt = np.zeros((len(o), 3), np.int64)
-    at_x0 = np.array([1, 0, 0])
     if handoff is not None:  # per photon: each bounce's triangle, barycentrics, kind, caster flag
         K = handoff.max_chain
         if not handoff.others:
@@ -214,8 +213,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
         if bounces == 0:
             spec &= plan.casters[obj]
-        diffuse = (kind == S.DIFFUSE) & plan.receivers[obj] & (bounces > 0) & \
-            lim.allowed(cnt[:, 0] + 1, cnt[:, 1], cnt[:, 2])
+        diffuse = (kind == S.DIFFUSE) & plan.receivers[obj] & (bounces > 0) & lim.fits(cnt + ONE_DIFFUSE)
         if handoff is not None and diffuse.any():
             di = np.flatnonzero(diffuse)
             ln = lane[di]
@@ -240,7 +238,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         cnt = cnt[si[keep]]
         cnt[np.arange(len(keep)), specular_kind(d_in[keep], d, ng[si[keep]])] += 0 if bounces == 0 else 1
         # photons whose events no longer fit can splat nowhere
-        live = lim.allowed(cnt[:, 0] + 1, cnt[:, 1], cnt[:, 2])
+        live = lim.fits(cnt + ONE_DIFFUSE)
         if not live.all():
             stats["beyond_light_paths"] = stats.get("beyond_light_paths", 0) + int((~live).sum())
             keep, d, beta, cnt = keep[live], d[live], beta[live], cnt[live]
