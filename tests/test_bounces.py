@@ -82,3 +82,19 @@ def test_walks_and_photons_keep_the_same_limits():
     assert "TRT" not in walks.stats["lights"]["Area"].get("by_chain", {})
     assert ("Light Paths: max 12, diffuse 4, glossy 0, transmission 12: Cycles renders no caustic along TRT, TRRT, "
             "so neither do we") in walks.stats["plan"]["notes"]
+
+
+def test_the_guide_weighs_only_light_cycles_renders():
+    """Exact: the photon pre-pass's shares (which chain types are weak, whether the paths no walk
+    takes are worth a pass) count only paths the Light Paths limits let through. The ball's
+    light beyond its walked chain types is all internal reflections (T R R R T, ...): a few
+    tenths of a percent without limits, none with Glossy 0, where the walked shares are of the
+    rendered light alone (they sum to one)."""
+    sc = scenes.glass_sphere_scene(resolution=(48, 36))
+    free = bake(sc, BakeSettings(method="sms", spp=1, seed=1)).stats["guide"]
+    sc.light_paths = np.array([12, 4, 0, 12])
+    cut = bake(sc, BakeSettings(method="sms", spp=1, seed=1)).stats["guide"]
+    assert free["other_share"]["Area"] > 1e-3
+    assert cut["other_share"]["Area"] == 0.0
+    assert sorted(cut["flux_share"]["Area"]) == ["R", "TT"]
+    assert sum(cut["flux_share"]["Area"].values()) == pytest.approx(1.0, abs=1e-12)
