@@ -7,6 +7,8 @@ import zipfile
 import numpy as np
 import pytest
 
+import scenes
+from smbs_addon import BakeSettings
 from smbs_addon import scene as S
 from smbs_addon.builder import SceneBuilder, look_at
 from smbs_addon.errors import SceneError
@@ -261,3 +263,56 @@ def test_builder_look_at_is_a_rotation():
     R = m[:3, :3]
     np.testing.assert_allclose(R.T @ R, np.eye(3), atol=1e-15)
     np.testing.assert_allclose(-R[:, 2], -np.array([1, 2, 3]) / math.sqrt(14), atol=1e-15)
+
+
+def test_geometry_memo_is_exact_and_never_stale():
+    """Scene.derived keeps bounds (and a bake's seeders) from validate() on: exactly numpy's
+    values, read afresh after an edit in place once the scene is validated again, and ignored
+    when the geometry arrays were replaced without validating."""
+    sc = scenes.ring_scene()
+
+    def naive(obj=None):
+        v = sc.tri_vertices if obj is None else sc.tri_vertices[sc.tri_object == obj]
+        v = v.reshape(-1, 3)
+        return v.min(axis=0), v.max(axis=0)
+
+    for validated in (False, True):
+        if validated:
+            sc.validate()
+        for got, want in [(sc.bounds(), naive())] + [(sc.object_bounds(o), naive(o))
+                                                     for o in np.unique(sc.tri_object)]:
+            assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+    lo, _ = sc.bounds()
+    lo[:] = 99.0  # the caller's copy: the memo keeps its own
+    assert np.array_equal(sc.bounds()[0], naive()[0])
+    sc.tri_vertices[0, 0, 2] = -123.0  # in place: the memo holds until the next validate()
+    assert sc.bounds()[0][2] > -123.0
+    sc.validate()
+    assert sc.bounds()[0][2] == -123.0 and sc.object_bounds(sc.tri_object[0])[0][2] == -123.0
+    sc.tri_vertices = sc.tri_vertices + 1.0  # another array: no memo until validated
+    assert np.array_equal(sc.bounds()[0], naive()[0]) and sc.bounds()[0][2] == -122.0
+    with pytest.raises(ValueError):  # an object without triangles, as numpy's reduction of nothing
+        sc.object_bounds(len(sc.object_names) + 5)
+
+
+def test_a_bake_builds_each_seeder_once(monkeypatch):
+    """Exact count: one Seeder per (chain type, casters) for the whole bake, not one per chunk,
+    light and batch."""
+    import importlib
+
+    from smbs_addon import manifold
+
+    bake_mod = importlib.import_module("smbs_addon.bake")  # the module, not the function
+    built = []
+    init = manifold.Seeder.__init__
+
+    def counting(self, scene, casters, types, method):
+        built.append(types)
+        init(self, scene, casters, types, method)
+
+    monkeypatch.setattr(manifold.Seeder, "__init__", counting)
+    monkeypatch.setattr(bake_mod, "WALK_CHUNK", 500)  # several chunks per batch
+    res = bake_mod.bake(scenes.ring_scene(resolution=(40, 30)),
+                        BakeSettings(method="sms", spp=2, batches=2, seed=1, guide=False))
+    walked = sorted(res.stats["lights"]["Area"]["by_chain"])
+    assert sorted(built) == walked and len(walked) >= 1
