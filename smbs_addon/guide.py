@@ -18,7 +18,7 @@ from __future__ import annotations
 import numpy as np
 
 from . import scene as S
-from .bounces import Limits
+from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .lights import emit
 from .reference import scatter_specular
 
@@ -105,9 +105,9 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
         o, d, beta = ph.o, ph.d, ph.w
         sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
         length = np.zeros(len(o), np.int64)
-        # glossy and transmission events but the first (the one next to the light: free under
-        # Cycles' Light Paths limits, bounces.py)
-        events = np.zeros((len(o), 2), np.int64)
+        # events as trace_photons counts them: the specular ones but the first (the one next to the
+        # light: free under Cycles' Light Paths limits, bounces.py)
+        cnt = np.zeros((len(o), 3), np.int64)
         other = np.zeros(2)  # flux in frame of chains not in types_list: [all of them, those longer than max_chain]
         stats["photons"] += len(o)
         for bounce in range(max_bounces + 1):
@@ -119,7 +119,7 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
             stats["rays"] += len(o)
             idx = np.flatnonzero(h.hit)
             o, d, beta, sig, length = o[idx], d[idx], beta[idx], sig[idx], length[idx]
-            events = events[idx]
+            cnt = cnt[idx]
             prim = h.prim[idx]
             mat = scene.tri_material[prim]
             kind = scene.mat_kind[mat]
@@ -135,7 +135,7 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
                 ok = valid & (tx >= 1) & (ty >= 1) & (tx < nx - 1) & (ty < ny - 1)
                 # only light Cycles renders counts, as a receiver seen directly would get it (x0's
                 # diffuse bounce and the chain's events but the last fit the Light Paths limits)
-                ok &= limits.allowed(1, events[diff, 0], events[diff, 1])
+                ok &= limits.fits(cnt[diff] + ONE_DIFFUSE)
                 known = np.zeros(diff.size, bool)
                 for t in types_list:
                     known |= sig[diff] == _code(t[::-1])
@@ -156,11 +156,11 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
             p, ng, ns = h.p[idx][si], h.ng[idx][si], h.ns[idx][si]
             d_new, beta, keep = scatter_specular(scene, rng, -d[si], ns, ng, mat[si], kind[si], beta[si],
                                                  adjoint=True)
-            refl = np.einsum("ij,ij->i", -d[si][keep], ng[keep]) * np.einsum("ij,ij->i", d_new, ng[keep]) > 0
-            letter = np.where(refl, 1, 2)
+            letter = specular_kind(d[si][keep], d_new, ng[keep])  # 1 R (glossy), 2 T (transmission)
             sig = sig[si][keep] * 3 + letter
             length = length[si][keep]
-            events = events[si][keep] + (length > 0)[:, None] * np.stack([letter == 1, letter == 2], axis=1)
+            cnt = cnt[si][keep]
+            cnt[np.arange(len(letter)), letter] += length > 0
             length = length + 1
             o = tracer.spawn(p[keep], ng[keep], d_new)
             d = d_new
