@@ -61,6 +61,21 @@ class Film:
         kernels.splat(self._cur, self.W, x0, x1, y0, y1, r, k, np.ascontiguousarray(rx, np.float64),
                       np.ascontiguousarray(ry, np.float64), np.ascontiguousarray(rgb, np.float64))
 
+    def frame_share(self, rx: np.ndarray, ry: np.ndarray) -> np.ndarray:
+        """The share of a splat at (rx, ry) that lands in the render region: the filter's taps
+        splat() adds there, summed (a sample in the filter's margin may land wholly outside)."""
+        r = self.filter_width
+        k = int(math.ceil(r)) + 1
+        x0, x1, y0, y1 = self.region
+        offs = np.arange(-k, k + 1)
+
+        def axis(v, lo, hi):
+            px = np.floor(np.asarray(v, np.float64))[:, None] + offs
+            w = blackman_harris(px + 0.5 - np.asarray(v, np.float64)[:, None], r)
+            return np.where((px >= lo) & (px < hi), w, 0.0).sum(axis=1)
+
+        return axis(rx, x0, x1) * axis(ry, y0, y1)
+
     def end_batch(self, t: float = 0.0) -> None:
         """Close the current batch (t: when it ended, seconds into the bake)."""
         self.sum += self._cur

@@ -67,6 +67,7 @@ class Ctx:
         self.physical = False
         self.clamp = 0.0  # cap on a solution's luminance (ManifoldOptions.clamp_g); 0: off
         self.clamp_cut = None  # per solution of the last _contribution: luminance the cap removed
+        self.film = None  # the film the estimates are splatted on (the clamp's statistics count what lands)
         self.handoff_seen = False  # hand off focusing paths at receivers seen through mirrors or glass too
         self.first_order = False  # walking from receivers the camera sees (not later diffuse vertices)
 
@@ -431,9 +432,10 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     val = val * rr_weight[owner][:, None]
     if opts.method == "mnee" and seeder.reflect_first:  # one caster picked uniformly per lane
         val = val * len(seeder.centers)
-    cut = None if ctx.clamp_cut is None else (  # what the clamp removed, with the same weights
+    cut = None if ctx.clamp_cut is None else (  # what the clamp removed from the image, with the same weights
         ctx.clamp_cut * rr_weight[owner] * rc.weight[owner]
-        * (len(seeder.centers) if opts.method == "mnee" and seeder.reflect_first else 1))
+        * (len(seeder.centers) if opts.method == "mnee" and seeder.reflect_first else 1)
+        * (1.0 if ctx.film is None else ctx.film.frame_share(rc.rx[owner], rc.ry[owner])))
     d1 = normalize(chain.verts[0].p - x0[owner])
     obj1 = chain.verts[0].obj
     if not unbiased:
@@ -492,6 +494,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         ctx = Ctx(scene, tracer, plan, stats_per_light[lp.name])
         ctx.physical = opts.physical
         ctx.clamp = opts.clamp_g
+        ctx.film = film
         ctxs[lp.index] = ctx
 
     def caustic(receivers):

@@ -114,6 +114,24 @@ def test_splat_respects_region():
     assert np.count_nonzero(img[..., 0]) == np.count_nonzero(np.where(mask, exp, 0.0))
 
 
+@pytest.mark.parametrize("w", [0.5, 1.5, 2.0, 3.0])
+@pytest.mark.parametrize("region", [None, (5, 12, 3, 9)])
+def test_frame_share_is_what_a_splat_leaves_in_the_region(w, region):
+    """Film.frame_share against the independent window, summed over the region's pixels: inside,
+    on the edges, and in the filter's margin, where a splat can land wholly outside (share 0)."""
+    W, H = 20, 15
+    x0, x1, y0, y1 = region or (0, W, 0, H)
+    mask = np.zeros((H, W), bool)
+    mask[y0:y1, x0:x1] = True
+    rng = np.random.default_rng(2)
+    rx = np.concatenate([rng.uniform(x0 - w - 1, x1 + w + 1, 60), [x0 - w - 0.01, x1 + w + 0.01]])
+    ry = np.concatenate([rng.uniform(y0 - w - 1, y1 + w + 1, 60), [0.5 * (y0 + y1)] * 2])
+    share = Film(W, H, filter_width=w, region=region).frame_share(rx, ry)
+    exp = np.array([expected_weights(W, H, w, x, y)[mask].sum() for x, y in zip(rx, ry)])
+    np.testing.assert_allclose(share, exp, rtol=1e-12, atol=1e-15)
+    assert share[-2] == share[-1] == 0.0 and (share > 0.5).any() and ((share > 0) & (share < 0.5)).any()
+
+
 def test_many_splats_add_up():
     rng = np.random.default_rng(1)
     W, H, w = 16, 12, 1.5

@@ -559,10 +559,9 @@ def test_clamp_is_off_by_default(lens_scene):
 def test_clamp_removes_exactly_what_it_reports(lens_scene, method, estimator):
     """Same seed, same walks: the clamped image is nowhere brighter, and the luminance it
     lost, summed over the pixels, is the 'clamped_energy' of the statistics."""
-    # walks only: the clamp acts on them. (With the photon hand-off on, the reported energy
-    # still equals the walks' loss per estimate exactly (checked); but other random numbers
-    # then put a clamped solution at the frame's edge, where part of its splat falls outside
-    # and the image sum misses 0.1% of it.)
+    # walks only: the clamp acts on them. The statistic counts what lands in the frame
+    # (Film.frame_share): an eye sample in the pixel filter's margin, here a floor point seen
+    # through the ball at a later diffuse vertex (indirect.gather), can splat wholly outside it
     kw = dict(method=method, estimator=estimator, trials=3, spp=2, seed=3, batches=2, handoff=0.0)
     free = bake(lens_scene, BakeSettings(**kw))
     capped = bake(lens_scene, BakeSettings(clamp_g=0.6, **kw))
