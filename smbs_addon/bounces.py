@@ -62,6 +62,10 @@ class Limits:
         """allowed of event counts (M,3): diffuse, glossy, transmission per row."""
         return self.allowed(cnt[:, 0], cnt[:, 1], cnt[:, 2])
 
+    def array(self) -> np.ndarray:
+        """(diffuse, glossy, transmission, total), as the kernels take them (kernels._fits)."""
+        return np.array([self.diffuse, self.glossy, self.transmission, self.total], np.int64)
+
     def chain_fits(self, types: str, d=1, g=0, t=0):
         """Whether a chain of type ``types`` (letters from the receiver's side) ending at the
         light fits after events (d, g, t) before its first vertex (default: x0's own diffuse

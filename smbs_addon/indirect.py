@@ -35,9 +35,9 @@ from . import embree, kernels, lanes, optics
 from . import scene as S
 from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .eye import Receivers, surface_at
-from .lights import light_radiance, soft_falloff_factor, area_light_shape
-from .reference import scatter_specular, splat_to_camera
-from .vec import cosine_hemisphere, dot, frame, normalize, to_world
+from .lights import light_radiance, area_light_shape
+from .reference import run_photons, scatter_specular, splat_records
+from .vec import dot, normalize
 
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
@@ -53,94 +53,24 @@ def _albedo(scene, mat):
     return scene.mat_color[mat]
 
 
-def _max3(a):
-    """Each row's largest of 3 (as a.max(axis=1), without numpy's slow reduction over short rows)."""
-    return np.maximum(np.maximum(a[:, 0], a[:, 1]), a[:, 2])
-
-
 def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
     """Cosine-sampled bounce off diffuse vertices (about the shading normal on w_in's side),
-    with Russian roulette on the albedo (the hand-off's many bounces per receiver are
-    kernels._cosine_bounce). Returns (directions, weights, kept vertices)."""
-    n = len(w_in)
-    side = np.where(dot(w_in, ng) >= 0, 1.0, -1.0)[:, None]
-    nn = ns * side
-    s, t = frame(nn)
-    d = to_world(cosine_hemisphere(rng.random(n), rng.random(n)), s, t, nn)
-    q = np.clip(_max3(albedo), 0.0, 1.0)
-    survive = rng.random(n) < q
-    beta = beta * (albedo / np.where(q > 0, q, 1.0)[:, None])  # f cos / pdf = albedo
-    cout = dot(d, ng * side)
-    front = dot(w_in, nn) > 0
-    if adjoint:  # Veach's shading-normal correction for light carried from w_in to d
-        num = np.abs(dot(w_in, ns) * cout)
-        den = np.abs(dot(w_in, ng) * dot(d, ns))
-        beta = beta * np.divide(num, den, out=np.zeros_like(num), where=den > 0)[:, None]
-    keep = np.flatnonzero(survive & (cout > 0) & front & (_max3(beta) > 0))
-    return d[keep], beta[keep], keep
+    with Russian roulette on the albedo (kernels.diffuse_rows). Returns (directions, weights,
+    kept vertices)."""
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    return kernels.diffuse_rows(rng.random((3, len(w_in))), f64(w_in), f64(ng), f64(ns), f64(beta), f64(albedo),
+                                bool(adjoint))
 
 
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False):
     """Light tracing of the layer's paths through two or more diffuse vertices, splatted
     at the receivers the camera sees directly (photons from lights.emit over the whole
-    scene, not only towards the casters), within the scene's Light Paths limits."""
+    scene, not only towards the casters), within the scene's Light Paths limits
+    (kernels.photon_lanes, indirect)."""
     lim = Limits.of(scene)
-    o, d, beta = photons.o, photons.d, photons.w
-    keep = beta.max(axis=1) > 0
-    o, d, beta = o[keep], d[keep], beta[keep]
-    n = len(o)
-    has_s = np.zeros(n, bool)  # a specular vertex on a planned caster so far
-    n_diff = np.zeros(n, np.int64)  # diffuse vertices so far
-    # Seen from the camera, the path's events are x0's diffuse bounce and the photon's, the one
-    # nearest the light (the photon's first) last: that one is free (bounces.py), the others
-    # are counted here (diffuse, glossy, transmission), x0's own added where the photon splats
-    cnt = np.zeros((n, 3), np.int64)
-    first = True
-    soft = photons.soft_center is not None
-    stats["photons"] = stats.get("photons", 0) + n
-    for _ in range(MAX_SPECULAR + min(lim.diffuse, 64) + 1):
-        if len(o) == 0:
-            break
-        h = tracer.intersect(o, d)
-        stats["rays_photon"] = stats.get("rays_photon", 0) + len(o)
-        idx = np.flatnonzero(h.hit)
-        o, d, beta, has_s, n_diff, cnt = o[idx], d[idx], beta[idx], has_s[idx], n_diff[idx], cnt[idx]
-        p, ng, ns, prim = h.p[idx], h.ng[idx], h.ns[idx], h.prim[idx]
-        mat = scene.tri_material[prim]
-        obj = scene.tri_object[prim]
-        kind = scene.mat_kind[mat]
-        if first and soft:
-            beta = beta * soft_falloff_factor(photons.soft_center, photons.soft_radius, p)[:, None]
-        w_in = -d
-        diffuse = kind == S.DIFFUSE
-        # splat where the camera's first diffuse vertex would be: the history holds both kinds
-        sp = np.flatnonzero(diffuse & plan.receivers[obj] & has_s & (n_diff >= 1) & lim.fits(cnt + ONE_DIFFUSE))
-        if sp.size:
-            splat_to_camera(scene, tracer, cam, film, p[sp], ng[sp], ns[sp], w_in[sp], beta[sp],
-                            _albedo(scene, mat[sp]), stats)
-        # go on while a splat can still fit the limits: this vertex's event counts unless it is
-        # the photon's first
-        step = 0 if first else 1
-        cnt_d = cnt + np.array([step, 0, 0])
-        di = np.flatnonzero(diffuse & lim.fits(cnt_d + ONE_DIFFUSE))
-        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
-        d_d, b_d, k_d = _diffuse_bounce(rng, w_in[di], ng[di], ns[di], beta[di], _albedo(scene, mat[di]), True)
-        d_s, b_s, k_s = scatter_specular(scene, rng, w_in[si], ns[si], ng[si], mat[si], kind[si], beta[si],
-                                         scale_eta=not physical, adjoint=True)
-        dd, ss = di[k_d], si[k_s]
-        c_s = cnt[ss].copy()
-        c_s[np.arange(len(ss)), specular_kind(d[ss], d_s, ng[ss])] += step
-        live = lim.fits(c_s + ONE_DIFFUSE)
-        ss, d_s, b_s, c_s = ss[live], d_s[live], b_s[live], c_s[live]
-        new_p = np.concatenate([p[dd], p[ss]])
-        new_ng = np.concatenate([ng[dd], ng[ss]])
-        d = np.concatenate([d_d, d_s])
-        beta = np.concatenate([b_d, b_s])
-        n_diff = np.concatenate([n_diff[dd] + 1, n_diff[ss]])
-        cnt = np.concatenate([cnt_d[dd], c_s])
-        has_s = np.concatenate([has_s[dd], has_s[ss] | plan.casters[obj[ss]]])
-        o = tracer.spawn(new_p, new_ng, d)
-        first = False
+    rec, ids, _, _, _ = run_photons(scene, tracer, plan, photons, rng, stats, indirect=True,
+                                    max_iter=MAX_SPECULAR + min(lim.diffuse, 64) + 1, physical=physical)
+    splat_records(scene, tracer, cam, film, rec, ids, stats)
 
 
 def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):

@@ -29,7 +29,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from .embree import intersect1, ray_state
+from .embree import KINDS, intersect1, ray_state
 from .jit import JIT
 from .optics import scatter1
 
@@ -1227,7 +1227,7 @@ def splat(cur, W, x0, x1, y0, y1, r, k, rx, ry, rgb):
                     cur[idx, c] += rgb[i, c] * w
 
 
-# ------------------------------------------------------------------ the hand-off's cosine paths
+# ------------------------------------------------------------------ diffuse bounces, the hand-off's cosine paths
 @njit(inline="always", **_JIT)
 def _cosine_bounce(u1, u2, w, g, n):
     """indirect._diffuse_bounce's direction: cosine-distributed about the shading normal n on
@@ -1241,6 +1241,47 @@ def _cosine_bounce(u1, u2, w, g, n):
     return _add(_add(_mul(x, s), _mul(y, t)), _mul(z, nn)), side, nn
 
 
+@njit(inline="always", **_JIT)
+def _diffuse_scatter(u1, u2, u3, w, g, n, a, beta, adjoint):
+    """indirect._diffuse_bounce of one lane: a cosine direction about the shading normal n on w's
+    side of g (_cosine_bounce), Russian roulette on the albedo a (u3), the weight beta * a / q,
+    with Veach's shading-normal correction when adjoint (light carried from w to the new
+    direction). Returns (kept, direction, weight)."""
+    zero = (0.0, 0.0, 0.0)
+    d, side, nn = _cosine_bounce(u1, u2, w, g, n)
+    q = min(max(_max(_max(a[0], a[1]), a[2]), 0.0), 1.0)
+    if not u3 < q:
+        return False, zero, zero
+    b = (beta[0] * (a[0] / q), beta[1] * (a[1] / q), beta[2] * (a[2] / q))
+    cout = _dot(d, _mul(side, g))
+    if adjoint:
+        num = abs(_dot(w, n) * cout)
+        den = abs(_dot(w, g) * _dot(d, n))
+        corr = num / den if den > 0 else 0.0
+        b = _mul(corr, b)
+    if not (cout > 0 and _dot(w, nn) > 0 and _max(_max(b[0], b[1]), b[2]) > 0):
+        return False, zero, zero
+    return True, d, b
+
+
+@njit(**_JIT)
+def diffuse_rows(u, w, ng, ns, beta, alb, adjoint):
+    """_diffuse_scatter per lane (u: (3, n) uniform numbers): (new directions, new weights, kept
+    lanes), as optics.scatter_rows."""
+    n = w.shape[0]
+    d_out, b_out, keep = np.zeros((n, 3)), np.zeros((n, 3)), np.zeros(n, np.int64)
+    cnt = 0
+    for i in range(n):
+        ok, d, b = _diffuse_scatter(u[0, i], u[1, i], u[2, i], _v(w, i, 0), _v(ng, i, 0), _v(ns, i, 0),
+                                    _v(alb, i, 0), _v(beta, i, 0), adjoint)
+        if ok:
+            keep[cnt] = i
+            for c in range(3):
+                d_out[cnt, c], b_out[cnt, c] = d[c], b[c]
+            cnt += 1
+    return d_out[:cnt], b_out[:cnt], keep[:cnt]
+
+
 @njit(**_JIT)
 def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
                   h_prim):
@@ -1252,14 +1293,10 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
     for lane in range(u.shape[0]):
         seg_n[lane] = 0
         i = lane // samples
-        w, g = _v(w0, i, 0), _v(ng0, i, 0)
-        d, side, nn = _cosine_bounce(u[lane, 0], u[lane, 1], w, g, _v(ns0, i, 0))
-        a = _v(alb, i, 0)
-        q = min(max(_max(_max(a[0], a[1]), a[2]), 0.0), 1.0)  # Russian roulette on the albedo
-        if not u[lane, 2] < q:
-            continue
-        b = (beta0[i, 0] * (a[0] / q), beta0[i, 1] * (a[1] / q), beta0[i, 2] * (a[2] / q))
-        if not (_dot(d, _mul(side, g)) > 0 and _dot(w, nn) > 0 and _max(_max(b[0], b[1]), b[2]) > 0):
+        g = _v(ng0, i, 0)
+        ok, d, b = _diffuse_scatter(u[lane, 0], u[lane, 1], u[lane, 2], _v(w0, i, 0), g, _v(ns0, i, 0),
+                                    _v(alb, i, 0), _v(beta0, i, 0), False)
+        if not ok:
             continue
         o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
         for bounce in range(K + 1):
@@ -1312,3 +1349,156 @@ def handoff_lanes(rt, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, ph
     _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
                   h_prim)
     return ray[6]
+
+# ------------------------------------------------------------------ the light tracer's photons
+# tally entries of photon_lanes: photons with flux, specular paths cut at max_bounces, lanes a
+# shading normal stopped (scatter1 said no), paths whose events left Cycles' Light Paths limits
+PH_PHOTONS, PH_TRUNCATED, PH_LOST, PH_BEYOND = 0, 1, 2, 3
+PH_TALLY = 4
+# a splat record: the diffuse vertex (point, geometric and shading normals), the direction the
+# photon arrived from (away from the surface), its flux; and (lane, specular bounces, material)
+REC_P, REC_NG, REC_NS, REC_W, REC_BETA = 0, 3, 6, 9, 12
+REC_F = 15
+_DIFFUSE = 0
+
+
+@njit(inline="always", **_JIT)
+def _fits(lim, d, g, t):
+    """bounces.Limits.allowed of event counts d, g, t; lim = Limits.array()."""
+    return d <= lim[0] and g <= lim[1] and t <= lim[2] and d + g + t <= lim[3]
+
+
+@njit(**_JIT)
+def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
+                 physical, eps, rec, rec_i, hist, h_prim, tally):
+    """photon_lanes' loop over its lanes from lane0, on borrowed arrays (its caller holds them).
+    Returns (the lane it stopped before: the last + 1, or one whose records did not fit; records
+    written)."""
+    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
+    o0, d0, w0, soft, receivers, lim, rec, rec_i, hist, h_prim, tally = _borrowed(
+        (o0, d0, w0, soft, receivers, lim, rec, rec_i, hist, h_prim, tally))
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
+    mat_color = mats[2]
+    counts = ray[6]
+    K = hist.shape[1]
+    cap = rec.shape[0]
+    nrec = 0
+    for lane in range(lane0, o0.shape[0]):
+        b = _v(w0, lane, 0)
+        if not _max(_max(b[0], b[1]), b[2]) > 0:
+            continue
+        # what to restore if this lane's records do not fit (it is traced again in the next call)
+        rec0, c0, c1, c2 = nrec, counts[0], counts[1], counts[KINDS]
+        t0 = (tally[0], tally[1], tally[2], tally[3])
+        tally[PH_PHOTONS] += 1
+        o, d = _v(o0, lane, 0), _v(d0, lane, 0)
+        nd = ngl = nt = 0  # events so far as Cycles counts them: diffuse, glossy, transmission
+        has_s = False  # a specular vertex on a planned caster so far (indirect)
+        n_diff = 0  # diffuse vertices so far (indirect)
+        full = False
+        for it in range(max_iter):
+            pr, t32 = intersect1(ray, o, d, np.inf, 0)
+            if pr < 0:
+                break
+            _, p, g, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
+            b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
+            n = _shading_normal(tns, pr, b1, b2, g)
+            if it == 0 and soft[3] > 0:  # lights.soft_falloff_factor
+                dc = _sub(p, (soft[0], soft[1], soft[2]))
+                d2 = _dot(dc, dc)
+                b = _mul(d2 / (d2 + soft[3] * soft[3]), b)
+            m = tri_material[pr]
+            kind = mat_kind[m]
+            obj = tri_object[pr]
+            spec = kind == _CONDUCTOR or kind == _DIELECTRIC
+            if not indirect and it == 0:
+                spec = spec and casters[obj]  # a caustic photon's first hit: a planned caster
+            # a splat where the camera's x0 would be: after a specular vertex (indirect: after a
+            # specular vertex on a caster and a diffuse one), x0's own bounce within the limits
+            if (kind == _DIFFUSE and receivers[obj] and _fits(lim, nd + 1, ngl, nt)
+                    and ((has_s and n_diff >= 1) if indirect else it > 0)):
+                if nrec == cap:
+                    full = True
+                    break
+                w = _neg(d)
+                for c in range(3):
+                    rec[nrec, REC_P + c], rec[nrec, REC_NG + c], rec[nrec, REC_NS + c] = p[c], g[c], n[c]
+                    rec[nrec, REC_W + c], rec[nrec, REC_BETA + c] = w[c], b[c]
+                rec_i[nrec, 0], rec_i[nrec, 1], rec_i[nrec, 2] = lane, it, m
+                nrec += 1
+            step = 0 if it == 0 else 1  # the photon's first event is the path's free last one
+            if indirect and kind == _DIFFUSE:
+                if not _fits(lim, nd + step + 1, ngl, nt):
+                    break
+                ok, dd, bb = _diffuse_scatter(keyed_uniform(key, lane, it, 0), keyed_uniform(key, lane, it, 1),
+                                              keyed_uniform(key, lane, it, 2), _neg(d), g, n, _v(mat_color, m, 0),
+                                              b, True)
+                if not ok:
+                    break
+                nd += step
+                n_diff += 1
+            else:
+                if not indirect and it >= max_bounces:
+                    if spec:
+                        tally[PH_TRUNCATED] += 1
+                    break
+                if not spec:
+                    break
+                ok, dd, bb = scatter1(keyed_uniform(key, lane, it, 0), _neg(d), n, g, m, kind, mats, b,
+                                      not physical, True)
+                if not ok:
+                    tally[PH_LOST] += 1
+                    break
+                refl = _dot(d, g) * _dot(dd, g) < 0  # bounces.specular_kind
+                if refl:
+                    ngl += step
+                else:
+                    nt += step
+                if not _fits(lim, nd + 1, ngl, nt):  # no splat can fit any more
+                    tally[PH_BEYOND] += 1
+                    break
+                has_s = has_s or casters[obj]
+                if it < K:  # the hand-off's record of the chain, light side first
+                    h_prim[lane, it] = pr
+                    for c in range(3):
+                        hist[lane, it, c] = p[c]
+                    hist[lane, it, 3], hist[lane, it, 4] = b1, b2
+                    hist[lane, it, 5] = 1.0 if _dot(d, n) * _dot(dd, n) < 0 else 0.0
+                    hist[lane, it, 6] = 1.0 if casters[obj] else 0.0
+            o = _add(p, _mul(eps if _dot(dd, g) >= 0 else -eps, g))  # tracer.spawn
+            d, b = dd, bb
+        if full:
+            counts[0], counts[1], counts[KINDS] = c0, c1, c2
+            tally[0], tally[1], tally[2], tally[3] = t0
+            return lane, rec0
+    return o0.shape[0], nrec
+
+
+@TypedOnce
+@njit(**_JIT)
+def photon_lanes(rt, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
+                 physical, eps, rec, rec_i, hist, h_prim, tally):
+    """The light tracer's photons (o0, d0: origin and unit direction; w0: flux), each traced from
+    its light to its end, every ray cast here, its random numbers keyed_uniform(key, lane,
+    event, .): the same path whichever call or thread traces it.
+
+    Caustic photons (reference.trace_photons, indirect False): the first hit a planned caster,
+    then through mirrors and glass (optics.scatter1, adjoint; physical: Cycles' radiance is not
+    scaled at refractions, so the flux is), up to max_bounces specular vertices; a record where
+    the path meets a diffuse receiver after at least one. Indirect photons (indirect
+    .trace_photons): every surface, diffuse bounces with Russian roulette (_diffuse_scatter),
+    up to max_iter events; a record at each diffuse receiver once the path holds a specular
+    vertex on a caster and a diffuse one. Both keep the scene's Light Paths limits (lim:
+    Limits.array(); bounces.py: the photon's first event is free, x0's diffuse bounce counts).
+    soft: a soft-falloff light's centre and radius (radius 0: none), applied at the first hit.
+
+    Writes splat records (rec: REC_* columns, rec_i: lane, specular bounces before it,
+    material) and, for the hand-off, the first K = hist.shape[1] specular vertices of each lane
+    (hist: point, barycentrics, 1 for a reflection, 1 on a caster; h_prim: the triangle); adds
+    to tally (PH_*). Returns (the lane to go on from, o0's length when done: a lane whose
+    records would not fit in rec is left whole for the next call; records written; the ray
+    counters, embree.ray_state)."""
+    ray = ray_state(rt)
+    nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces,
+                             max_iter, physical, eps, rec, rec_i, hist, h_prim, tally)
+    return nxt, nrec, ray[6]

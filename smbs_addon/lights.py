@@ -18,9 +18,11 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from . import scene as S
-from .vec import concentric_disk, cross, dot, frame, normalize, to_world, uniform_cone
+from .jit import JIT
+from .vec import concentric_disk, dot
 
 
 @dataclass
@@ -86,94 +88,184 @@ def area_light_points(scene, li: int, n: int, rng) -> np.ndarray:
     return cen + (a * hx)[:, None] * ex + (b * hy)[:, None] * ey
 
 
-def _cone_mixture(origin, targets, n, rng, grow=0.0):
-    """Directions from origin(s) towards a mixture of target spheres.
+# ------------------------------------------------------------------ emission, per photon
+@njit(inline="always", **JIT)
+def _frame1(n):
+    """vec.frame of one unit vector."""
+    sign = 1.0 if n[2] >= 0 else -1.0
+    a = -1.0 / (sign + n[2])
+    b = n[0] * n[1] * a
+    return (1.0 + sign * n[0] ** 2 * a, sign * b, -sign * n[0]), (b, sign + n[1] ** 2 * a, -n[1])
 
-    origin: (3,) or (n,3); targets: (K,4) centre+radius; grow widens every
-    sphere (for sphere lights). Returns directions (n,3) and their mixture
-    density (n,) in solid angle."""
-    o = np.broadcast_to(np.asarray(origin, float), (n, 3))
-    K = len(targets)
-    cen, rad = targets[:, :3], targets[:, 3] + grow
-    # cone half-angle cosines per (lane, target)
-    dist = np.sqrt(((cen[None, :, :] - o[:, None, :]) ** 2).sum(-1))  # (n,K)
-    sin_a = np.clip(np.divide(rad[None, :], dist, out=np.full_like(dist, 2.0), where=dist > 0), 0, 2)
-    full = sin_a >= 1.0
-    cos_max = np.where(full, -1.0, np.sqrt(np.maximum(0.0, 1.0 - sin_a**2)))
-    omega = 2.0 * math.pi * (1.0 - cos_max)  # (n,K)
-    probs = np.full(K, 1.0 / K)
-    if K > 1:  # prefer large cones (as seen from the first origin)
-        probs = omega[0] / omega[0].sum()
-    k = rng.choice(K, size=n, p=probs) if K > 1 else np.zeros(n, np.int64)
-    u1, u2 = rng.random(n), rng.random(n)
-    axis = normalize(cen[k] - o)
-    axis = np.where((dist[np.arange(n), k] > 0)[:, None], axis, np.array([0.0, 0.0, 1.0]))
-    s, t = frame(axis)
-    d = to_world(uniform_cone(u1, u2, cos_max[np.arange(n), k]), s, t, axis)
-    # mixture density: sum over cones containing d
-    to_c = normalize(cen[None, :, :] - o[:, None, :])
-    inside = (dot(d[:, None, :], to_c) >= cos_max - 1e-12) | full
-    pdf = (inside * (probs[None, :] / omega)).sum(1)
+
+@njit(inline="always", **JIT)
+def _around(x, y, z, axis):
+    """The local direction (x, y, z) about a unit axis (vec.to_world in vec.frame's frame)."""
+    s, t = _frame1(axis)
+    return (x * s[0] + y * t[0] + z * axis[0], x * s[1] + y * t[1] + z * axis[1], x * s[2] + y * t[2] + z * axis[2])
+
+
+@njit(inline="always", **JIT)
+def _in_cone(u1, u2, cos_max, axis):
+    """vec.uniform_cone about axis."""
+    z = 1.0 - u1 * (1.0 - cos_max)
+    r = math.sqrt(max(0.0, 1.0 - z * z))
+    phi = 2.0 * math.pi * u2
+    return _around(r * math.cos(phi), r * math.sin(phi), z, axis)
+
+
+@njit(inline="always", **JIT)
+def _disk1(u1, u2):
+    """vec.concentric_disk of one pair."""
+    a, b = 2.0 * u1 - 1.0, 2.0 * u2 - 1.0
+    if a == 0.0 and b == 0.0:
+        return 0.0, 0.0
+    if abs(a) > abs(b):
+        r, phi = a, (math.pi / 4) * (b / a)
+    else:
+        r, phi = b, (math.pi / 2) - (math.pi / 4) * (a / b)
+    return r * math.cos(phi), r * math.sin(phi)
+
+
+@njit(inline="always", **JIT)
+def _pick(cdf, u):
+    """The mixture component u picks (cdf: cumulative probabilities)."""
+    return min(np.searchsorted(cdf, u * cdf[-1], side="right"), cdf.shape[0] - 1)
+
+
+@njit(inline="always", **JIT)
+def _cone(o, targets, j, grow):
+    """Light leaving o towards target sphere j (grown by grow): (unit axis, cos of the cone's
+    half-angle (-1: o inside the sphere), its solid angle)."""
+    v = (targets[j, 0] - o[0], targets[j, 1] - o[1], targets[j, 2] - o[2])
+    dist = math.sqrt(v[0] * v[0] + v[1] * v[1] + v[2] * v[2])
+    rad = targets[j, 3] + grow
+    sin_a = min(max(rad / dist, 0.0), 2.0) if dist > 0 else 2.0
+    cos_max = -1.0 if sin_a >= 1.0 else math.sqrt(max(0.0, 1.0 - sin_a * sin_a))
+    axis = (v[0] / dist, v[1] / dist, v[2] / dist) if dist > 0 else (0.0, 0.0, 1.0)
+    return axis, cos_max, 2.0 * math.pi * (1.0 - cos_max)
+
+
+@njit(inline="always", **JIT)
+def _cone_mixture1(u0, u1, u2, o, targets, cdf, probs, grow):
+    """A direction from o towards a mixture of target spheres (component picked by u0 with
+    probabilities probs), and the mixture's density in solid angle: every cone that holds the
+    direction counts, so overlapping cones keep the estimate unbiased."""
+    axis, cos_max, _ = _cone(o, targets, _pick(cdf, u0), grow)
+    d = _in_cone(u1, u2, cos_max, axis)
+    pdf = 0.0
+    for j in range(targets.shape[0]):
+        a, c, omega = _cone(o, targets, j, grow)
+        if c <= -1.0 or d[0] * a[0] + d[1] * a[1] + d[2] * a[2] >= c - 1e-12:
+            pdf += probs[j] / omega
     return d, pdf
 
 
+@njit(**JIT)
+def _emit_sphere(u, c, r, intensity, targets, cdf, probs, o, d, w):
+    """Point and spot lights (a sphere of radius r, 0: a point): directions towards the targets
+    from the centre, origins on the hemisphere facing them; w: flux / n."""
+    n = u.shape[0]
+    for i in range(n):
+        oi = (c[0], c[1], c[2])
+        di, pdf = _cone_mixture1(u[i, 0], u[i, 1], u[i, 2], oi, targets, cdf, probs, r)
+        if r > 0:
+            s, t = _frame1(di)
+            a, b = _disk1(u[i, 3], u[i, 4])
+            h = math.sqrt(max(0.0, 1.0 - a * a - b * b))
+            oi = (c[0] + r * (a * s[0] + b * t[0] + h * di[0]), c[1] + r * (a * s[1] + b * t[1] + h * di[1]),
+                  c[2] + r * (a * s[2] + b * t[2] + h * di[2]))
+        for k in range(3):
+            o[i, k], d[i, k], w[i, k] = oi[k], di[k], intensity[k] / (pdf * n)
+
+
+@njit(**JIT)
+def _emit_area(u, cen, ex, ey, nrm, hx, hy, area, disk, radiance, targets, cdf, probs, o, d, w):
+    """Area lights: origins uniform on the light, directions towards the targets, weighted by
+    the cosine at the light."""
+    n = u.shape[0]
+    for i in range(n):
+        if disk:
+            a, b = _disk1(u[i, 3], u[i, 4])
+        else:
+            a, b = 2.0 * u[i, 3] - 1.0, 2.0 * u[i, 4] - 1.0
+        oi = (cen[0] + a * hx * ex[0] + b * hy * ey[0], cen[1] + a * hx * ex[1] + b * hy * ey[1],
+              cen[2] + a * hx * ex[2] + b * hy * ey[2])
+        di, pdf = _cone_mixture1(u[i, 0], u[i, 1], u[i, 2], oi, targets, cdf, probs, 0.0)
+        cos_l = max(0.0, di[0] * nrm[0] + di[1] * nrm[1] + di[2] * nrm[2])
+        for k in range(3):
+            o[i, k], d[i, k], w[i, k] = oi[k], di[k], radiance[k] * (cos_l * area / (pdf * n))
+
+
+@njit(**JIT)
+def _emit_sun(u, axis, half, color, targets, cdf, probs, far, o, d, w):
+    """Suns: directions in the sun's cone, then a point on a disc across one target sphere (picked
+    in proportion to its cross-section), its density counting every disc that holds it; the
+    photon starts far behind it."""
+    n = u.shape[0]
+    ax = (axis[0], axis[1], axis[2])
+    for i in range(n):
+        di = _in_cone(u[i, 0], u[i, 1], math.cos(half), ax) if half > 0 else ax
+        j = _pick(cdf, u[i, 2])
+        s, t = _frame1(di)
+        a, b = _disk1(u[i, 3], u[i, 4])
+        rk = targets[j, 3]
+        p = (targets[j, 0] + rk * (a * s[0] + b * t[0]), targets[j, 1] + rk * (a * s[1] + b * t[1]),
+             targets[j, 2] + rk * (a * s[2] + b * t[2]))
+        pdf = 0.0
+        for m in range(targets.shape[0]):
+            rel = (p[0] - targets[m, 0], p[1] - targets[m, 1], p[2] - targets[m, 2])
+            along = rel[0] * di[0] + rel[1] * di[1] + rel[2] * di[2]
+            perp2 = rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2] - along * along
+            if perp2 <= targets[m, 3] ** 2 * (1 + 1e-12):
+                pdf += probs[m] / (math.pi * targets[m, 3] ** 2)
+        for k in range(3):
+            o[i, k], d[i, k], w[i, k] = p[k] - far * di[k], di[k], color[k] / (pdf * n)
+
+
+def _cone_probs(origin, targets, grow=0.0):
+    """Each target's share of the photons: its cone's solid angle seen from origin."""
+    if len(targets) == 1:
+        return np.ones(1)
+    omega = np.array([_cone(origin, targets, j, grow)[2] for j in range(len(targets))])
+    return omega / omega.sum()
+
+
 def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) -> Photons:
-    """n photons of light li towards the target spheres (K,4). Weights include 1/n."""
+    """n photons of light li towards the target spheres (K,4). Weights include 1/n.
+
+    Directions are drawn from a mixture of the cones around the targets (in proportion to their
+    solid angles seen from the light's centre) and weighted by the mixture's density."""
     typ = scene.light_type[li]
-    color = scene.light_color[li]
+    color = np.asarray(scene.light_color[li], np.float64)
     m = scene.light_matrix[li]
-    c = m[:3, 3]
+    c = np.ascontiguousarray(m[:3, 3], np.float64)
+    targets = np.ascontiguousarray(targets, np.float64).reshape(-1, 4)
+    u = rng.random((n, 5))
+    o, d, w = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
     if typ in (S.POINT, S.SPOT):
         r = float(scene.light_radius[li])
-        d, pdf = _cone_mixture(c, targets, n, rng, grow=r)
-        if r > 0:
-            s, t = frame(d)
-            a, b = concentric_disk(rng.random(n), rng.random(n))
-            h = np.sqrt(np.maximum(0.0, 1.0 - a * a - b * b))
-            o = c + r * (a[:, None] * s + b[:, None] * t + h[:, None] * d)
-        else:
-            o = np.broadcast_to(c, (n, 3)).copy()
-        intensity = color / (4.0 * math.pi)  # W/sr for the whole sphere, = L pi r^2
-        w = intensity[None, :] / (pdf * n)[:, None]
+        probs = _cone_probs(c, targets, r)
+        _emit_sphere(u, c, r, color / (4.0 * math.pi), targets, np.cumsum(probs), probs, o, d, w)  # W/sr = L pi r^2
         if typ == S.SPOT:
-            w = w * spot_mask(scene, li, d)[:, None]
+            w *= spot_mask(scene, li, d)[:, None]
         if scene.light_soft_falloff[li] and r > 0:
             return Photons(o, d, w, soft_center=c.copy(), soft_radius=r)
         return Photons(o, d, w)
     if typ == S.AREA:
         cen, ex, ey, nrm, hx, hy, area = area_light_shape(scene, li)
-        o = area_light_points(scene, li, n, rng)
-        d, pdf = _cone_mixture(o, targets, n, rng)
-        cos_l = np.maximum(0.0, dot(d, nrm))
-        radiance = color / (math.pi * area)
-        w = radiance[None, :] * (cos_l * area / (pdf * n))[:, None]
+        probs = _cone_probs(cen, targets)
+        f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+        _emit_area(u, f64(cen), f64(ex), f64(ey), f64(nrm), float(hx), float(hy), float(area),
+                   bool(scene.light_shape[li] in (S.DISK, S.ELLIPSE)), color / (math.pi * area), targets,
+                   np.cumsum(probs), probs, o, d, w)
         return Photons(o, d, w)
     if typ == S.SUN:
-        axis = light_axis(scene, li)
-        half = 0.5 * float(scene.light_angle[li])
-        if half > 0:
-            s, t = frame(np.broadcast_to(axis, (n, 3)))
-            d = to_world(uniform_cone(rng.random(n), rng.random(n), math.cos(half)), s, t,
-                         np.broadcast_to(axis, (n, 3)))
-        else:
-            d = np.broadcast_to(axis, (n, 3)).copy()
-        K = len(targets)
         area_k = math.pi * targets[:, 3] ** 2
         probs = area_k / area_k.sum()
-        k = rng.choice(K, size=n, p=probs) if K > 1 else np.zeros(n, np.int64)
-        s, t = frame(d)
-        a, b = concentric_disk(rng.random(n), rng.random(n))
-        rk = targets[k, 3]
-        p_plane = targets[k, :3] + rk[:, None] * (a[:, None] * s + b[:, None] * t)
-        # density of that point in the plane perpendicular to d: all discs containing it
-        rel = p_plane[:, None, :] - targets[None, :, :3]
-        along = dot(rel, d[:, None, :])
-        perp2 = dot(rel, rel) - along**2
-        inside = perp2 <= targets[None, :, 3] ** 2 * (1 + 1e-12)
-        pdf = (inside * (probs / area_k)[None, :]).sum(1)
         far = 2.0 * (scene.scale + float(np.abs(targets[:, :3]).max()))
-        o = p_plane - far * d
-        w = color[None, :] / (pdf * n)[:, None]
+        _emit_sun(u, np.ascontiguousarray(light_axis(scene, li), np.float64), 0.5 * float(scene.light_angle[li]),
+                  color, targets, np.cumsum(probs), probs, far, o, d, w)
         return Photons(o, d, w)
     raise ValueError(f"light '{scene.light_names[li]}': unknown type {typ}")
 

@@ -17,11 +17,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import scene as S
+from . import embree, kernels, optics
 from .optics import materials, scatter_rows
-from .lights import soft_falloff_factor
 from .estimators import concentration
-from .bounces import ONE_DIFFUSE, Limits, specular_kind
+from .bounces import Limits
 from .geometry import vertex_from_hits
 from .vec import dot
 
@@ -167,93 +166,70 @@ def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caste
     return take
 
 
+def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bounces=MAX_SPECULAR_BOUNCES,
+                max_iter=None, physical=False, K=0):
+    """Photons traced in one kernel call per chunk (kernels.photon_lanes: caustic photons, or with
+    indirect the ones that also bounce off diffuse surfaces), their random numbers keyed by one
+    draw from rng and the lane. Counts photons and rays in stats. Returns the splat records
+    (kernels.REC_* columns), their (lane, specular bounces, material), the hand-off's record of
+    each lane's first K specular vertices (hist, h_prim) and the kernel's tally (kernels.PH_*)."""
+    n = len(photons.o)
+    max_iter = max_bounces + 1 if max_iter is None else max_iter
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    o0, d0, w0 = f64(photons.o), f64(photons.d), f64(photons.w)
+    soft = np.zeros(4) if photons.soft_center is None else np.append(photons.soft_center, photons.soft_radius)
+    hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
+    tally = np.zeros(kernels.PH_TALLY, np.int64)
+    args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), optics.materials(scene),
+            Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical), tracer.eps)
+    key = int(rng.integers(2**63))
+    cap = max(n, max_iter + 1)  # a lane makes at most max_iter records: every call moves on
+    recs, ids, lane = [], [], 0
+    while lane < n:
+        rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
+        rt = tracer.rays()
+        lane, m, counts = kernels.photon_lanes(rt, bool(indirect), o0, d0, w0, soft, key, lane, *args, rec, rec_i,
+                                               hist, h_prim, tally)
+        tracer.cast_by_kernel(rt, counts)
+        stats["rays_photon"] = stats.get("rays_photon", 0) + int(counts[embree.KINDS:].sum())
+        recs.append(rec[:m])
+        ids.append(rec_i[:m])
+    stats["photons"] = stats.get("photons", 0) + int(tally[kernels.PH_PHOTONS])
+    rec, ids = (np.concatenate(recs), np.concatenate(ids)) if len(recs) != 1 else (recs[0], ids[0])
+    return rec, ids, hist, h_prim, tally
+
+
+def splat_records(scene, tracer, cam, film, rec, ids, stats):
+    """splat_to_camera of run_photons' records."""
+    if len(rec):
+        splat_to_camera(scene, tracer, cam, film, rec[:, 0:3], rec[:, 3:6], rec[:, 6:9], rec[:, 9:12],
+                        rec[:, 12:15], scene.mat_color[ids[:, 2]], stats)
+
+
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounces=MAX_SPECULAR_BOUNCES,
                   physical=False, handoff: Handoff | None = None):
     """Follow photons through specular chains and splat at the first diffuse vertex
     (with a hand-off: only the paths it names)."""
-    o, d, beta = photons.o, photons.d, photons.w
-    keep = beta.max(axis=1) > 0
-    o, d, beta = o[keep], d[keep], beta[keep]
-    soft = photons.soft_center is not None
-    stats["photons"] += int(keep.sum())
-    bounces = 0
-    # the scene's Light Paths limits, as Cycles counts the path from the camera (bounces.py): x0's
-    # diffuse bounce and the photon's specular events but its first (the free last one)
-    lim = Limits.of(scene)
-    cnt = np.zeros((len(o), 3), np.int64)
+    K = 0
     if handoff is not None:  # per photon: each bounce's triangle, barycentrics, kind, caster flag
         K = handoff.max_chain
         if not handoff.others:
             max_bounces = min(max_bounces, K)
-        lane = np.arange(len(o))
-        y_end = -d if handoff.directional else o.copy()
-        h_prim = np.zeros((len(o), K), np.int64)
-        h_p = np.zeros((len(o), K, 3))
-        h_bary = np.zeros((len(o), K, 2))
-        h_refl = np.zeros((len(o), K), np.int64)
-        h_cast = np.zeros((len(o), K), bool)
-    while len(o):
-        h = tracer.intersect(o, d)
-        stats["rays_photon"] += len(o)
-        idx = np.flatnonzero(h.hit)
-        if idx.size == 0:
-            break
-        o, d, beta, cnt = o[idx], d[idx], beta[idx], cnt[idx]
-        p, ng, ns, prim = h.p[idx], h.ng[idx], h.ns[idx], h.prim[idx]
-        if handoff is not None:
-            lane = lane[idx]
-            bary = h.b[idx]
-        if soft and bounces == 0:
-            beta = beta * soft_falloff_factor(photons.soft_center, photons.soft_radius, p)[:, None]
-        mat = scene.tri_material[prim]
-        obj = scene.tri_object[prim]
-        kind = scene.mat_kind[mat]
-        w_in = -d
-        # first hit must be a planned caster; later hits may be any specular object
-        spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
-        if bounces == 0:
-            spec &= plan.casters[obj]
-        diffuse = (kind == S.DIFFUSE) & plan.receivers[obj] & (bounces > 0) & lim.fits(cnt + ONE_DIFFUSE)
-        if handoff is not None and diffuse.any():
-            di = np.flatnonzero(diffuse)
-            ln = lane[di]
-            take = _handoff_select(scene, tracer, handoff, p[di], np.full(di.size, bounces), h_prim[ln],
-                                   h_p[ln], h_bary[ln], h_refl[ln], h_cast[ln], y_end[ln])
-            diffuse[di[~take]] = False
-            stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(take.sum())
-        if diffuse.any():
-            di = np.flatnonzero(diffuse)
-            splat_to_camera(scene, tracer, cam, film, p[di], ng[di], ns[di], w_in[di], beta[di],
-                            scene.mat_color[mat[di]], stats)
-        if bounces >= max_bounces:
-            stats["truncated"] += int(spec.sum())
-            break
-        si = np.flatnonzero(spec)
-        if si.size == 0:
-            break
-        d_in = d[si]
-        d, beta, keep = scatter_specular(scene, rng, -d[si], ns[si], ng[si], mat[si], kind[si], beta[si],
-                                         scale_eta=not physical, adjoint=True)
-        stats["lost_shading_normal"] += int(si.size - keep.size)
-        cnt = cnt[si[keep]]
-        cnt[np.arange(len(keep)), specular_kind(d_in[keep], d, ng[si[keep]])] += 0 if bounces == 0 else 1
-        # photons whose events no longer fit can splat nowhere
-        live = lim.fits(cnt + ONE_DIFFUSE)
-        if not live.all():
-            stats["beyond_light_paths"] = stats.get("beyond_light_paths", 0) + int((~live).sum())
-            keep, d, beta, cnt = keep[live], d[live], beta[live], cnt[live]
-        if handoff is not None:
-            sk = si[keep]
-            ln = lane[sk]
-            lane = ln
-        if handoff is not None and bounces < K:  # past K the path is no walked chain: no history needed
-            h_prim[ln, bounces] = prim[sk]
-            h_p[ln, bounces] = p[sk]
-            h_bary[ln, bounces] = bary[sk]
-            h_refl[ln, bounces] = (dot(d_in[keep], ns[sk]) * dot(d, ns[sk]) < 0).astype(np.int64)
-            h_cast[ln, bounces] = plan.casters[obj[sk]]
-        o = tracer.spawn(p[si][keep], ng[si][keep], d)
-        bounces += 1
+    rec, ids, hist, h_prim, tally = run_photons(scene, tracer, plan, photons, rng, stats, max_bounces=max_bounces,
+                                                physical=physical, K=K)
+    stats["truncated"] += int(tally[kernels.PH_TRUNCATED])
+    stats["lost_shading_normal"] += int(tally[kernels.PH_LOST])
+    if tally[kernels.PH_BEYOND]:  # photons whose events no longer fit can splat nowhere
+        stats["beyond_light_paths"] = stats.get("beyond_light_paths", 0) + int(tally[kernels.PH_BEYOND])
+    if handoff is not None and len(rec):
+        ln = ids[:, 0]
+        y_end = -photons.d[ln] if handoff.directional else photons.o[ln]
+        h = hist[ln]
+        take = _handoff_select(scene, tracer, handoff, rec[:, 0:3], ids[:, 1], h_prim[ln], h[:, :, 0:3],
+                               h[:, :, 3:5], h[:, :, 5].astype(np.int64), h[:, :, 6] > 0, y_end)
+        rec, ids = rec[take], ids[take]
+        stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(take.sum())
+    splat_records(scene, tracer, cam, film, rec, ids, stats)
 
 
 def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, rng, stats,

@@ -10,6 +10,7 @@
 from __future__ import annotations
 
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -21,7 +22,7 @@ from smbs_addon import scene as S
 from smbs_addon.__main__ import main
 from smbs_addon.builder import SceneBuilder
 from smbs_addon.camera import CameraModel
-from smbs_addon.plan import describe_chain, make_plan, refine_plan
+from smbs_addon.plan import PILOT_PHOTONS, describe_chain, make_plan, refine_plan
 from smbs_addon.tracer import Tracer
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -46,7 +47,7 @@ def lens_scene(extra: bool, resolution=(96, 72), far=(0, 0, -3)):
     return b.build()
 
 
-BALL = ["Area -> Ball (refraction, 2 vertices 94%; reflection 6%; rarer paths <1%) -> Floor",
+BALL = ["Area -> Ball (refraction, 2 vertices 93%; reflection 7%; rarer paths <1%) -> Floor",
         "Area -> diffuse -> Ball -> Floor (after a diffuse bounce)"]
 
 
@@ -70,12 +71,15 @@ def test_a_far_caster_too_faint_to_show_is_skipped():
     """A glass ball 45 m away, beyond the floor's edge and below it: a faint glory of light
     reflected inside it does reach the floor, and the Ball shows it in its reflection, so it
     is not invisible; the pilots find its caustic below PLAN_MIN_SHARE of the light the
-    camera sees, and it is left out."""
+    camera sees, and it is left out. With 8 times the default pilots: at the default, half the
+    seeds (10 of 20) see none of the glory land (refine_plan: a share below 3 / pilots can be
+    missed) and call it a caustic that lands on nothing the camera sees (20 of 20 find it here)."""
     scene = lens_scene(True, (48, 36), far=(-45, 0, -3))
     plan = make_plan(scene)
-    refine_plan(plan, scene, Tracer(scene), CameraModel(scene.camera), seed=3)
-    assert plan.words() == BALL + ["SkySpot skipped: reaches no caster",
-                            "FarGlass skipped: its caustic is too faint to show"]
+    refine_plan(plan, scene, Tracer(scene), CameraModel(scene.camera), seed=3, pilots=8 * PILOT_PHOTONS)
+    shares = lambda words: [re.sub(r"\d+%", "N%", w) for w in words]  # noqa: E731 (more pilots, other shares)
+    assert shares(plan.words()) == shares(BALL + ["SkySpot skipped: reaches no caster",
+                                                  "FarGlass skipped: its caustic is too faint to show"])
     assert [lp.caster_names for lp in plan.lights] == [["Ball"]]
     assert plan.casters.sum() == 1 and plan.scale < 15  # tolerances from what takes part
 
@@ -186,7 +190,7 @@ def test_chain_words():
 SAMPLE_PLANS = {  # word for word: what each sample scene bakes, by which paths, onto what
     "glass_sphere.blend": ["Light -> Sphere (refraction, 2 vertices 94%; reflection 6%; rarer paths <1%) -> Floor",
                            "Light -> diffuse -> Sphere -> Floor (after a diffuse bounce)"],
-    "glass_spot.blend": ["Spot -> Sphere (refraction, 2 vertices 97%; reflection 3%; rarer paths <1%) -> Floor",
+    "glass_spot.blend": ["Spot -> Sphere (refraction, 2 vertices 96%; reflection 4%; rarer paths <1%) -> Floor",
                          "Spot -> diffuse -> Sphere -> Floor (after a diffuse bounce)"],
     "mirror.blend": ["Light -> Mirror (reflection) -> Floor"],
     "pool.blend": ["Sun -> WaterSurface (refraction) -> PoolFloor",

@@ -1,0 +1,188 @@
+"""The light tracer's photons, compiled (lights.emit, kernels.photon_lanes): the flux they
+carry against independent estimates, a mirror's caustic photons against the law of
+reflection, and the kernel's bookkeeping (records that do not fit, threads) exact."""
+import math
+
+import numpy as np
+import pytest
+
+import scenes
+from smbs_addon import BakeSettings, bake, embree, kernels, optics, reference
+from smbs_addon.bounces import Limits
+from smbs_addon.builder import SceneBuilder
+from smbs_addon.lights import emit
+from smbs_addon.plan import make_plan
+from smbs_addon.tracer import Tracer
+
+# two overlapping spheres under a light at (0, 0, 3)
+TARGETS = np.array([[0.3, 0.0, 0.5, 0.4], [-0.2, 0.1, 0.6, 0.5]])
+POWER = 100.0
+
+
+def _light_scene(kind, **kw):
+    b = SceneBuilder("lights")
+    b.plane("Floor", (0, 0, 0), 10, b.material("floor", "diffuse"))
+    b.light("L", kind, location=(0, 0, 3), target=(0, 0, 0), power=POWER, **kw)
+    b.set_camera((0, -6, 5), (0, 0, 0), resolution_x=8, resolution_y=6)
+    return b.build()
+
+
+def _hits_spheres(o, d, spheres):
+    """Whether rays o + t d (t > 0) meet any of the spheres."""
+    hit = np.zeros(len(d), bool)
+    for c, r in zip(spheres[:, :3], spheres[:, 3]):
+        oc = o - c
+        b = (oc * d).sum(-1)
+        disc = b * b - ((oc * oc).sum(-1) - r * r)
+        hit |= (disc >= 0) & (-b + np.sqrt(np.maximum(disc, 0)) > 0)
+    return hit
+
+
+def _uniform_sphere(rng, n):
+    d = rng.standard_normal((n, 3))
+    return d / np.linalg.norm(d, axis=1, keepdims=True)
+
+
+def _mean_se(x):
+    return x.mean(), x.std(ddof=1) / math.sqrt(len(x))
+
+
+@pytest.mark.parametrize("kind, kw", [("POINT", dict(radius=0.0)), ("POINT", dict(radius=0.15)),
+                                      ("AREA", dict(shape="RECTANGLE", size=(0.8, 0.5))),
+                                      ("AREA", dict(shape="DISK", size=0.6)), ("SUN", dict(angle=0.0))])
+def test_emitted_flux_is_the_light_s_flux_into_its_targets(kind, kw):
+    """The photons' flux summed (each carries flux / pdf / n) against the same flux found by an
+    independent estimator: uniform directions on the sphere (point lights: intensity times the
+    solid angle of the targets' cones, grown by the light's radius), uniform points on the light
+    and cosine directions (area lights: pi L A times the share of them that meet a target),
+    uniform points across the targets' discs (suns: irradiance times the discs' union). Within 4
+    combined standard errors, each under 1%."""
+    scene = _light_scene(kind, **kw)
+    ph = emit(scene, 0, TARGETS, 400_000, np.random.default_rng(1))
+    assert np.all(np.isfinite(ph.w)) and np.allclose(np.linalg.norm(ph.d, axis=1), 1.0)
+    got, got_se = _mean_se(ph.w[:, 0] * len(ph.w))
+    rng = np.random.default_rng(2)
+    n = 2_000_000
+    if kind == "POINT":
+        grown = TARGETS + np.array([0, 0, 0, kw["radius"]])
+        hit = _hits_spheres(np.array([0.0, 0.0, 3.0]), _uniform_sphere(rng, n), grown)
+        x = POWER / (4 * math.pi) * 4 * math.pi * hit
+    elif kind == "AREA":
+        if kw["shape"] == "DISK":
+            r = 0.3 * np.sqrt(rng.random(n))
+            phi = 2 * math.pi * rng.random(n)
+            xy, area = np.column_stack([r * np.cos(phi), r * np.sin(phi)]), math.pi * 0.3**2
+        else:
+            xy, area = (rng.random((n, 2)) - 0.5) * [0.8, 0.5], 0.8 * 0.5
+        o = np.column_stack([xy, np.full(n, 3.0)])
+        u1, u2 = rng.random(n), rng.random(n)
+        s = np.sqrt(u1)
+        d = np.column_stack([s * np.cos(2 * math.pi * u2), s * np.sin(2 * math.pi * u2), -np.sqrt(1 - u1)])
+        assert abs(area - scene.light_size[0].prod() * (math.pi / 4 if kw["shape"] == "DISK" else 1)) < 1e-12
+        x = POWER / (math.pi * area) * math.pi * area * _hits_spheres(o, d, TARGETS)
+    else:  # a sun straight down: the discs' union seen from above
+        lo, hi = (TARGETS[:, :2] - TARGETS[:, 3:]).min(0), (TARGETS[:, :2] + TARGETS[:, 3:]).max(0)
+        q = lo + (hi - lo) * rng.random((n, 2))
+        inside = np.zeros(n, bool)
+        for c, r in zip(TARGETS[:, :2], TARGETS[:, 3]):
+            inside |= ((q - c) ** 2).sum(1) <= r * r
+        x = POWER * np.prod(hi - lo) * inside
+    want, want_se = _mean_se(x)
+    se = math.hypot(got_se, want_se)
+    assert se < 0.01 * want
+    assert abs(got - want) < 4 * se, (got, want, se)
+
+
+def _trace(scene, plan, tracer, ph, key, indirect, cap, max_iter):
+    """kernels.photon_lanes over every photon, cap records per call: records, tally, rays."""
+    n = len(ph.o)
+    K = 2
+    hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
+    tally = np.zeros(kernels.PH_TALLY, np.int64)
+    recs, ids, lane, rays, calls = [], [], 0, 0, 0
+    while lane < n:
+        rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
+        lane, m, counts = kernels.photon_lanes(tracer.rays(), indirect, ph.o, ph.d, ph.w, np.zeros(4), key, lane,
+                                               tracer.kernel_geometry(plan.casters), plan.receivers,
+                                               optics.materials(scene), Limits.of(scene).array(), 32, max_iter, False,
+                                               tracer.eps, rec, rec_i, hist, h_prim, tally)
+        recs.append(rec[:m])
+        ids.append(rec_i[:m])
+        rays += int(counts[embree.KINDS:].sum())
+        calls += 1
+    return np.concatenate(recs), np.concatenate(ids), tally, rays, calls, hist, h_prim
+
+
+@pytest.mark.parametrize("indirect", [False, True])
+def test_records_that_do_not_fit_are_traced_again_the_same(indirect):
+    """A lane whose records would overflow the buffer is left whole for the next call, with its
+    rays and tallies taken back: with room for 5 records per call, the records, tallies, rays
+    and hand-off history are those of one call with room for all. Caustic photons: a glass ball
+    on a floor under an area light; indirect ones: water over a floor under a point light, whose
+    photons reach the floor again after the water's underside (several records per photon)."""
+    scene = scenes.water_scene("point") if indirect else scenes.glass_sphere_scene(resolution=(32, 24))
+    plan = make_plan(scene)
+    tracer = Tracer(scene)
+    lp = plan.lights[0]
+    n = 20000 if indirect else 4000
+    ph = emit(scene, lp.index, plan.scene_sphere if indirect else lp.targets, n, np.random.default_rng(7))
+    max_iter = 37 if indirect else 33
+    big = _trace(scene, plan, tracer, ph, 12345, indirect, n * 8, max_iter)
+    small = _trace(scene, plan, tracer, ph, 12345, indirect, 5, max_iter)
+    assert big[4] == 1 and small[4] > 50
+    assert len(big[0]) > 250
+    assert np.array_equal(big[0], small[0]) and np.array_equal(big[1], small[1])
+    assert np.array_equal(big[2], small[2]) and big[3] == small[3]
+    assert np.array_equal(big[5], small[5]) and np.array_equal(big[6], small[6])
+    assert big[2][kernels.PH_PHOTONS] == n
+    if indirect:  # a photon splats at every receiver once it may
+        assert len(np.unique(big[1][:, 0])) < len(big[1])
+
+
+def test_mirror_photons_reflect_onto_the_floor():
+    """Photons of a disk light on a flat 45-degree mirror: every record lies where the mirrored
+    ray (from the mirror point offset by tracer.eps) meets the floor (to 1e-9), carries the photon's flux times the mirror's reflectance
+    (the shading normal is the geometric one: no adjoint correction), after 1 bounce; and there
+    is one record for every photon whose first hit is the mirror and whose reflection meets the
+    floor."""
+    scene = scenes.mirror_scene(resolution=(40, 30))
+    plan = make_plan(scene)
+    tracer = Tracer(scene)
+    lp = plan.lights[0]
+    ph = emit(scene, lp.index, lp.targets, 20000, np.random.default_rng(3))
+    stats = {}
+    rec, ids, hist, h_prim, tally = reference.run_photons(scene, tracer, plan, ph, np.random.default_rng(4), stats)
+    n_m = np.array([-1.0, 0.0, -1.0]) / math.sqrt(2)
+    o, d = ph.o[ids[:, 0]], ph.d[ids[:, 0]]
+    t_m = ((np.array([0.0, 0.0, 1.5]) - o) @ n_m) / (d @ n_m)
+    on_mirror = o + t_m[:, None] * d
+    r = d - 2 * (d @ n_m)[:, None] * n_m
+    start = on_mirror + tracer.eps * np.sign(r @ n_m)[:, None] * n_m  # tracer.spawn's offset
+    floor = start - (start[:, 2] / r[:, 2])[:, None] * r
+    assert len(rec) > 5000
+    assert np.abs(rec[:, kernels.REC_P:kernels.REC_P + 3] - floor).max() < 1e-9
+    assert np.allclose(rec[:, kernels.REC_BETA:kernels.REC_BETA + 3], ph.w[ids[:, 0]] * scenes.MIRROR_RHO,
+                       rtol=1e-12, atol=0)
+    assert np.allclose(rec[:, kernels.REC_W:kernels.REC_W + 3], -r, atol=1e-12)
+    assert np.all(ids[:, 1] == 1) and len(np.unique(ids[:, 0])) == len(ids)
+    # every photon that meets the mirror first and reflects onto the floor splats, no other
+    h = tracer.intersect(ph.o, ph.d)
+    first_mirror = h.hit & (scene.tri_object[np.maximum(h.prim, 0)] == scene.object_names.index("Mirror"))
+    dm = ph.d[first_mirror]
+    rm = dm - 2 * (dm @ n_m)[:, None] * n_m
+    pm = h.p[first_mirror]
+    land = pm - (pm[:, 2] / rm[:, 2])[:, None] * rm
+    onto = (rm[:, 2] < 0) & (np.abs(land[:, :2]).max(axis=1) < 5.0)
+    assert np.array_equal(np.sort(ids[:, 0]), np.flatnonzero(first_mirror)[onto])
+    assert stats["photons"] == 20000 and tally[kernels.PH_LOST] == 0
+
+
+def test_light_tracer_same_image_whatever_the_threads():
+    """The light tracer's photons and eye paths on one and on two threads: the same image, bit
+    for bit, and the same rays (glass ball: caustic, indirect and seen-through-glass passes)."""
+    s = dict(method="reference", spp=4, batches=2, seed=3)
+    a = bake(scenes.glass_sphere_scene(resolution=(48, 36)), BakeSettings(**s, threads=1))
+    b = bake(scenes.glass_sphere_scene(resolution=(48, 36)), BakeSettings(**s, threads=2))
+    assert a.image.max() > 0 and a.stats["indirect"]
+    assert a.stats["rays"] == b.stats["rays"]
+    assert np.array_equal(a.image, b.image) and np.array_equal(a.variance, b.variance)
