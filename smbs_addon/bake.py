@@ -312,7 +312,10 @@ def _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indi
         st["time_s"] += time.perf_counter() - t
 
 
-def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog):
+def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog,
+                     eye_cells=None):
+    """The light tracer's batch: photons per light, then eye paths for what is seen through
+    mirrors and glass, traced from the film cells of the mask eye_cells (None: all)."""
     per_batch = max(1, per_light // settings.batches)
     for lp in plan.lights:
         st = light_stats[lp.name]
@@ -325,7 +328,8 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
         start = c * CHUNK
         reference.trace_eye(scene, tracer, cam, film_c, plan, light_ids, start, min(CHUNK, eye_per_batch - start),
                             eye_per_batch, _rng(settings.seed, 1, 0, b, c), st_c,
-                            physical=settings.radiance == "physical", lights_direct=_indirect_lights(plan, settings))
+                            physical=settings.radiance == "physical", lights_direct=_indirect_lights(plan, settings),
+                            cells=eye_cells)
 
     _threaded_chunks(tracer, film, prog, -(-eye_per_batch // CHUNK), run_chunk, eye_stats,
                      f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
@@ -577,15 +581,21 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         for st in light_stats.values():
             st.update(dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats", "truncated",
                                      "lost_shading_normal"), 0))
+        from .eye import film_cells, specular_cells
+
         eye_stats = {"eye_paths": 0, "rays_eye": 0, "eye_splats": 0, "time_s": 0.0,
-                     "enabled": _specular_visible(scene, tracer, cam)}
+                     "enabled": _specular_visible(scene, tracer, cam), "film_cells": film_cells(cam, film)}
+        # eye paths traced only from the film cells that can see a mirror or glass first
+        eye_cells = specular_cells(scene, tracer, cam, film) if eye_stats["enabled"] else None
+        eye_stats["cells"] = eye_stats["film_cells"] if eye_cells is None else int(eye_cells.sum())
         per_batch = max(1, per_light // settings.batches)
         eye_chunks = math.ceil(_eye_per_batch(cam, film, settings) / CHUNK) if eye_stats["enabled"] else 0
         prog = _Progress(settings.batches * (len(plan.lights) * math.ceil(per_batch / CHUNK) + eye_chunks),
                          progress, cancel)
 
         def run_batch(b):
-            _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog)
+            _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, light_stats, eye_stats, prog,
+                             eye_cells)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
 
         b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)

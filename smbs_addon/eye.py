@@ -48,8 +48,10 @@ def film_cells(cam, film) -> int:
     return (x1 - x0 + 2 * r) * (y1 - y0 + 2 * r)
 
 
-def film_samples(cam, film, start, n, n_batch, rng):
-    """Samples start..start+n of a batch of n_batch stratified film samples."""
+def film_samples(cam, film, start, n, n_batch, rng, mask=None):
+    """Samples start..start+n of a batch of n_batch stratified film samples; with mask (bool per
+    film cell, film_cells' grid row by row), only those in its cells: the others are drawn all
+    the same, so the samples kept are the whole film's, bit for bit."""
     x0, x1, y0, y1 = cam.region
     r = int(np.ceil(film.filter_width))
     cw = x1 - x0 + 2 * r
@@ -60,17 +62,63 @@ def film_samples(cam, film, start, n, n_batch, rng):
     count = per + (c < extra)
     rx = x0 - r + (c % cw) + rng.random(n)
     ry = y0 - r + (c // cw) + rng.random(n)
+    if mask is not None:
+        keep = mask[c]
+        return rx[keep], ry[keep], 1.0 / count[keep]
     return rx, ry, 1.0 / count
 
 
+def specular_cells(scene, tracer, cam, film) -> np.ndarray | None:
+    """The film cells whose samples can see a mirror or glass first (a mask over film_cells'
+    grid, row by row): those the camera's view of the box of each object's specular triangles
+    covers (its 8 corners projected, a cell more on every side). A box wholly outside the view of the widened film (beyond one of
+    its side planes, before the near or past the far clip plane) covers none; None (every cell)
+    where a box in view reaches behind the near clip plane, where its projection does not bound
+    it. An eye path that meets a diffuse surface first is no caustic seen through mirrors or
+    glass (trace_eye), so the light tracer's eye pass traces no other cell's samples: it draws
+    them all the same (film_samples), and its image is the whole film's, bit for bit."""
+    x0, x1, y0, y1 = cam.region
+    r = int(np.ceil(film.filter_width))
+    cw, ch = x1 - x0 + 2 * r, y1 - y0 + 2 * r
+    # the widened film on the view plane (camera.CameraModel.rays), a cell more on every side
+    fx = cam.xmin + np.array([x0 - r - 1, x1 + r + 1]) * cam.pix_w
+    fy = cam.ymin + (cam.H - np.array([y1 + r + 1, y0 - r - 1])) * cam.pix_h
+    kind = scene.mat_kind[scene.tri_material]
+    spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+    mask = np.zeros((ch, cw), bool)
+    for o in np.unique(scene.tri_object[spec]):
+        v = tracer.v[spec[scene.tri_object[spec] == o]].reshape(-1, 3)
+        lo, hi = np.min(v, axis=0), np.max(v, axis=0)
+        corners = np.array([[(lo, hi)[a][0], (lo, hi)[b][1], (lo, hi)[c][2]] for a in (0, 1) for b in (0, 1)
+                            for c in (0, 1)])
+        c = cam.to_camera(corners)
+        depth = -c[:, 2]
+        scale = np.ones(8) if cam.ortho else depth  # the view's side planes: x = fx depth (perspective)
+        if (np.all(c[:, 0] < fx[0] * scale) or np.all(c[:, 0] > fx[1] * scale) or np.all(c[:, 1] < fy[0] * scale)
+                or np.all(c[:, 1] > fy[1] * scale) or np.all(depth < cam.cam.clip_start)
+                or np.all(depth > cam.cam.clip_end)):
+            continue  # out of view
+        if not np.all(depth > cam.cam.clip_start):
+            return None
+        rx, ry, _, _, _, _ = cam.project(corners)
+        ax0 = max(0, int(np.floor(rx.min())) - (x0 - r) - 1)
+        ax1 = min(cw, int(np.floor(rx.max())) - (x0 - r) + 2)
+        ay0 = max(0, int(np.floor(ry.min())) - (y0 - r) - 1)
+        ay1 = min(ch, int(np.floor(ry.max())) - (y0 - r) + 2)
+        mask[ay0:max(ay0, ay1), ax0:max(ax0, ax1)] = True
+    return mask.ravel()
+
+
 def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
-                  max_bounces=32, scale_eta=False) -> Receivers:
-    """Trace n eye samples to their first diffuse receiver, keeping those with at
-    least min_specular specular vertices on the way (glass by Fresnel choice)."""
+                  max_bounces=32, scale_eta=False, cells=None) -> Receivers:
+    """Trace n eye samples (of a batch of n_batch; with cells, a mask over the film cells, only
+    those in its cells) to their first diffuse receiver, keeping those with at least
+    min_specular specular vertices on the way (glass by Fresnel choice)."""
     from .bounces import specular_kind
     from .reference import scatter_specular
 
-    rx, ry, weight = film_samples(cam, film, start, n, n_batch, rng)
+    rx, ry, weight = film_samples(cam, film, start, n, n_batch, rng, cells)
+    n = len(rx)
     o, d, tnear = cam.rays(rx, ry)
     o = o + tnear[:, None] * d
     lane = np.arange(n)

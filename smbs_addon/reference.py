@@ -233,7 +233,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
 
 
 def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, rng, stats,
-              max_bounces=MAX_SPECULAR_BOUNCES, physical=False, lights_direct=()):
+              max_bounces=MAX_SPECULAR_BOUNCES, physical=False, lights_direct=(), cells=None):
     """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse receiver
     x0 -> ... -> light, by path tracing from the eye.
 
@@ -244,11 +244,12 @@ def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, 
     caster (x0's own caustic, or that of a later diffuse vertex), or light a later
     diffuse vertex directly once a specular vertex lies behind (indirect.gather):
     unbiased, noisy for small lights, blind to point lights of radius 0 and suns of
-    angle 0."""
+    angle 0. cells: a mask over the film cells whose samples are traced (eye.specular_cells:
+    those that can see a mirror or glass first; None: all)."""
     from .eye import eye_receivers
     from .indirect import gather
 
     rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=1,
-                       max_bounces=max_bounces, scale_eta=physical)
+                       max_bounces=max_bounces, scale_eta=physical, cells=cells)
     gather(scene, tracer, film, plan, rc, rng, stats, lights_direct, physical=physical,
            lights_hit=light_indices, count_first=True)

@@ -54,3 +54,67 @@ def test_caustic_seen_in_a_mirror_matches_direct_view():
     print(f"eye-through-mirror: {mb:.5f} vs {ma:.5f} ({(mb - ma) / ma:+.2%}, noise {se / ma:.2%})")
     assert abs(mb - ma) < max(4 * se, 0.02 * ma), (
         f"through the mirror {mb:.5f} vs {RHO2} x direct {ma:.5f} ({(mb - ma) / ma:+.2%}, noise {se / ma:.2%})")
+
+
+def _first_hit_specular_cells(scene, n=300_000, seed=0):
+    """Film cells (eye.film_cells' grid) of uniform sample positions over the whole widened film
+    whose camera ray meets a mirror or glass first: found by brute force."""
+    from smbs_addon import scene as S
+    from smbs_addon.camera import CameraModel
+    from smbs_addon.film import Film
+    from smbs_addon.tracer import Tracer
+
+    cam = CameraModel(scene.camera)
+    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
+    x0, x1, y0, y1 = cam.region
+    r = int(np.ceil(film.filter_width))
+    cw, ch = x1 - x0 + 2 * r, y1 - y0 + 2 * r
+    rng = np.random.default_rng(seed)
+    cx, cy = rng.integers(0, cw, n), rng.integers(0, ch, n)
+    rx, ry = x0 - r + cx + rng.random(n), y0 - r + cy + rng.random(n)
+    o, d, tnear = cam.rays(rx, ry)
+    tracer = Tracer(scene)
+    h = tracer.intersect(o + tnear[:, None] * d, d)
+    kind = np.where(h.hit, scene.mat_kind[scene.tri_material[np.maximum(h.prim, 0)]], -1)
+    spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
+    return np.unique((cy * cw + cx)[spec]), cam, film, tracer
+
+
+def test_eye_cells_hold_every_sample_that_sees_a_mirror_or_glass_first():
+    """eye.specular_cells bounds what the camera sees of mirrors and glass: every one of 300k
+    uniform sample positions over the widened film whose ray meets one first lies in its cells
+    (exact), and on a ball, a ring and a pane the cells are far fewer than the film's."""
+    from smbs_addon.eye import film_cells, specular_cells
+
+    for make, most in ((scenes.glass_sphere_scene, 0.5), (scenes.ring_scene, 0.8), (scenes.pane_scene, 0.8)):
+        scene = make(resolution=(64, 48))
+        seen, cam, film, tracer = _first_hit_specular_cells(scene)
+        cells = specular_cells(scene, tracer, cam, film)
+        assert seen.size > 50 and cells.shape == (film_cells(cam, film),)
+        assert cells[seen].all(), seen[~cells[seen]]
+        assert cells.sum() < most * len(cells), (scene.name, cells.sum(), len(cells))
+
+
+def test_eye_pass_from_its_cells_is_the_whole_film_s():
+    """The light tracer's eye pass traces only the samples of the cells that can see a mirror or
+    glass first, and draws the others all the same: the image is the one the whole film's eye
+    pass makes, bit for bit, from a third of its eye paths (glass ball; and the lens scene with a
+    second glass ball hidden under its floor, whose box the camera's view covers: no sample
+    there sees it first)."""
+    from smbs_addon import eye
+    from test_plan import lens_scene
+
+    for scene in (scenes.glass_sphere_scene(resolution=(64, 48)), lens_scene(True, (64, 48))):
+        s = dict(method="reference", spp=64, batches=2, seed=4)
+        cells = bake(scene, BakeSettings(**s))
+        real = eye.specular_cells
+        eye.specular_cells = lambda *a: None
+        try:
+            whole = bake(scene, BakeSettings(**s))
+        finally:
+            eye.specular_cells = real
+        assert cells.stats["eye_pass"]["eye_splats"] > 30
+        assert np.array_equal(cells.image, whole.image) and np.array_equal(cells.variance, whole.variance)
+        assert cells.stats["eye_pass"]["eye_splats"] == whole.stats["eye_pass"]["eye_splats"]
+        assert cells.stats["eye_pass"]["eye_paths"] < 0.4 * whole.stats["eye_pass"]["eye_paths"]
+        assert cells.stats["eye_pass"]["cells"] < whole.stats["eye_pass"]["cells"] == cells.stats["eye_pass"]["film_cells"]
