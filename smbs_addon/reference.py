@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import embree, kernels, optics
+from . import embree, kernels
 from .optics import materials, scatter_rows
 from .estimators import concentration
 from .bounces import Limits
@@ -180,7 +180,7 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     soft = np.zeros(4) if photons.soft_center is None else np.append(photons.soft_center, photons.soft_radius)
     hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
     tally = np.zeros(kernels.PH_TALLY, np.int64)
-    args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), optics.materials(scene),
+    args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
             Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical), tracer.eps)
     key = int(rng.integers(2**63))
     cap = max(n, max_iter + 1)  # a lane makes at most max_iter records: every call moves on

@@ -141,10 +141,10 @@ def test_records_that_do_not_fit_are_traced_again_the_same(indirect):
 
 def test_mirror_photons_reflect_onto_the_floor():
     """Photons of a disk light on a flat 45-degree mirror: every record lies where the mirrored
-    ray (from the mirror point offset by tracer.eps) meets the floor (to 1e-9), carries the photon's flux times the mirror's reflectance
-    (the shading normal is the geometric one: no adjoint correction), after 1 bounce; and there
-    is one record for every photon whose first hit is the mirror and whose reflection meets the
-    floor."""
+    ray (from the mirror point offset by tracer.eps) meets the floor (to 1e-9), carries the
+    photon's flux times the mirror's reflectance (the shading normal is the geometric one: no
+    adjoint correction), after 1 bounce; and there is one record for every photon whose first
+    hit is the mirror and whose reflection meets the floor."""
     scene = scenes.mirror_scene(resolution=(40, 30))
     plan = make_plan(scene)
     tracer = Tracer(scene)

@@ -117,4 +117,5 @@ def test_eye_pass_from_its_cells_is_the_whole_film_s():
         assert np.array_equal(cells.image, whole.image) and np.array_equal(cells.variance, whole.variance)
         assert cells.stats["eye_pass"]["eye_splats"] == whole.stats["eye_pass"]["eye_splats"]
         assert cells.stats["eye_pass"]["eye_paths"] < 0.4 * whole.stats["eye_pass"]["eye_paths"]
-        assert cells.stats["eye_pass"]["cells"] < whole.stats["eye_pass"]["cells"] == cells.stats["eye_pass"]["film_cells"]
+        ep, whole_ep = cells.stats["eye_pass"], whole.stats["eye_pass"]
+        assert ep["cells"] < whole_ep["cells"] == ep["film_cells"]
