@@ -152,15 +152,15 @@ def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caste
             if types not in handoff.types:
                 continue
             g = lanes[codes == code]
-            verts = [vertex_from_hits(scene, tracer, prim[g, k - 1 - j], pts[g, k - 1 - j], bary[g, k - 1 - j])
-                     for j in range(k)]
-            etas = [scene.mat_ior[v.mat] for v in verts]
             tau = handoff.tau[types]
             if tau == math.inf:  # a walked type none of whose paths is handed off
                 continue
             if tau <= 0:
                 take[g] = True
                 continue
+            verts = [vertex_from_hits(scene, tracer, prim[g, k - 1 - j], pts[g, k - 1 - j], bary[g, k - 1 - j])
+                     for j in range(k)]
+            etas = [scene.mat_ior[v.mat] for v in verts]
             c = concentration(types, x0[g], verts, etas, y[g], handoff.directional)
             take[g[c > tau]] = True
     return take
