@@ -14,6 +14,8 @@ import numpy as np
 
 from . import scene as S
 
+EYE_MIN_PART = 8192  # eye paths per thread below which splitting does not pay (as tracer._MIN_SPLIT)
+
 
 @dataclass
 class Receivers:
@@ -49,9 +51,10 @@ def film_cells(cam, film) -> int:
 
 
 def film_samples(cam, film, start, n, n_batch, rng, mask=None):
-    """Samples start..start+n of a batch of n_batch stratified film samples; with mask (bool per
-    film cell, film_cells' grid row by row), only those in its cells: the others are drawn all
-    the same, so the samples kept are the whole film's, bit for bit."""
+    """Samples start..start+n of a batch of n_batch stratified film samples: (rx, ry, weight,
+    the samples' indices in the batch); with mask (bool per film cell, film_cells' grid row by
+    row), only those in its cells: the others are drawn all the same, so the samples kept are
+    the whole film's, bit for bit."""
     x0, x1, y0, y1 = cam.region
     r = int(np.ceil(film.filter_width))
     cw = x1 - x0 + 2 * r
@@ -64,8 +67,8 @@ def film_samples(cam, film, start, n, n_batch, rng, mask=None):
     ry = y0 - r + (c // cw) + rng.random(n)
     if mask is not None:
         keep = mask[c]
-        return rx[keep], ry[keep], 1.0 / count[keep]
-    return rx, ry, 1.0 / count
+        return rx[keep], ry[keep], 1.0 / count[keep], i[keep]
+    return rx, ry, 1.0 / count, i
 
 
 def specular_cells(scene, tracer, cam, film) -> np.ndarray | None:
@@ -113,49 +116,34 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
                   max_bounces=32, scale_eta=False, cells=None) -> Receivers:
     """Trace n eye samples (of a batch of n_batch; with cells, a mask over the film cells, only
     those in its cells) to their first diffuse receiver, keeping those with at least
-    min_specular specular vertices on the way (glass by Fresnel choice)."""
-    from .bounces import specular_kind
-    from .reference import scatter_specular
+    min_specular specular vertices on the way (glass by Fresnel choice): one kernel call
+    (kernels.eye_lanes), its random numbers keyed by one draw from rng and each sample's index
+    in the batch."""
+    from . import embree, kernels, lanes
+    from .optics import materials
 
-    rx, ry, weight = film_samples(cam, film, start, n, n_batch, rng, cells)
+    rx, ry, weight, sample = film_samples(cam, film, start, n, n_batch, rng, cells)
+    key = int(rng.integers(2**63))
     n = len(rx)
-    o, d, tnear = cam.rays(rx, ry)
-    o = o + tnear[:, None] * d
-    lane = np.arange(n)
-    beta = np.ones((n, 3))
-    out = {k: [] for k in ("lane", "p", "ng", "ns", "w", "beta", "mat", "spec", "prior")}
-    prior = np.zeros((n, 3), np.int64)  # bounces so far (bounces.Limits): diffuse, glossy, transmission
     stats["eye_paths"] = stats.get("eye_paths", 0) + n
-    depth = 0
-    while len(o):
-        h = tracer.intersect(o, d)
-        stats["rays_eye"] = stats.get("rays_eye", 0) + len(o)
-        prim, mat, kind = surface_at(scene, h)
-        if depth >= min_specular:
-            r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[scene.tri_object[prim]])
-            for key, val in (("lane", lane[r]), ("p", h.p[r]), ("ng", h.ng[r]), ("ns", h.ns[r]),
-                             ("w", -d[r]), ("beta", beta[r]), ("mat", mat[r]),
-                             ("spec", np.full(r.size, depth)), ("prior", prior[r])):
-                out[key].append(val)
-        if depth >= max_bounces:
-            break
-        si = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
-        if si.size == 0:
-            break
-        d_in = d[si]
-        d, beta, keep = scatter_specular(scene, rng, -d[si], h.ns[si], h.ng[si], mat[si], kind[si], beta[si],
-                                         scale_eta=scale_eta)
-        o = tracer.spawn(h.p[si][keep], h.ng[si][keep], d)
-        lane = lane[si][keep]
-        prior = prior[si][keep]
-        prior[np.arange(len(d)), specular_kind(d_in[keep], d, h.ng[si][keep])] += 1
-        depth += 1
+    o, d, tnear = cam.rays(rx, ry)
+    o = np.ascontiguousarray(o + tnear[:, None] * d)
+    d = np.ascontiguousarray(d)
+    args = (key, tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
+            int(max_bounces), int(min_specular), bool(scale_eta), tracer.eps)
 
-    def cat(key, shape, dtype=float):
-        return np.concatenate(out[key]).astype(dtype) if out[key] else np.zeros(shape, dtype)
+    def part(a, b):  # a part of the lanes on a thread (lanes.run), its records in lane order
+        rec, rec_i, prior = np.empty((b - a, kernels.REC_F)), np.empty((b - a, 3), np.int64), \
+            np.empty((b - a, 3), np.int64)
+        rt = tracer.rays()
+        m, counts = kernels.eye_lanes(rt, o[a:b], d[a:b], sample[a:b], *args, rec, rec_i, prior)
+        tracer.cast_by_kernel(rt, counts)
+        rec_i[:m, 0] += a
+        return rec[:m], rec_i[:m], prior[:m], int(counts[embree.KINDS:].sum())
 
-    ln = cat("lane", (0,), np.int64)
-    return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=cat("p", (0, 3)), ng=cat("ng", (0, 3)), ns=cat("ns", (0, 3)),
-                     w_eye=cat("w", (0, 3)), beta=cat("beta", (0, 3)), mat=cat("mat", (0,), np.int64),
-                     eye_specular=cat("spec", (0,), np.int64), prior=cat("prior", (0, 3), np.int64))
-
+    parts = lanes.run(part, n, tracer.threads, EYE_MIN_PART)
+    stats["rays_eye"] = stats.get("rays_eye", 0) + sum(p[3] for p in parts)
+    rec, rec_i, prior = (np.concatenate([p[k] for p in parts]) for k in range(3))
+    ln = rec_i[:, 0]
+    return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=rec[:, 0:3], ng=rec[:, 3:6], ns=rec[:, 6:9],
+                     w_eye=rec[:, 9:12], beta=rec[:, 12:15], mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior)

@@ -1502,3 +1502,69 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mat
     nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces,
                              max_iter, physical, eps, rec, rec_i, hist, h_prim, tally)
     return nxt, nrec, ray[6]
+
+
+# ------------------------------------------------------------------ eye paths
+@njit(**_JIT)
+def _eye_rows(ray, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec, rec_i,
+              prior):
+    """eye_lanes' loop over its lanes, on borrowed arrays (its caller holds them). Returns the
+    records written."""
+    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
+    o0, d0, sample, receivers, rec, rec_i, prior = _borrowed((o0, d0, sample, receivers, rec, rec_i, prior))
+    tv, tng, tns, tri_material, mat_kind, tri_object, _, _ = geo
+    nrec = 0
+    for lane in range(o0.shape[0]):
+        o, d = _v(o0, lane, 0), _v(d0, lane, 0)
+        b = (1.0, 1.0, 1.0)
+        ngl = nt = 0  # the camera's glossy and transmission bounces so far
+        for depth in range(max_bounces + 1):
+            pr, t32 = intersect1(ray, o, d, np.inf, 0)
+            if pr < 0:
+                break
+            _, p, g, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
+            b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
+            n = _shading_normal(tns, pr, b1, b2, g)
+            m = tri_material[pr]
+            kind = mat_kind[m]
+            if kind == _DIFFUSE:
+                if depth >= min_specular and receivers[tri_object[pr]]:
+                    w = _neg(d)
+                    for c in range(3):
+                        rec[nrec, REC_P + c], rec[nrec, REC_NG + c], rec[nrec, REC_NS + c] = p[c], g[c], n[c]
+                        rec[nrec, REC_W + c], rec[nrec, REC_BETA + c] = w[c], b[c]
+                    rec_i[nrec, 0], rec_i[nrec, 1], rec_i[nrec, 2] = lane, depth, m
+                    prior[nrec, 0], prior[nrec, 1], prior[nrec, 2] = 0, ngl, nt
+                    nrec += 1
+                break
+            if depth >= max_bounces or not (kind == _CONDUCTOR or kind == _DIELECTRIC):
+                break
+            ok, dd, bb = scatter1(keyed_uniform(key, sample[lane], depth, 0), _neg(d), n, g, m, kind, mats, b,
+                                  scale_eta, False)
+            if not ok:
+                break
+            if _dot(d, g) * _dot(dd, g) < 0:  # bounces.specular_kind
+                ngl += 1
+            else:
+                nt += 1
+            o = _add(p, _mul(eps if _dot(dd, g) >= 0 else -eps, g))  # tracer.spawn
+            d, b = dd, bb
+    return nrec
+
+
+@TypedOnce
+@njit(**_JIT)
+def eye_lanes(rt, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec, rec_i,
+              prior):
+    """eye.eye_receivers' paths: from the camera (o0, d0: origins on the near clip plane, unit
+    directions) through mirrors and glass (optics.scatter1, the lobe picked by
+    keyed_uniform(key, sample[lane], depth, 0): a sample's path does not depend on which others
+    are traced with it; scale_eta: radiance in physical units) to the first diffuse surface,
+    recorded (rec: REC_* columns with the eye path's throughput; rec_i: lane, specular vertices
+    before it, material; prior: the camera's diffuse, glossy and transmission bounces, Cycles'
+    counts) where it is a receiver after at least min_specular specular vertices; up to
+    max_bounces of them. Returns the records written and the ray counters (embree.ray_state)."""
+    ray = ray_state(rt)
+    nrec = _eye_rows(ray, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
+                     rec_i, prior)
+    return nrec, ray[6]

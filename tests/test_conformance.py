@@ -53,8 +53,9 @@ def test_matches_cycles(name, method, spp):
 
 def test_mnee_is_never_brighter_than_cycles():
     """MNEE finds one solution per light sample: on a sphere (two solutions or more) it is
-    biased low, and it must never be high."""
-    _, j = _judge("sphere_refraction_spot", "mnee", 8)
+    biased low, and it must never be high. At 32 spp: MNEE's fireflies on the sphere leave its
+    sigma at 0.04-0.15 over seeds 1-4 at 8 spp (0.016-0.056 at 32; ratios 0.30-0.40 throughout)."""
+    _, j = _judge("sphere_refraction_spot", "mnee", 32)
     assert j["ratio"] < 0.9 and j["sigma"] < 0.05, j
     _, j = _judge("water_flat_sun0", "mnee", 8)  # one solution: exact
     assert abs(j["ratio"] - 1.0) <= 0.03 + 3 * j["sigma"], j

@@ -24,7 +24,8 @@ from test_manifold_analytic import water_sun_expected
 from test_reference_analytic import check_against, pixel_floor_points
 
 
-@pytest.mark.parametrize("method,spp", [("reference", 256), ("smbs", 8)])
+# SMBS at 12 spp: at 8 its standard error was 0.69% where check_against asks under 0.67%
+@pytest.mark.parametrize("method,spp", [("reference", 256), ("smbs", 12)])
 def test_water_caustic_in_cycles_units_lacks_the_eta_squared(method, spp):
     scene = scenes.water_scene("sun", resolution=32, size=2.6)
     expected, region = water_sun_expected(scene)

@@ -119,3 +119,35 @@ def test_eye_pass_from_its_cells_is_the_whole_film_s():
         assert cells.stats["eye_pass"]["eye_paths"] < 0.4 * whole.stats["eye_pass"]["eye_paths"]
         ep, whole_ep = cells.stats["eye_pass"], whole.stats["eye_pass"]
         assert ep["cells"] < whole_ep["cells"] == ep["film_cells"]
+
+
+def test_eye_paths_reflect_in_the_mirror_onto_the_floor():
+    """eye.eye_receivers (kernels.eye_lanes) against the law of reflection: the camera of scene B
+    sees the floor in the side mirror (the plane y = -3); every receiver found after one specular
+    vertex lies where the camera ray, reflected at the mirror (from the mirror point offset by
+    tracer.eps), meets the floor (1e-9), with the mirror's reflectance as throughput, one glossy
+    bounce before it, and the direction back along the reflected ray."""
+    from smbs_addon.camera import CameraModel
+    from smbs_addon.eye import eye_receivers, film_cells
+    from smbs_addon.film import Film
+    from smbs_addon.plan import make_plan
+    from smbs_addon.tracer import Tracer
+
+    scene = _mirror_scene(True)
+    cam = CameraModel(scene.camera)
+    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
+    tracer = Tracer(scene)
+    n = film_cells(cam, film)
+    rc = eye_receivers(scene, tracer, cam, film, make_plan(scene, "ON"), 0, n, n, np.random.default_rng(3), {},
+                       min_specular=1)
+    assert len(rc.p) > 1000 and np.all(rc.eye_specular == 1)
+    o, d, tnear = cam.rays(rc.rx, rc.ry)
+    o = o + tnear[:, None] * d
+    t_m = (-3.0 - o[:, 1]) / d[:, 1]
+    on_mirror = o + t_m[:, None] * d
+    r = d * [1.0, -1.0, 1.0]
+    start = on_mirror + tracer.eps * np.array([0.0, 1.0, 0.0])  # tracer.spawn: to the side r leaves on
+    floor = start - (start[:, 2] / r[:, 2])[:, None] * r
+    assert np.abs(rc.p - floor).max() < 1e-9
+    assert np.allclose(rc.beta, RHO2, rtol=1e-12) and np.allclose(rc.w_eye, -r, atol=1e-12)
+    assert np.array_equal(rc.prior, np.tile([0, 1, 0], (len(rc.p), 1)))
