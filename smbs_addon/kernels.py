@@ -1368,6 +1368,20 @@ def _fits(lim, d, g, t):
     return d <= lim[0] and g <= lim[1] and t <= lim[2] and d + g + t <= lim[3]
 
 
+@njit(inline="always", **_JIT)
+def _next_surface(ray, o, d, tv, tng, tns, eps):
+    """The closest hit of the ray o + t d, from its offset origin (tracer.intersect without an
+    exact origin; the ray cast here, counted as kind 0): (primitive, -1 on a miss; the float64
+    point, unit geometric normal, shading normal, barycentrics b1, b2)."""
+    pr, t32 = intersect1(ray, o, d, np.inf, 0)
+    if pr < 0:
+        z = (0.0, 0.0, 0.0)
+        return pr, z, z, z, 0.0, 0.0
+    _, p, g, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
+    b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
+    return pr, p, g, _shading_normal(tns, pr, b1, b2, g), b1, b2
+
+
 @njit(**_JIT)
 def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
                  physical, eps, rec, rec_i, hist, h_prim, tally):
@@ -1397,12 +1411,9 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
         n_diff = 0  # diffuse vertices so far (indirect)
         full = False
         for it in range(max_iter):
-            pr, t32 = intersect1(ray, o, d, np.inf, 0)
+            pr, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
-            _, p, g, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
-            b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
-            n = _shading_normal(tns, pr, b1, b2, g)
             if it == 0 and soft[3] > 0:  # lights.soft_falloff_factor
                 dc = _sub(p, (soft[0], soft[1], soft[2]))
                 d2 = _dot(dc, dc)
@@ -1519,12 +1530,9 @@ def _eye_rows(ray, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_s
         b = (1.0, 1.0, 1.0)
         ngl = nt = 0  # the camera's glossy and transmission bounces so far
         for depth in range(max_bounces + 1):
-            pr, t32 = intersect1(ray, o, d, np.inf, 0)
+            pr, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
-            _, p, g, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
-            b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
-            n = _shading_normal(tns, pr, b1, b2, g)
             m = tri_material[pr]
             kind = mat_kind[m]
             if kind == _DIFFUSE:
