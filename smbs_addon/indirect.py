@@ -116,7 +116,7 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
 
 
 def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
-           lights_hit=(), count_first=False):
+           lights_hit=(), count_first=False, compiled=True):
     """Path tracing from receivers x0 (seen through mirrors or glass) for the layer's paths
     with more diffuse vertices; splats the radiance found at the eye samples' film positions.
 
@@ -129,10 +129,17 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
       always; without connect, lights_hit seen right after a specular vertex on a caster
       count instead (the light tracer's way), x0's own caustic only when count_first.
     Every path keeps to the scene's Light Paths limits as Cycles counts them (bounces.py:
-    the events before the last one, from the camera, rc.prior before x0)."""
+    the events before the last one, from the camera, rc.prior before x0).
+
+    Without connect (and unless compiled is False: the same estimator in numpy, per bounce, for
+    the tests), the paths are traced in compiled code (_traced_gather)."""
     n = len(rc.p)
     if n == 0:
         return
+    if connect is None and compiled:
+        radiance = _traced_gather(scene, tracer, plan, rc, rng, stats, lights_direct, physical, lights_hit,
+                                  count_first)
+        return _splat_gathered(film, rc, radiance, stats)
     lim = Limits.of(scene)
     radiance = np.zeros((n, 3))
     # the frontier: diffuse vertices to bounce from, with the events before them
@@ -212,10 +219,62 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         cat = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
         f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
         f_beta, f_mat, f_has_s, f_depth, f_cnt = cat["beta"], cat["mat"], cat["has_s"], cat["depth"], cat["cnt"]
+    _splat_gathered(film, rc, radiance, stats)
+
+
+def _splat_gathered(film, rc: Receivers, radiance, stats):
     hit = np.flatnonzero(radiance.max(axis=1) > 0)
     if hit.size:
         film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
         stats["eye_splats"] = stats.get("eye_splats", 0) + int(hit.size)
+
+
+def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct, physical, lights_hit, count_first):
+    """gather's radiance (n,3) at the receivers without walks to connect (the light tracer's):
+    the paths traced in kernel calls (kernels.gather_lanes, their random numbers keyed by one draw
+    from rng and the receiver's index), the lights on the segments it records and the direct light
+    at the vertices it records found here, as gather finds them."""
+    from .manifold import light_can_be_hit
+
+    n = len(rc.p)
+    lim = Limits.of(scene)
+    hit_lights = [li for li in lights_hit if light_can_be_hit(scene, li)]
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    args = (f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye), f64(rc.beta), np.ascontiguousarray(rc.mat, np.int64),
+            np.ascontiguousarray(rc.prior, np.int64), tracer.kernel_geometry(plan.casters), optics.materials(scene),
+            lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), bool(hit_lights), bool(lights_direct),
+            tracer.eps)
+    key = int(rng.integers(2**63))
+    # a lane records at most MAX_SPECULAR segments and one vertex per diffuse vertex: every call moves on
+    cap = max(n, (int(lim.diffuse) + 2) * (MAX_SPECULAR + 2))
+    segs, seg_is, vxs, vx_is, lane = [], [], [], [], 0
+    while lane < n:
+        seg, seg_i = np.empty((cap if hit_lights else 0, kernels.SEG_F)), np.empty(cap if hit_lights else 0, np.int64)
+        vx, vx_i = np.empty((cap if lights_direct else 0, kernels.VX_F)), np.empty(cap if lights_direct else 0, np.int64)
+        rt = tracer.rays()
+        lane, ms, mv, counts = kernels.gather_lanes(rt, key, lane, *args, seg, seg_i, vx, vx_i)
+        tracer.cast_by_kernel(rt, counts)
+        stats["rays_gather"] = stats.get("rays_gather", 0) + int(counts[embree.KINDS:].sum())
+        segs.append(seg[:ms]), seg_is.append(seg_i[:ms]), vxs.append(vx[:mv]), vx_is.append(vx_i[:mv])
+    seg, seg_i, vx, vx_i = (np.concatenate(a) for a in (segs, seg_is, vxs, vx_is))
+    radiance = np.zeros((n, 3))
+    if len(seg):
+        # Cycles' lights are transparent (shade_light adds the emission and the path goes on):
+        # every light in front of the next surface counts, not the nearest
+        o, d, surf_t = seg[:, kernels.SEG_O:kernels.SEG_O + 3], seg[:, kernels.SEG_D:kernels.SEG_D + 3], \
+            seg[:, kernels.SEG_T]
+        beta = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3]
+        for li in hit_lights:
+            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t))
+            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
+            np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
+    if len(vx):
+        c = lambda k: vx[:, k:k + 3]  # noqa: E731
+        for li in lights_direct:
+            rad = direct_light(scene, tracer, li, c(kernels.VX_P), c(kernels.VX_NG), c(kernels.VX_NS),
+                               c(kernels.VX_W), rng, stats)
+            np.add.at(radiance, vx_i, c(kernels.VX_BETA) * rad)
+    return radiance
 
 
 def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,

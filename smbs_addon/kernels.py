@@ -1282,6 +1282,18 @@ def diffuse_rows(u, w, ng, ns, beta, alb, adjoint):
     return d_out[:cnt], b_out[:cnt], keep[:cnt]
 
 
+@njit(inline="always", **_JIT)
+def _hit_or_miss(ray, o, d, tv, tng, eps):
+    """The closest hit of the ray o + t d (cast here, kind 0): (primitive, -1 on a miss; the float64
+    distance, inf on a miss; _hit_point's point, unit geometric normal, corner 0, edges 1 and 2)."""
+    pr, t32 = intersect1(ray, o, d, np.inf, 0)
+    if pr < 0:
+        z = (0.0, 0.0, 0.0)
+        return pr, np.inf, z, z, z, z, z
+    t, p, g, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
+    return pr, t, p, g, v0, e1, e2
+
+
 @njit(**_JIT)
 def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
                   h_prim):
@@ -1300,11 +1312,7 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
             continue
         o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
         for bounce in range(K + 1):
-            pr, t32 = intersect1(ray, o, d, np.inf, 0)
-            t = np.inf
-            p = gg = v0 = e1 = e2 = (0.0, 0.0, 0.0)
-            if pr >= 0:
-                t, p, gg, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
+            pr, t, p, gg, v0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
             if bounce > 0:  # a segment after a specular vertex: the caller looks for lights on it
                 k = seg_n[lane]
                 for c in range(3):
@@ -1576,3 +1584,134 @@ def eye_lanes(rt, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_sp
     nrec = _eye_rows(ray, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
                      rec_i, prior)
     return nrec, ray[6]
+
+
+# ------------------------------------------------------------------ the light tracer's gathering
+# a segment record of gather_lanes (after a specular vertex on a caster: the caller looks for
+# lights on it): origin, direction, distance to the next surface (inf: none), throughput
+SEG_O, SEG_D, SEG_T, SEG_BETA = 0, 3, 6, 7
+SEG_F = 10
+# a vertex record (a diffuse vertex after a specular one on a caster, lit directly by the caller):
+# point, geometric and shading normals, the direction back along the path, throughput x albedo
+VX_P, VX_NG, VX_NS, VX_W, VX_BETA = 0, 3, 6, 9, 12
+VX_F = 15
+
+
+@njit(**_JIT)
+def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mats, lim, max_specular, physical,
+                 count_first, want_seg, want_vx, eps, seg, seg_i, vx, vx_i):
+    """gather_lanes' loop over its lanes from lane0, on borrowed arrays (its caller holds them).
+    Returns (the lane it stopped before: the last + 1, or one whose records did not fit; segment
+    records written; vertex records written)."""
+    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
+    x0, ng0, ns0, w0, beta0, mat0, prior, lim, seg, seg_i, vx, vx_i = _borrowed(
+        (x0, ng0, ns0, w0, beta0, mat0, prior, lim, seg, seg_i, vx, vx_i))
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
+    mat_color = mats[2]
+    counts = ray[6]
+    nseg = nvx = 0
+    for lane in range(lane0, x0.shape[0]):
+        # what to restore if this lane's records do not fit (it is traced again in the next call)
+        s0, v0_, c0, c1, c2 = nseg, nvx, counts[0], counts[1], counts[KINDS]
+        full = False
+        p, g, n, w, b = _v(x0, lane, 0), _v(ng0, lane, 0), _v(ns0, lane, 0), _v(w0, lane, 0), _v(beta0, lane, 0)
+        m = mat0[lane]
+        nd, ngl, nt = prior[lane, 0], prior[lane, 1], prior[lane, 2]  # every event so far
+        has_s = False  # a specular vertex on a planned caster so far
+        depth = 0  # diffuse vertices after x0
+        ev = 0  # the lane's events, keying its random numbers
+        while True:
+            # a diffuse bounce is never a caustic path's last event: it must fit the limits
+            if not _fits(lim, nd + 1, ngl, nt):
+                break
+            ok, d, b = _diffuse_scatter(keyed_uniform(key, lane, ev, 0), keyed_uniform(key, lane, ev, 1),
+                                        keyed_uniform(key, lane, ev, 2), w, g, n, _v(mat_color, m, 0), b, False)
+            ev += 1
+            if not ok:
+                break
+            nd += 1
+            bd, bg, bt = nd, ngl, nt  # the events before the latest
+            o = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
+            last_caster = False
+            go_on = False  # a next diffuse vertex to bounce from
+            for bounce in range(max_specular + 1):
+                pr, t, hp, hg, hv0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
+                if (want_seg and bounce > 0 and last_caster and (depth >= 1 or count_first)
+                        and _fits(lim, bd, bg, bt)):
+                    if nseg == seg.shape[0]:
+                        full = True
+                        break
+                    for c in range(3):
+                        seg[nseg, SEG_O + c], seg[nseg, SEG_D + c], seg[nseg, SEG_BETA + c] = o[c], d[c], b[c]
+                    seg[nseg, SEG_T] = t
+                    seg_i[nseg] = lane
+                    nseg += 1
+                if pr < 0:
+                    break
+                hm = tri_material[pr]
+                kind = mat_kind[hm]
+                b1, b2, _, _, _ = _barycentric(e1, e2, _sub(hp, hv0))
+                hn = _shading_normal(tns, pr, b1, b2, hg)
+                if kind == _DIFFUSE:  # the next diffuse vertex
+                    depth += 1
+                    p, g, n, w, m = hp, hg, hn, _neg(d), hm
+                    if want_vx and has_s and _fits(lim, nd, ngl, nt):  # direct light: every event before fits
+                        if nvx == vx.shape[0]:
+                            full = True
+                            break
+                        a = _v(mat_color, m, 0)
+                        for c in range(3):
+                            vx[nvx, VX_P + c], vx[nvx, VX_NG + c], vx[nvx, VX_NS + c] = p[c], g[c], n[c]
+                            vx[nvx, VX_W + c], vx[nvx, VX_BETA + c] = w[c], b[c] * a[c]
+                        vx_i[nvx] = lane
+                        nvx += 1
+                    go_on = True
+                    break
+                if not (kind == _CONDUCTOR or kind == _DIELECTRIC) or bounce == max_specular:
+                    break
+                ok, dd, bb = scatter1(keyed_uniform(key, lane, ev, 0), _neg(d), hn, hg, hm, kind, mats, b, physical,
+                                      False)
+                ev += 1
+                if not ok:
+                    break
+                last_caster = casters[tri_object[pr]]
+                has_s = has_s or last_caster
+                bd, bg, bt = nd, ngl, nt
+                if _dot(d, hg) * _dot(dd, hg) < 0:  # bounces.specular_kind
+                    ngl += 1
+                else:
+                    nt += 1
+                if not _fits(lim, bd, bg, bt):  # the events before the latest no longer fit
+                    break
+                o = _add(hp, _mul(eps if _dot(dd, hg) >= 0 else -eps, hg))
+                d, b = dd, bb
+            if full or not go_on:
+                break
+        if full:
+            counts[0], counts[1], counts[KINDS] = c0, c1, c2
+            return lane, s0, v0_
+    return x0.shape[0], nseg, nvx
+
+
+@TypedOnce
+@njit(**_JIT)
+def gather_lanes(rt, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mats, lim, max_specular, physical,
+                 count_first, want_seg, want_vx, eps, seg, seg_i, vx, vx_i):
+    """indirect.gather's paths for the light tracer (no walks to connect): from each receiver x0
+    (x0, ng0, ns0, w0: the direction back to the eye, beta0: the eye path's throughput, mat0, prior:
+    the camera's events before x0), cosine bounces with Russian roulette (_diffuse_scatter)
+    through up to max_specular mirrors and glass (optics.scatter1, not adjoint; physical:
+    scale_eta) to the next diffuse vertices, within the Light Paths limits (lim: Limits.array()),
+    every ray cast here, the random numbers keyed_uniform(key, lane, event, .).
+
+    Writes, for the caller to light: with want_seg, the segments right after a specular vertex
+    on a caster (seg: SEG_* columns; seg_i: the lane) from x0 when count_first, else from later
+    diffuse vertices, whose events before the latest fit; with want_vx, the later diffuse
+    vertices with a specular vertex on a caster behind them whose events fit (vx: VX_* columns,
+    the throughput times the vertex's albedo; vx_i: the lane). A lane whose records would not
+    fit is left whole for the next call. Returns (the lane to go on from, x0's length when done;
+    segments written; vertices written; the ray counters, embree.ray_state)."""
+    ray = ray_state(rt)
+    nxt, nseg, nvx = _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mats, lim,
+                                  max_specular, physical, count_first, want_seg, want_vx, eps, seg, seg_i, vx, vx_i)
+    return nxt, nseg, nvx, ray[6]
