@@ -103,6 +103,12 @@ class CameraModel:
         tnear = self.cam.clip_start * stretch / np.abs(local_d[:, 2])
         return o, d, tnear
 
+    def kernel_params(self) -> np.ndarray:
+        """What rays() needs, for the kernels (kernels.CAM_* entries, kernels._camera_ray)."""
+        return np.concatenate([self.origin, self.axes.ravel(),
+                               [self.xmin, self.ymin, self.pix_w, self.pix_h, self.H, float(self.ortho),
+                                self.cam.clip_start]]).astype(np.float64)
+
     def pixel_rays(self, step: int = 1):
         """Rays through the centres of the render region's pixels (every step-th on each
         axis): (rows, columns, origins on the near clip plane, unit directions)."""

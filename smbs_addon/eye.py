@@ -126,9 +126,7 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     key = int(rng.integers(2**63))
     n = len(rx)
     stats["eye_paths"] = stats.get("eye_paths", 0) + n
-    o, d, tnear = cam.rays(rx, ry)
-    o = np.ascontiguousarray(o + tnear[:, None] * d)
-    d = np.ascontiguousarray(d)
+    params = cam.kernel_params()
     args = (key, tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
             int(max_bounces), int(min_specular), bool(scale_eta), tracer.eps)
 
@@ -136,7 +134,7 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
         rec, rec_i, prior = np.empty((b - a, kernels.REC_F)), np.empty((b - a, 3), np.int64), \
             np.empty((b - a, 3), np.int64)
         rt = tracer.rays()
-        m, counts = kernels.eye_lanes(rt, o[a:b], d[a:b], sample[a:b], *args, rec, rec_i, prior)
+        m, counts = kernels.eye_lanes(rt, params, rx[a:b], ry[a:b], sample[a:b], *args, rec, rec_i, prior)
         tracer.cast_by_kernel(rt, counts)
         rec_i[:m, 0] += a
         return rec[:m], rec_i[:m], prior[:m], int(counts[embree.KINDS:].sum())

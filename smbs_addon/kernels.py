@@ -1524,17 +1524,60 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mat
 
 
 # ------------------------------------------------------------------ eye paths
+# camera.CameraModel.kernel_params: the origin, the axes (row by row: world x, y, z of the camera's
+# x, y, z columns), the view plane's corner and pixel size, the height in pixels, 1 if orthographic,
+# the near clip distance
+CAM_ORIGIN, CAM_AXES, CAM_XMIN, CAM_YMIN, CAM_PIX_W, CAM_PIX_H, CAM_H, CAM_ORTHO, CAM_CLIP = 0, 3, 12, 13, 14, 15, 16, \
+    17, 18
+CAM_F = 19
+
+
+@njit(inline="always", **_JIT)
+def _camera_ray(cam, x, y):
+    """camera.CameraModel.rays of raster position (x, y), moved to the near clip plane: (origin,
+    unit direction)."""
+    fx = cam[CAM_XMIN] + x * cam[CAM_PIX_W]
+    fy = cam[CAM_YMIN] + (cam[CAM_H] - y) * cam[CAM_PIX_H]
+    if cam[CAM_ORTHO] > 0:
+        lo, ld = (fx, fy, 0.0), (0.0, 0.0, -1.0)
+    else:
+        r = 1.0 / math.sqrt(fx * fx + fy * fy + 1.0)
+        lo, ld = (0.0, 0.0, 0.0), (fx * r, fy * r, -r)
+    a = CAM_AXES
+    o = (cam[0] + cam[a] * lo[0] + cam[a + 1] * lo[1] + cam[a + 2] * lo[2],
+         cam[1] + cam[a + 3] * lo[0] + cam[a + 4] * lo[1] + cam[a + 5] * lo[2],
+         cam[2] + cam[a + 6] * lo[0] + cam[a + 7] * lo[1] + cam[a + 8] * lo[2])
+    d = (cam[a] * ld[0] + cam[a + 1] * ld[1] + cam[a + 2] * ld[2],
+         cam[a + 3] * ld[0] + cam[a + 4] * ld[1] + cam[a + 5] * ld[2],
+         cam[a + 6] * ld[0] + cam[a + 7] * ld[1] + cam[a + 8] * ld[2])
+    stretch = math.sqrt(_dot(d, d))  # 1 unless the axes are sheared
+    d = _mul(1.0 / stretch, d)
+    return _add(o, _mul(cam[CAM_CLIP] * stretch / abs(ld[2]), d)), d
+
+
 @njit(**_JIT)
-def _eye_rows(ray, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec, rec_i,
-              prior):
+def camera_rays(cam, x, y):
+    """_camera_ray per raster position (tests): (origins, unit directions)."""
+    n = x.shape[0]
+    o, d = np.empty((n, 3)), np.empty((n, 3))
+    for i in range(n):
+        oi, di = _camera_ray(cam, x[i], y[i])
+        for c in range(3):
+            o[i, c], d[i, c] = oi[c], di[c]
+    return o, d
+
+
+@njit(**_JIT)
+def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
+              rec_i, prior):
     """eye_lanes' loop over its lanes, on borrowed arrays (its caller holds them). Returns the
     records written."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    o0, d0, sample, receivers, rec, rec_i, prior = _borrowed((o0, d0, sample, receivers, rec, rec_i, prior))
+    cam, rx, ry, sample, receivers, rec, rec_i, prior = _borrowed((cam, rx, ry, sample, receivers, rec, rec_i, prior))
     tv, tng, tns, tri_material, mat_kind, tri_object, _, _ = geo
     nrec = 0
-    for lane in range(o0.shape[0]):
-        o, d = _v(o0, lane, 0), _v(d0, lane, 0)
+    for lane in range(rx.shape[0]):
+        o, d = _camera_ray(cam, rx[lane], ry[lane])
         b = (1.0, 1.0, 1.0)
         ngl = nt = 0  # the camera's glossy and transmission bounces so far
         for depth in range(max_bounces + 1):
@@ -1570,10 +1613,10 @@ def _eye_rows(ray, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_s
 
 @TypedOnce
 @njit(**_JIT)
-def eye_lanes(rt, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec, rec_i,
-              prior):
-    """eye.eye_receivers' paths: from the camera (o0, d0: origins on the near clip plane, unit
-    directions) through mirrors and glass (optics.scatter1, the lobe picked by
+def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
+              rec_i, prior):
+    """eye.eye_receivers' paths: from the camera (cam: CameraModel.kernel_params; rx, ry: raster
+    positions, each ray starting on the near clip plane) through mirrors and glass (optics.scatter1, the lobe picked by
     keyed_uniform(key, sample[lane], depth, 0): a sample's path does not depend on which others
     are traced with it; scale_eta: radiance in physical units) to the first diffuse surface,
     recorded (rec: REC_* columns with the eye path's throughput; rec_i: lane, specular vertices
@@ -1581,8 +1624,8 @@ def eye_lanes(rt, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_sp
     counts) where it is a receiver after at least min_specular specular vertices; up to
     max_bounces of them. Returns the records written and the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
-    nrec = _eye_rows(ray, o0, d0, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
-                     rec_i, prior)
+    nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps,
+                     rec, rec_i, prior)
     return nrec, ray[6]
 
 

@@ -140,6 +140,7 @@ def test_sheared_camera_under_scaled_parent(blender, type):
         np.testing.assert_allclose(pry, qy, rtol=0, atol=1e-9 * cm.H)
         _, _, dnear, *_ = cm.project(o + tnear[:, None] * d)
         np.testing.assert_allclose(dnear, ob.data.clip_start, rtol=1e-9)
+        _kernel_rays_match(cm, qx, qy)
     finally:
         ob.parent = None
         bpy.data.objects.remove(parent)
@@ -208,6 +209,18 @@ def test_rays_invert_project(blender, type, fit, res, aspect):
         np.testing.assert_allclose(cos, 1.0)
     _, _, dnear, *_ = cm.project(o + tnear[:, None] * d)
     np.testing.assert_allclose(dnear, ob.data.clip_start, rtol=1e-9)
+    _kernel_rays_match(cm, rx, ry)
+
+
+def _kernel_rays_match(cm, rx, ry):
+    """The eye paths' camera rays (kernels._camera_ray, from CameraModel.kernel_params) are rays()'s,
+    started on the near clip plane, to rounding."""
+    from smbs_addon import kernels
+
+    o, d, tnear = cm.rays(rx, ry)
+    ko, kd = kernels.camera_rays(cm.kernel_params(), rx, ry)
+    np.testing.assert_allclose(kd, d, rtol=0, atol=1e-14)
+    np.testing.assert_allclose(ko, o + tnear[:, None] * d, rtol=0, atol=1e-12 * (1 + np.abs(o).max()))
 
 
 @pytest.mark.parametrize("type", ["PERSP", "ORTHO"])
