@@ -23,7 +23,9 @@ Per scene and method, in one run on the same geometry:
 Scenes (tests/scenes.py): the glass sphere under an area light, the gold ring lit from the side,
 the hammered mirror; at --size x --size pixels (``name:size`` for one scene: the hammered mirror's
 unbiased walks need thousands of Bernoulli trials per lane, 285 s for SMS at 128 x 128).
-Writes throughput.md.
+Writes throughput_last.md under --out, a run's table (the next run overwrites it); the results
+kept, with what changed between them, are hand-written sections of bench/results/throughput.md,
+which this script does not touch.
 """
 from __future__ import annotations
 
@@ -178,7 +180,7 @@ def main(argv=None):
                      f"{r['steps_per_s'] / 1e3:.0f} | {r['cpu_wall']:.2f} | "
                      f"{r['peak_gib']:.2f} |")
     args.out.mkdir(parents=True, exist_ok=True)
-    (args.out / "throughput.md").write_text("\n".join(lines) + "\n")
+    (args.out / "throughput_last.md").write_text("\n".join(lines) + "\n")
 
 
 if __name__ == "__main__":
