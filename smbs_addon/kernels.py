@@ -1186,8 +1186,10 @@ def _blackman_harris(x, r):
     """film.blackman_harris of one offset (r already at least 0.5)."""
     if not abs(x) <= r:
         return 0.0
-    v = 2.0 * math.pi * (x / (2.0 * r) + 0.5)
-    h = 0.35875 - 0.48829 * math.cos(v) + 0.14128 * math.cos(2 * v) - 0.01168 * math.cos(3 * v)
+    c = math.cos(2.0 * math.pi * (x / (2.0 * r) + 0.5))
+    c2 = 2.0 * c * c - 1.0  # cos 2v
+    c3 = c * (2.0 * c2 - 1.0)  # cos 3v = 4 c^3 - 3 c
+    h = 0.35875 - 0.48829 * c + 0.14128 * c2 - 0.01168 * c3
     return h / (0.35875 * 2.0 * r)
 
 
