@@ -16,8 +16,6 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
-
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
 sys.path.insert(0, str(ROOT))
@@ -61,7 +59,7 @@ def main(argv=None):
             for k, v in r["chains"].items():
                 print(f"    {k}: walks {v['walks']} SR {v['success_rate']:.3f} mut/sol "
                       f"{v['mutations_per_success']:.1f} large {v['large_mutations']}", flush=True)
-    lines = [f"# SMBS and SMS on bevelled glass cubes (total internal reflection)", "",
+    lines = ["# SMBS and SMS on bevelled glass cubes (total internal reflection)", "",
              f"Made by `python bench/cube_tir.py --budget {args.budget:g}` (2 cores, unbiased estimator, "
              "seed 1). Error against Cycles' reference (tests/data/conformance/).", "",
              "| scene | method | spp in budget | wall s | mean / Cycles ± 3σ | rel. RMSE | SR | mutations / solution "

@@ -106,7 +106,7 @@ def _cost(batch_lum, region, work, n_all: int) -> float:
 
 def choose(scene, settings, plan, cancel=None) -> dict:
     """{light index: Choice} from a pilot per planned light (see the module's notes)."""
-    from .bake import BakeSettings, bake
+    from .bake import bake
     from .camera import CameraModel
     from .tracer import Tracer
 

@@ -91,7 +91,6 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
     x0, x1, y0, y1 = cam.region
     nx = (x1 - x0 + 2 * TILE) // TILE + 2
     ny = (y1 - y0 + 2 * TILE) // TILE + 2
-    want = {t: i for i, t in enumerate(types_list)}
     masks = {}
     stats = {"photons": 0, "rays": 0, "flux_share": {}, "peak_share": {}, "other_share": {},
              "beyond_max_chain_share": {}}

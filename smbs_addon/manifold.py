@@ -18,7 +18,7 @@ import numpy as np
 from . import lanes
 from . import scene as S
 from .bounces import Limits
-from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
+from .constraints import LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
 from .lights import area_light_points, light_axis
