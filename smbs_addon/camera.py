@@ -104,10 +104,12 @@ class CameraModel:
         return o, d, tnear
 
     def kernel_params(self) -> np.ndarray:
-        """What rays() needs, for the kernels (kernels.CAM_* entries, kernels._camera_ray)."""
+        """What rays(), towards() and importance() need, for the kernels (kernels.CAM_* entries:
+        kernels._camera_ray, kernels.camera_splats)."""
         return np.concatenate([self.origin, self.axes.ravel(),
                                [self.xmin, self.ymin, self.pix_w, self.pix_h, self.H, float(self.ortho),
-                                self.cam.clip_start]]).astype(np.float64)
+                                self.cam.clip_start, self.cam.clip_end, self.pixel_area], self.inv_axes.ravel(),
+                               np.asarray(self.region, np.float64)]).astype(np.float64)
 
     def pixel_rays(self, step: int = 1):
         """Rays through the centres of the render region's pixels (every step-th on each

@@ -29,7 +29,7 @@ from numba import njit, types
 from numba.core import cgutils
 from numba.extending import intrinsic
 
-from .embree import KINDS, intersect1, ray_state
+from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
 from .optics import scatter1
 
@@ -1531,7 +1531,10 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mat
 # the near clip distance
 CAM_ORIGIN, CAM_AXES, CAM_XMIN, CAM_YMIN, CAM_PIX_W, CAM_PIX_H, CAM_H, CAM_ORTHO, CAM_CLIP = 0, 3, 12, 13, 14, 15, 16, \
     17, 18
-CAM_F = 19
+# ... the far clip distance, a pixel's area on the view plane, world -> camera (row by row), the
+# render region (x0, x1, y0, y1 raster pixels)
+CAM_CLIP_END, CAM_PIX_AREA, CAM_INV, CAM_REGION = 19, 20, 21, 30
+CAM_F = 34
 
 
 @njit(inline="always", **_JIT)
@@ -1567,6 +1570,82 @@ def camera_rays(cam, x, y):
         for c in range(3):
             o[i, c], d[i, c] = oi[c], di[c]
     return o, d
+
+
+@njit(**_JIT)
+def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, eps, rx, ry, val):
+    """camera_splats' loop, on borrowed arrays (its caller holds them). Returns (rays cast, splats
+    written)."""
+    ray = _borrowed(ray)
+    cam, rec, mat, mat_color, rx, ry, val = _borrowed((cam, rec, mat, mat_color, rx, ry, val))
+    x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
+    org = (cam[0], cam[1], cam[2])
+    ortho = cam[CAM_ORTHO] > 0
+    a, inv = CAM_AXES, CAM_INV
+    rays = n = 0
+    for i in range(rec.shape[0]):
+        y = _v(rec, i, REC_P)
+        ng, ns, w = _v(rec, i, REC_NG), _v(rec, i, REC_NS), _v(rec, i, REC_W)
+        # camera.CameraModel.project
+        q = _sub(y, org)
+        c0 = cam[inv] * q[0] + cam[inv + 1] * q[1] + cam[inv + 2] * q[2]
+        c1 = cam[inv + 3] * q[0] + cam[inv + 4] * q[1] + cam[inv + 5] * q[2]
+        depth = -(cam[inv + 6] * q[0] + cam[inv + 7] * q[1] + cam[inv + 8] * q[2])
+        if not (depth >= cam[CAM_CLIP] and depth <= cam[CAM_CLIP_END]):
+            continue
+        if ortho:
+            fx, fy, dist, cos_axis = c0, c1, depth, 1.0
+        else:
+            fx, fy = c0 / depth, c1 / depth
+            dist = math.sqrt(_dot(q, q))
+            cos_axis = depth / dist if dist > 0 else 0.0
+        px = (fx - cam[CAM_XMIN]) / cam[CAM_PIX_W]
+        py = cam[CAM_H] - (fy - cam[CAM_YMIN]) / cam[CAM_PIX_H]
+        if not (px > x0 - margin and px < x1 + margin and py > y0 - margin and py < y1 + margin):
+            continue
+        # camera.CameraModel.towards
+        if ortho:
+            to_cam = (cam[a + 2], cam[a + 5], cam[a + 8])
+            tmax = depth - cam[CAM_CLIP]
+        else:
+            to_cam = _mul(1.0 / max(dist, 1e-300), _neg(q))
+            tmax = dist * (1.0 - cam[CAM_CLIP] / max(depth, 1e-300))
+        ci_g, co_g, ci_s = _dot(w, ng), _dot(to_cam, ng), _dot(w, ns)
+        if not (ci_g * co_g > 0 and ci_s * (1.0 if ci_g > 0 else -1.0) > 0):  # same side, lit per shading normal
+            continue
+        o = _add(y, _mul(eps if co_g >= 0 else -eps, ng))  # tracer.spawn
+        rays += 1
+        if occluded1(ray, o, to_cam, tmax - eps, 1):
+            continue
+        # the diffuse BSDF with the shading-normal correction of the adjoint (Veach 5.3), the
+        # camera's importance (CameraModel.importance)
+        corr = abs(ci_s) / max(abs(ci_g), 1e-12)
+        if ortho:
+            imp = abs(co_g) / cam[CAM_PIX_AREA]
+        else:
+            c3 = max(cos_axis, 1e-12) ** 3
+            imp = abs(co_g) / (max(dist, 1e-300) ** 2 * cam[CAM_PIX_AREA] * c3)
+        k = corr * imp / math.pi
+        m = mat[i]
+        rx[n], ry[n] = px, py
+        for c in range(3):
+            val[n, c] = rec[i, REC_BETA + c] * mat_color[m, c] * k
+        n += 1
+    return rays, n
+
+
+@TypedOnce
+@njit(**_JIT)
+def camera_splats(rt, cam, margin, rec, mat, mat_color, eps, rx, ry, val):
+    """reference.splat_records: the light tracer's records (rec: REC_* columns; mat: their
+    materials, diffuse with albedo mat_color[mat]): each diffuse vertex connected to the camera
+    (cam: CameraModel.kernel_params; margin: the film's filter width in pixels around the render
+    region), its shadow ray cast here, the splat's raster position and value (the flux times the
+    diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
+    ry, val. Returns (shadow rays cast, splats written, the ray counters)."""
+    ray = ray_state(rt)
+    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, eps, rx, ry, val)
+    return rays, n, ray[6]
 
 
 @njit(**_JIT)

@@ -22,35 +22,8 @@ from .optics import materials, scatter_rows
 from .estimators import concentration
 from .bounces import Limits
 from .geometry import vertex_from_hits
-from .vec import dot
 
 MAX_SPECULAR_BOUNCES = 32
-
-
-def splat_to_camera(scene, tracer, cam, film, y, ng, ns, w_in, beta, albedo, stats):
-    """Connect diffuse vertices y (arrival direction w_in, pointing away from y)
-    carrying flux beta to the camera; splat beta * f * importance."""
-    if len(y) == 0:
-        return
-    rx, ry, to_cam, tmax, cos_axis, dist, valid = cam.towards(y, film.filter_width)
-    ci_g, co_g = dot(w_in, ng), dot(to_cam, ng)
-    ci_s = dot(w_in, ns)
-    valid &= (ci_g * co_g > 0) & (ci_s * np.sign(ci_g) > 0)  # same side, lit per shading normal
-    idx = np.flatnonzero(valid)
-    if idx.size == 0:
-        return
-    o = tracer.spawn(y[idx], ng[idx], to_cam[idx])
-    blocked = tracer.occluded(o, to_cam[idx], tmax[idx] - tracer.eps)
-    stats["rays_camera"] += int(idx.size)
-    idx = idx[~blocked]
-    if idx.size == 0:
-        return
-    # diffuse BSDF with the shading-normal correction of the adjoint (Veach 5.3)
-    corr = np.abs(ci_s[idx]) / np.maximum(np.abs(ci_g[idx]), 1e-12)
-    imp = cam.importance(cos_axis[idx], dist[idx], co_g[idx])
-    val = beta[idx] * (albedo[idx] / math.pi) * (corr * imp)[:, None]
-    film.splat(rx[idx], ry[idx], val)
-    stats["splats"] += int(idx.size)
 
 
 def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False, adjoint=False):
@@ -200,10 +173,23 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
 
 
 def splat_records(scene, tracer, cam, film, rec, ids, stats):
-    """splat_to_camera of run_photons' records."""
-    if len(rec):
-        splat_to_camera(scene, tracer, cam, film, rec[:, 0:3], rec[:, 3:6], rec[:, 6:9], rec[:, 9:12],
-                        rec[:, 12:15], scene.mat_color[ids[:, 2]], stats)
+    """Connect run_photons' records (diffuse vertices with the direction the photon arrived from
+    and its flux) to the camera and splat flux x BSDF x importance, in one kernel call
+    (kernels.camera_splats, the shadow rays cast there)."""
+    n = len(rec)
+    if n == 0:
+        return
+    rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
+    rt = tracer.rays()
+    rays, m, counts = kernels.camera_splats(rt, cam.kernel_params(), float(film.filter_width),
+                                            np.ascontiguousarray(rec, np.float64),
+                                            np.ascontiguousarray(ids[:, 2], np.int64),
+                                            np.ascontiguousarray(scene.mat_color, np.float64), tracer.eps, rx, ry, val)
+    tracer.cast_by_kernel(rt, counts)
+    stats["rays_camera"] += int(rays)
+    if m:
+        film.splat(rx[:m], ry[:m], val[:m])
+        stats["splats"] += int(m)
 
 
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounces=MAX_SPECULAR_BOUNCES,

@@ -186,3 +186,57 @@ def test_light_tracer_same_image_whatever_the_threads():
     assert a.image.max() > 0 and a.stats["indirect"]
     assert a.stats["rays"] == b.stats["rays"]
     assert np.array_equal(a.image, b.image) and np.array_equal(a.variance, b.variance)
+
+
+def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo):
+    """The camera connection as reference.splat_to_camera made it in numpy (camera.CameraModel's
+    towards and importance, tracer.spawn and occluded), for kernels.camera_splats to be held to:
+    (raster x, raster y, value) of the splats, and the shadow rays cast."""
+    rx, ry, to_cam, tmax, cos_axis, dist, valid = cam.towards(y, margin)
+    ci_g, co_g = (w_in * ng).sum(1), (to_cam * ng).sum(1)
+    ci_s = (w_in * ns).sum(1)
+    valid &= (ci_g * co_g > 0) & (ci_s * np.sign(ci_g) > 0)
+    idx = np.flatnonzero(valid)
+    o = tracer.spawn(y[idx], ng[idx], to_cam[idx])
+    blocked = tracer.occluded(o, to_cam[idx], tmax[idx] - tracer.eps)
+    rays = idx.size
+    idx = idx[~blocked]
+    corr = np.abs(ci_s[idx]) / np.maximum(np.abs(ci_g[idx]), 1e-12)
+    imp = cam.importance(cos_axis[idx], dist[idx], co_g[idx])
+    return rx[idx], ry[idx], beta[idx] * (albedo[idx] / math.pi) * (corr * imp)[:, None], rays
+
+
+@pytest.mark.parametrize("name", ["glass_sphere", "water_ortho"])
+def test_camera_splats_are_the_numpy_connection(name):
+    """kernels.camera_splats (the light tracer's records connected to the camera, the shadow rays
+    cast in the kernel) against the same connection made in numpy from CameraModel.towards and
+    importance: the same splats (raster positions to 1e-9 pixel, values to 1e-12 relative), the
+    same shadow rays, on a perspective camera (the glass ball's caustic, some of it hidden by the ball)
+    and an orthographic one under water (records in the filter's margin count)."""
+    from smbs_addon.camera import CameraModel
+
+    scene = scenes.glass_sphere_scene(resolution=(32, 24)) if name == "glass_sphere" else scenes.water_scene("point")
+    plan = make_plan(scene)
+    tracer = Tracer(scene)
+    cam = CameraModel(scene.camera)
+    lp = plan.lights[0]
+    ph = emit(scene, lp.index, lp.targets, 40000, np.random.default_rng(5))
+    rec, ids, *_ = reference.run_photons(scene, tracer, plan, ph, np.random.default_rng(6), {})
+    assert len(rec) > 1000
+    margin = scene.camera.filter_width
+    col = lambda k: rec[:, k:k + 3]  # noqa: E731
+    want = _splat_to_camera_numpy(tracer, cam, margin, col(kernels.REC_P), col(kernels.REC_NG), col(kernels.REC_NS),
+                                  col(kernels.REC_W), col(kernels.REC_BETA), scene.mat_color[ids[:, 2]])
+    n = len(rec)
+    rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
+    rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
+                                       scene.mat_color, tracer.eps, rx, ry, val)
+    assert 100 < m <= rays <= n and rays == want[3]
+    np.testing.assert_allclose(rx[:m], want[0], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(ry[:m], want[1], rtol=0, atol=1e-9)
+    np.testing.assert_allclose(val[:m], want[2], rtol=1e-12, atol=0)
+    x0, x1, y0, y1 = cam.region
+    if name == "glass_sphere":  # the ball hides some records from the camera
+        assert m < rays
+    else:  # the caustic covers the floor: records in the filter's margin splat too
+        assert np.any((rx[:m] < x0) | (rx[:m] >= x1) | (ry[:m] < y0) | (ry[:m] >= y1))
