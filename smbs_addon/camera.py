@@ -114,11 +114,13 @@ class CameraModel:
     def pixel_rays(self, step: int = 1):
         """Rays through the centres of the render region's pixels (every step-th on each
         axis): (rows, columns, origins on the near clip plane, unit directions)."""
+        from . import kernels
+
         x0, x1, y0, y1 = self.region
         jj, ii = np.mgrid[y0:y1:step, x0:x1:step]
         jj, ii = jj.ravel(), ii.ravel()
-        o, d, tnear = self.rays(ii + 0.5, jj + 0.5)
-        return jj, ii, o + tnear[:, None] * d, d
+        o, d = kernels.camera_rays(self.kernel_params(), ii + 0.5, jj + 0.5)  # rays(), on the near plane
+        return jj, ii, o, d
 
     def towards(self, p: np.ndarray, margin: float = 0.0):
         """Connections of world points to the camera: raster positions, unit directions to
