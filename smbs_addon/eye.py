@@ -77,9 +77,10 @@ def specular_cells(scene, tracer, cam, film) -> np.ndarray | None:
     covers (its 8 corners projected, a cell more on every side). A box wholly outside the view
     of the widened film (beyond one of its side planes, before the near or past the far clip
     plane) covers none; None (every cell) where a box in view reaches behind the near clip
-    plane, where its projection does not bound it. An eye path that meets a diffuse surface first is no caustic seen through mirrors or
-    glass (trace_eye), so the light tracer's eye pass traces no other cell's samples: it draws
-    them all the same (film_samples), and its image is the whole film's, bit for bit."""
+    plane, where its projection does not bound it. An eye path that meets a diffuse surface
+    first is no caustic seen through mirrors or glass (trace_eye), so the light tracer's eye
+    pass traces no other cell's samples: it draws them all the same (film_samples), and its
+    image is the whole film's, bit for bit."""
     x0, x1, y0, y1 = cam.region
     r = int(np.ceil(film.filter_width))
     cw, ch = x1 - x0 + 2 * r, y1 - y0 + 2 * r

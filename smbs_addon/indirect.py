@@ -247,16 +247,17 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
     key = int(rng.integers(2**63))
     # a lane records at most MAX_SPECULAR segments and one vertex per diffuse vertex: every call moves on
     cap = max(n, (int(lim.diffuse) + 2) * (MAX_SPECULAR + 2))
-    segs, seg_is, vxs, vx_is, lane = [], [], [], [], 0
+    n_seg, n_vx = (cap if hit_lights else 0), (cap if lights_direct else 0)
+    parts, lane = [], 0
     while lane < n:
-        seg, seg_i = np.empty((cap if hit_lights else 0, kernels.SEG_F)), np.empty(cap if hit_lights else 0, np.int64)
-        vx, vx_i = np.empty((cap if lights_direct else 0, kernels.VX_F)), np.empty(cap if lights_direct else 0, np.int64)
+        seg, seg_i = np.empty((n_seg, kernels.SEG_F)), np.empty(n_seg, np.int64)
+        vx, vx_i = np.empty((n_vx, kernels.VX_F)), np.empty(n_vx, np.int64)
         rt = tracer.rays()
         lane, ms, mv, counts = kernels.gather_lanes(rt, key, lane, *args, seg, seg_i, vx, vx_i)
         tracer.cast_by_kernel(rt, counts)
         stats["rays_gather"] = stats.get("rays_gather", 0) + int(counts[embree.KINDS:].sum())
-        segs.append(seg[:ms]), seg_is.append(seg_i[:ms]), vxs.append(vx[:mv]), vx_is.append(vx_i[:mv])
-    seg, seg_i, vx, vx_i = (np.concatenate(a) for a in (segs, seg_is, vxs, vx_is))
+        parts.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
+    seg, seg_i, vx, vx_i = (np.concatenate([p[k] for p in parts]) for k in range(4))
     radiance = np.zeros((n, 3))
     if len(seg):
         # Cycles' lights are transparent (shade_light adds the emission and the path goes on):

@@ -1382,14 +1382,12 @@ def _fits(lim, d, g, t):
 def _next_surface(ray, o, d, tv, tng, tns, eps):
     """The closest hit of the ray o + t d, from its offset origin (tracer.intersect without an
     exact origin; the ray cast here, counted as kind 0): (primitive, -1 on a miss; the float64
-    point, unit geometric normal, shading normal, barycentrics b1, b2)."""
-    pr, t32 = intersect1(ray, o, d, np.inf, 0)
+    distance, inf on a miss; point, unit geometric normal, shading normal, barycentrics b1, b2)."""
+    pr, t, p, g, v0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
     if pr < 0:
-        z = (0.0, 0.0, 0.0)
-        return pr, z, z, z, 0.0, 0.0
-    _, p, g, v0, e1, e2 = _hit_point(o, d, o, False, t32, pr, tv, tng, eps)
+        return pr, t, p, g, g, 0.0, 0.0
     b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
-    return pr, p, g, _shading_normal(tns, pr, b1, b2, g), b1, b2
+    return pr, t, p, g, _shading_normal(tns, pr, b1, b2, g), b1, b2
 
 
 @njit(**_JIT)
@@ -1421,7 +1419,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
         n_diff = 0  # diffuse vertices so far (indirect)
         full = False
         for it in range(max_iter):
-            pr, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
+            pr, _, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
             if it == 0 and soft[3] > 0:  # lights.soft_falloff_factor
@@ -1538,6 +1536,14 @@ CAM_F = 34
 
 
 @njit(inline="always", **_JIT)
+def _cam_mat(cam, a, v):
+    """The 3x3 matrix kept row by row at cam[a:a + 9] (CAM_AXES, CAM_INV) times v."""
+    return (cam[a] * v[0] + cam[a + 1] * v[1] + cam[a + 2] * v[2],
+            cam[a + 3] * v[0] + cam[a + 4] * v[1] + cam[a + 5] * v[2],
+            cam[a + 6] * v[0] + cam[a + 7] * v[1] + cam[a + 8] * v[2])
+
+
+@njit(inline="always", **_JIT)
 def _camera_ray(cam, x, y):
     """camera.CameraModel.rays of raster position (x, y), moved to the near clip plane: (origin,
     unit direction)."""
@@ -1548,13 +1554,8 @@ def _camera_ray(cam, x, y):
     else:
         r = 1.0 / math.sqrt(fx * fx + fy * fy + 1.0)
         lo, ld = (0.0, 0.0, 0.0), (fx * r, fy * r, -r)
-    a = CAM_AXES
-    o = (cam[0] + cam[a] * lo[0] + cam[a + 1] * lo[1] + cam[a + 2] * lo[2],
-         cam[1] + cam[a + 3] * lo[0] + cam[a + 4] * lo[1] + cam[a + 5] * lo[2],
-         cam[2] + cam[a + 6] * lo[0] + cam[a + 7] * lo[1] + cam[a + 8] * lo[2])
-    d = (cam[a] * ld[0] + cam[a + 1] * ld[1] + cam[a + 2] * ld[2],
-         cam[a + 3] * ld[0] + cam[a + 4] * ld[1] + cam[a + 5] * ld[2],
-         cam[a + 6] * ld[0] + cam[a + 7] * ld[1] + cam[a + 8] * ld[2])
+    o = _add((cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2]), _cam_mat(cam, CAM_AXES, lo))
+    d = _cam_mat(cam, CAM_AXES, ld)
     stretch = math.sqrt(_dot(d, d))  # 1 unless the axes are sheared
     d = _mul(1.0 / stretch, d)
     return _add(o, _mul(cam[CAM_CLIP] * stretch / abs(ld[2]), d)), d
@@ -1562,7 +1563,8 @@ def _camera_ray(cam, x, y):
 
 @njit(**_JIT)
 def camera_rays(cam, x, y):
-    """_camera_ray per raster position (tests): (origins, unit directions)."""
+    """_camera_ray per raster position (CameraModel.pixel_rays): (origins on the near clip
+    plane, unit directions)."""
     n = x.shape[0]
     o, d = np.empty((n, 3)), np.empty((n, 3))
     for i in range(n):
@@ -1579,18 +1581,17 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, eps, rx, ry, val):
     ray = _borrowed(ray)
     cam, rec, mat, mat_color, rx, ry, val = _borrowed((cam, rec, mat, mat_color, rx, ry, val))
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
-    org = (cam[0], cam[1], cam[2])
+    org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
     ortho = cam[CAM_ORTHO] > 0
-    a, inv = CAM_AXES, CAM_INV
+    a = CAM_AXES
     rays = n = 0
     for i in range(rec.shape[0]):
         y = _v(rec, i, REC_P)
         ng, ns, w = _v(rec, i, REC_NG), _v(rec, i, REC_NS), _v(rec, i, REC_W)
         # camera.CameraModel.project
         q = _sub(y, org)
-        c0 = cam[inv] * q[0] + cam[inv + 1] * q[1] + cam[inv + 2] * q[2]
-        c1 = cam[inv + 3] * q[0] + cam[inv + 4] * q[1] + cam[inv + 5] * q[2]
-        depth = -(cam[inv + 6] * q[0] + cam[inv + 7] * q[1] + cam[inv + 8] * q[2])
+        c0, c1, c2 = _cam_mat(cam, CAM_INV, q)
+        depth = -c2
         if not (depth >= cam[CAM_CLIP] and depth <= cam[CAM_CLIP_END]):
             continue
         if ortho:
@@ -1662,7 +1663,7 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
         b = (1.0, 1.0, 1.0)
         ngl = nt = 0  # the camera's glossy and transmission bounces so far
         for depth in range(max_bounces + 1):
-            pr, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
+            pr, _, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
             m = tri_material[pr]
@@ -1697,13 +1698,14 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
 def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
               rec_i, prior):
     """eye.eye_receivers' paths: from the camera (cam: CameraModel.kernel_params; rx, ry: raster
-    positions, each ray starting on the near clip plane) through mirrors and glass (optics.scatter1, the lobe picked by
-    keyed_uniform(key, sample[lane], depth, 0): a sample's path does not depend on which others
-    are traced with it; scale_eta: radiance in physical units) to the first diffuse surface,
-    recorded (rec: REC_* columns with the eye path's throughput; rec_i: lane, specular vertices
-    before it, material; prior: the camera's diffuse, glossy and transmission bounces, Cycles'
-    counts) where it is a receiver after at least min_specular specular vertices; up to
-    max_bounces of them. Returns the records written and the ray counters (embree.ray_state)."""
+    positions, each ray starting on the near clip plane) through mirrors and glass
+    (optics.scatter1, the lobe picked by keyed_uniform(key, sample[lane], depth, 0): a sample's
+    path does not depend on which others are traced with it; scale_eta: radiance in physical
+    units) to the first diffuse surface, recorded (rec: REC_* columns with the eye path's
+    throughput; rec_i: lane, specular vertices before it, material; prior: the camera's diffuse,
+    glossy and transmission bounces, Cycles' counts) where it is a receiver after at least
+    min_specular specular vertices; up to max_bounces of them. Returns the records written and
+    the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
     nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps,
                      rec, rec_i, prior)
@@ -1759,7 +1761,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
             last_caster = False
             go_on = False  # a next diffuse vertex to bounce from
             for bounce in range(max_specular + 1):
-                pr, t, hp, hg, hv0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
+                pr, t, hp, hg, hn, _, _ = _next_surface(ray, o, d, tv, tng, tns, eps)
                 if (want_seg and bounce > 0 and last_caster and (depth >= 1 or count_first)
                         and _fits(lim, bd, bg, bt)):
                     if nseg == seg.shape[0]:
@@ -1774,8 +1776,6 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                     break
                 hm = tri_material[pr]
                 kind = mat_kind[hm]
-                b1, b2, _, _, _ = _barycentric(e1, e2, _sub(hp, hv0))
-                hn = _shading_normal(tns, pr, b1, b2, hg)
                 if kind == _DIFFUSE:  # the next diffuse vertex
                     depth += 1
                     p, g, n, w, m = hp, hg, hn, _neg(d), hm
