@@ -210,6 +210,25 @@ def cube_grey():
     return scene
 
 
+def cube_grey_diffuse1():
+    """cube_grey with Light Paths > Diffuse bounces 1: Cycles then keeps only the caustic of the
+    light that meets the glass first, and drops the floor -> glass -> floor light that the cube,
+    2 cm above the floor, gathers from around it."""
+    scene = cube_grey()
+    scene.name = "cube_grey_diffuse1"
+    scene.cycles.diffuse_bounces = 1
+    return scene
+
+
+def cube_grey_reflect():
+    """cube_grey_diffuse1 with Transmission bounces 0: of the caustic, only the light reflected
+    off the cube's outside (R) is left."""
+    scene = cube_grey_diffuse1()
+    scene.name = "cube_grey_reflect"
+    scene.cycles.transmission_bounces = 0
+    return scene
+
+
 def sphere_point_soft():
     """Principled white glass sphere (IOR 1.5) under a point light of radius 0.25 with
     soft falloff (Blender's default)."""
@@ -318,17 +337,24 @@ def prism_tir():
     return scene
 
 
-def cube_white_rect():
+def cube_white_rect(name="cube_white_rect", base=1.0):
     """Bevelled smooth-shaded cube of Principled white glass (IOR 1.5) under a
     rectangular area light, tilted so that light reflects inside it (T R T, T R R T)."""
-    scene = _scene("cube_white_rect")
+    scene = _scene(name)
     _floor(scene)
-    glass = principled("ClearGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
+    glass = principled("ClearGlass" if base == 1.0 else "TintGlass", base=(base, base, base),
+                       transmission=1.0, ior=1.5)
     _bevelled_cube(scene, "Cube", glass, 0.9, (0.1, 0, 0.8), (math.radians(20), math.radians(40), 0))
     B.add_light(scene, "Key", "AREA", (-0.5, 0.3, 3.5), (0, math.radians(-10), 0), energy=250.0,
                 shape="RECTANGLE", size=0.6, size_y=0.3)
     B.add_camera(scene, (0.2, -4.2, 3.4), (0.1, 0, 0.3), lens=40)
     return scene
+
+
+def cube_tint_rect():
+    """cube_white_rect with Base Color 0.8: the same geometry, light and camera as the white
+    cube, so that what differs between the two is the Principled glass's tint alone."""
+    return cube_white_rect("cube_tint_rect", base=0.8)
 
 
 def cube_white_glossy1():
@@ -348,6 +374,10 @@ SCENES = {
     "gold_cylinder": (gold_cylinder, "Principled metallic, disk area, curved mirror (R, R R), open"),
     "pool_sun4": (pool_sun4, "Glass BSDF 1.33, sun 4 deg, wavy open water, seen through water"),
     "cube_grey": (cube_grey, "Principled glass Base Color 0.8, bevelled cube, internal reflection"),
+    "cube_grey_diffuse1": (cube_grey_diffuse1, "cube_grey with Diffuse bounces 1 (no floor -> glass "
+                           "-> floor light)"),
+    "cube_grey_reflect": (cube_grey_reflect, "cube_grey with Diffuse bounces 1, Transmission 0 (R "
+                          "alone)"),
     "sphere_point_soft": (sphere_point_soft, "Principled glass white, point light with soft falloff"),
     "sphere_refraction_spot": (sphere_refraction_spot, "Refraction BSDF 1.33, spot light"),
     "mirror_point_hard": (mirror_point_hard, "Glossy BSDF flat mirror, point light without soft "
@@ -358,6 +388,8 @@ SCENES = {
     "prism_tir": (prism_tir, "Glass BSDF 1.5 prism, flat, total internal reflection (T R T)"),
     "cube_white_rect": (cube_white_rect, "Principled glass white, bevelled cube, rectangle area, "
                         "T R T and T R R T"),
+    "cube_tint_rect": (cube_tint_rect, "the white cube's scene with Principled Base Color 0.8 "
+                       "(the tint alone)"),
     "cube_white_glossy1": (cube_white_glossy1, "the white cube with Light Paths glossy 1, max 12, "
                            "transmission 12 (bounce limits)"),
 }
