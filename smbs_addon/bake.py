@@ -334,6 +334,22 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
     _threaded_chunks(tracer, film, prog, -(-eye_per_batch // CHUNK), run_chunk, eye_stats,
                      f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
     eye_stats["time_s"] += time.perf_counter() - t_eye
+    from .indirect import bending_lights
+
+    bent = bending_lights(scene, plan)
+    if bent:  # the paths through normals Cycles bends, at receivers seen directly (reference.trace_bent)
+        t_bent = time.perf_counter()
+        per_batch = _eye_per_batch(cam, film, settings)
+
+        def bent_chunk(c, film_c, st_c):
+            start = c * CHUNK
+            reference.trace_bent(scene, tracer, cam, film_c, plan, bent, start, min(CHUNK, per_batch - start),
+                                 per_batch, _rng(settings.seed, 1, 1, b, c), st_c,
+                                 physical=settings.radiance == "physical")
+
+        bent_stats = eye_stats.setdefault("bent", {"time_s": 0.0})
+        _threaded_chunks(tracer, film, prog, -(-per_batch // CHUNK), bent_chunk, bent_stats)
+        bent_stats["time_s"] += time.perf_counter() - t_bent
 
 
 def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
@@ -601,7 +617,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)
         extra["batches_done"] = b
         rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
-                + _rays(eye_stats) + plan.cost.get("rays", 0))
+                + _rays(eye_stats) + _rays(eye_stats.get("bent", {})) + plan.cost.get("rays", 0))
         extra["eye_pass"] = eye_stats
     else:
         from .manifold import chain_types

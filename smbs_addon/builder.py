@@ -47,7 +47,8 @@ class SceneBuilder:
 
     # ------------------------------------------------------------ materials
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
-                 strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE) -> int:
+                 strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
+                 bump_correction=False) -> int:
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -55,7 +56,7 @@ class SceneBuilder:
         self.materials.append(dict(name=name, kind=kind, color=np.asarray(color, float),
                                    reflect_color=np.asarray(reflect_color, float), ior=float(ior),
                                    roughness=float(roughness), strength=float(strength),
-                                   fresnel=int(fresnel)))
+                                   fresnel=int(fresnel), bump_correction=bool(bump_correction)))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
@@ -226,6 +227,8 @@ class SceneBuilder:
             light_caustics=np.array([x["caustics"] for x in lt], bool),
             camera=self.camera, world_color=np.asarray(self.world_color, float), name=self.name,
             light_paths=np.asarray(self.light_paths, np.int64),
+            mat_bump_correction=np.array([x["bump_correction"] for x in m], bool)
+            if any(x["bump_correction"] for x in m) else np.zeros(0, bool),
         )
         sc.validate()
         return sc

@@ -28,17 +28,23 @@ from .constraints import LightEnd
 from .geometry import pack
 from .kernels import chain_kinds, chain_solve
 from .lights import soft_falloff_factor, spot_mask
-from .optics import specular_weights
+from .optics import bent, bump_correction, specular_weights
 from .vec import dot, frame, normalize
 
 def chain_throughput(scene, types, x0, verts, light_point, directional, physical=False):
-    """Product over the chain of the specular weights (optics.specular_weights), (N,3)."""
+    """Product over the chain of the specular weights (optics.specular_weights), (N,3); zero
+    through a vertex whose normal Cycles would bend (optics.bent: indirect.bent_gather's paths)."""
     n = len(x0)
     T = np.ones((n, 3))
+    corr = bump_correction(scene)
     for j, kind in enumerate(types):
         v = verts[j]
         prev = x0 if j == 0 else verts[j - 1].p
         wi = normalize(prev - v.p)
+        if corr.any():  # a vertex Cycles' Bump Map Correction bends: not Cycles' path (optics.scatter1)
+            c = np.flatnonzero(corr[v.mat])
+            if c.size:
+                T[c[bent(wi[c], v.n[c], v.ng[c])]] = 0.0
         R, Tr = specular_weights(scene, v.mat, dot(wi, v.n))
         if kind == "R":
             T *= R

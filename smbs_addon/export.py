@@ -467,7 +467,10 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             return mat_index[key]
         key = mat.original.name_full if getattr(mat, "original", None) is not None else mat.name_full
         if key not in mat_index:
-            mat_index[key] = b.material(key, **classify_material(mat, _warn))
+            # Cycles' Bump Map Correction (on by default) also bends smooth-shaded mirrors' and
+            # glass's shading normals at grazing angles (optics.valid_reflection1)
+            corr = bool(getattr(getattr(mat, "cycles", None), "use_bump_map_correction", True))
+            mat_index[key] = b.material(key, **classify_material(mat, _warn), bump_correction=corr)
         return mat_index[key]
 
     mesh_cache = {}

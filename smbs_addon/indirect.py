@@ -42,6 +42,7 @@ from .vec import dot, normalize
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
 HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
+BENT_SAMPLES = 4  # cosine directions per receiver in bent_gather
 # specular vertices handoff_gather follows for the paths no walk takes (chains longer than
 # max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
 # bounces): of the light a bevelled glass cube brings into the frame, chains of more than 8
@@ -279,7 +280,7 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
 
 
 def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
-                   samples=HANDOFF_SAMPLES, found: dict | None = None):
+                   samples=HANDOFF_SAMPLES, found: dict | None = None, bent=False):
     """The hand-off for receivers seen through mirrors or glass (rc), where no photon can
     reach the camera: one cosine bounce from x0 through up to K specular vertices, counting
     a light hit only when reference._handoff_select gives that path to the photons (its
@@ -294,7 +295,12 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
     handoffs: light index -> reference.Handoff; samples:
     cosine directions per receiver (rays are cheap next to the walks they replace, and a
-    focus's light is a small target); found: light index -> paths taken, added to."""
+    focus's light is a small target); found: light index -> paths taken, added to.
+
+    bent (bent_gather): instead, every path through a specular vertex whose normal Cycles' Bump
+    Map Correction bent (optics.valid_reflection1) counts, and nothing else (handoffs: light index
+    -> None). Without it such paths never count here: neither photons nor walks make them, so
+    they are bent_gather's alone."""
     n = len(rc.p)
     if n == 0 or not handoffs:
         return
@@ -307,7 +313,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     def block(a, b):
         st, per_light = {}, {}
         rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), np.random.default_rng([key, a]), st,
-                             handoffs, physical, samples, per_light)
+                             handoffs, physical, samples, per_light, bent)
         return rad, st, per_light
 
     # receivers per block: HANDOFF_LANES rays in flight at up to 4 specular vertices (each lane
@@ -327,11 +333,41 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
 def _handoff_depth(handoffs: dict) -> int:
     """Specular vertices handoff_gather follows: the longest walked chain, or OTHERS_DEPTH where
-    it takes the paths no walk takes (Handoff.others)."""
-    return max(max(h.max_chain, OTHERS_DEPTH) if h.others else h.max_chain for h in handoffs.values())
+    it takes the paths no walk takes (Handoff.others) or the bent ones (None)."""
+    return max(OTHERS_DEPTH if h is None else max(h.max_chain, OTHERS_DEPTH) if h.others else h.max_chain
+               for h in handoffs.values())
 
 
-def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found):
+def bending_lights(scene, plan) -> list:
+    """The planned lights whose caustics can pass a bent specular vertex (bent_gather): a ray can
+    hit them, and a planned caster is smooth-shaded with Cycles' Bump Map Correction on (flat
+    faces are never bent: their shading normal is the geometric one). Empty: nothing to do."""
+    corr = optics.bump_correction(scene)
+    if not corr.any():
+        return []
+    obj = scene.tri_object
+    smooth = np.asarray(plan.casters, bool) & np.asarray(scene.object_smooth, bool)
+    if not (smooth[obj] & corr[scene.tri_material]).any():
+        return []
+    from .manifold import light_can_be_hit
+
+    return [lp.index for lp in plan.lights if light_can_be_hit(scene, lp.index)]
+
+
+def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, physical=False,
+                samples=BENT_SAMPLES):
+    """The caustic paths through a mirror or glass vertex whose shading normal Cycles' Bump Map
+    Correction bent (optics.valid_reflection1), at receivers rc, by cosine sampling from x0
+    (handoff_gather, bent): the light then leaves the bent vertex along a direction that only the
+    eye's side determines, so no photon and no walk finds it. On a bevelled glass cube 2 cm above
+    the floor, the light reflected off its outside at grazing angles doubles in the shadow beside
+    it (conformance scene cube_grey_reflect). lights: the light indices that count."""
+    if len(lights):
+        handoff_gather(scene, tracer, film, plan, rc, rng, stats, dict.fromkeys(lights), physical=physical,
+                       samples=samples, bent=True)
+
+
+def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found, bent):
     """handoff_gather's radiance (n,3) at a block of receivers; found: light index -> paths taken.
     The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
     segments and the paths taken are found here, per number of specular vertices."""
@@ -344,7 +380,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
     # the kernel writes every entry read below (a lane's first seg_n segments, and the specular
     # vertices before each of them)
     seg, seg_n = np.empty((m, K, 10)), np.zeros(m, np.int64)
-    hist, h_prim = np.empty((m, K, 7)), np.empty((m, K), np.int64)
+    hist, h_prim = np.empty((m, K, 8)), np.empty((m, K), np.int64)
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     rt = tracer.rays()
     counts = kernels.handoff_lanes(rt, u, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
@@ -352,7 +388,8 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
                                    tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
                                    tracer.eps, seg, seg_n, hist, h_prim)
     tracer.cast_by_kernel(rt, counts)
-    stats["rays_handoff"] = stats.get("rays_handoff", 0) + int(counts[embree.KINDS:].sum())
+    name = "bent" if bent else "handoff"
+    stats["rays_" + name] = stats.get("rays_" + name, 0) + int(counts[embree.KINDS:].sum())
     radiance = np.zeros((n, 3))
     lim = Limits.of(scene)
     for k in range(K):  # the segments after bounce = k + 1 specular vertices
@@ -366,10 +403,16 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
         # before the last (bounces.py)
         refl = hist[row, :k, 5].sum(axis=1) if k else np.zeros(row.size)
         fits = lim.fits(rc.prior[row // samples] + ONE_DIFFUSE + np.stack([np.zeros(row.size), refl, k - refl], axis=1))
+        # bent paths are bent_gather's alone (handoff_gather's docstring)
+        fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
             L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t))
             seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits)
             if seen.size == 0:
+                continue
+            if ho is None:
+                np.add.at(radiance, row[seen] // samples, beta[seen] * L[seen])
+                stats["bent_paths"] = stats.get("bent_paths", 0) + int(seen.size)
                 continue
             y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]
             r = row[seen]

@@ -1329,10 +1329,12 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
                 break
             b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
             n = _shading_normal(tns, pr, b1, b2, gg)
-            ok, dd, bb = scatter1(u[lane, 3 + bounce], _neg(d), n, gg, m, kind, mats, b, physical, False)
+            ok, dd, bb, bent = scatter1(u[lane, 3 + bounce], _neg(d), n, gg, m, kind, mats, b, physical, False)
             if not ok:
                 break
             h_prim[lane, bounce] = pr
+            if hist.shape[2] > 7:
+                hist[lane, bounce, 7] = 1.0 if bent else 0.0
             for c in range(3):
                 hist[lane, bounce, c] = p[c]
             hist[lane, bounce, 3], hist[lane, bounce, 4] = b1, b2
@@ -1353,8 +1355,9 @@ def handoff_lanes(rt, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, ph
     3 + K) uniform numbers (direction, roulette, then one per specular vertex). Writes per lane
     the segments after each specular vertex, in order, seg_n of them (seg[lane, k]: origin,
     direction, distance to the next surface (inf: none), throughput), and the specular vertices
-    (hist[lane, j]: point, barycentrics, 1 for a reflection, 1 on a caster; h_prim[lane, j]: the
-    triangle). Returns the ray counters (embree.ray_state)."""
+    (hist[lane, j]: point, barycentrics, 1 for a reflection, 1 on a caster, 1 where Cycles' Bump Map
+    Correction bent the normal (optics.scatter1); h_prim[lane, j]: the triangle). Returns the ray
+    counters (embree.ray_state)."""
     ray = ray_state(rt)
     _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
                   h_prim)
@@ -1463,8 +1466,8 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
                     break
                 if not spec:
                     break
-                ok, dd, bb = scatter1(keyed_uniform(key, lane, it, 0), _neg(d), n, g, m, kind, mats, b,
-                                      not physical, True)
+                ok, dd, bb, _ = scatter1(keyed_uniform(key, lane, it, 0), _neg(d), n, g, m, kind, mats, b,
+                                         not physical, True)
                 if not ok:
                     tally[PH_LOST] += 1
                     break
@@ -1680,8 +1683,8 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
                 break
             if depth >= max_bounces or not (kind == _CONDUCTOR or kind == _DIELECTRIC):
                 break
-            ok, dd, bb = scatter1(keyed_uniform(key, sample[lane], depth, 0), _neg(d), n, g, m, kind, mats, b,
-                                  scale_eta, False)
+            ok, dd, bb, _ = scatter1(keyed_uniform(key, sample[lane], depth, 0), _neg(d), n, g, m, kind, mats, b,
+                                     scale_eta, False)
             if not ok:
                 break
             if _dot(d, g) * _dot(dd, g) < 0:  # bounces.specular_kind
@@ -1793,8 +1796,8 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                     break
                 if not (kind == _CONDUCTOR or kind == _DIELECTRIC) or bounce == max_specular:
                     break
-                ok, dd, bb = scatter1(keyed_uniform(key, lane, ev, 0), _neg(d), hn, hg, hm, kind, mats, b, physical,
-                                      False)
+                ok, dd, bb, _ = scatter1(keyed_uniform(key, lane, ev, 0), _neg(d), hn, hg, hm, kind, mats, b,
+                                         physical, False)
                 ev += 1
                 if not ok:
                     break

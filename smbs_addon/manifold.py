@@ -554,6 +554,9 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         ctx.handoff_seen = ctx.first_order = False
     hit = np.flatnonzero(total.max(axis=1) > 0)
     film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None])
+    from .indirect import bending_lights, bent_gather
+
+    bent_gather(scene, tracer, film, plan, rc, rng, eye_stats, bending_lights(scene, plan), physical=opts.physical)
     seen = np.flatnonzero(rc.eye_specular > 0)
     if seen.size == 0:
         return

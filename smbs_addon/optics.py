@@ -54,6 +54,36 @@ def refract1(w, n, eta):
 
 
 @njit(inline="always", **JIT)
+def valid_reflection1(ng, wi, n):
+    """Cycles' Bump Map Correction for mirrors and glass (ensure_valid_specular_reflection,
+    kernel/closure/bsdf_util.h; Material > Settings > Bump Map Correction, on by default): where
+    the mirror image of wi about the shading normal n would leave the surface lower than
+    min(0.9 wi.ng, 0.01) above it, n is turned towards ng, in their plane, just far enough to
+    put it there. ng faces wi (wi: the unit direction back along the eye's path). Cycles bends
+    every smooth-shaded specular closure's normal so, for reflection and refraction alike: the
+    light then arrives along the bent normal's mirror image, at that height, whatever wi was
+    below it. Returns (the normal to scatter about, whether it was bent)."""
+    c = 2.0 * _dot(n, wi)
+    iz = _dot(wi, ng)
+    thr = min(0.9 * iz, 0.01)
+    if c * _dot(n, ng) - iz >= thr:  # ng . reflect1(wi, n)
+        return n, False
+    nn = _dot(n, ng)
+    x = (n[0] - nn * ng[0], n[1] - nn * ng[1], n[2] - nn * ng[2])
+    lx = math.sqrt(_dot(x, x))
+    x = (x[0] / lx, x[1] / lx, x[2] / lx) if lx > 0 else n
+    ix = _dot(wi, x)
+    a = ix * ix + iz * iz
+    if not a > 0:
+        return ng, True
+    b = 2.0 * (a + iz * thr)
+    disc = math.sqrt(max(b * b - 4.0 * a * (thr + iz) ** 2, 0.0))
+    nz2 = 0.25 * (b + disc) / a if ix < 0 else 0.25 * (b - disc) / a
+    nx, nz = math.sqrt(max(1.0 - nz2, 0.0)), math.sqrt(max(nz2, 0.0))
+    return (nx * x[0] + nz * ng[0], nx * x[1] + nz * ng[1], nx * x[2] + nz * ng[2]), True
+
+
+@njit(inline="always", **JIT)
 def fresnel_dielectric1(cos_i, eta):
     """Unpolarised Fresnel reflectance. cos_i = w.n (its sign tells the side); eta =
     n_inside / n_outside with n pointing outside. 1 on total internal reflection."""
@@ -126,23 +156,36 @@ def _row3(a, i):
 @njit(inline="always", **JIT)
 def _material(mats, m):
     """Material m's (kind, Fresnel model, colour, reflection tint, IOR) from the scene's tables
-    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior)."""
-    kind, fres, color, rcolor, ior = mats
+    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior, bump correction)."""
+    kind, fres, color, rcolor, ior, _ = mats
     return kind[m], fres[m], _row3(color, m), _row3(rcolor, m), ior[m]
 
 
 @njit(inline="always", **JIT)
 def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     """One perfect-specular interaction, as Cycles makes it (reference.scatter_specular):
-    returns (ok, the new direction (unit), the new weight). u: the uniform number that picks
-    the lobe; kind_m: the kind the caller found (material m's)."""
+    returns (ok, the new direction (unit), the new weight, bent). u: the uniform number that picks
+    the lobe; kind_m: the kind the caller found (material m's).
+
+    Bump Map Correction (the material's flag in mats): along an eye path (not adjoint) the
+    shading normal is bent as Cycles bends it (valid_reflection1; bent: it was); a photon (adjoint)
+    whose eye-side direction Cycles would have scattered about a bent normal dies, with bent
+    True: Cycles' eye paths from that direction go elsewhere, so the path is none of Cycles'."""
     zero = (0.0, 0.0, 0.0)
     kind, fres, color, rcolor, eta = _material(mats, m)
     if _dot(ns, ng) < 0:  # a shading normal on the geometric one's side
         ns = (-ns[0], -ns[1], -ns[2])
     cin = _dot(w_in, ng)
-    cs = _dot(w_in, ns)
     sgn = 1.0 if cin > 0 else (-1.0 if cin < 0 else 0.0)
+    correct = mats[5][m] != 0
+    if correct and not adjoint and sgn != 0:  # Cycles flips both normals to w_in's side first
+        nb, bent = valid_reflection1((sgn * ng[0], sgn * ng[1], sgn * ng[2]), w_in,
+                                     (sgn * ns[0], sgn * ns[1], sgn * ns[2]))
+        if bent:
+            ns = (sgn * nb[0], sgn * nb[1], sgn * nb[2])
+    else:
+        bent = False
+    cs = _dot(w_in, ns)
     front = cs * sgn > 0  # Cycles: N.wi <= 0 after the flip -> no scattering
     R, T = specular_weights1(kind, fres, color, rcolor, eta, cs)
     r_lum, t_lum = R[0] + R[1] + R[2], T[0] + T[1] + T[2]
@@ -168,10 +211,16 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     side = (cin * cout > 0) if choose_r else ((cin * cout < 0) and t_ok)
     finite = b[0] == b[0] and b[1] == b[1] and b[2] == b[2]  # numpy's max of a row with a NaN is NaN
     if not (front and side and p_sel > 0 and finite and (b[0] > 0 or b[1] > 0 or b[2] > 0)):
-        return False, zero, zero
+        return False, zero, zero, bent
     ln = math.sqrt(_dot(n_out, n_out))
     inv = 1.0 / ln if ln > 0 else 0.0
-    return True, (n_out[0] * inv, n_out[1] * inv, n_out[2] * inv), b
+    d = (n_out[0] * inv, n_out[1] * inv, n_out[2] * inv)
+    if correct and adjoint:  # would Cycles bend the normal for the eye's direction d?
+        so = 1.0 if cout > 0 else -1.0
+        _, bent = valid_reflection1((so * ng[0], so * ng[1], so * ng[2]), d, (so * ns[0], so * ns[1], so * ns[2]))
+        if bent:
+            return False, zero, zero, True
+    return True, d, b, bent
 
 
 # ------------------------------------------------------------------ over arrays
@@ -184,8 +233,8 @@ def scatter_rows(u, w_in, ns, ng, mat, kind, mats, beta, scale_eta, adjoint):
     keep = np.zeros(n, np.int64)
     cnt = 0
     for i in range(n):
-        ok, d, b = scatter1(u[i], _row3(w_in, i), _row3(ns, i), _row3(ng, i), mat[i], kind[i], mats,
-                            _row3(beta, i), scale_eta, adjoint)
+        ok, d, b, _ = scatter1(u[i], _row3(w_in, i), _row3(ns, i), _row3(ng, i), mat[i], kind[i], mats,
+                               _row3(beta, i), scale_eta, adjoint)
         if ok:
             keep[cnt] = i
             for c in range(3):
@@ -193,6 +242,29 @@ def scatter_rows(u, w_in, ns, ng, mat, kind, mats, beta, scale_eta, adjoint):
                 b_out[cnt, c] = b[c]
             cnt += 1
     return d_out[:cnt], b_out[:cnt], keep[:cnt]
+
+
+@njit(**JIT)
+def _bent_rows(wi, ns, ng):
+    n = wi.shape[0]
+    out = np.zeros(n, np.bool_)
+    for i in range(n):
+        g, s, w = _row3(ng, i), _row3(ns, i), _row3(wi, i)
+        if _dot(s, g) < 0:
+            s = (-s[0], -s[1], -s[2])
+        c = _dot(w, g)
+        if c != 0:
+            sg = 1.0 if c > 0 else -1.0
+            out[i] = valid_reflection1((sg * g[0], sg * g[1], sg * g[2]), w, (sg * s[0], sg * s[1], sg * s[2]))[1]
+    return out
+
+
+def bent(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:
+    """Where Cycles' Bump Map Correction bends the shading normal ns for the eye's direction wi
+    (unit, (N,3)): valid_reflection1 after Cycles' flips, (N,) bool. A path light-side estimators
+    make through such a vertex is none of Cycles' (scatter1)."""
+    (wi, ns, ng), shape = _rows3(wi, ns, ng)
+    return _bent_rows(wi, ns, ng).reshape(shape)
 
 
 @njit(**JIT)
@@ -238,7 +310,14 @@ def materials(scene) -> tuple:
     """The scene's material tables as scatter1 takes them."""
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
-            np.ascontiguousarray(scene.mat_ior, np.float64))
+            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64))
+
+
+def bump_correction(scene) -> np.ndarray:
+    """(M,) bool: the materials whose mirrors and glass Cycles bends at grazing angles
+    (Scene.mat_bump_correction; none in a scene that does not say)."""
+    f = np.asarray(getattr(scene, "mat_bump_correction", np.zeros(0, bool)), bool)
+    return f if f.shape == (len(scene.mat_kind),) else np.zeros(len(scene.mat_kind), bool)
 
 
 def _rows3(*arrays):
@@ -276,7 +355,8 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     cos_i = np.ascontiguousarray(cos_i, np.float64).reshape(-1)
     f0 = np.ascontiguousarray(np.broadcast_to(np.asarray(f0, np.float64), (len(cos_i), 3)))
     n = len(cos_i)
-    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.zeros((n, 3)), np.ones(n))
+    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.zeros((n, 3)), np.ones(n),
+            np.zeros(n, np.int64))
     return _weights_rows(np.arange(n), mats, cos_i)[0]
 
 

@@ -239,3 +239,18 @@ def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, 
                        max_bounces=max_bounces, scale_eta=physical, cells=cells)
     gather(scene, tracer, film, plan, rc, rng, stats, lights_direct, physical=physical,
            lights_hit=light_indices, count_first=True)
+
+
+def trace_bent(scene, tracer, cam, film, plan, lights, start, n, n_batch, rng, stats, physical=False):
+    """The light tracer's share of the paths through a vertex Cycles' Bump Map Correction bends
+    (indirect.bent_gather) at receivers the camera sees directly, where photons splat (no photon
+    makes such a path; at receivers seen through mirrors and glass trace_eye's gather finds
+    them): eye samples start..start+n of the batch to their first surface, kept where it is a
+    diffuse receiver seen directly."""
+    from .eye import eye_receivers
+    from .indirect import bent_gather
+
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
+                       scale_eta=physical)
+    bent_gather(scene, tracer, film, plan, rc.take(np.flatnonzero(rc.eye_specular == 0)), rng, stats, lights,
+                physical=physical)

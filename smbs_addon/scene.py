@@ -40,7 +40,7 @@ AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
-OPTIONAL = ("light_paths",)
+OPTIONAL = ("light_paths", "mat_bump_correction")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 
 
@@ -133,6 +133,11 @@ class Scene:
     # Cycles' Light Paths bounce limits (bounces.Limits): max, diffuse, glossy, transmission;
     # -1: none (a scene built in code, or saved before they were exported)
     light_paths: np.ndarray = field(default_factory=lambda: np.full(4, -1, np.int64))
+    # (M,) bool: Cycles' Material > Settings > Bump Map Correction (on by default in Blender): a
+    # smooth-shaded mirror or glass bends its shading normal towards the geometric one where the
+    # reflection of the eye's direction would dip under the surface (optics.valid_reflection1);
+    # empty: off for every material (a scene built in code, or saved before it was exported)
+    mat_bump_correction: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -215,6 +220,8 @@ class Scene:
         for name in ("mat_kind", "mat_ior", "mat_roughness", "mat_strength", "mat_fresnel"):
             if getattr(self, name).shape != (M,):
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
+        if self.mat_bump_correction.shape not in ((0,), (M,)):
+            raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
         for name in ("mat_color", "mat_reflect_color"):
             if getattr(self, name).shape != (M, 3):
                 raise SceneError(f"scene array '{name}' must be ({M}, 3)")

@@ -214,7 +214,7 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     m = n * samples
     u = rng.random((m, 3 + K))
     seg, seg_n = np.zeros((m, K, 10)), np.zeros(m, np.int64)
-    hist, h_prim = np.zeros((m, K, 7)), np.zeros((m, K), np.int64)
+    hist, h_prim = np.zeros((m, K, 8)), np.zeros((m, K), np.int64)
     rt = tracer.rays()
     counts = kernels.handoff_lanes(rt, u, samples, K, x0, ng, ns, w0, beta0, alb, tracer.kernel_geometry(plan.casters),
                                    optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim)

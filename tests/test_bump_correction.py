@@ -1,0 +1,142 @@
+"""Cycles' Bump Map Correction on mirrors and glass (optics.valid_reflection1).
+
+Cycles (Material > Settings > Bump Map Correction, on by default) bends a smooth-shaded specular
+closure's normal towards the geometric one wherever the mirror image of the eye's direction would
+leave the surface lower than min(0.9 wi.ng, 0.01): the light then arrives along the bent mirror
+image. Photons and walks cannot make those paths (they end on a ring of directions at that height),
+so the paths through a bent vertex are indirect.bent_gather's alone, and the photons and walks
+drop the paths Cycles' eye would have bent. Cycles itself judges the result in test_conformance
+(cube_grey_reflect: the light reflected off a bevelled glass cube's outside, 0.74 of Cycles'
+without the correction).
+"""
+import math
+
+import numpy as np
+
+from smbs_addon import builder, optics
+from smbs_addon import scene as S
+from smbs_addon.estimators import chain_throughput
+from smbs_addon.geometry import Vertex
+
+
+def _random_configurations(n, seed=0):
+    """ng = +z, shading normals tilted up to 40 degrees, eye directions over the upper
+    hemisphere with many near grazing."""
+    rng = np.random.default_rng(seed)
+    th, ph = rng.uniform(0, 0.7, n), rng.uniform(0, 2 * math.pi, n)
+    ns = np.stack([np.sin(th) * np.cos(ph), np.sin(th) * np.sin(ph), np.cos(th)], 1)
+    z = rng.uniform(0, 1, n) ** 3
+    a = rng.uniform(0, 2 * math.pi, n)
+    r = np.sqrt(1 - z * z)
+    wi = np.stack([r * np.cos(a), r * np.sin(a), z], 1)
+    return ns, wi
+
+
+def test_the_bent_normal_puts_the_mirror_image_at_the_threshold():
+    """Unbent: the mirror image about n already lies at or above min(0.9 wi.ng, 0.01) (and n
+    comes back unchanged). Bent: a unit normal in the plane of n and ng, turned towards ng, whose
+    mirror image of wi lies exactly at that height (to 1e-9 where wi.ng >= 1e-4; closer to grazing
+    the quartic's root loses digits, as Cycles' does, but the image never dips under the surface).
+    About a third of these configurations bend."""
+    ns, wi = _random_configurations(20000)
+    ng = (0.0, 0.0, 1.0)
+    bent_count = 0
+    for n, w in zip(ns, wi):
+        n, w = tuple(n), tuple(w)
+        nb, bent = optics.valid_reflection1(ng, w, n)
+        thr = min(0.9 * w[2], 0.01)
+        rz = optics.reflect1(w, nb)[2]
+        assert np.isfinite(nb).all()
+        if not bent:
+            assert nb == n and rz >= thr
+            continue
+        bent_count += 1
+        assert abs(np.linalg.norm(nb) - 1.0) < 1e-12
+        assert abs(np.linalg.det(np.array([n, ng, nb]))) < 1e-9  # in the plane of n and ng
+        assert nb[2] >= n[2] - 1e-12  # turned towards ng
+        assert rz >= -1e-8  # on or above the surface to rounding, at any angle
+        if w[2] >= 1e-4:
+            assert abs(rz - thr) < 1e-9
+    assert 5000 < bent_count < 10000, bent_count
+
+
+def test_bent_agrees_with_the_kernel_and_ignores_the_side():
+    """optics.bent (over arrays, Cycles' flips first) is valid_reflection1's flag, whichever side
+    of the surface the eye is on and whichever way the shading normal was stored."""
+    ns, wi = _random_configurations(2000, seed=1)
+    ng = np.broadcast_to([0.0, 0.0, 1.0], ns.shape)
+    want = np.array([optics.valid_reflection1((0.0, 0.0, 1.0), tuple(w), tuple(n))[1] for n, w in zip(ns, wi)])
+    assert want.any() and not want.all()
+    np.testing.assert_array_equal(optics.bent(wi, ns, ng), want)
+    np.testing.assert_array_equal(optics.bent(-wi, -ns, ng), want)  # the eye below: both normals flip
+    np.testing.assert_array_equal(optics.bent(wi, -ns, ng), want)  # a stored normal facing away
+
+
+def _mirror_tables(correct):
+    b = builder.SceneBuilder("m")
+    b.material("Mirror", S.CONDUCTOR, color=(0.9, 0.9, 0.9), bump_correction=correct)
+    b.material("Floor", S.DIFFUSE)
+    b.mesh("Sheet", [(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [(0, 1, 2), (0, 2, 3)], "Mirror")
+    return b.build()
+
+
+def test_scatter_bends_the_eye_and_drops_the_photon():
+    """A mirror whose shading normal leans 20 degrees away from an eye 10 degrees above the
+    surface: with the correction the eye's ray leaves at height 0.01 (bent), without it the
+    mirror image dips under the surface and the eye path dies, as Cycles' would. A photon that
+    arrives 0.3 degrees above the surface reflects (about the unbent normal) into an eye
+    direction Cycles would bend: it dies with the correction and lives without it."""
+    lean = math.radians(20)
+    ns = (-math.sin(lean), 0.0, math.cos(lean))
+    ng = (0.0, 0.0, 1.0)
+    e = math.radians(10)
+    wi = (math.cos(e), 0.0, math.sin(e))  # towards +x: the normal leans away from the eye
+    beta = (1.0, 1.0, 1.0)
+    for correct in (True, False):
+        mats = optics.materials(_mirror_tables(correct))
+        ok, d, b, bent = optics.scatter1(0.5, wi, ns, ng, 0, S.CONDUCTOR, mats, beta, False, False)
+        if correct:
+            assert ok and bent and abs(d[2] - 0.01) < 1e-12 and b == (0.9, 0.9, 0.9)
+        else:
+            assert not ok and not bent
+    ns2 = (-math.sin(math.radians(5)), 0.0, math.cos(math.radians(5)))
+    g = math.radians(0.3)
+    w_light = (-math.cos(g), 0.0, math.sin(g))
+    for correct in (True, False):
+        mats = optics.materials(_mirror_tables(correct))
+        ok, d, _, bent = optics.scatter1(0.5, w_light, ns2, ng, 0, S.CONDUCTOR, mats, beta, False, True)
+        assert d[2] > 0.0111 or not ok
+        assert ok != correct and bent == correct
+
+
+def test_walked_paths_through_a_bent_vertex_carry_nothing():
+    """chain_throughput: the same one-vertex chains on the mirror, with and without the
+    correction, differ exactly where optics.bent says Cycles would bend the vertex's normal."""
+    rng = np.random.default_rng(3)
+    n = 400
+    ns, wi = _random_configurations(n, seed=3)
+    p = np.zeros((n, 3))
+    x0 = p + wi * rng.uniform(0.5, 2.0, n)[:, None]
+    ng = np.broadcast_to([0.0, 0.0, 1.0], (n, 3)).copy()
+    z = np.zeros((n, 3))
+    v = Vertex(p=p, ng=ng, n=ns, s=z, t=z, dn_s=z, dn_t=z, prim=np.zeros(n, np.int64), obj=np.zeros(n, np.int64),
+               mat=np.zeros(n, np.int64))
+    light = p + np.array([0.0, 0.0, 5.0])
+    on = chain_throughput(_mirror_tables(True), "R", x0, [v], light, False)
+    off = chain_throughput(_mirror_tables(False), "R", x0, [v], light, False)
+    dropped = optics.bent(wi, ns, ng)
+    assert 0 < dropped.sum() < n
+    np.testing.assert_array_equal(on[dropped], 0.0)
+    np.testing.assert_array_equal(on[~dropped], off[~dropped])
+    assert (off[dropped] > 0).all()
+
+
+def test_a_scene_without_the_flag_is_unchanged_and_round_trips(tmp_path):
+    """Scenes built in code have no correction (an empty table); the flag survives save/load."""
+    sc = _mirror_tables(False)
+    assert sc.mat_bump_correction.shape == (0,)
+    assert not optics.bump_correction(sc).any()
+    sc = _mirror_tables(True)
+    sc.save(tmp_path / "s.npz")
+    back = S.Scene.load(tmp_path / "s.npz")
+    np.testing.assert_array_equal(back.mat_bump_correction, [True, False])
