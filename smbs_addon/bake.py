@@ -334,12 +334,14 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
     _threaded_chunks(tracer, film, prog, -(-eye_per_batch // CHUNK), run_chunk, eye_stats,
                      f"seen through glass and mirrors, batch {b + 1}/{settings.batches}")
     eye_stats["time_s"] += time.perf_counter() - t_eye
-    from .indirect import bending_lights
+    from .indirect import BENT_EYE_SHARE, bending_lights
 
     bent = bending_lights(scene, plan)
     if bent:  # the paths through normals Cycles bends, at receivers seen directly (reference.trace_bent)
         t_bent = time.perf_counter()
-        per_batch = _eye_per_batch(cam, film, settings)
+        # a sixteenth of the eye samples, 16 bounces each (indirect.BENT_EYE_SHARE): as many rays
+        # towards the bending triangles as 4 bounces from every eye sample, the eye paths a quarter
+        per_batch = max(1, -(-_eye_per_batch(cam, film, settings) // BENT_EYE_SHARE))
 
         def bent_chunk(c, film_c, st_c):
             start = c * CHUNK

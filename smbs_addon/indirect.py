@@ -42,7 +42,11 @@ from .vec import dot, normalize
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
 HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
-BENT_SAMPLES = 4  # cosine directions per receiver in bent_gather
+BENT_SAMPLES = 4  # bounces per receiver in bent_gather (the manifold passes: one receiver per eye sample)
+# the light tracer's bent_gather: one eye sample in BENT_EYE_SHARE, as many bounces from each (on
+# cube_grey_reflect at 1024 spp, 4 from every eye sample took 11 of the bake's 13.5 s, most of it
+# the eye paths)
+BENT_EYE_SHARE = 16
 # specular vertices handoff_gather follows for the paths no walk takes (chains longer than
 # max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
 # bounces): of the light a bevelled glass cube brings into the frame, chains of more than 8
@@ -280,7 +284,7 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
 
 
 def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
-                   samples=HANDOFF_SAMPLES, found: dict | None = None, bent=False):
+                   samples=HANDOFF_SAMPLES, found: dict | None = None, bent=False, aim=True):
     """The hand-off for receivers seen through mirrors or glass (rc), where no photon can
     reach the camera: one cosine bounce from x0 through up to K specular vertices, counting
     a light hit only when reference._handoff_select gives that path to the photons (its
@@ -299,8 +303,9 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
     bent (bent_gather): instead, every path through a specular vertex whose normal Cycles' Bump
     Map Correction bent (optics.valid_reflection1) counts, and nothing else (handoffs: light index
-    -> None). Without it such paths never count here: neither photons nor walks make them, so
-    they are bent_gather's alone."""
+    -> None; aim: its first bounce towards the triangles that bend, False: cosine, every bent path).
+    Without bent such paths never count here: neither photons nor walks make them, so they are
+    bent_gather's alone."""
     n = len(rc.p)
     if n == 0 or not handoffs:
         return
@@ -313,7 +318,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     def block(a, b):
         st, per_light = {}, {}
         rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), np.random.default_rng([key, a]), st,
-                             handoffs, physical, samples, per_light, bent)
+                             handoffs, physical, samples, per_light, bent, aim)
         return rad, st, per_light
 
     # receivers per block: HANDOFF_LANES rays in flight at up to 4 specular vertices (each lane
@@ -354,20 +359,43 @@ def bending_lights(scene, plan) -> list:
     return [lp.index for lp in plan.lights if light_can_be_hit(scene, lp.index)]
 
 
+def bent_candidates(scene, tracer, plan):
+    """The triangles whose normals Cycles' Bump Map Correction can bend (on planned casters, the
+    material's flag on, shading normals that differ from the geometric one) and their cumulative
+    areas: bent_gather aims its first bounce at points uniform over them. Kept on the plan."""
+    cached = getattr(plan, "_bent_candidates", None)
+    if cached is not None:
+        return cached
+    corr = optics.bump_correction(scene)
+    ok = np.asarray(plan.casters, bool)[scene.tri_object] & corr[scene.tri_material]
+    ok &= np.abs(np.einsum("tkc,tc->tk", tracer.ns_corner, tracer.ng)).min(axis=1) < 1.0 - 1e-12
+    cand = np.flatnonzero(ok).astype(np.int64)
+    v = tracer.v[cand]
+    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    cached = (cand, np.cumsum(area)) if cand.size and area.sum() > 0 else (np.zeros(0, np.int64), np.zeros(0))
+    plan._bent_candidates = cached
+    return cached
+
+
 def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, physical=False,
-                samples=BENT_SAMPLES):
-    """The caustic paths through a mirror or glass vertex whose shading normal Cycles' Bump Map
-    Correction bent (optics.valid_reflection1), at receivers rc, by cosine sampling from x0
-    (handoff_gather, bent): the light then leaves the bent vertex along a direction that only the
-    eye's side determines, so no photon and no walk finds it. On a bevelled glass cube 2 cm above
-    the floor, the light reflected off its outside at grazing angles doubles in the shadow beside
-    it (conformance scene cube_grey_reflect). lights: the light indices that count."""
-    if len(lights):
+                samples=BENT_SAMPLES, aim=True):
+    """The caustic paths whose first specular vertex (from the receiver) has a shading normal
+    Cycles' Bump Map Correction bends (optics.valid_reflection1), at receivers rc: the light
+    then leaves the bent vertex along a direction only the eye's side determines, so no photon
+    and no walk makes them. On a bevelled glass cube 2 cm above the floor, the light reflected
+    off its outside at grazing angles doubles in the shadow beside it (conformance scene
+    cube_grey_reflect). Traced from x0 (handoff_gather, bent) towards points uniform in area over
+    the triangles that can bend (bent_candidates; kernels._toward_triangle): cosine sampling
+    found 38 such paths in 22 M rays on that cube. lights: the light indices that count. Paths
+    bent only at a later vertex are in no estimator (handoff_gather drops every bent path).
+    aim False: cosine sampling instead, every bent path (the tests' independent estimator)."""
+    if len(lights) and len(bent_candidates(scene, tracer, plan)[0]):
         handoff_gather(scene, tracer, film, plan, rc, rng, stats, dict.fromkeys(lights), physical=physical,
-                       samples=samples, bent=True)
+                       samples=samples, bent=True, aim=aim)
 
 
-def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found, bent):
+def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found, bent,
+                   aim=True):
     """handoff_gather's radiance (n,3) at a block of receivers; found: light index -> paths taken.
     The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
     segments and the paths taken are found here, per number of specular vertices."""
@@ -383,10 +411,11 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
     hist, h_prim = np.empty((m, K, 8)), np.empty((m, K), np.int64)
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     rt = tracer.rays()
+    cand, cdf = bent_candidates(scene, tracer, plan) if bent and aim else (np.zeros(0, np.int64), np.zeros(0))
     counts = kernels.handoff_lanes(rt, u, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
                                    f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
                                    tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
-                                   tracer.eps, seg, seg_n, hist, h_prim)
+                                   tracer.eps, seg, seg_n, hist, h_prim, cand, cdf)
     tracer.cast_by_kernel(rt, counts)
     name = "bent" if bent else "handoff"
     stats["rays_" + name] = stats.get("rays_" + name, 0) + int(counts[embree.KINDS:].sum())

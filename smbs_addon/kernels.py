@@ -1296,20 +1296,56 @@ def _hit_or_miss(ray, o, d, tv, tng, eps):
     return pr, t, p, g, v0, e1, e2
 
 
+@njit(inline="always", **_JIT)
+def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, tv, tng):
+    """bent_gather's first bounce from the diffuse receiver x (w: back to the eye; g, n: its
+    normals; a: albedo): towards a point uniform in area over the candidate triangles cand (cdf:
+    their cumulative areas), weighted by the Lambertian BSDF x cosine over the point's density in
+    solid angle. Returns (kept, direction, weight, the triangle the ray must meet first)."""
+    zero = (0.0, 0.0, 0.0)
+    total = cdf[cdf.shape[0] - 1]
+    j = min(np.searchsorted(cdf, u0 * total, side="right"), cdf.shape[0] - 1)
+    pr = cand[j]
+    su = math.sqrt(u1)
+    b1, b2 = su * (1.0 - u2), su * u2  # uniform over the triangle
+    v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
+    e1 = (tv[pr, 1, 0] - v0[0], tv[pr, 1, 1] - v0[1], tv[pr, 1, 2] - v0[2])
+    e2 = (tv[pr, 2, 0] - v0[0], tv[pr, 2, 1] - v0[1], tv[pr, 2, 2] - v0[2])
+    q = _sub(_add(v0, _add(_mul(b1, e1), _mul(b2, e2))), x)
+    dist2 = _dot(q, q)
+    if not dist2 > 0:
+        return False, zero, zero, -1
+    d = _mul(1.0 / math.sqrt(dist2), q)
+    side = 1.0 if _dot(w, g) >= 0 else -1.0
+    nn = _mul(side, n)
+    cos0 = _dot(d, nn)
+    cos_p = abs(d[0] * tng[pr, 0] + d[1] * tng[pr, 1] + d[2] * tng[pr, 2])
+    if not (cos0 > 0 and side * _dot(d, g) > 0 and _dot(w, nn) > 0 and cos_p > 0):
+        return False, zero, zero, -1
+    f = cos0 * cos_p * total / (math.pi * dist2)  # (a / pi) cos0 / pdf, pdf = dist^2 / (total cos_p)
+    return True, d, (beta[0] * a[0] * f, beta[1] * a[1] * f, beta[2] * a[2] * f), pr
+
+
 @njit(**_JIT)
 def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
-                  h_prim):
+                  h_prim, cand, cdf):
     """handoff_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim = _borrowed(
-        (u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim))
+    u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf = _borrowed(
+        (u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
+    targeted = cand.shape[0] > 0
     for lane in range(u.shape[0]):
         seg_n[lane] = 0
         i = lane // samples
         g = _v(ng0, i, 0)
-        ok, d, b = _diffuse_scatter(u[lane, 0], u[lane, 1], u[lane, 2], _v(w0, i, 0), g, _v(ns0, i, 0),
-                                    _v(alb, i, 0), _v(beta0, i, 0), False)
+        first = -1
+        if targeted:
+            ok, d, b, first = _toward_triangle(u[lane, 0], u[lane, 1], u[lane, 2], _v(x0, i, 0), _v(w0, i, 0), g,
+                                               _v(ns0, i, 0), _v(alb, i, 0), _v(beta0, i, 0), cand, cdf, tv, tng)
+        else:
+            ok, d, b = _diffuse_scatter(u[lane, 0], u[lane, 1], u[lane, 2], _v(w0, i, 0), g, _v(ns0, i, 0),
+                                        _v(alb, i, 0), _v(beta0, i, 0), False)
         if not ok:
             continue
         o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
@@ -1321,7 +1357,7 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
                     seg[lane, k, c], seg[lane, k, 3 + c], seg[lane, k, 7 + c] = o[c], d[c], b[c]
                 seg[lane, k, 6] = t
                 seg_n[lane] = k + 1
-            if pr < 0 or bounce == K:
+            if pr < 0 or bounce == K or (bounce == 0 and targeted and pr != first):
                 break
             m = tri_material[pr]
             kind = mat_kind[m]
@@ -1330,7 +1366,7 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
             b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
             n = _shading_normal(tns, pr, b1, b2, gg)
             ok, dd, bb, bent = scatter1(u[lane, 3 + bounce], _neg(d), n, gg, m, kind, mats, b, physical, False)
-            if not ok:
+            if not ok or (targeted and bounce == 0 and not bent):  # bent_gather: bent first vertices only
                 break
             h_prim[lane, bounce] = pr
             if hist.shape[2] > 7:
@@ -1347,7 +1383,7 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
 @TypedOnce
 @njit(**_JIT)
 def handoff_lanes(rt, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
-                  h_prim):
+                  h_prim, cand, cdf):
     """indirect.handoff_gather's paths, lane i // samples's receiver (x0, ng0, ns0, w0: the
     direction back to the eye, beta0: the throughput, alb: the albedo): a cosine bounce with
     Russian roulette on the albedo (indirect._diffuse_bounce), then through up to K specular
@@ -1356,11 +1392,15 @@ def handoff_lanes(rt, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, ph
     the segments after each specular vertex, in order, seg_n of them (seg[lane, k]: origin,
     direction, distance to the next surface (inf: none), throughput), and the specular vertices
     (hist[lane, j]: point, barycentrics, 1 for a reflection, 1 on a caster, 1 where Cycles' Bump Map
-    Correction bent the normal (optics.scatter1); h_prim[lane, j]: the triangle). Returns the ray
-    counters (embree.ray_state)."""
+    Correction bent the normal (optics.scatter1); h_prim[lane, j]: the triangle).
+
+    cand, cdf (indirect.bent_gather; empty: the cosine bounce above): the first bounce goes towards
+    a point uniform in area over the triangles cand (cdf: their cumulative areas; _toward_triangle),
+    the ray must meet that triangle first, and its normal must be one Cycles' Bump Map Correction
+    bends there, or the lane ends. Returns the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
     _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
-                  h_prim)
+                  h_prim, cand, cdf)
     return ray[6]
 
 # ------------------------------------------------------------------ the light tracer's photons

@@ -140,3 +140,66 @@ def test_a_scene_without_the_flag_is_unchanged_and_round_trips(tmp_path):
     sc.save(tmp_path / "s.npz")
     back = S.Scene.load(tmp_path / "s.npz")
     np.testing.assert_array_equal(back.mat_bump_correction, [True, False])
+
+
+def _leaning_mirror(correct=True):
+    """A vertical mirror (the plane x = 0, facing +x, 2 m wide, 1 m tall, on the floor) whose
+    shading normals all lean up by 26.6 degrees, under a square light 3 m up just in front of its
+    plane: from the floor between z/2 and 4z/3 in front of a mirror point at height z the eye's
+    mirror image dips behind the mirror, so Cycles bends the normal and the light arrives 0.01
+    above the plane, where the light is."""
+    b = builder.SceneBuilder("leaning mirror")
+    floor = b.material("floor", "diffuse", color=(0.8, 0.8, 0.8))
+    metal = b.material("mirror", "conductor", color=(0.9, 0.9, 0.9), bump_correction=correct)
+    b.plane("Floor", (0, 0, 0), 10, floor)
+    lean = np.array([1.0, 0.0, 0.5]) / math.sqrt(1.25)
+    b.mesh("Mirror", [(0, -1, 0), (0, 1, 0), (0, 1, 1), (0, -1, 1)], [(0, 1, 2, 3)], metal, normals=[lean] * 4)
+    b.light("Area", "AREA", location=(0.02, 0, 3.0), target=(0.02, 0, 0), power=800, size=0.4)
+    b.set_camera((3, 0, 3), (0, 0, 0), lens=40, resolution_x=32, resolution_y=24)
+    return b.build()
+
+
+def test_aimed_bent_paths_agree_with_cosine_sampling():
+    """indirect.bent_gather's aimed first bounce (points uniform over the bending triangles, the
+    density converted to solid angle, kernels._toward_triangle) against plain cosine sampling of
+    the same paths (aim=False), on a mirror where every bent path has one vertex (so 'bent first'
+    is 'bent'): the light at 200 floor points in front of it agrees within 4 standard errors of 8
+    independent runs each (measured: aimed 8009 +- 178, cosine 8201 +- 41; a density off by the
+    cosine at the triangle, or a missed visibility check, would move it by 10% or more)."""
+    from smbs_addon import indirect
+    from smbs_addon.eye import Receivers
+    from smbs_addon.plan import make_plan
+    from smbs_addon.tracer import Tracer
+
+    scene = _leaning_mirror()
+    plan = make_plan(scene)
+    tracer = Tracer(scene)
+    assert indirect.bending_lights(scene, plan) == [0]
+    rng = np.random.default_rng(7)
+    n = 200
+    p = np.stack([rng.uniform(0.05, 1.2, n), rng.uniform(-1.0, 1.0, n), np.zeros(n)], 1)
+    up = np.tile([0.0, 0.0, 1.0], (n, 1))
+    rc = Receivers(rx=np.zeros(n), ry=np.zeros(n), p=p, ng=up, ns=up.copy(), w_eye=up.copy(), beta=np.ones((n, 3)),
+                   mat=np.zeros(n, np.int64), eye_specular=np.zeros(n, np.int64), weight=np.ones(n),
+                   prior=np.zeros((n, 3), np.int64))
+
+    st = {}
+
+    def runs(aim, samples):
+        out = []
+        for k in range(8):
+            rad = indirect._handoff_block(scene, tracer, plan, rc, np.random.default_rng([k, aim]), st, {0: None},
+                                          False, samples, {}, True, aim)
+            out.append(rad.sum())
+        found = st.pop("bent_paths", 0)
+        return np.array(out), found
+
+    aimed, found_a = runs(True, 256)
+    cosine, found_c = runs(False, 2048)
+    assert found_a > 500 and found_c > 50, (found_a, found_c)
+    se = math.hypot(aimed.std(ddof=1), cosine.std(ddof=1)) / math.sqrt(8)
+    assert aimed.std(ddof=1) / math.sqrt(8) < 0.03 * aimed.mean()
+    assert abs(aimed.mean() - cosine.mean()) < 4 * se, (aimed.mean(), cosine.mean(), se)
+    # without the correction nothing bends and the pass has nothing to do
+    plain = _leaning_mirror(correct=False)
+    assert indirect.bending_lights(plain, make_plan(plain)) == []
