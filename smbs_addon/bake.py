@@ -339,8 +339,7 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
     bent = bending_lights(scene, plan)
     if bent:  # the paths through normals Cycles bends, at receivers seen directly (reference.trace_bent)
         t_bent = time.perf_counter()
-        # a sixteenth of the eye samples, 16 bounces each (indirect.BENT_EYE_SHARE): as many rays
-        # towards the bending triangles as 4 bounces from every eye sample, the eye paths a quarter
+        # one eye sample in indirect.BENT_EYE_SHARE, BENT_BOUNCES aimed bounces from each
         per_batch = max(1, -(-_eye_per_batch(cam, film, settings) // BENT_EYE_SHARE))
 
         def bent_chunk(c, film_c, st_c):

@@ -43,10 +43,11 @@ MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
 HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
 BENT_SAMPLES = 4  # bounces per receiver in bent_gather (the manifold passes: one receiver per eye sample)
-# the light tracer's bent_gather: one eye sample in BENT_EYE_SHARE, as many bounces from each (on
-# cube_grey_reflect at 1024 spp, 4 from every eye sample took 11 of the bake's 13.5 s, most of it
-# the eye paths)
-BENT_EYE_SHARE = 16
+# the light tracer's bent_gather: one eye sample in BENT_EYE_SHARE, BENT_BOUNCES from each. On
+# cube_grey_reflect at 1024 spp, 4 from every eye sample took 11 of the bake's 13.5 s, most of it the
+# eye paths; 16 from one in 16, 2.2 of 4.6 s; on the glass ball of sample_blends (256 spp) that
+# doubled the bake for 0.2% of its layer, so 16 from one in 64
+BENT_EYE_SHARE, BENT_BOUNCES = 64, 16
 # specular vertices handoff_gather follows for the paths no walk takes (chains longer than
 # max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
 # bounces): of the light a bevelled glass cube brings into the frame, chains of more than 8

@@ -35,7 +35,7 @@ CASES = [
     ("water_flat_sun0", "smbs", 4),
     ("cube_white_glossy1", "reference", 256),  # Light Paths: 0.86 of the caustic without the limit
     # the reflection off a bevelled glass cube's outside: 0.74 without Cycles' Bump Map Correction
-    ("cube_grey_reflect", "reference", 1024),
+    ("cube_grey_reflect", "reference", 2048),
 ]
 
 
