@@ -542,6 +542,19 @@ def _nothing_to_bake(scene, settings, plan, cam, t0, on_plan) -> BakeResult:
                       batch_luminance=np.zeros((1, H, W), np.float32), std=np.zeros((H, W), np.float32))
 
 
+def _note_bent(scene, tracer, plan) -> None:
+    """The plan says where Cycles' Bump Map Correction bends normals (indirect.bent_gather)."""
+    from .indirect import bending_lights, bent_candidates
+
+    if not bending_lights(scene, plan):
+        return
+    cand = bent_candidates(scene, tracer, plan)[0]
+    if cand.size:
+        names = ", ".join(sorted({scene.object_names[o] for o in scene.tri_object[cand]}))
+        plan.notes.append(f"{names}: smooth normals that Cycles' Bump Map Correction bends at grazing angles; "
+                          "those paths are traced from the receivers")
+
+
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None, on_plan=None) -> BakeResult:
     """Bake the caustic layer of a Scene.
 
@@ -560,6 +573,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
         return _nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
     film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
     tracer = _trace_plan(plan, scene, settings, cam)
+    _note_bent(scene, tracer, plan)
     if on_plan is not None:
         on_plan(plan.words())
     if plan.nothing:

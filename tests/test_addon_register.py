@@ -187,6 +187,16 @@ def test_statistics_of_a_manifold_bake(addon):
                           "Time": "5.13 s"}
 
 
+def test_bent_normal_paths_are_counted_for_every_method(addon):
+    """The paths through normals Cycles' Bump Map Correction bends: the light tracer keeps them in
+    its eye pass's "bent" part, the manifold methods in the eye pass itself."""
+    panels = importlib.import_module("smbs_caustics.ui.panels")
+    lt = {"eye_pass": {"eye_paths": 10, "bent": {"time_s": 0.5, "eye_paths": 4, "bent_paths": 1266}}}
+    assert dict(panels.summarize_stats(lt))["Bent Normals"] == "1.3 k paths"
+    assert dict(panels.summarize_stats({"eye_pass": {"bent_paths": 42}}))["Bent Normals"] == "42 paths"
+    assert "Bent Normals" not in dict(panels.summarize_stats({"eye_pass": {"eye_paths": 10}}))
+
+
 def test_capped_trials_show_what_they_leave_out(addon):
     panels = importlib.import_module("smbs_caustics.ui.panels")
     trials = {"mean": 2.36, "max": 8, "capped": 50, "capped_energy_min": 6.1, "capped_share_min": 0.104}

@@ -97,6 +97,11 @@ def summarize_stats(stats):
     handoff = stats.get("handoff")
     if isinstance(handoff, dict) and _number(handoff.get("handoff_paths")):
         rows.append(("Photon Hand-off", f"{_format_count(handoff['handoff_paths'])} paths"))
+    eye = stats.get("eye_pass")
+    if isinstance(eye, dict):  # paths through normals Cycles' Bump Map Correction bends
+        bent = eye.get("bent") if isinstance(eye.get("bent"), dict) else eye
+        if _number(bent.get("bent_paths")):
+            rows.append(("Bent Normals", f"{_format_count(bent['bent_paths'])} paths"))
     rays = _rays(stats)
     if rays is not None:
         rows.append(("Rays", _format_count(rays)))
