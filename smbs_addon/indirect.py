@@ -48,6 +48,10 @@ BENT_SAMPLES = 4  # bounces per receiver in bent_gather (the manifold passes: on
 # eye paths; 16 from one in 16, 2.2 of 4.6 s; on the glass ball of sample_blends (256 spp) that
 # doubled the bake for 0.2% of its layer, so 16 from one in 64
 BENT_EYE_SHARE, BENT_BOUNCES = 64, 16
+# specular vertices bent_gather follows: the bent paths are a few % of a layer at most (1.65% on
+# cube_grey), and chains longer than 8 carry 0.8-2.0% of a bevelled cube's light (OTHERS_DEPTH);
+# the pass's cost is mostly per lane, in the (lanes, 3 + depth) uniform numbers drawn for it
+BENT_DEPTH = 8
 # specular vertices handoff_gather follows for the paths no walk takes (chains longer than
 # max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
 # bounces): of the light a bevelled glass cube brings into the frame, chains of more than 8
@@ -339,8 +343,8 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
 def _handoff_depth(handoffs: dict) -> int:
     """Specular vertices handoff_gather follows: the longest walked chain, or OTHERS_DEPTH where
-    it takes the paths no walk takes (Handoff.others) or the bent ones (None)."""
-    return max(OTHERS_DEPTH if h is None else max(h.max_chain, OTHERS_DEPTH) if h.others else h.max_chain
+    it takes the paths no walk takes (Handoff.others), BENT_DEPTH for the bent ones (None)."""
+    return max(BENT_DEPTH if h is None else max(h.max_chain, OTHERS_DEPTH) if h.others else h.max_chain
                for h in handoffs.values())
 
 
