@@ -42,7 +42,10 @@ from .vec import dot, normalize
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
 HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
-BENT_SAMPLES = 4  # bounces per receiver in bent_gather (the manifold passes: one receiver per eye sample)
+BENT_SAMPLES = 4  # bounces per receiver in bent_gather by default
+# the manifold passes' bent_gather: one receiver in BENT_RECEIVER_SHARE, BENT_BOUNCES from each (4
+# from every receiver made SMBS on sample_blends' glass ball 3.3 -> 3.9-4.0 s at 16 spp)
+BENT_RECEIVER_SHARE = 16
 # the light tracer's bent_gather: one eye sample in BENT_EYE_SHARE, BENT_BOUNCES from each. On
 # cube_grey_reflect at 1024 spp, 4 from every eye sample took 11 of the bake's 13.5 s, most of it the
 # eye paths; 16 from one in 16, 2.2 of 4.6 s; on the glass ball of sample_blends (256 spp) that
