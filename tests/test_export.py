@@ -378,6 +378,23 @@ def test_glass_bsdf_tints_reflection_and_transmission():
     assert np.isclose(sc.mat_roughness[0], 0.05)
 
 
+def test_bump_map_correction_is_read_per_material():
+    """Cycles' Bump Map Correction (Material > Settings, on by default) is exported per material:
+    a glass left at the default keeps it, a mirror with it turned off does not, and a scene with
+    one material of each says so material by material."""
+    glass = material("Glass", "ShaderNodeBsdfGlass", Color=(1.0, 1.0, 1.0), IOR=1.5)
+    mirror = material("Mirror", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.0)
+    assert glass.cycles.use_bump_map_correction  # Blender's default
+    mirror.cycles.use_bump_map_correction = False
+    mesh_with(glass, "A")
+    mesh_with(mirror, "B")
+    add_camera()
+    sc, _ = export()
+    flags = dict(zip(sc.mat_names, sc.mat_bump_correction))
+    assert flags["Glass"] and not flags["Mirror"]
+    assert not mirror.cycles.use_bump_map_correction and glass.cycles.use_bump_map_correction  # untouched
+
+
 def test_refraction_bsdf_has_no_reflection():
     sc, _ = one_material(material("Refr", "ShaderNodeBsdfRefraction", Color=(1.0, 1.0, 1.0),
                                   IOR=1.33))
