@@ -336,7 +336,7 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
     eye_stats["time_s"] += time.perf_counter() - t_eye
     from .indirect import BENT_EYE_SHARE, bending_lights
 
-    bent = bending_lights(scene, plan)
+    bent = bending_lights(scene, tracer, plan)
     if bent:  # the paths through normals Cycles bends, at receivers seen directly (reference.trace_bent)
         t_bent = time.perf_counter()
         # one eye sample in indirect.BENT_EYE_SHARE, BENT_BOUNCES aimed bounces from each
@@ -546,13 +546,12 @@ def _note_bent(scene, tracer, plan) -> None:
     """The plan says where Cycles' Bump Map Correction bends normals (indirect.bent_gather)."""
     from .indirect import bending_lights, bent_candidates
 
-    if not bending_lights(scene, plan):
+    if not bending_lights(scene, tracer, plan):
         return
     cand = bent_candidates(scene, tracer, plan)[0]
-    if cand.size:
-        names = ", ".join(sorted({scene.object_names[o] for o in scene.tri_object[cand]}))
-        plan.notes.append(f"{names}: smooth normals that Cycles' Bump Map Correction bends at grazing angles; "
-                          "those paths are traced from the receivers")
+    names = ", ".join(sorted({scene.object_names[o] for o in scene.tri_object[cand]}))
+    plan.notes.append(f"{names}: smooth normals that Cycles' Bump Map Correction bends at grazing angles; "
+                      "those paths are traced from the receivers")
 
 
 def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None, on_plan=None) -> BakeResult:

@@ -42,15 +42,13 @@ from .vec import dot, normalize
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
 HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
-BENT_SAMPLES = 4  # bounces per receiver in bent_gather by default
-# the manifold passes' bent_gather: one receiver in BENT_RECEIVER_SHARE, BENT_BOUNCES from each (4
-# from every receiver made SMBS on sample_blends' glass ball 3.3 -> 3.9-4.0 s at 16 spp)
-BENT_RECEIVER_SHARE = 16
-# the light tracer's bent_gather: one eye sample in BENT_EYE_SHARE, BENT_BOUNCES from each. On
-# cube_grey_reflect at 1024 spp, 4 from every eye sample took 11 of the bake's 13.5 s, most of it the
-# eye paths; 16 from one in 16, 2.2 of 4.6 s; on the glass ball of sample_blends (256 spp) that
-# doubled the bake for 0.2% of its layer, so 16 from one in 64
-BENT_EYE_SHARE, BENT_BOUNCES = 64, 16
+# bent_gather's aimed bounces per receiver; its receivers are a share of the eye samples. The
+# manifold passes take one receiver in BENT_RECEIVER_SHARE (4 bounces from every receiver made
+# SMBS on sample_blends' glass ball 3.3 -> 3.9-4.0 s at 16 spp), the light tracer one eye sample
+# in BENT_EYE_SHARE (on cube_grey_reflect at 1024 spp, 4 from every eye sample took 11 of the
+# bake's 13.5 s, most of it the eye paths; 16 from one in 16, 2.2 of 4.6 s; on the glass ball of
+# sample_blends (256 spp) that doubled the bake for 0.2% of its layer, so 16 from one in 64)
+BENT_BOUNCES, BENT_RECEIVER_SHARE, BENT_EYE_SHARE = 16, 16, 64
 # specular vertices bent_gather follows: the bent paths are a few % of a layer at most (1.65% on
 # cube_grey), and chains longer than 8 carry 0.8-2.0% of a bevelled cube's light (OTHERS_DEPTH);
 # the pass's cost is mostly per lane, in the (lanes, 3 + depth) uniform numbers drawn for it
@@ -351,16 +349,11 @@ def _handoff_depth(handoffs: dict) -> int:
                for h in handoffs.values())
 
 
-def bending_lights(scene, plan) -> list:
+def bending_lights(scene, tracer, plan) -> list:
     """The planned lights whose caustics can pass a bent specular vertex (bent_gather): a ray can
-    hit them, and a planned caster is smooth-shaded with Cycles' Bump Map Correction on (flat
-    faces are never bent: their shading normal is the geometric one). Empty: nothing to do."""
-    corr = optics.bump_correction(scene)
-    if not corr.any():
-        return []
-    obj = scene.tri_object
-    smooth = np.asarray(plan.casters, bool) & np.asarray(scene.object_smooth, bool)
-    if not (smooth[obj] & corr[scene.tri_material]).any():
+    hit them, and some triangle can bend (bent_candidates; flat faces never do: their shading
+    normal is the geometric one). Empty: nothing to do."""
+    if not len(bent_candidates(scene, tracer, plan)[0]):
         return []
     from .manifold import light_can_be_hit
 
@@ -386,7 +379,7 @@ def bent_candidates(scene, tracer, plan):
 
 
 def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, physical=False,
-                samples=BENT_SAMPLES, aim=True):
+                samples=BENT_BOUNCES, aim=True):
     """The caustic paths whose first specular vertex (from the receiver) has a shading normal
     Cycles' Bump Map Correction bends (optics.valid_reflection1), at receivers rc: the light
     then leaves the bent vertex along a direction only the eye's side determines, so no photon
@@ -397,7 +390,7 @@ def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, ph
     found 38 such paths in 22 M rays on that cube. lights: the light indices that count. Paths
     bent only at a later vertex are in no estimator (handoff_gather drops every bent path).
     aim False: cosine sampling instead, every bent path (the tests' independent estimator)."""
-    if len(lights) and len(bent_candidates(scene, tracer, plan)[0]):
+    if len(lights):  # bending_lights: only where some triangle can bend
         handoff_gather(scene, tracer, film, plan, rc, rng, stats, dict.fromkeys(lights), physical=physical,
                        samples=samples, bent=True, aim=aim)
 

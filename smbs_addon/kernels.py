@@ -31,7 +31,7 @@ from numba.extending import intrinsic
 
 from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
-from .optics import scatter1, valid_reflection1
+from .optics import bend1, scatter1
 
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
@@ -1326,11 +1326,7 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, tv, tng, tns):
     if not (cos0 > 0 and side * _dot(d, g) > 0 and _dot(w, nn) > 0 and cos_p > 0):
         return False, zero, zero, -1, zero, 0.0, 0.0
     gp = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
-    np_ = _shading_normal(tns, pr, b1, b2, gp)
-    if _dot(np_, gp) < 0:
-        np_ = _neg(np_)
-    sg = -1.0 if _dot(d, gp) > 0 else 1.0  # the side of -d, the eye's direction there
-    if not valid_reflection1(_mul(sg, gp), _neg(d), _mul(sg, np_))[1]:
+    if not bend1(_neg(d), _shading_normal(tns, pr, b1, b2, gp), gp)[1]:  # -d: the eye's direction there
         return False, zero, zero, -1, zero, 0.0, 0.0
     f = cos0 * cos_p * total / (math.pi * dist2)  # (a / pi) cos0 / pdf, pdf = dist^2 / (total cos_p)
     return True, d, (beta[0] * a[0] * f, beta[1] * a[1] * f, beta[2] * a[2] * f), pr, _add(x, q), b1, b2

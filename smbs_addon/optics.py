@@ -84,6 +84,21 @@ def valid_reflection1(ng, wi, n):
 
 
 @njit(inline="always", **JIT)
+def bend1(w, ns, ng):
+    """valid_reflection1 after Cycles' flips: the shading normal ns put on the geometric normal
+    ng's side, then both turned to the eye direction w's side of the surface (w exactly in its
+    plane: never bent). Returns (the shading normal to scatter about, on ng's side; bent)."""
+    if _dot(ns, ng) < 0:
+        ns = (-ns[0], -ns[1], -ns[2])
+    c = _dot(w, ng)
+    if c == 0:
+        return ns, False
+    s = 1.0 if c > 0 else -1.0
+    nb, bent = valid_reflection1((s * ng[0], s * ng[1], s * ng[2]), w, (s * ns[0], s * ns[1], s * ns[2]))
+    return ((s * nb[0], s * nb[1], s * nb[2]) if bent else ns), bent
+
+
+@njit(inline="always", **JIT)
 def fresnel_dielectric1(cos_i, eta):
     """Unpolarised Fresnel reflectance. cos_i = w.n (its sign tells the side); eta =
     n_inside / n_outside with n pointing outside. 1 on total internal reflection."""
@@ -178,13 +193,9 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     cin = _dot(w_in, ng)
     sgn = 1.0 if cin > 0 else (-1.0 if cin < 0 else 0.0)
     correct = mats[5][m] != 0
-    if correct and not adjoint and sgn != 0:  # Cycles flips both normals to w_in's side first
-        nb, bent = valid_reflection1((sgn * ng[0], sgn * ng[1], sgn * ng[2]), w_in,
-                                     (sgn * ns[0], sgn * ns[1], sgn * ns[2]))
-        if bent:
-            ns = (sgn * nb[0], sgn * nb[1], sgn * nb[2])
-    else:
-        bent = False
+    bent = False
+    if correct and not adjoint:
+        ns, bent = bend1(w_in, ns, ng)
     cs = _dot(w_in, ns)
     front = cs * sgn > 0  # Cycles: N.wi <= 0 after the flip -> no scattering
     R, T = specular_weights1(kind, fres, color, rcolor, eta, cs)
@@ -215,11 +226,8 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     ln = math.sqrt(_dot(n_out, n_out))
     inv = 1.0 / ln if ln > 0 else 0.0
     d = (n_out[0] * inv, n_out[1] * inv, n_out[2] * inv)
-    if correct and adjoint:  # would Cycles bend the normal for the eye's direction d?
-        so = 1.0 if cout > 0 else -1.0
-        _, bent = valid_reflection1((so * ng[0], so * ng[1], so * ng[2]), d, (so * ns[0], so * ns[1], so * ns[2]))
-        if bent:
-            return False, zero, zero, True
+    if correct and adjoint and bend1(d, ns, ng)[1]:  # would Cycles bend the normal for the eye's direction d?
+        return False, zero, zero, True
     return True, d, b, bent
 
 
@@ -249,19 +257,13 @@ def _bent_rows(wi, ns, ng):
     n = wi.shape[0]
     out = np.zeros(n, np.bool_)
     for i in range(n):
-        g, s, w = _row3(ng, i), _row3(ns, i), _row3(wi, i)
-        if _dot(s, g) < 0:
-            s = (-s[0], -s[1], -s[2])
-        c = _dot(w, g)
-        if c != 0:
-            sg = 1.0 if c > 0 else -1.0
-            out[i] = valid_reflection1((sg * g[0], sg * g[1], sg * g[2]), w, (sg * s[0], sg * s[1], sg * s[2]))[1]
+        out[i] = bend1(_row3(wi, i), _row3(ns, i), _row3(ng, i))[1]
     return out
 
 
 def bent(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:
     """Where Cycles' Bump Map Correction bends the shading normal ns for the eye's direction wi
-    (unit, (N,3)): valid_reflection1 after Cycles' flips, (N,) bool. A path light-side estimators
+    (unit, (N,3)): bend1 per row, (N,) bool. A path light-side estimators
     make through such a vertex is none of Cycles' (scatter1)."""
     (wi, ns, ng), shape = _rows3(wi, ns, ng)
     return _bent_rows(wi, ns, ng).reshape(shape)

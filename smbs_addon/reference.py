@@ -248,9 +248,9 @@ def trace_bent(scene, tracer, cam, film, plan, lights, start, n, n_batch, rng, s
     them): eye samples start..start+n of the batch to their first surface, kept where it is a
     diffuse receiver seen directly."""
     from .eye import eye_receivers
-    from .indirect import BENT_BOUNCES, bent_gather
+    from .indirect import bent_gather
 
     rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
                        scale_eta=physical)
     bent_gather(scene, tracer, film, plan, rc.take(np.flatnonzero(rc.eye_specular == 0)), rng, stats, lights,
-                physical=physical, samples=BENT_BOUNCES)
+                physical=physical)

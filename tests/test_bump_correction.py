@@ -175,7 +175,7 @@ def test_aimed_bent_paths_agree_with_cosine_sampling():
     scene = _leaning_mirror()
     plan = make_plan(scene)
     tracer = Tracer(scene)
-    assert indirect.bending_lights(scene, plan) == [0]
+    assert indirect.bending_lights(scene, tracer, plan) == [0]
     rng = np.random.default_rng(7)
     n = 200
     p = np.stack([rng.uniform(0.05, 1.2, n), rng.uniform(-1.0, 1.0, n), np.zeros(n)], 1)
@@ -203,4 +203,4 @@ def test_aimed_bent_paths_agree_with_cosine_sampling():
     assert abs(aimed.mean() - cosine.mean()) < 4 * se, (aimed.mean(), cosine.mean(), se)
     # without the correction nothing bends and the pass has nothing to do
     plain = _leaning_mirror(correct=False)
-    assert indirect.bending_lights(plain, make_plan(plain)) == []
+    assert indirect.bending_lights(plain, Tracer(plain), make_plan(plain)) == []
