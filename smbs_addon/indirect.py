@@ -362,8 +362,9 @@ def bending_lights(scene, tracer, plan) -> list:
 
 def bent_candidates(scene, tracer, plan):
     """The triangles whose normals Cycles' Bump Map Correction can bend (on planned casters, the
-    material's flag on, shading normals that differ from the geometric one) and their cumulative
-    areas: bent_gather aims its first bounce at points uniform over them. Kept on the plan."""
+    material's flag on, shading normals that differ from the geometric one), their cumulative
+    areas and its guide table (kernels.cdf_pick): bent_gather aims its first bounce at points
+    uniform over them. Kept on the plan."""
     cached = getattr(plan, "_bent_candidates", None)
     if cached is not None:
         return cached
@@ -373,7 +374,11 @@ def bent_candidates(scene, tracer, plan):
     cand = np.flatnonzero(ok).astype(np.int64)
     v = tracer.v[cand]
     area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
-    cached = (cand, np.cumsum(area)) if cand.size and area.sum() > 0 else (np.zeros(0, np.int64), np.zeros(0))
+    if cand.size and area.sum() > 0:
+        cdf = np.cumsum(area)
+        cached = (cand, cdf, kernels.guide_table(cdf))
+    else:
+        cached = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
     plan._bent_candidates = cached
     return cached
 
@@ -412,11 +417,12 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
     hist, h_prim = np.empty((m, K, 8)), np.empty((m, K), np.int64)
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     rt = tracer.rays()
-    cand, cdf = bent_candidates(scene, tracer, plan) if bent and aim else (np.zeros(0, np.int64), np.zeros(0))
+    none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+    cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
     counts = kernels.handoff_lanes(rt, u, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
                                    f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
                                    tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
-                                   tracer.eps, seg, seg_n, hist, h_prim, cand, cdf)
+                                   tracer.eps, seg, seg_n, hist, h_prim, cand, cdf, guide)
     tracer.cast_by_kernel(rt, counts)
     name = "bent" if bent else "handoff"
     stats["rays_" + name] = stats.get("rays_" + name, 0) + int(counts[embree.KINDS:].sum())

@@ -218,7 +218,7 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     rt = tracer.rays()
     counts = kernels.handoff_lanes(rt, u, samples, K, x0, ng, ns, w0, beta0, alb, tracer.kernel_geometry(plan.casters),
                                    optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim,
-                                   np.zeros(0, np.int64), np.zeros(0))
+                                   np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
     # numpy, step by step
     i = np.arange(m) // samples
     side = np.where(dot(w0[i], ng[i]) >= 0, 1.0, -1.0)[:, None]
