@@ -561,6 +561,13 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     True stops the bake with BakeCancelled (nothing is returned or written);
     on_plan(lines) gets the plan in words before any caustic is traced. A scene
     with nothing to bake gives an all-zero layer, stats["nothing_to_bake"] says why."""
+    try:
+        return _bake(scene, settings, progress, cancel, on_plan)
+    finally:
+        lanes.free_scratch()  # the work arrays the threads kept (lanes.scratch)
+
+
+def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
     settings = settings or BakeSettings()
     settings.validate()
     scene.validate()

@@ -51,7 +51,7 @@ HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
 BENT_BOUNCES, BENT_RECEIVER_SHARE, BENT_EYE_SHARE = 16, 16, 64
 # specular vertices bent_gather follows: the bent paths are a few % of a layer at most (1.65% on
 # cube_grey), and chains longer than 8 carry 0.8-2.0% of a bevelled cube's light (OTHERS_DEPTH);
-# the pass's cost is mostly per lane, in the (lanes, 3 + depth) uniform numbers drawn for it
+# each lane keeps a record per vertex (kernels.handoff_lanes' seg and hist)
 BENT_DEPTH = 8
 # specular vertices handoff_gather follows for the paths no walk takes (chains longer than
 # max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
@@ -316,15 +316,15 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     if n == 0 or not handoffs:
         return
     # blocks of receivers (bounded memory: HANDOFF_LANES rays in flight per thread) taken by the
-    # threads in turn, each with its own generator keyed by one draw and the block's first
-    # receiver, and its own counters, added in block order: the image does not depend on the
-    # thread count
+    # threads in turn, each path's random numbers keyed by one draw, its receiver and its sample
+    # (kernels.handoff_lanes), each block with its own counters, added in block order: the image
+    # does not depend on the thread count
     key = int(rng.integers(2**63))
 
     def block(a, b):
         st, per_light = {}, {}
-        rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), np.random.default_rng([key, a]), st,
-                             handoffs, physical, samples, per_light, bent, aim)
+        rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), key, a, st, handoffs, physical, samples,
+                             per_light, bent, aim)
         return rad, st, per_light
 
     # receivers per block: HANDOFF_LANES rays in flight at up to 4 specular vertices (each lane
@@ -365,9 +365,8 @@ def bent_candidates(scene, tracer, plan):
     material's flag on, shading normals that differ from the geometric one), their cumulative
     areas and its guide table (kernels.cdf_pick): bent_gather aims its first bounce at points
     uniform over them. Kept on the plan."""
-    cached = getattr(plan, "_bent_candidates", None)
-    if cached is not None:
-        return cached
+    if plan.bent is not None:
+        return plan.bent
     corr = optics.bump_correction(scene)
     ok = np.asarray(plan.casters, bool)[scene.tri_object] & corr[scene.tri_material]
     ok &= np.abs(np.einsum("tkc,tc->tk", tracer.ns_corner, tracer.ng)).min(axis=1) < 1.0 - 1e-12
@@ -379,7 +378,7 @@ def bent_candidates(scene, tracer, plan):
         cached = (cand, cdf, kernels.guide_table(cdf))
     else:
         cached = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
-    plan._bent_candidates = cached
+    plan.bent = cached
     return cached
 
 
@@ -400,9 +399,10 @@ def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, ph
                        samples=samples, bent=True, aim=aim)
 
 
-def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dict, physical, samples, found, bent,
+def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs: dict, physical, samples, found, bent,
                    aim=True):
-    """handoff_gather's radiance (n,3) at a block of receivers; found: light index -> paths taken.
+    """handoff_gather's radiance (n,3) at a block of receivers, a0 the first's index (key, a0:
+    kernels.handoff_lanes' random numbers); found: light index -> paths taken.
     The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
     segments and the paths taken are found here, per number of specular vertices."""
     from .reference import _handoff_select, other_paths
@@ -410,16 +410,15 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, rng, stats, handoffs: dic
     n = len(rc.p)
     K = _handoff_depth(handoffs)
     m = n * samples
-    u = rng.random((m, 3 + K))
     # the kernel writes every entry read below (a lane's first seg_n segments, and the specular
     # vertices before each of them)
-    seg, seg_n = np.empty((m, K, 10)), np.zeros(m, np.int64)
-    hist, h_prim = np.empty((m, K, 8)), np.empty((m, K), np.int64)
+    seg, seg_n = lanes.scratch("handoff_seg", (m, K, 10)), np.zeros(m, np.int64)
+    hist, h_prim = lanes.scratch("handoff_hist", (m, K, 8)), lanes.scratch("handoff_prim", (m, K), np.int64)
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     rt = tracer.rays()
     none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
     cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
-    counts = kernels.handoff_lanes(rt, u, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
+    counts = kernels.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
                                    f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
                                    tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
                                    tracer.eps, seg, seg_n, hist, h_prim, cand, cdf, guide)

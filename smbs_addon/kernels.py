@@ -1353,25 +1353,28 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
 
 
 @njit(**_JIT)
-def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
-                  h_prim, cand, cdf, guide):
+def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n,
+                  hist, h_prim, cand, cdf, guide):
     """handoff_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
-        (u, x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf, guide))
+    x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
+        (x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf, guide))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
     targeted = cand.shape[0] > 0
-    for lane in range(u.shape[0]):
+    for lane in range(x0.shape[0] * samples):
         seg_n[lane] = 0
         i = lane // samples
+        s = lane - i * samples
         g = _v(ng0, i, 0)
         first, p_first, f1, f2 = -1, (0.0, 0.0, 0.0), 0.0, 0.0
+        r = a0 + i
+        u0, u1, u2 = keyed_uniform(key, r, s, 0), keyed_uniform(key, r, s, 1), keyed_uniform(key, r, s, 2)
         if targeted:
-            ok, d, b, first, p_first, f1, f2 = _toward_triangle(u[lane, 0], u[lane, 1], u[lane, 2], _v(x0, i, 0), _v(w0, i, 0), g,
+            ok, d, b, first, p_first, f1, f2 = _toward_triangle(u0, u1, u2, _v(x0, i, 0), _v(w0, i, 0), g,
                                                _v(ns0, i, 0), _v(alb, i, 0), _v(beta0, i, 0), cand, cdf, guide,
                                                tv, tng, tns)
         else:
-            ok, d, b = _diffuse_scatter(u[lane, 0], u[lane, 1], u[lane, 2], _v(w0, i, 0), g, _v(ns0, i, 0),
+            ok, d, b = _diffuse_scatter(u0, u1, u2, _v(w0, i, 0), g, _v(ns0, i, 0),
                                         _v(alb, i, 0), _v(beta0, i, 0), False)
         if not ok:
             continue
@@ -1395,7 +1398,8 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
             else:
                 b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
             n = _shading_normal(tns, pr, b1, b2, gg)
-            ok, dd, bb, bent = scatter1(u[lane, 3 + bounce], _neg(d), n, gg, m, kind, mats, b, physical, False)
+            ok, dd, bb, bent = scatter1(keyed_uniform(key, r, s, 3 + bounce), _neg(d), n, gg, m, kind, mats, b, physical,
+                                        False)
             if not ok or (targeted and bounce == 0 and not bent):  # bent_gather: bent first vertices only
                 break
             h_prim[lane, bounce] = pr
@@ -1412,13 +1416,15 @@ def _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, p
 
 @TypedOnce
 @njit(**_JIT)
-def handoff_lanes(rt, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
-                  h_prim, cand, cdf, guide):
+def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n,
+                  hist, h_prim, cand, cdf, guide):
     """indirect.handoff_gather's paths, lane i // samples's receiver (x0, ng0, ns0, w0: the
     direction back to the eye, beta0: the throughput, alb: the albedo): a cosine bounce with
     Russian roulette on the albedo (indirect._diffuse_bounce), then through up to K specular
-    vertices (optics.scatter1, not adjoint; physical: scale_eta), every ray cast here. u: (lanes,
-    3 + K) uniform numbers (direction, roulette, then one per specular vertex). Writes per lane
+    vertices (optics.scatter1, not adjoint; physical: scale_eta), every ray cast here. Lane l is
+    sample s = l % samples of receiver a0 + l // samples, its uniform numbers keyed_uniform(key,
+    a0 + l // samples, s, dim) (dim 0-2: direction and roulette, 3 + j: the j-th specular vertex),
+    so a path does not depend on the block or thread that traces it. Writes per lane
     the segments after each specular vertex, in order, seg_n of them (seg[lane, k]: origin,
     direction, distance to the next surface (inf: none), throughput), and the specular vertices
     (hist[lane, j]: point, barycentrics, 1 for a reflection, 1 on a caster, 1 where Cycles' Bump Map
@@ -1429,8 +1435,8 @@ def handoff_lanes(rt, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, ph
     guide_table; _toward_triangle), the ray must meet that triangle first, and its normal must be
     one Cycles' Bump Map Correction bends there, or the lane ends. Returns the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
-    _handoff_rows(ray, u, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n, hist,
-                  h_prim, cand, cdf, guide)
+    _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n,
+                  hist, h_prim, cand, cdf, guide)
     return ray[6]
 
 # ------------------------------------------------------------------ the light tracer's photons

@@ -118,3 +118,33 @@ def add_stats(into: dict, part: dict) -> None:
             into[k] = max(into.get(k, v), v)
         else:
             into[k] = into.get(k, 0) + v
+
+
+
+_SCRATCH: list = []  # every thread's scratch dict (free_scratch)
+
+
+def scratch(name: str, shape: tuple, dtype=float):
+    """A work array of this thread's, uninitialised like np.empty, kept between calls (grown when
+    too small) until free_scratch: a kernel that writes a few of a large array's pages does not
+    fault in fresh ones on every call (the hand-off's records: on the glass ball's bent pass, 0.98
+    -> 0.6 s of a 9 s bake). Valid until this thread's next call with the same name."""
+    import numpy as np
+
+    size = int(np.prod(shape))
+    cache = getattr(_local, "scratch", None)
+    if cache is None:
+        cache = _local.scratch = {}
+        with LOCK:
+            _SCRATCH.append(cache)
+    buf = cache.get(name)
+    if buf is None or buf.size < size or buf.dtype != np.dtype(dtype):
+        buf = cache[name] = np.empty(size, dtype)
+    return buf[:size].reshape(shape)
+
+
+def free_scratch() -> None:
+    """Let go of every thread's scratch arrays (the end of a bake): the pool's threads outlive it."""
+    with LOCK:
+        for cache in _SCRATCH:
+            cache.clear()

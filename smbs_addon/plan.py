@@ -51,6 +51,7 @@ class Plan:
     seen: dict = field(default_factory=dict)  # receiver name -> "directly" / "through mirrors or glass"
     cost: dict = field(default_factory=dict)  # rays and seconds the plan took
     indirect_words: list = field(default_factory=list)  # light -> diffuse -> casters -> receivers
+    bent: tuple | None = None  # indirect.bent_candidates (kept once found): triangles, cdf, guide
 
     def words(self) -> list:
         """The plan in an artist's words, one line per light that bakes, then what is skipped."""

@@ -195,7 +195,8 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     (vec.frame / cosine_hemisphere / to_world, Russian roulette on the albedo), tracer.spawn and
     tracer.intersect, the specular scatter (optics.scatter_rows), and the segment after the first
     specular vertex (origin, direction, distance, throughput) and that vertex's record, to 1e-9;
-    the same lanes alive. Glass sphere under an area light: receivers on the floor, K = 2."""
+    the same lanes alive. Glass sphere under an area light: receivers on the floor, K = 2. The
+    uniform numbers are the kernel's own (keyed_uniform of the receiver, sample and dimension)."""
     from smbs_addon import embree, kernels, optics
     from smbs_addon.vec import cosine_hemisphere, dot, frame, to_world
 
@@ -212,11 +213,14 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     beta0 = np.full((n, 3), 1.0 / samples)
     alb = scene.mat_color[scene.tri_material[h0.prim]]
     m = n * samples
-    u = rng.random((m, 3 + K))
+    key, a0 = 12345, 7  # lane l: sample l % samples of receiver a0 + l // samples
+    u = np.array([[kernels.keyed_uniform(key, a0 + lane // samples, lane % samples, j) for j in range(3 + K)]
+                  for lane in range(m)])
     seg, seg_n = np.zeros((m, K, 10)), np.zeros(m, np.int64)
     hist, h_prim = np.zeros((m, K, 8)), np.zeros((m, K), np.int64)
     rt = tracer.rays()
-    counts = kernels.handoff_lanes(rt, u, samples, K, x0, ng, ns, w0, beta0, alb, tracer.kernel_geometry(plan.casters),
+    counts = kernels.handoff_lanes(rt, key, a0, samples, K, x0, ng, ns, w0, beta0, alb,
+                                   tracer.kernel_geometry(plan.casters),
                                    optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim,
                                    np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
     # numpy, step by step

@@ -3,7 +3,9 @@ depend on it: one seed gives the same image bit for bit with 1 or 2 threads, for
 method and estimator, with one manifold chunk per batch or several, and with the walks (and
 the hand-off's cosine bounces) cut in blocks or not."""
 import importlib
+import threading
 
+import numpy as np
 import pytest
 
 import scenes
@@ -41,11 +43,13 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     c = bake(make(), BakeSettings(**s, threads=1))
     d = bake(make(), BakeSettings(**s, threads=2))
     assert _same(c, d)
-    # the walks in blocks of 128 lanes and the Bernoulli trials in blocks of 8 samples that the
-    # threads take in turn (lanes.blocks): the image of the uncut walks, and the same rays
-    # whatever the threads
+    # the walks in blocks of 128 lanes, the Bernoulli trials in blocks of 8 samples and the
+    # hand-off in blocks of 7 receivers, that the threads take in turn (lanes.blocks): the image of
+    # the uncut walks (the hand-off's random numbers are keyed by receiver and sample), and the same
+    # rays whatever the threads
     monkeypatch.setattr(importlib.import_module("smbs_addon.walk"), "WALK_BLOCK", 128)
     monkeypatch.setattr(importlib.import_module("smbs_addon.trials"), "TRIAL_BLOCK", 8)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.indirect"), "HANDOFF_LANES", 7 * 64)
     e = bake(make(), BakeSettings(**s, threads=1))
     f = bake(make(), BakeSettings(**s, threads=2))
     assert e.stats["rays"] == f.stats["rays"]
@@ -106,6 +110,33 @@ def test_blocks_run_each_block_once_in_order_and_do_not_split_inside():
     inner = lanes.blocks(lambda a, b: lanes.run(lambda c, d: (c, d), 100, 2, 10), 20, 10, 2)
     assert inner == [[(0, 100)], [(0, 100)]]
     assert lanes.blocks(lambda a, b: lanes.nested(), 20, 10, 1) == [False, False]  # one thread: no blocks apart
+
+
+def test_scratch_arrays_are_kept_per_thread_and_name_until_freed():
+    """lanes.scratch: the same memory again for the same name on the same thread (shaped as asked,
+    grown when too small), other memory on another thread or under another name; free_scratch
+    lets every thread's go."""
+    from smbs_addon import lanes
+
+    a = lanes.scratch("t_a", (4, 3))
+    assert a.shape == (4, 3) and a.dtype == np.float64
+    a[:] = 7.0
+    b = lanes.scratch("t_a", (2, 5))  # smaller: the same buffer
+    assert b.shape == (2, 5) and np.shares_memory(a, b) and np.all(b == 7.0)
+    assert not np.shares_memory(a, lanes.scratch("t_b", (4, 3)))
+    assert lanes.scratch("t_a", (4, 3), np.int64).dtype == np.int64  # another dtype: a new buffer
+    big = lanes.scratch("t_a", (100, 3))
+    assert big.shape == (100, 3) and lanes.scratch("t_a", (100, 3)).ctypes.data == big.ctypes.data
+    both = threading.Barrier(2, timeout=30)  # the two blocks on two threads at once
+
+    def block(i, j):
+        both.wait()
+        return threading.get_ident(), lanes.scratch("t_a", (100, 3)).ctypes.data
+
+    (t0, p0), (t1, p1) = lanes.blocks(block, 2, 1, 2)
+    assert t0 != t1 and p0 != p1 and big.ctypes.data in (p0, p1)  # the calling thread's, and the pool's
+    lanes.free_scratch()
+    assert not np.shares_memory(big, lanes.scratch("t_a", (100, 3)))
 
 
 def test_light_tracing_chunks_on_threads_give_the_image_of_chunks_in_turn(monkeypatch):
