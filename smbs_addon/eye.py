@@ -54,21 +54,30 @@ def film_samples(cam, film, start, n, n_batch, rng, mask=None):
     """Samples start..start+n of a batch of n_batch stratified film samples: (rx, ry, weight,
     the samples' indices in the batch); with mask (bool per film cell, film_cells' grid row by
     row), only those in its cells: the others are drawn all the same, so the samples kept are
-    the whole film's, bit for bit."""
+    the whole film's, bit for bit. n_batch at least the cells: sample i in cell i % cells (each
+    cell's weight 1 / its samples); fewer (the light tracer's bent pass below 512 spp): sample i
+    in a cell drawn from the i-th of n_batch equal stretches of the cells, row by row, weighted
+    by the stretch's length, so that every cell is sampled (in expectation once per batch), not
+    only the first n_batch."""
     x0, x1, y0, y1 = cam.region
     r = int(np.ceil(film.filter_width))
     cw = x1 - x0 + 2 * r
     cells = film_cells(cam, film)
     i = np.arange(start, start + n)
-    c = i % cells
-    per, extra = divmod(n_batch, cells)
-    count = per + (c < extra)
+    if n_batch >= cells:
+        c = i % cells
+        per, extra = divmod(n_batch, cells)
+        weight = 1.0 / (per + (c < extra))
+    else:
+        stretch = cells / n_batch
+        c = np.minimum(((i + rng.random(n)) * stretch).astype(np.int64), cells - 1)
+        weight = np.full(n, stretch)
     rx = x0 - r + (c % cw) + rng.random(n)
     ry = y0 - r + (c // cw) + rng.random(n)
     if mask is not None:
         keep = mask[c]
-        return rx[keep], ry[keep], 1.0 / count[keep], i[keep]
-    return rx, ry, 1.0 / count, i
+        return rx[keep], ry[keep], weight[keep], i[keep]
+    return rx, ry, weight, i
 
 
 def specular_cells(scene, tracer, cam, film) -> np.ndarray | None:

@@ -382,6 +382,16 @@ def bent_candidates(scene, tracer, plan):
     return cached
 
 
+def bent_receivers(rc: Receivers, rng, share=BENT_RECEIVER_SHARE) -> Receivers:
+    """The manifold passes' receivers for bent_gather: one in `share` at random, its splat weighted
+    up by as much. Not every share-th: the eye samples run through the film cells in turn, so on a
+    film whose cells are a multiple of 16 (164 x 124 for 160 x 120) every 16th receiver would be
+    in the same cells on every pass, and the others would never get the bent light."""
+    rb = rc.take(np.flatnonzero(rng.random(len(rc.p)) * share < 1.0))
+    rb.weight = rb.weight * share
+    return rb
+
+
 def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, physical=False,
                 samples=BENT_BOUNCES, aim=True):
     """The caustic paths whose first specular vertex (from the receiver) has a shading normal

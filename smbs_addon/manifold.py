@@ -554,13 +554,11 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         ctx.handoff_seen = ctx.first_order = False
     hit = np.flatnonzero(total.max(axis=1) > 0)
     film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None])
-    from .indirect import BENT_RECEIVER_SHARE, bending_lights, bent_gather
+    from .indirect import bending_lights, bent_gather, bent_receivers
 
     bent = bending_lights(scene, tracer, plan)
-    if bent:  # one receiver in BENT_RECEIVER_SHARE, its splat weighted up by as much
-        rb = rc.take(slice(0, None, BENT_RECEIVER_SHARE))
-        rb.weight = rb.weight * BENT_RECEIVER_SHARE
-        bent_gather(scene, tracer, film, plan, rb, rng, eye_stats, bent, physical=opts.physical)
+    if bent:
+        bent_gather(scene, tracer, film, plan, bent_receivers(rc, rng), rng, eye_stats, bent, physical=opts.physical)
     seen = np.flatnonzero(rc.eye_specular > 0)
     if seen.size == 0:
         return

@@ -204,3 +204,30 @@ def test_aimed_bent_paths_agree_with_cosine_sampling():
     # without the correction nothing bends and the pass has nothing to do
     plain = _leaning_mirror(correct=False)
     assert indirect.bending_lights(plain, Tracer(plain), make_plan(plain)) == []
+
+
+def test_bent_receivers_are_a_random_share_of_every_cell():
+    """indirect.bent_receivers (the manifold passes' receivers for the bent pass): about one in
+    BENT_RECEIVER_SHARE, weighted up by as much, drawn at random. Taking every 16th instead kept
+    the same film cells on every pass wherever the cells are a multiple of 16 (sample_blends'
+    164 x 124) and left the others without bent light: here receivers in 1,024 cells, 8 passes
+    over them, and every cell is kept on some pass, each residue mod 16 about as often."""
+    from smbs_addon import indirect
+    from smbs_addon.eye import Receivers
+
+    cells, passes = 1024, 8
+    n = cells * passes
+    cell = np.tile(np.arange(cells), passes)
+    z = np.zeros((n, 3))
+    rc = Receivers(rx=cell.astype(float), ry=np.zeros(n), p=z, ng=z, ns=z, w_eye=z, beta=np.ones((n, 3)),
+                   mat=np.zeros(n, np.int64), eye_specular=np.zeros(n, np.int64), weight=np.full(n, 0.5),
+                   prior=np.zeros((n, 3), np.int64))
+    share = indirect.BENT_RECEIVER_SHARE
+    kept = np.concatenate([indirect.bent_receivers(rc, np.random.default_rng(s)).rx for s in range(share)])
+    rb = indirect.bent_receivers(rc, np.random.default_rng(99))
+    assert np.all(rb.weight == 0.5 * share) and np.all(rc.weight == 0.5)  # rc itself untouched
+    assert abs(len(rb.rx) - n / share) < 4 * math.sqrt(n / share)
+    got = np.unique(kept.astype(int))
+    assert got.size == cells  # every cell (16 draws x 8 passes: each cell missed with odds 1e-4 x 1024)
+    per_residue = np.bincount(kept.astype(int) % 16, minlength=16)
+    assert per_residue.min() > 0.8 * per_residue.mean()

@@ -9,6 +9,7 @@ caustics only: with indirect ones, B's side mirror would also light A's floor.
 import math
 
 import numpy as np
+import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
@@ -151,3 +152,43 @@ def test_eye_paths_reflect_in_the_mirror_onto_the_floor():
     assert np.abs(rc.p - floor).max() < 1e-9
     assert np.allclose(rc.beta, RHO2, rtol=1e-12) and np.allclose(rc.w_eye, -r, atol=1e-12)
     assert np.array_equal(rc.prior, np.tile([0, 1, 0], (len(rc.p), 1)))
+
+
+def test_fewer_eye_samples_than_cells_reach_every_cell_with_unit_weight():
+    """eye.film_samples with a batch of fewer samples than film cells (the light tracer's bent
+    pass below 512 spp: an eye sample in 64 per batch): sample i falls in the i-th of n_batch
+    equal stretches of the cells, weighted by the stretch's length, so a batch's weights add up to
+    the cells exactly and every cell is reached. It was the first n_batch cells only, each with
+    weight 1: cube_grey_reflect's light tracer read 0.742 +- 0.008 of Cycles over 8 seeds at 256
+    spp, where at 512 it read 1.0."""
+    from smbs_addon.camera import CameraModel
+    from smbs_addon.eye import film_cells, film_samples
+    from smbs_addon.film import Film
+
+    sc = scenes.glass_sphere_scene(resolution=(20, 15))
+    cam = CameraModel(sc.camera)
+    film = Film(cam.W, cam.H, sc.camera.filter_width, cam.region)
+    cells = film_cells(cam, film)
+    x0, x1, y0, y1 = cam.region
+    r = int(np.ceil(film.filter_width))
+    cw = x1 - x0 + 2 * r
+    n_batch = cells // 3 + 1  # stretches of ~3 cells, not a whole number
+    stretch = cells / n_batch
+    rng = np.random.default_rng(1)
+    per_cell = np.zeros(cells)
+    for _ in range(200):
+        rx, ry, w, i = film_samples(cam, film, 0, n_batch, n_batch, rng)
+        c = (np.floor(ry).astype(int) - (y0 - r)) * cw + (np.floor(rx).astype(int) - (x0 - r))
+        assert np.array_equal(i, np.arange(n_batch))
+        assert np.all((c >= np.floor(i * stretch)) & (c < np.ceil((i + 1) * stretch)))  # its own stretch
+        assert np.allclose(w, stretch) and w.sum() == pytest.approx(cells)
+        np.add.at(per_cell, c, w)
+    assert per_cell.min() > 0  # every cell, the last ones too
+    assert per_cell.mean() / 200 == pytest.approx(1.0)
+    # a batch's samples in two pieces: the same stretches, so the same cells
+    rx, ry, w, i = film_samples(cam, film, 10, 20, n_batch, rng)
+    c = (np.floor(ry).astype(int) - (y0 - r)) * cw + (np.floor(rx).astype(int) - (x0 - r))
+    assert np.all((c >= np.floor(i * stretch)) & (c < np.ceil((i + 1) * stretch))) and i[0] == 10
+    # as many samples as cells or more: one each in turn, as before
+    rx, ry, w, i = film_samples(cam, film, 0, 2 * cells + 5, 2 * cells + 5, rng)
+    assert np.allclose(w[:5], 1 / 3) and np.allclose(w[5:cells], 0.5)
