@@ -190,10 +190,12 @@ def _finite_or_none(x: float):
 
 
 def _eye_per_batch(cam, film, settings) -> int:
-    """Eye samples per batch: spp per film cell over all batches (at least one pass)."""
+    """Eye samples per batch: spp per film cell over all batches. Fewer than the cells (spp below
+    the batches) is a sparser batch over the whole film (eye.film_samples), not a whole pass:
+    1 spp in 8 batches costs 1 spp, not 8."""
     from .eye import film_cells
 
-    return max(film_cells(cam, film), film_cells(cam, film) * settings.spp // settings.batches)
+    return max(1, film_cells(cam, film) * settings.spp // settings.batches)
 
 
 def _specular_visible(scene, tracer, cam) -> bool:

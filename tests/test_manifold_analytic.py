@@ -100,7 +100,7 @@ def test_smbs_finds_twice_the_paths_on_a_fine_normal_map():
     mpp). It fires after two slow steps in a row (WalkConfig.slow_run); after one, 0.558,
     which cost the conformance lens's refraction walks too much. No timing."""
     scene = scenes.hammered_mirror_scene(resolution=(32, 24))
-    kw = dict(spp=1, seed=6, estimator="biased", trials=1, handoff=0, chains=("R",), indirect=False)
+    kw = dict(spp=8, seed=6, estimator="biased", trials=1, handoff=0, chains=("R",), indirect=False)
     sms = bake(scene, BakeSettings(method="sms", **kw)).stats["lights"]["Area"]
     smbs = bake(scene, BakeSettings(method="smbs", **kw)).stats["lights"]["Area"]
     assert sms["walks"] == smbs["walks"] > 3000  # the same lanes: the walks alone differ
