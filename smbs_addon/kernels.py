@@ -1323,9 +1323,10 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
     normals; a: albedo): towards a point uniform in area over the candidate triangles cand (cdf:
     their cumulative areas, guide: its guide_table), weighted by the Lambertian BSDF x cosine over
     the point's density in solid angle; kept only where the point's normal bends for that direction
-    (optics.scatter1's test, before any ray is cast: on cube_grey_reflect 2.4% of the points do). Returns (kept,
-    direction, weight, the triangle the ray must meet first, the point and its barycentrics: the
-    vertex the path takes, exactly the one sampled, wherever the offset ray origin puts the hit)."""
+    (optics.scatter1's test, before any ray is cast: on cube_grey_reflect 2.4% of the points do).
+    Returns (kept, direction, weight, the triangle the ray must meet first, the point and its
+    barycentrics: the vertex the path takes, exactly the one sampled, wherever the offset ray
+    origin puts the hit)."""
     zero = (0.0, 0.0, 0.0)
     total = cdf[cdf.shape[0] - 1]
     pr = cand[cdf_pick(cdf, guide, u0)]
@@ -1398,8 +1399,8 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, m
             else:
                 b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
             n = _shading_normal(tns, pr, b1, b2, gg)
-            ok, dd, bb, bent = scatter1(keyed_uniform(key, r, s, 3 + bounce), _neg(d), n, gg, m, kind, mats, b, physical,
-                                        False)
+            ok, dd, bb, bent = scatter1(keyed_uniform(key, r, s, 3 + bounce), _neg(d), n, gg, m, kind, mats, b,
+                                        physical, False)
             if not ok or (targeted and bounce == 0 and not bent):  # bent_gather: bent first vertices only
                 break
             h_prim[lane, bounce] = pr
@@ -1424,8 +1425,8 @@ def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, ma
     vertices (optics.scatter1, not adjoint; physical: scale_eta), every ray cast here. Lane l is
     sample s = l % samples of receiver a0 + l // samples, its uniform numbers keyed_uniform(key,
     a0 + l // samples, s, dim) (dim 0-2: direction and roulette, 3 + j: the j-th specular vertex),
-    so a path does not depend on the block or thread that traces it. Writes per lane
-    the segments after each specular vertex, in order, seg_n of them (seg[lane, k]: origin,
+    so a path does not depend on the block or thread that traces it. Writes per lane the
+    segments after each specular vertex, in order, seg_n of them (seg[lane, k]: origin,
     direction, distance to the next surface (inf: none), throughput), and the specular vertices
     (hist[lane, j]: point, barycentrics, 1 for a reflection, 1 on a caster, 1 where Cycles' Bump Map
     Correction bent the normal (optics.scatter1); h_prim[lane, j]: the triangle).
@@ -1433,7 +1434,8 @@ def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, ma
     cand, cdf, guide (indirect.bent_gather; empty: the cosine bounce above): the first bounce goes
     towards a point uniform in area over the triangles cand (cdf: their cumulative areas, guide: its
     guide_table; _toward_triangle), the ray must meet that triangle first, and its normal must be
-    one Cycles' Bump Map Correction bends there, or the lane ends. Returns the ray counters (embree.ray_state)."""
+    one Cycles' Bump Map Correction bends there, or the lane ends. Returns the ray counters
+    (embree.ray_state)."""
     ray = ray_state(rt)
     _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n,
                   hist, h_prim, cand, cdf, guide)

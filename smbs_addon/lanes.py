@@ -17,6 +17,8 @@ import itertools
 import threading
 from concurrent.futures import ThreadPoolExecutor
 
+import numpy as np
+
 _POOLS: dict = {}
 _local = threading.local()
 LOCK = threading.Lock()  # for counters that blocks on several threads add to
@@ -120,7 +122,6 @@ def add_stats(into: dict, part: dict) -> None:
             into[k] = into.get(k, 0) + v
 
 
-
 _SCRATCH: list = []  # every thread's scratch dict (free_scratch)
 
 
@@ -129,8 +130,6 @@ def scratch(name: str, shape: tuple, dtype=float):
     too small) until free_scratch: a kernel that writes a few of a large array's pages does not
     fault in fresh ones on every call (the hand-off's records: on the glass ball's bent pass, 0.98
     -> 0.6 s of a 9 s bake). Valid until this thread's next call with the same name."""
-    import numpy as np
-
     size = int(np.prod(shape))
     cache = getattr(_local, "scratch", None)
     if cache is None:
