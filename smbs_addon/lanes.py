@@ -15,6 +15,7 @@ from __future__ import annotations
 import atexit
 import itertools
 import threading
+import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
@@ -122,7 +123,7 @@ def add_stats(into: dict, part: dict) -> None:
             into[k] = into.get(k, 0) + v
 
 
-_SCRATCH: list = []  # every thread's scratch dict (free_scratch)
+_SCRATCH: list = []  # (the thread, its scratch dict) for each thread that has one (free_scratch)
 
 
 def scratch(name: str, shape: tuple, dtype=float):
@@ -135,7 +136,7 @@ def scratch(name: str, shape: tuple, dtype=float):
     if cache is None:
         cache = _local.scratch = {}
         with LOCK:
-            _SCRATCH.append(cache)
+            _SCRATCH.append((weakref.ref(threading.current_thread()), cache))
     buf = cache.get(name)
     if buf is None or buf.size < size or buf.dtype != np.dtype(dtype):
         buf = cache[name] = np.empty(size, dtype)
@@ -143,7 +144,9 @@ def scratch(name: str, shape: tuple, dtype=float):
 
 
 def free_scratch() -> None:
-    """Let go of every thread's scratch arrays (the end of a bake): the pool's threads outlive it."""
+    """Let go of every thread's scratch arrays (the end of a bake): the pool's threads outlive it,
+    and the entries of threads that have ended go too."""
     with LOCK:
-        for cache in _SCRATCH:
+        for _, cache in _SCRATCH:
             cache.clear()
+        _SCRATCH[:] = [(t, cache) for t, cache in _SCRATCH if (th := t()) is not None and th.is_alive()]

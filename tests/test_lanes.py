@@ -137,6 +137,14 @@ def test_scratch_arrays_are_kept_per_thread_and_name_until_freed():
     assert t0 != t1 and p0 != p1 and big.ctypes.data in (p0, p1)  # the calling thread's, and the pool's
     lanes.free_scratch()
     assert not np.shares_memory(big, lanes.scratch("t_a", (100, 3)))
+    # a thread that has ended leaves no entry behind once scratch is freed
+    done = threading.Thread(target=lambda: lanes.scratch("t_a", (10,)))
+    done.start()
+    done.join()
+    assert any(t() is done for t, _ in lanes._SCRATCH)
+    lanes.free_scratch()
+    assert not any(t() is done for t, _ in lanes._SCRATCH)
+    assert any(t() is threading.current_thread() for t, _ in lanes._SCRATCH)
 
 
 def test_light_tracing_chunks_on_threads_give_the_image_of_chunks_in_turn(monkeypatch):
