@@ -34,6 +34,12 @@ class Vertex:
         return Vertex(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
 
 
+def triangle_areas(v: np.ndarray) -> np.ndarray:
+    """(T,) areas of triangles v (T,3,3): what a uniform pick over them weights by (manifold.Seeder's
+    seeds, indirect.bent_candidates' aimed points)."""
+    return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+
+
 def vertex_from_hits(scene, tracer, prim: np.ndarray, p: np.ndarray, b: np.ndarray) -> Vertex:
     v = tracer.v[prim]
     e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]

@@ -35,6 +35,7 @@ from . import embree, kernels, lanes, optics
 from . import scene as S
 from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .eye import Receivers, surface_at
+from .geometry import triangle_areas
 from .lights import light_radiance, area_light_shape
 from .reference import run_photons, scatter_specular, splat_records
 from .vec import dot, normalize
@@ -371,8 +372,7 @@ def bent_candidates(scene, tracer, plan):
     ok = np.asarray(plan.casters, bool)[scene.tri_object] & corr[scene.tri_material]
     ok &= np.abs(np.einsum("tkc,tc->tk", tracer.ns_corner, tracer.ng)).min(axis=1) < 1.0 - 1e-12
     cand = np.flatnonzero(ok).astype(np.int64)
-    v = tracer.v[cand]
-    area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    area = triangle_areas(tracer.v[cand])
     if cand.size and area.sum() > 0:
         cdf = np.cumsum(area)
         cached = (cand, cdf, kernels.guide_table(cdf))

@@ -21,6 +21,7 @@ from .bounces import Limits
 from .constraints import LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
+from .geometry import triangle_areas
 from .lights import area_light_points, light_axis
 from .optics import has_reflection
 from .trials import bernoulli_trials
@@ -214,8 +215,7 @@ class Seeder:
         ok_kind = (kinds == S.DIELECTRIC) if types[0] == "T" else ((kinds == S.CONDUCTOR) | (kinds == S.DIELECTRIC))
         self.tris = np.flatnonzero(casters[scene.tri_object] & ok_kind)
         v = scene.tri_vertices[self.tris]
-        area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
-        self.cdf = np.cumsum(area)
+        self.cdf = np.cumsum(triangle_areas(v))
         self.total = float(self.cdf[-1]) if len(self.cdf) else 0.0
         self.v = v
         self.obj = scene.tri_object[self.tris]
