@@ -25,7 +25,7 @@ import numpy as np
 
 from . import scene as S
 from .constraints import LightEnd
-from .geometry import pack
+from .geometry import packed_floats
 from .kernels import chain_kinds, chain_solve
 from .lights import soft_falloff_factor, spot_mask
 from .optics import bent, bump_correction, specular_weights
@@ -96,7 +96,7 @@ def light_end_at_solution(scene, li, light: LightEnd, xk):
 def geometric_term(types, x0, verts, etas, light_end: LightEnd):
     """|d w0 / d A_y| (or d w0 / d w_y for a sun) at converged chains, and ok."""
     # constraints.blocks + block_solve with the right-hand side -D_k, per lane in one kernel
-    F, _ = pack(verts)
+    F = packed_floats(verts)
     X1, oks = chain_solve(1, False, chain_kinds(types), x0, F, np.stack(np.broadcast_arrays(*etas), 1), light_end.y,
                           light_end.ys, light_end.yt, light_end.directional)
     det = X1[:, 0, 0] * X1[:, 1, 1] - X1[:, 0, 1] * X1[:, 1, 0]

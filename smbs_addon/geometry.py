@@ -82,6 +82,23 @@ def vertex_view(F: np.ndarray, I: np.ndarray, j: int) -> Vertex:
                   *(I[:, j, c] for c in range(len(INT_FIELDS))))
 
 
+def packed_floats(verts: list) -> np.ndarray:
+    """F of a list of Vertex, read-only: the packed chain itself (no copy) when the vertices are
+    vertex_view's columns 0..k-1 of one C-contiguous F, as a Chain's are; else pack's copy."""
+    F = verts[0].p.base
+    k, width = len(verts), 3 * len(FLOAT_FIELDS)
+    if not (isinstance(F, np.ndarray) and F.dtype == np.float64 and F.ndim == 3 and F.shape[1:] == (k, width)
+            and F.flags.c_contiguous):
+        return pack(verts)[0]
+    for j, v in enumerate(verts):
+        for c, f in enumerate(FLOAT_FIELDS):
+            a = getattr(v, f)
+            if (a.base is not F or a.shape != (F.shape[0], 3) or a.strides != (F.strides[0], 8)
+                    or a.ctypes.data != F.ctypes.data + (j * width + 3 * c) * 8):
+                return pack(verts)[0]
+    return F
+
+
 def pack(verts: list) -> tuple[np.ndarray, np.ndarray]:
     """F, I of a list of Vertex (the inverse of vertex_view)."""
     n, k = len(verts[0].p), len(verts)
