@@ -82,16 +82,21 @@ def block_edges(n: int, size: int, min_size: int = 0) -> list:
     return out
 
 
-def blocks(call, n: int, size: int, threads: int, min_size: int = 0) -> list:
+def blocks(call, n: int, size: int, threads: int, min_size: int = 0, whole: bool = False) -> list:
     """[call(a, b) for the blocks [0, size), [size, 2 size), ... of n lanes (block_edges)], in block
     order. With more than one block and thread, each thread (the calling one included) takes
     the next block when it is done with one, and calls inside a block do not split; with one
-    block, the calls inside it split over the threads as usual."""
+    block, the calls inside it split over the threads as usual. whole: where the blocks would
+    run in turn on this thread (one thread, or inside a block already), [call(0, n)], one call
+    for all (for calls whose result does not depend on the cut: a kernel's fixed cost is paid
+    once, not per block)."""
     edges = block_edges(n, size, min_size)
     k = len(edges) - 1
     if k <= 0:
         return []
     if k == 1 or threads <= 1 or nested():
+        if whole:
+            return [call(0, n)]
         return [call(edges[i], edges[i + 1]) for i in range(k)]
     out = [None] * k
     todo = itertools.count()  # next() is atomic under the GIL

@@ -51,7 +51,7 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
         tracer.cast_by_kernel(rt, counts)
         return walks, steps, counts
 
-    parts = lanes.blocks(part, S, TRIAL_BLOCK, tracer.threads, TRIAL_BLOCK_MIN)
+    parts = lanes.blocks(part, S, TRIAL_BLOCK, tracer.threads, TRIAL_BLOCK_MIN, whole=True)
     _count_rays(ctx, sum((p[2] for p in parts), embree.counters()))
     st = ctx.stats
     st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + sum(int(p[0]) for p in parts)

@@ -135,7 +135,7 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
         tracer.cast_by_kernel(rt, counts)
         return counts
 
-    counts = sum(lanes.blocks(part, n, WALK_BLOCK, tracer.threads), embree.counters())
+    counts = sum(lanes.blocks(part, n, WALK_BLOCK, tracer.threads, whole=True), embree.counters())
     _count_rays(ctx, counts)
     return Chain(F, I, status, out)
 
@@ -215,7 +215,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         tracer.cast_by_kernel(rt, counts)
         return large, counts
 
-    parts = lanes.blocks(part, n, WALK_BLOCK, tracer.threads)
+    parts = lanes.blocks(part, n, WALK_BLOCK, tracer.threads, whole=True)
     large = sum((p[0] for p in parts), np.zeros(4, np.int64))
     _count_rays(ctx, sum((p[1] for p in parts), embree.counters()))
     converged, mutations = state[11], state[12]

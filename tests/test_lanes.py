@@ -110,6 +110,11 @@ def test_blocks_run_each_block_once_in_order_and_do_not_split_inside():
     inner = lanes.blocks(lambda a, b: lanes.run(lambda c, d: (c, d), 100, 2, 10), 20, 10, 2)
     assert inner == [[(0, 100)], [(0, 100)]]
     assert lanes.blocks(lambda a, b: lanes.nested(), 20, 10, 1) == [False, False]  # one thread: no blocks apart
+    # whole: blocks that would run in turn on this thread are one call (one thread, or inside a block)
+    assert lanes.blocks(lambda a, b: (a, b), 10, 3, 1, whole=True) == [(0, 10)]
+    assert lanes.blocks(lambda a, b: (a, b), 10, 3, 2, whole=True) == [(0, 3), (3, 6), (6, 9), (9, 10)]
+    inner = lanes.blocks(lambda a, b: lanes.blocks(lambda c, d: (c, d), 10, 3, 2, whole=True), 20, 10, 2)
+    assert inner == [[(0, 10)], [(0, 10)]]
 
 
 def test_scratch_arrays_are_kept_per_thread_and_name_until_freed():
