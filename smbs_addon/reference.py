@@ -17,13 +17,14 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import embree, kernels
+from . import embree, kernels, lanes
 from .optics import materials, scatter_rows
 from .estimators import concentration
 from .bounces import Limits
 from .geometry import vertex_from_hits
 
 MAX_SPECULAR_BOUNCES = 32
+PHOTON_SPLIT = 4096  # photons (or records) per thread below which one call is not split
 
 
 def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False, adjoint=False):
@@ -142,8 +143,9 @@ def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caste
 def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bounces=MAX_SPECULAR_BOUNCES,
                 max_iter=None, physical=False, K=0):
     """Photons traced in one kernel call per chunk (kernels.photon_lanes: caustic photons, or with
-    indirect the ones that also bounce off diffuse surfaces), their random numbers keyed by one
-    draw from rng and the lane. Counts photons and rays in stats. Returns the splat records
+    indirect the ones that also bounce off diffuse surfaces), or per part of it on each thread
+    when the chunk runs alone (at low spp a batch is one chunk), their random numbers keyed by
+    one draw from rng and the lane. Counts photons and rays in stats. Returns the splat records
     (kernels.REC_* columns), their (lane, specular bounces, material), the hand-off's record of
     each lane's first K specular vertices (hist, h_prim) and the kernel's tally (kernels.PH_*)."""
     n = len(photons.o)
@@ -156,17 +158,30 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
             Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical), tracer.eps)
     key = int(rng.integers(2**63))
-    cap = max(n, max_iter + 1)  # a lane makes at most max_iter records: every call moves on
-    recs, ids, lane = [], [], 0
-    while lane < n:
-        rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
-        rt = tracer.rays()
-        lane, m, counts = kernels.photon_lanes(rt, bool(indirect), o0, d0, w0, soft, key, lane, *args, rec, rec_i,
-                                               hist, h_prim, tally)
-        tracer.cast_by_kernel(rt, counts)
-        stats["rays_photon"] = stats.get("rays_photon", 0) + int(counts[embree.KINDS:].sum())
-        recs.append(rec[:m])
-        ids.append(rec_i[:m])
+
+    def part(a, b):
+        """Lanes a..b-1 (the arrays cut at b, so lane numbers and their random numbers stay)."""
+        cap = max(b - a, max_iter + 1)  # a lane makes at most max_iter records: every call moves on
+        recs, ids, tally_p, rays, lane = [], [], np.zeros_like(tally), 0, a
+        while lane < b:
+            rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
+            rt = tracer.rays()
+            lane, m, counts = kernels.photon_lanes(rt, bool(indirect), o0[:b], d0[:b], w0[:b], soft, key, lane, *args,
+                                                   rec, rec_i, hist[:b], h_prim[:b], tally_p)
+            tracer.cast_by_kernel(rt, counts)
+            rays += int(counts[embree.KINDS:].sum())
+            recs.append(rec[:m])
+            ids.append(rec_i[:m])
+        return recs, ids, tally_p, rays
+
+    # parts of one call's lanes on the threads (one part inside a chunk that already runs beside
+    # others: lanes.run), their records joined in lane order: the records of one call
+    recs, ids = [], []
+    for r, i, t, rays in lanes.run(part, n, tracer.threads, PHOTON_SPLIT):
+        recs += r
+        ids += i
+        tally += t
+        stats["rays_photon"] = stats.get("rays_photon", 0) + rays
     stats["photons"] = stats.get("photons", 0) + int(tally[kernels.PH_PHOTONS])
     rec, ids = (np.concatenate(recs), np.concatenate(ids)) if len(recs) != 1 else (recs[0], ids[0])
     return rec, ids, hist, h_prim, tally
@@ -175,21 +190,29 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
 def splat_records(scene, tracer, cam, film, rec, ids, stats):
     """Connect run_photons' records (diffuse vertices with the direction the photon arrived from
     and its flux) to the camera and splat flux x BSDF x importance, in one kernel call
-    (kernels.camera_splats, the shadow rays cast there)."""
+    (kernels.camera_splats, the shadow rays cast there), or one per part on each thread as
+    run_photons, splatted in record order."""
     n = len(rec)
     if n == 0:
         return
     rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
-    rt = tracer.rays()
-    rays, m, counts = kernels.camera_splats(rt, cam.kernel_params(), float(film.filter_width),
-                                            np.ascontiguousarray(rec, np.float64),
-                                            np.ascontiguousarray(ids[:, 2], np.int64),
-                                            np.ascontiguousarray(scene.mat_color, np.float64), tracer.eps, rx, ry, val)
-    tracer.cast_by_kernel(rt, counts)
-    stats["rays_camera"] += int(rays)
+    cam_p, rec = cam.kernel_params(), np.ascontiguousarray(rec, np.float64)
+    mat, colors = np.ascontiguousarray(ids[:, 2], np.int64), np.ascontiguousarray(scene.mat_color, np.float64)
+
+    def part(a, b):  # records a..b-1, their splats packed from a on
+        rt = tracer.rays()
+        rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], colors,
+                                                tracer.eps, rx[a:b], ry[a:b], val[a:b])
+        tracer.cast_by_kernel(rt, counts)
+        return a, m, rays
+
+    parts = lanes.run(part, n, tracer.threads, PHOTON_SPLIT)
+    stats["rays_camera"] += sum(int(rays) for _, _, rays in parts)
+    m = sum(int(p[1]) for p in parts)
+    keep = slice(0, m) if len(parts) == 1 else np.concatenate([np.arange(a, a + k) for a, k, _ in parts])
     if m:
-        film.splat(rx[:m], ry[:m], val[:m])
-        stats["splats"] += int(m)
+        film.splat(rx[keep], ry[keep], val[keep])
+        stats["splats"] += m
 
 
 def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounces=MAX_SPECULAR_BOUNCES,

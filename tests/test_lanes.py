@@ -173,3 +173,34 @@ def test_light_tracing_chunks_on_threads_give_the_image_of_chunks_in_turn(monkey
             assert a.stats["eye_pass"]["enabled"] is True  # the bake's own flag, untouched by the chunks' counts
         else:
             assert light["handoff"]["photons"] > 2 * 500 and light["handoff"] == other["handoff"]
+
+
+def test_one_chunks_photons_split_over_threads_give_the_records_of_one_call(monkeypatch):
+    """A light-tracing chunk that runs alone (a low-spp batch is one chunk) splits its photons and
+    then its records over the threads (reference.run_photons, splat_records: parts of the lanes,
+    random numbers keyed by lane, records and splats joined in lane order): the image and the
+    counts of one call, bit for bit, with the photon hand-off of a manifold bake too."""
+    reference = importlib.import_module("smbs_addon.reference")
+    ball = lambda: scenes.glass_sphere_scene(resolution=(32, 24))  # noqa: E731
+    for method in ("reference", "sms"):
+        s = dict(method=method, spp=2, batches=1, seed=6)
+        monkeypatch.setattr(reference, "PHOTON_SPLIT", 10**9)
+        whole = bake(ball(), BakeSettings(**s, threads=2))
+        monkeypatch.setattr(reference, "PHOTON_SPLIT", 64)
+        calls = []
+        run = reference.kernels.photon_lanes
+
+        def spy(*a):
+            calls.append(a[7])  # the first lane of the call
+            return run(*a)
+
+        monkeypatch.setattr(reference.kernels, "photon_lanes", spy)
+        split = bake(ball(), BakeSettings(**s, threads=2))
+        monkeypatch.setattr(reference.kernels, "photon_lanes", run)
+        assert any(c > 0 for c in calls), "no chunk was split"
+        assert _same(whole, split) and whole.image.max() > 0
+        assert whole.stats["rays"] == split.stats["rays"]
+        a, b = whole.stats["lights"]["Area"], split.stats["lights"]["Area"]
+        a, b = (a, b) if method == "reference" else (a["handoff"], b["handoff"])
+        assert a["photons"] > 2 * 64 and {k: v for k, v in a.items() if k != "time_s"} == {
+            k: v for k, v in b.items() if k != "time_s"}
