@@ -407,7 +407,7 @@ def _summarise_walks(st: dict) -> None:
         bc["mutations_per_success"] = bc["mutations"] / bc["successes"] if bc["successes"] else 0.0
     n_lanes = st.get("bernoulli_lanes", 0)
     st["trials"] = {"mean": st.get("bernoulli_trials", 0) / n_lanes if n_lanes else 0.0,
-                    "max": st.get("bernoulli_max", 0), "capped": st.get("capped", 0)}
+                    "max": st.get("bernoulli_trials_max", 0), "capped": st.get("capped", 0)}
     st["rays"] = _rays(st)
     hs = st.get("handoff")
     if hs:

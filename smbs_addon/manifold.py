@@ -9,6 +9,7 @@ inside it.
 """
 from __future__ import annotations
 
+import copy
 import math
 import time
 from dataclasses import dataclass, field
@@ -53,6 +54,9 @@ SEEN_HANDOFF_MIN = 4.0
 # much as a focus's, and over a pool under a sun, seen through its water everywhere, would find
 # next to nothing). At receivers seen directly the photons take them whatever their share
 OTHERS_MIN_SHARE = 0.01
+# receivers per part of a chunk's walks (manifold_chunk): parts run on the threads in turn, so one
+# part's numpy (light samples, contributions) runs beside another's walk kernels
+ESTIMATE_PART = 8192
 
 
 class Ctx:
@@ -71,6 +75,14 @@ class Ctx:
         self.film = None  # the film the estimates are splatted on (the clamp's statistics count what lands)
         self.handoff_seen = False  # hand off focusing paths at receivers seen through mirrors or glass too
         self.first_order = False  # walking from receivers the camera sees (not later diffuse vertices)
+
+    def part(self) -> "Ctx":
+        """A copy for one part of a chunk's receivers, with counters of its own (merged by the
+        caller in part order: lanes.add_stats)."""
+        c = copy.copy(self)
+        c.stats = {}
+        c.clamp_cut = None
+        return c
 
     def count(self, key, n):
         with lanes.LOCK:  # walk blocks on several threads count here
@@ -468,7 +480,7 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     st = ctx.stats
     st["bernoulli_lanes"] = st.get("bernoulli_lanes", 0) + int(pend.size)
     st["bernoulli_trials"] = st.get("bernoulli_trials", 0) + int(count.sum())
-    st["bernoulli_max"] = max(st.get("bernoulli_max", 0), int(count.max()) if count.size else 0)
+    st["bernoulli_trials_max"] = max(st.get("bernoulli_trials_max", 0), int(count.max()) if count.size else 0)
     # what the cap leaves out: a capped lane's weight would have exceeded max_trials, so
     # max_trials times its value is a lower bound on its share (luminance, as splatted)
     cp = pend[capped]
@@ -498,14 +510,40 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         ctxs[lp.index] = ctx
 
     def caustic(receivers):
-        total = np.zeros((len(receivers.p), 3))
-        for lp in plan.lights:
-            t = time.perf_counter()
-            o = opts if not opts_by_light else opts_by_light.get(lp.index, opts)
-            for types in types_list:
-                total += estimate(ctxs[lp.index], o, lp.index, types, receivers, rng, guide)
-            stats_per_light[lp.name]["time_s"] += time.perf_counter() - t
-        return total
+        """Every light x chain type at these receivers, in parts of ESTIMATE_PART receivers that
+        the threads take in turn (lanes.blocks), each part with its own random stream (keyed by
+        one draw from the chunk's and the part's first receiver) and its own counters, added in
+        part order: one thread's numpy runs beside another's walks, and the image does not
+        depend on the thread count."""
+        n = len(receivers.p)
+        key = int(rng.integers(2**63))
+
+        def part(a, b):
+            prng = np.random.default_rng([key, a])
+            sub = receivers.take(slice(a, b))
+            total = np.zeros((b - a, 3))
+            stats, secs = {}, {}
+            for lp in plan.lights:
+                t = time.perf_counter()
+                ctx = ctxs[lp.index].part()
+                o = opts if not opts_by_light else opts_by_light.get(lp.index, opts)
+                for types in types_list:
+                    total += estimate(ctx, o, lp.index, types, sub, prng, guide)
+                stats[lp.name], secs[lp.name] = ctx.stats, time.perf_counter() - t
+            return total, stats, secs
+
+        t0 = time.perf_counter()
+        # below two parts' worth, one part: its walks split over the threads in blocks, balanced
+        # lane by lane (a part and a small rest would leave a thread idle beside the part's walks)
+        parts = lanes.blocks(part, n, ESTIMATE_PART if n >= 2 * ESTIMATE_PART else max(n, 1), tracer.threads)
+        wall = time.perf_counter() - t0
+        busy = sum(sum(p[2].values()) for p in parts)
+        for _, stats, secs in parts:
+            for name, st in stats.items():
+                lanes.add_stats(stats_per_light[name], st)
+                # each light's share of the wall time (parts of several lights run at once)
+                stats_per_light[name]["time_s"] += wall * secs[name] / busy if busy > 0 else 0.0
+        return np.concatenate([p[0] for p in parts]) if parts else np.zeros((0, 3))
 
     # at receivers seen through mirrors or glass, paths focusing more than opts.handoff go to
     # cosine sampling from x0 (indirect.handoff_gather) for the lights it can hit; per light,

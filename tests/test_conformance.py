@@ -65,8 +65,9 @@ def test_mnee_is_never_brighter_than_cycles():
 
 def test_the_judge_sees_a_five_percent_error():
     """The same bake scaled by 0.95 fails the judge where the noise is small: the suite's
-    tolerance is tight enough to catch the errors it is there for."""
-    res, j = _judge("water_flat_sun0", "mnee", 8)
+    tolerance is tight enough to catch the errors it is there for. At 16 spp: our sigma at 8 spp
+    was 0.0016-0.0037 over 24 seeds (mean 0.0026), too near the 0.0033 this needs."""
+    res, j = _judge("water_flat_sun0", "mnee", 16)
     assert j["within"] and 3 * j["sigma"] < 0.01
     scaled = conf.judge(res.batch_luminance * 0.95, conf.load_reference("water_flat_sun0"))
     assert not scaled["within"]

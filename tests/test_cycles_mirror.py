@@ -65,8 +65,10 @@ def scene():
     return load_input(str(ROOT / "sample_blends" / "mirror.blend"), warn=lambda m: None)
 
 
-@pytest.mark.parametrize("method,spp", [("reference", 16), ("smbs", 4)])
+@pytest.mark.parametrize("method,spp", [("reference", 16), ("smbs", 8)])
 def test_mirror_layer_matches_cycles(cycles, scene, method, spp):
+    """The mean within 3% once both are precise to 0.5% (SMBS at 4 spp: 0.27-0.61% over 32 seeds,
+    a quarter of them too noisy to judge; 8 spp) and at most 2% of the pixels beyond 3 sigma."""
     cyc, cyc_var, region, (a, b) = cycles
     res = bake(scene, BakeSettings(method=method, spp=spp, seed=1))
     ours = res.image.mean(axis=2)

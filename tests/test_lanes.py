@@ -54,6 +54,13 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     f = bake(make(), BakeSettings(**s, threads=2))
     assert e.stats["rays"] == f.stats["rays"]
     assert _same(e, f) and _same(e, c)
+    # a chunk's receivers in parts of 100 (manifold.ESTIMATE_PART), each its own random stream,
+    # that the threads take in turn: another image, the same one whatever the threads
+    monkeypatch.setattr(importlib.import_module("smbs_addon.manifold"), "ESTIMATE_PART", 100)
+    g = bake(make(), BakeSettings(**s, threads=1))
+    h = bake(make(), BakeSettings(**s, threads=2))
+    assert g.stats["rays"] == h.stats["rays"] and g.image.max() > 0
+    assert _same(g, h) and not _same(g, e)
 
 
 @pytest.mark.parametrize("make, method", [
@@ -76,6 +83,35 @@ def test_bernoulli_trials_run_exactly_the_trials_each_sample_needs(make, method,
         counted = sum(x.get("bernoulli_trials", 0) for x in L)
         capped = sum(x.get("capped", 0) for x in L)
         assert walks > 0 and walks == counted - capped
+
+
+def test_counters_of_a_chunks_parts_add_up_and_its_maxima_stay_maxima(monkeypatch):
+    """The parts of a chunk's receivers (manifold.ESTIMATE_PART) count on dicts of their own, added
+    to the light's in part order: counts are the parts' sums, the largest Bernoulli count is the
+    largest of the parts' (summed, 8 parts would add their maxima), and the light's time is its
+    share of the wall time, within the bake's (summed over parts on two threads, the busy time
+    would be about twice it)."""
+    manifold = importlib.import_module("smbs_addon.manifold")
+    lanes = importlib.import_module("smbs_addon.lanes")
+    monkeypatch.setattr(manifold, "ESTIMATE_PART", 256)
+    parts = []
+    add = lanes.add_stats
+
+    def spy(into, part):
+        if "outcomes" in part:  # a part's counters (not a photon chunk's, nor a nested dict)
+            parts.append(dict(part))
+        add(into, part)
+
+    monkeypatch.setattr(lanes, "add_stats", spy)
+    res = bake(scenes.glass_sphere_scene(resolution=(48, 36)), BakeSettings(method="sms", spp=4, batches=2, seed=2,
+                                                                            threads=2))
+    light = res.stats["lights"]["Area"]
+    assert len(parts) >= 8
+    assert light["walks"] == sum(p["walks"] for p in parts) > 0
+    assert light["bernoulli_trials"] == sum(p.get("bernoulli_trials", 0) for p in parts)
+    maxima = [p["bernoulli_trials_max"] for p in parts if "bernoulli_trials_max" in p]
+    assert len(maxima) >= 8 and light["trials"]["max"] == max(maxima) < sum(maxima)
+    assert 0 < light["time_s"] <= res.stats["time_s"]
 
 
 def test_block_edges_shrink_towards_the_end_and_cover_every_lane():
