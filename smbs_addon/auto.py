@@ -62,6 +62,7 @@ class Choice:
     measured: dict  # method -> {"direct", "through", "all": costs, "rays": work, "time_s": seconds, ...}
     why: str
     photon_factor: float = 1.0  # photons for the direct receivers per walk sample (photons_direct only)
+    rays: int = 0  # every ray this light's pilot cast (its bakes' plans and pre-passes too)
 
 
 def _pilot_scene(scene, li):
@@ -114,16 +115,19 @@ def choose(scene, settings, plan, cancel=None) -> dict:
     for lp in plan.lights:
         sub = _pilot_scene(scene, lp.index)
         cam = CameraModel(sub.camera)
-        direct = _direct_pixels(sub, Tracer(sub, threads=settings.threads or None), cam, plan)
-        runs = {}
+        tracer = Tracer(sub, threads=settings.threads or None)
+        direct = _direct_pixels(sub, tracer, cam, plan)
+        runs, cast = {}, tracer.rays_cast
         for m in CANDIDATES:
             # a fixed pilot (one sample per pixel a batch), so that one seed makes one choice
             s = dataclasses.replace(settings, method=m, spp=PILOT_BATCHES, batches=PILOT_BATCHES, time_budget=0.0,
                                     noise_target=0.0, indirect=False, estimator="unbiased")
             t = time.perf_counter()
             res = bake(sub, s, cancel=cancel)
-            st = res.stats  # the work per sample: the rays past the plan and the photon pre-pass
-            work = st["rays"] - st["plan"].get("rays", 0) - st.get("guide", {}).get("rays", 0)
+            st = res.stats  # the work per sample: the rays past the plan, the photon pre-pass and the look
+            cast += st["rays"]
+            work = (st["rays"] - st["plan"].get("rays", 0) - st.get("guide", {}).get("rays", 0)
+                    - st.get("eye_pass", {}).get("rays_visible", 0))  # the light tracer's look, once per bake
             ls = st["lights"].get(lp.name, {})
             seen = ls.get("walks_seen", 0) / ls["walks"] if ls.get("walks") else 0.0
             runs[m] = (res.batch_luminance, max(work, 1), res.image.mean(axis=2), time.perf_counter() - t, seen)
@@ -145,7 +149,7 @@ def choose(scene, settings, plan, cancel=None) -> dict:
             if k != 1.0:
                 why = why.replace("light tracing for receivers seen directly (",
                                   f"light tracing for receivers seen directly ({k:g}x the samples; ", 1)
-        out[lp.index] = Choice(walk, photons, bool(t_reg.any()), alone, measured, why, k)
+        out[lp.index] = Choice(walk, photons, bool(t_reg.any()), alone, measured, why, k, cast)
     return out
 
 

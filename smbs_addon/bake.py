@@ -198,15 +198,15 @@ def _eye_per_batch(cam, film, settings) -> int:
     return max(1, film_cells(cam, film) * settings.spp // settings.batches)
 
 
-def _specular_visible(scene, tracer, cam) -> bool:
-    """Does any pixel see a mirror or glass surface first? (one ray per pixel)"""
+def _specular_visible(scene, tracer, cam) -> tuple[bool, int]:
+    """Does any pixel see a mirror or glass surface first? (one ray per pixel: how many it cast)"""
     jj, _, o, d = cam.pixel_rays()
     if jj.size == 0:
-        return False
+        return False, 0
     h = tracer.intersect(o, d)
     kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
     from . import scene as S
-    return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)))
+    return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))), int(jj.size)
 
 
 class _Progress:
@@ -601,6 +601,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
         alone = bool(choices) and all(c.alone or (c.photons_direct and not c.through) for c in choices.values())
         method = "reference" if alone else "manifold"
         auto_stats = {"time_s": time.perf_counter() - t_a, "bake": method, "pilot": bool(choices),
+                      "rays": sum(c.rays for c in choices.values()),
                       "lights": {scene.light_names[li]: {"walks": c.walk, "direct": "photons" if c.photons_direct
                                                          else c.walk, "photon_factor": c.photon_factor,
                                                          "why": c.why, "pilot": c.measured}
@@ -622,8 +623,9 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
                                      "lost_shading_normal"), 0))
         from .eye import film_cells, specular_cells
 
-        eye_stats = {"eye_paths": 0, "rays_eye": 0, "eye_splats": 0, "time_s": 0.0,
-                     "enabled": _specular_visible(scene, tracer, cam), "film_cells": film_cells(cam, film)}
+        enabled, rays_visible = _specular_visible(scene, tracer, cam)
+        eye_stats = {"eye_paths": 0, "rays_eye": 0, "rays_visible": rays_visible, "eye_splats": 0, "time_s": 0.0,
+                     "enabled": enabled, "film_cells": film_cells(cam, film)}
         # eye paths traced only from the film cells that can see a mirror or glass first
         eye_cells = specular_cells(scene, tracer, cam, film) if eye_stats["enabled"] else None
         eye_stats["cells"] = eye_stats["film_cells"] if eye_cells is None else int(eye_cells.sum())
@@ -714,6 +716,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
     if indirect_stats:
         extra["indirect"] = indirect_stats
         rays += sum(st["rays_photon"] + st["rays_camera"] for st in indirect_stats.values())
+    rays += extra.get("auto", {}).get("rays", 0)  # the pilot's bakes: the bake's time counts them too
     image = film.image
     variance = film.variance
     if not (np.all(np.isfinite(image)) and np.all(np.isfinite(variance))):
