@@ -702,8 +702,8 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
                 st["clamped"] = st.get("clamped", 0)
                 st["clamped_energy"] = st.get("clamped_energy", 0.0) / b
             st["trials"]["capped_energy_min"] = st.pop("capped_energy_min", 0.0) / b
-        rays = (sum(st["rays"] for st in light_stats.values())
-                + _rays(eye_stats) + extra.get("guide", {}).get("rays", 0) + plan.cost.get("rays", 0))
+        rays = (sum(st["rays"] for st in light_stats.values()) + _rays(eye_stats) + _rays(eye_stats.get("bent", {}))
+                + extra.get("guide", {}).get("rays", 0) + plan.cost.get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())
         extra.update({
             "chain_types": types, "eye_pass": eye_stats, "walks": walks,

@@ -595,8 +595,10 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     from .indirect import bending_lights, bent_gather, bent_receivers
 
     bent = bending_lights(scene, tracer, plan)
-    if bent:
-        bent_gather(scene, tracer, film, plan, bent_receivers(rc, rng), rng, eye_stats, bent, physical=opts.physical)
+    if bent:  # its counters where the light tracer keeps its bent pass's: the eye pass's "bent" part
+        t_bent, bent_stats = time.perf_counter(), eye_stats.setdefault("bent", {"time_s": 0.0})
+        bent_gather(scene, tracer, film, plan, bent_receivers(rc, rng), rng, bent_stats, bent, physical=opts.physical)
+        bent_stats["time_s"] += time.perf_counter() - t_bent
     seen = np.flatnonzero(rc.eye_specular > 0)
     if seen.size == 0:
         return

@@ -188,8 +188,9 @@ def test_statistics_of_a_manifold_bake(addon):
 
 
 def test_bent_normal_paths_are_counted_for_every_method(addon):
-    """The paths through normals Cycles' Bump Map Correction bends: the light tracer keeps them in
-    its eye pass's "bent" part, the manifold methods in the eye pass itself."""
+    """The paths through normals Cycles' Bump Map Correction bends: every method keeps them in its
+    eye pass's "bent" part (the manifold methods' bakes before stop 33 kept them in the eye pass
+    itself, and a scene's stored statistics may still hold those)."""
     panels = importlib.import_module("smbs_caustics.ui.panels")
     lt = {"eye_pass": {"eye_paths": 10, "bent": {"time_s": 0.5, "eye_paths": 4, "bent_paths": 1266}}}
     assert dict(panels.summarize_stats(lt))["Bent Normals"] == "1.3 k paths"

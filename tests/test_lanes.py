@@ -280,3 +280,5 @@ def test_a_bakes_rays_are_every_ray_its_tracers_cast(make, methods, monkeypatch)
         assert res.stats["rays"] == cast > 0, (method, res.stats["rays"], cast)
         if method == "auto":
             assert len(made) > 1 and res.stats["auto"]["rays"] > 0
+        if res.stats["scene"] == "cube_grey_reflect":  # every method's bent pass in the eye pass's "bent" part
+            assert res.stats["eye_pass"]["bent"]["rays_bent"] > 0 and "rays_bent" not in res.stats["eye_pass"]

@@ -99,7 +99,7 @@ def summarize_stats(stats):
         rows.append(("Photon Hand-off", f"{_format_count(handoff['handoff_paths'])} paths"))
     eye = stats.get("eye_pass")
     if isinstance(eye, dict):  # paths through normals Cycles' Bump Map Correction bends
-        bent = eye.get("bent") if isinstance(eye.get("bent"), dict) else eye
+        bent = eye.get("bent") if isinstance(eye.get("bent"), dict) else eye  # the eye pass itself: older bakes
         if _number(bent.get("bent_paths")):
             rows.append(("Bent Normals", f"{_format_count(bent['bent_paths'])} paths"))
     rays = _rays(stats)
