@@ -393,6 +393,11 @@ def _rays(st: dict) -> int:
     return sum(v for k, v in st.items() if k.startswith("rays_"))
 
 
+def _eye_rays(eye_stats: dict) -> int:
+    """The eye pass's rays, its bent part's (every method's bent pass counts there) with them."""
+    return _rays(eye_stats) + _rays(eye_stats.get("bent", {}))
+
+
 def _summarise_walks(st: dict) -> None:
     for key in ("walks", "successes", "mutations"):  # a light auto leaves to photons walks nowhere
         st.setdefault(key, 0)
@@ -642,7 +647,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
         b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)
         extra["batches_done"] = b
         rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
-                + _rays(eye_stats) + _rays(eye_stats.get("bent", {})) + plan.cost.get("rays", 0))
+                + _eye_rays(eye_stats) + plan.cost.get("rays", 0))
         extra["eye_pass"] = eye_stats
     else:
         from .manifold import chain_types
@@ -702,7 +707,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
                 st["clamped"] = st.get("clamped", 0)
                 st["clamped_energy"] = st.get("clamped_energy", 0.0) / b
             st["trials"]["capped_energy_min"] = st.pop("capped_energy_min", 0.0) / b
-        rays = (sum(st["rays"] for st in light_stats.values()) + _rays(eye_stats) + _rays(eye_stats.get("bent", {}))
+        rays = (sum(st["rays"] for st in light_stats.values()) + _eye_rays(eye_stats)
                 + extra.get("guide", {}).get("rays", 0) + plan.cost.get("rays", 0))
         walks = sum(st.get("walks", 0) for st in light_stats.values())
         extra.update({
