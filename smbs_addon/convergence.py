@@ -25,10 +25,30 @@ MIN_FIT_POINTS = 3  # prefix variances (k = 2..G) needed for the log-log fit
 HEAVY_TAIL = 1.5  # error(all) / (error(first half) / sqrt 2) above this: the variance is still growing
 
 
+def box5(x: np.ndarray) -> np.ndarray:
+    """(H,W) -> the mean over each pixel's 5x5 neighbourhood (edges repeated), in two passes."""
+    h, w = x.shape
+    p = np.pad(np.asarray(x, np.float64), 2, mode="edge")
+    rows = p[:, 0:w] + p[:, 1:w + 1] + p[:, 2:w + 2] + p[:, 3:w + 3] + p[:, 4:w + 4]
+    return (rows[0:h] + rows[1:h + 1] + rows[2:h + 2] + rows[3:h + 3] + rows[4:h + 4]) / 25.0
+
+
 def caustic_region(lum: np.ndarray, frac: float = 0.05) -> np.ndarray:
-    """Pixels where the caustic is clearly non-zero: luminance above frac of its 99.5th percentile."""
-    top = np.percentile(lum, 99.5) if lum.size else 0.0
-    return lum > frac * top if top > 0 else np.zeros(lum.shape, bool)
+    """Pixels where the caustic is clearly non-zero: its luminance averaged over 5x5 pixels
+    (box5) above frac of that average's 99.5th percentile.
+
+    Averaged, because the region is picked from the same noisy image that is then measured
+    over it: a pixel picked by its own value is there because it came out high, so the
+    region's mean comes out high and the relative error low. On the mirror (SMS, 1 spp in 8
+    batches, seeds 1-4) our mean over a region picked pixel by pixel was 1.42-1.48x Cycles'
+    there and relative_error read 0.73-0.80 of the true error; picked on the 5x5 average,
+    which 25 pixels' noise hardly moves, 0.96-1.02 (at 2 and 8 spp 0.95-1.01, against
+    0.88-0.99). It is also the conformance judge's region (tools/conformance.region_of)."""
+    if not lum.size:
+        return np.zeros(lum.shape, bool)
+    s = box5(lum)
+    top = float(np.percentile(s, 99.5))
+    return s > frac * top if top > 0 else np.zeros(lum.shape, bool)
 
 
 def _prefix_variances(groups: np.ndarray) -> np.ndarray:

@@ -28,17 +28,19 @@ def _true_error(res, ref):
 
 
 @pytest.mark.bpy
-@pytest.mark.parametrize("name,method,spp", [("lens_area", "reference", 4), ("mirror_point_hard", "sms", 8)])
-def test_relative_error_tracks_the_true_error(name, method, spp):
+@pytest.mark.parametrize("name,method,spp,batches", [("lens_area", "reference", 1, 8),
+                                                       ("mirror_point_hard", "sms", 8, 8)])
+def test_relative_error_tracks_the_true_error(name, method, spp, batches):
     """Within a factor of 1.5 of the relative RMS error against Cycles, over the same pixels.
-    Measured, estimated / true, seeds 1-3: lens (light tracer, 4 spp) 1.13, 1.01, 0.96 at a
-    true error of 0.08-0.11 (the reference's own noise, taken out, is 0.052; at 8 spp the
-    true error, 0.05-0.08, comes too near it to be read); mirror (SMS, 8 spp) 0.99, 0.98,
-    1.02 at 0.40-0.41."""
+    Measured, estimated / true, seeds 1-4: lens (light tracer, 1 spp in 8 batches) 1.04, 0.93,
+    1.00, 1.35 at a true error of 0.09-0.30; mirror (SMS, 8 spp) 0.99, 0.98, 0.98 at 0.41-0.43.
+    The lens at 4 spp is out of reach: its true error there, 0.04-0.06, is under the Cycles
+    reference's own noise, 0.052 (against our light tracer at 512 spp instead, whose noise is
+    0.006, the error bar read 1.24, 1.02, 1.14, 0.94)."""
     ref = conf.load_reference(name)
     sc = conf.scene_arrays(name)
     for seed in (1, 2):
-        res = bake(sc, BakeSettings(method=method, spp=spp, batches=spp, seed=seed))
+        res = bake(sc, BakeSettings(method=method, spp=spp, batches=batches, seed=seed))
         est, true = res.stats["relative_error"], _true_error(res, ref)
         assert 0.05 < true < 1.0, f"{name}: true error {true:.3f} out of the range this test is meant for"
         assert true / 1.5 <= est <= 1.5 * true, f"{name} seed {seed}: estimated {est:.3f}, true {true:.3f}"
@@ -49,18 +51,19 @@ def test_fewer_samples_than_batches_cost_what_was_asked_and_keep_an_honest_error
     """2 spp in 8 batches traces 2 eye samples per film cell in all (each batch a quarter of the
     film's cells, spread over all of it: eye.film_samples), a quarter of what 8 spp traces; it
     was a whole pass per batch, 8 spp for any spp below 8. The error bar of such sparse batches
-    still tracks the true error. Measured, estimated / true, SMS on the mirror, seeds 1-3: 2 spp
-    0.99, 0.91, 0.99 (true 0.84-0.90); 8 spp 0.98, 0.95, 1.00 (at 1 spp 0.71-0.78, at a true
-    error above 1)."""
+    still tracks the true error, down to 1 spp, where it read 0.71-0.78 of it while the region
+    was picked pixel by pixel on the noisy image (convergence.caustic_region). Measured,
+    estimated / true, SMS on the mirror, seeds 1-4: 1 spp 0.96, 0.99, 1.02, 0.96 (true
+    1.33-1.39); 2 spp 0.99, 0.95, 1.01; 8 spp 0.99, 0.98, 0.98."""
     ref = conf.load_reference("mirror_point_hard")
     sc = conf.scene_arrays("mirror_point_hard")
     eye = {}
-    for spp in (2, 8):
+    for spp in (1, 2, 8):
         res = bake(sc, BakeSettings(method="sms", spp=spp, batches=8, seed=1))
         eye[spp] = res.stats["eye_pass"]["eye_paths"]
         est, true = res.stats["relative_error"], _true_error(res, ref)
-        assert true / 1.5 <= est <= 1.5 * true, f"{spp} spp: estimated {est:.3f}, true {true:.3f}"
-    assert eye[8] == 4 * eye[2]
+        assert true / 1.2 <= est <= 1.2 * true, f"{spp} spp: estimated {est:.3f}, true {true:.3f}"
+    assert eye[8] == 4 * eye[2] == 8 * eye[1]
 
 
 @pytest.mark.bpy

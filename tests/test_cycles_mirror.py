@@ -21,15 +21,11 @@ import pytest
 from smbs_addon import BakeSettings, bake
 from smbs_addon.__main__ import load_input
 from smbs_addon.bake import caustic_region
+from smbs_addon.convergence import box5
 from smbs_addon.imageio import read_exr
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"
-
-
-def _box5(x):
-    p = np.pad(x, 2, mode="edge")
-    return sum(p[i:i + x.shape[0], j:j + x.shape[1]] for i in range(5) for j in range(5)) / 25.0
 
 
 def _load(name):
@@ -41,7 +37,7 @@ def _load(name):
     caustic_b = (on_b - off_b).mean(axis=2)  # ... judged on seed b
     # per-pixel variance of one half is (a - b)^2 / 2, a one-degree-of-freedom
     # estimate; averaged over 5 x 5 neighbours it has ~25
-    var = _box5((((on_a - off_a) - (on_b - off_b)) ** 2).mean(axis=2) / 2.0)
+    var = box5((((on_a - off_a) - (on_b - off_b)) ** 2).mean(axis=2) / 2.0)
     return caustic_b, var, region, (on_a.mean(axis=2), on_b.mean(axis=2))
 
 

@@ -121,15 +121,11 @@ def _sample_reference(sample: str) -> dict:
             "spp_half": meta["renders"]["on_a"]["spp"], "meta": meta}
 
 
-def _box5(x):
-    p = np.pad(x, 2, mode="edge")
-    return sum(p[i:i + x.shape[0], j:j + x.shape[1]] for i in range(5) for j in range(5)) / 25.0
-
-
 def region_of(lum: np.ndarray, frac: float = 0.05) -> np.ndarray:
-    s = _box5(lum)
-    top = float(np.percentile(s, 99.5))
-    return s > frac * top if top > 0 else np.zeros(lum.shape, bool)
+    """The caustic region, as a bake picks its own (luminance over 5x5 pixels, 5% of its top)."""
+    from smbs_addon.convergence import caustic_region
+
+    return caustic_region(lum, frac)
 
 
 def _truth(ref: dict, region: np.ndarray | None):
