@@ -190,6 +190,8 @@ def error_lines(stats: dict) -> list[str]:
         line += (f"; halving it would take about {_duration(halve)} more "
                  f"({conv.get('seconds_per_batch', 0.0):.2f} s per batch, 4x the batches)")
     out = [line]
+    if stats.get("error_leaves_out"):
+        out.append("  the error counts noise only, not " + "; ".join(stats["error_leaves_out"]))
     if conv.get("heavy_tail"):
         out.append("  warning: the error is not yet falling as the batches add up (rare bright paths "
                    "still turn up), so it and the time to halve it are optimistic")

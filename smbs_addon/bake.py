@@ -185,6 +185,23 @@ def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None)
     }
 
 
+def bias_left_out(settings: BakeSettings, light_stats: dict) -> list[str]:
+    """What makes this bake's mean differ from the truth beyond its noise, which the error bar
+    (relative_error, from the spread between batches) cannot see: short phrases, none for an
+    unbiased bake. The share of the layer a cap cost is at least what it reports."""
+    out = []
+    if settings.method == "mnee":
+        out.append("MNEE's bias (one walk per point, no Bernoulli weights)")
+    elif settings.method != "reference" and settings.estimator == "biased":
+        out.append(f"the biased estimator's bias ({settings.trials} walks per point)")
+    if any(st.get("clamped", 0) > 0 for st in light_stats.values()):
+        out.append(f"the clamp's bias (clamp_g {settings.clamp_g:g})")
+    capped = sum(st.get("trials", {}).get("capped_share_min", 0.0) for st in light_stats.values())
+    if any(st.get("trials", {}).get("capped", 0) > 0 for st in light_stats.values()):
+        out.append(f"the Bernoulli trials' cap (at least {capped:.1%} of the layer)")
+    return out
+
+
 def _finite_or_none(x: float):
     return float(x) if math.isfinite(x) else None  # JSON has no infinity
 
@@ -755,6 +772,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
         "noise": noise_summary(image, variance, batch_lum),
         # an error bar and a price (convergence.py): noise only, a biased estimator's bias is not in it
         "relative_error": _finite_or_none(convergence.relative_error(batch_lum, region)),
+        "error_leaves_out": bias_left_out(settings, light_stats),
         "seconds_to_halve_error": conv["seconds_to_halve_error"],
         "convergence": {**conv, "setup_s": t_first, "last_batch_end_s": film.batch_end[-1] if film.batch_end else 0.0,
                         "batches_kept": int(len(batch_lum)),

@@ -178,6 +178,9 @@ def test_statistics_of_a_manifold_bake(addon):
         "Mutations per Solution": "33.5", "Rays": "1.1 M",
         "Time": "5.65 s", "Relative Noise": "18.1%", "Error": "\u00b17.3% RMS",
         "Half the Error": "+1 min 8 s", "Stopped By": "Noise"}
+    biased = {**stats, "error_leaves_out": ["MNEE's bias (one walk per point, no Bernoulli weights)",
+                                            "the Bernoulli trials' cap (at least 0.2% of the layer)"]}
+    assert dict(panels.summarize_stats(biased))["Not in the Error"] == "MNEE's bias; the Bernoulli trials' cap"
     ((name, rows),) = panels.per_light_stats(stats)
     assert name == "Light"
     assert dict(rows) == {"Walks": "65.2 k", "Success Rate": "33.3%", "Mutations per Path": "11.2",

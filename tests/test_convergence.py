@@ -170,3 +170,27 @@ def test_convergence_of_a_synthetic_bake():
     # a firefly in the last batch: the variance grows instead of falling
     groups[-1, :, :] += 30.0 * (rng.random((40, 50)) < 0.05)
     assert convergence(groups, ends, 3.0, region, B)["heavy_tail"]
+
+
+def test_the_error_bar_says_which_bias_it_leaves_out():
+    """The error bar is the spread between batches: it cannot see a bias. A bake says which one
+    it leaves out (stats error_leaves_out, the CLI's summary, the panel); an unbiased bake none."""
+    from smbs_addon.__main__ import error_lines
+
+    sc = scenes.glass_sphere_scene(resolution=(48, 36))
+    cases = {"unbiased SMS": (dict(method="sms"), []),
+             "light tracer": (dict(method="reference", clamp_g=1e-3), []),  # the clamp is the walks'
+             "MNEE": (dict(method="mnee"), ["MNEE's bias"]),
+             "biased SMBS": (dict(method="smbs", estimator="biased", trials=2),
+                             ["the biased estimator's bias (2 walks per point)"]),
+             "clamped SMS": (dict(method="sms", clamp_g=1e-3), ["the clamp's bias (clamp_g 0.001)"]),
+             "capped SMS": (dict(method="sms", max_trials=1), ["the Bernoulli trials' cap"])}
+    for what, (kw, want) in cases.items():
+        res = bake(sc, BakeSettings(spp=2, batches=2, seed=4, **kw))
+        got = res.stats["error_leaves_out"]
+        assert len(got) == len(want) and all(g.startswith(w) for g, w in zip(got, want)), (what, got)
+        lines = [ln for ln in error_lines(res.stats) if "noise only" in ln]
+        assert lines == ([f"  the error counts noise only, not {'; '.join(got)}"] if want else []), (what, lines)
+    (light,) = res.stats["lights"].values()
+    capped = light["trials"]
+    assert capped["capped"] > 0 and f"at least {capped['capped_share_min']:.1%} of the layer" in got[0]

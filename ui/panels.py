@@ -113,6 +113,9 @@ def summarize_stats(stats):
         rows.append(("Relative Noise", f"{100.0 * noise['relative_noise']:.1f}%"))
     if _number(stats.get("relative_error")):
         rows.append(("Error", f"\u00b1{100.0 * stats['relative_error']:.1f}% RMS"))
+    left_out = stats.get("error_leaves_out")
+    if _number(stats.get("relative_error")) and isinstance(left_out, list) and left_out:
+        rows.append(("Not in the Error", "; ".join(str(x).split(" (")[0] for x in left_out)))
     if _number(stats.get("seconds_to_halve_error")):
         rows.append(("Half the Error", f"+{_format_time(stats['seconds_to_halve_error'])}"))
     if stats.get("stopped_by") in ("time", "noise"):
