@@ -1,4 +1,5 @@
-"""Command line: ``python -m smbs_addon bake IN [options]``.
+"""Command line: ``python -m smbs_addon bake IN [options]``, ``... compare IN --time S``
+(an equal-time table of the scene's methods) and ``... export IN OUT``.
 
 IN is a .blend file (opened with the bpy module) or an exported .npz scene.
 Exit codes a render farm can trust: 0 done (also for a scene with no caustic to
@@ -60,27 +61,22 @@ def _target(s):
     return v
 
 
-def build_parser() -> argparse.ArgumentParser:
+def _methods(s):
     from .bake import METHODS
 
-    p = _Parser(prog="python -m smbs_addon", description="Bake caustics for a Blender scene.")
-    sub = p.add_subparsers(dest="command", required=True)
-    b = sub.add_parser("bake", help="bake the caustic layer to an EXR")
-    b.add_argument("input", help=".blend file or exported .npz scene")
-    b.add_argument("--method", choices=METHODS, default="auto",
-                   help="auto (default: per light and effect the cheapest of reference, sms and smbs, by a "
-                        "short pilot), smbs, sms, mnee, or the brute-force light-tracing reference")
+    ms = tuple(m.strip() for m in s.split(",") if m.strip())
+    bad = [m for m in ms if m not in METHODS]
+    if bad or not ms:
+        raise argparse.ArgumentTypeError(f"'{s}': methods are {', '.join(METHODS)}, comma-separated")
+    if len(set(ms)) != len(ms):
+        raise argparse.ArgumentTypeError(f"'{s}' lists a method twice")
+    return ms
+
+
+def _bake_options(b):
+    """The settings a bake and a comparison share."""
     b.add_argument("--estimator", choices=("unbiased", "biased"), default="unbiased")
     b.add_argument("--trials", type=_positive_int, default=4, help="biased estimator: walks per lane")
-    b.add_argument("--spp", type=_positive_int, default=None,
-                   help="samples per pixel (default 16); with --time or --noise, per pass of --batches "
-                        "batches (default: one per pixel per batch)")
-    b.add_argument("--time", type=_seconds, default=None, metavar="SECONDS",
-                   help="bake until this many seconds have passed (the whole bake: plan, pre-pass, walks), "
-                        "refining the image in passes")
-    b.add_argument("--noise", type=_target, default=None, metavar="TARGET",
-                   help="bake until the estimated relative error of the layer (relative_error) is at or "
-                        "below TARGET, e.g. 0.05 or 5%%; with --time too, whichever comes first")
     b.add_argument("--seed", type=_seed, default=0)
     b.add_argument("--pilots", type=_seed, default=4096,
                    help="plan: pilot photons per light and caster that find where its caustic lands "
@@ -91,9 +87,55 @@ def build_parser() -> argparse.ArgumentParser:
                    help="honour Cycles' caustic caster/receiver/light flags")
     b.add_argument("--no-indirect", dest="indirect", action="store_false",
                    help="leave out caustics seen after further diffuse bounces (first-order only)")
+
+
+def _settings(args, method: str, spp: int, time_budget: float = 0.0, noise_target: float = 0.0):
+    from .bake import BakeSettings
+
+    settings = BakeSettings(method=method, spp=spp, seed=args.seed, batches=args.batches,
+                            threads=args.threads or 0, use_cycles_flags=args.flags,
+                            estimator=args.estimator, trials=args.trials,
+                            indirect=args.indirect, time_budget=time_budget,
+                            noise_target=noise_target, pilots=args.pilots)
+    settings.validate()
+    return settings
+
+
+def build_parser() -> argparse.ArgumentParser:
+    from .bake import METHODS
+
+    p = _Parser(prog="python -m smbs_addon", description="Bake caustics for a Blender scene.")
+    sub = p.add_subparsers(dest="command", required=True)
+    b = sub.add_parser("bake", help="bake the caustic layer to an EXR")
+    b.add_argument("input", help=".blend file or exported .npz scene")
+    b.add_argument("--method", choices=METHODS, default="auto",
+                   help="auto (default: per light and effect the cheapest of reference, sms and smbs, by a "
+                        "short pilot), smbs, sms, mnee, or the brute-force light-tracing reference")
+    _bake_options(b)
+    b.add_argument("--spp", type=_positive_int, default=None,
+                   help="samples per pixel (default 16); with --time or --noise, per pass of --batches "
+                        "batches (default: one per pixel per batch)")
+    b.add_argument("--time", type=_seconds, default=None, metavar="SECONDS",
+                   help="bake until this many seconds have passed (the whole bake: plan, pre-pass, walks), "
+                        "refining the image in passes")
+    b.add_argument("--noise", type=_target, default=None, metavar="TARGET",
+                   help="bake until the estimated relative error of the layer (relative_error) is at or "
+                        "below TARGET, e.g. 0.05 or 5%%; with --time too, whichever comes first")
     b.add_argument("--out", default=None, help="output EXR (default: IN with .caustics.exr)")
     b.add_argument("--stats", default=None, help="statistics JSON (default: beside the EXR)")
     b.add_argument("--quiet", action="store_true")
+    c = sub.add_parser("compare", help="bake with several methods for the same time and set their errors side by "
+                                       "side (an equal-time table of your scene)")
+    c.add_argument("input", help=".blend file or exported .npz scene")
+    c.add_argument("--time", type=_seconds, required=True, metavar="SECONDS", help="seconds per method")
+    c.add_argument("--methods", type=_methods, default=("reference", "sms", "smbs", "mnee"),
+                   help="comma-separated, in the table's order (default: reference,sms,smbs,mnee)")
+    c.add_argument("--reference", default=None, metavar="EXR",
+                   help="the caustic layer to judge against (a long bake's EXR, whose std channel takes its "
+                        "own noise out, or Cycles' caustics on minus off): adds RMSE and mean / reference")
+    _bake_options(c)
+    c.add_argument("--out", default=None, metavar="JSON", help="also write the table's numbers as JSON")
+    c.add_argument("--quiet", action="store_true", help="no progress lines")
     e = sub.add_parser("export", help="export a .blend to a .npz scene")
     e.add_argument("input")
     e.add_argument("output")
@@ -232,6 +274,41 @@ def exr_channels(result) -> dict:
     return {} if std is None else {"std": std}
 
 
+def _compare(args, say) -> int:
+    """python -m smbs_addon compare: an equal-time table of the scene (smbs_addon.compare)."""
+    from .compare import Reference, compare, json_report, table_lines
+
+    settings = _settings(args, args.methods[0], args.batches)  # one sample per pixel per batch
+    out = Path(args.out) if args.out else None
+    if out is not None:
+        _check_writable(out)
+    if args.reference and not Path(args.reference).is_file():
+        raise FileNotFoundError(f"reference '{args.reference}' does not exist")
+    ref = Reference.from_exr(args.reference) if args.reference else None
+    scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
+    n = len(args.methods)
+
+    def progress(i, m):
+        if not args.quiet:
+            print(f"[{i + 1}/{n}] {m}: {args.time:g} s", file=sys.stderr, flush=True)
+
+    report = compare(scene, args.methods, args.time, settings, ref, progress=progress)
+    if out is not None:
+        tmp = out.with_name(f".{out.name}.tmp")
+        try:
+            tmp.write_text(json.dumps(json_report(report), indent=2))
+            tmp.replace(out)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+    print(f"scene '{scene.name}'")
+    for line in table_lines(report):
+        print(line)
+    if out is not None:
+        say(f"wrote {out}")
+    return EXIT_OK
+
+
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
     from .errors import BakeCancelled, SceneError
@@ -244,17 +321,14 @@ def main(argv=None) -> int:
             load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr)).save(out)
             say(f"wrote {out}")
             return EXIT_OK
-        from .bake import BakeSettings, bake
+        if args.command == "compare":
+            return _compare(args, say)
+        from .bake import bake
         from .imageio import write_exr
 
         stop_rule = args.time is not None or args.noise is not None
         spp = args.spp if args.spp is not None else (args.batches if stop_rule else 16)
-        settings = BakeSettings(method=args.method, spp=spp, seed=args.seed, batches=args.batches,
-                                threads=args.threads or 0, use_cycles_flags=args.flags,
-                                estimator=args.estimator, trials=args.trials,
-                                indirect=args.indirect, time_budget=args.time or 0.0,
-                                noise_target=args.noise or 0.0, pilots=args.pilots)
-        settings.validate()
+        settings = _settings(args, args.method, spp, args.time or 0.0, args.noise or 0.0)
         out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
         stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
         _check_writable(out)

@@ -229,3 +229,39 @@ def test_bad_stop_rules_are_refused(npz, args, needle):
     proc = run("bake", npz, *args)
     assert proc.returncode == 2
     assert needle in one_error_line(proc)
+
+
+def test_compare_prints_an_equal_time_table_and_writes_its_numbers(npz, tmp_path):
+    """``compare``: each method for the same seconds, one table (smbs_addon/compare.py; what the
+    numbers mean is tested in tests/test_compare.py)."""
+    out = tmp_path / "cmp.json"
+    proc = run("compare", npz, "--time", 0.2, "--methods", "reference,mnee", "--out", out, "--seed", 4)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0] == "scene 'mirror'" and lines[1].startswith("equal time: 0.2 s per method")
+    assert "| method | wall s | spp | rays | success | error (noise) | time for same error |" in lines
+    assert next(ln for ln in lines if ln.startswith("| reference |")).endswith("| 1.00x |")
+    assert "biased: MNEE's bias" in next(ln for ln in lines if ln.startswith("| mnee |"))
+    rep = json.loads(out.read_text())
+    assert [r["method"] for r in rep["rows"]] == ["reference", "mnee"]
+    assert rep["rows"][0]["time_for_same_error"] == 1.0 and rep["rows"][1]["time_for_same_error"] is None
+    assert [ln for ln in proc.stderr.splitlines()] == ["[1/2] reference: 0.2 s", "[2/2] mnee: 0.2 s"]
+
+
+@pytest.mark.parametrize("args,code,words", [
+    (["--methods", "sms,nonsense"], 2, ["--methods", "'sms,nonsense'", "reference"]),
+    (["--methods", "sms,sms"], 2, ["--methods", "twice"]),
+    (["--time", "0"], 2, ["--time", "positive number of seconds"]),
+    (["--time", "1", "--reference", "nowhere.exr"], 3, ["reference 'nowhere.exr' does not exist"]),
+])
+def test_bad_compare_arguments(npz, args, code, words):
+    proc = run("compare", npz, *(args if "--time" in args else ["--time", "1", *args]))
+    assert proc.returncode == code
+    line = one_error_line(proc)
+    for w in words:
+        assert w in line, (w, line)
+
+
+def test_compare_needs_a_time(npz):
+    proc = run("compare", npz)
+    assert proc.returncode == 2 and "--time" in one_error_line(proc)
