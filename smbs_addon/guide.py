@@ -87,82 +87,36 @@ class Guide:
 
 def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, max_bounces=16, check=None):
     """Trace photons_per_light photons per planned light and mark tiles per chain type.
-    check() is called between bounces (it raises to cancel)."""
+    check() is called between bounces (it raises to cancel).
+
+    A light's photons are traced in parts of GUIDE_PART (_guide_part) that the threads take in
+    turn, each from its own random stream (keyed by one draw per light from rng and the part's
+    first photon), and added up in part order: the guide does not depend on the thread count."""
+    from . import lanes
+
     x0, x1, y0, y1 = cam.region
     nx = (x1 - x0 + 2 * TILE) // TILE + 2
     ny = (y1 - y0 + 2 * TILE) // TILE + 2
     masks = {}
     stats = {"photons": 0, "rays": 0, "flux_share": {}, "peak_share": {}, "other_share": {},
              "beyond_max_chain_share": {}}
-    max_chain = max((len(t) for t in types_list), default=0)
-    limits = Limits.of(scene)
     weak = set()
     for lp in plan.lights:
-        marks = {t: np.zeros((ny, nx), bool) for t in types_list}
-        flux = {t: np.zeros((ny, nx)) for t in types_list}  # arriving on receivers in the frame
-        ph = emit(scene, lp.index, lp.targets, photons_per_light, rng)
-        o, d, beta = ph.o, ph.d, ph.w
-        sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
-        length = np.zeros(len(o), np.int64)
-        # events as trace_photons counts them: the specular ones but the first (the one next to the
-        # light: free under Cycles' Light Paths limits, bounces.py)
-        cnt = np.zeros((len(o), 3), np.int64)
-        other = np.zeros(2)  # flux in frame of chains not in types_list: [all of them, those longer than max_chain]
-        stats["photons"] += len(o)
-        for bounce in range(max_bounces + 1):
-            if check is not None:
-                check()
-            if len(o) == 0:
-                break
-            h = tracer.intersect(o, d)
-            stats["rays"] += len(o)
-            idx = np.flatnonzero(h.hit)
-            o, d, beta, sig, length = o[idx], d[idx], beta[idx], sig[idx], length[idx]
-            cnt = cnt[idx]
-            prim = h.prim[idx]
-            mat = scene.tri_material[prim]
-            kind = scene.mat_kind[mat]
-            obj = scene.tri_object[prim]
-            spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
-            if bounce == 0:
-                spec &= plan.casters[obj]
-            diff = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj] & (bounce > 0))
-            if diff.size:
-                rx, ry, _, _, _, valid = cam.project(h.p[idx][diff])
-                tx = np.floor((rx - (x0 - TILE)) / TILE).astype(np.int64)
-                ty = np.floor((ry - (y0 - TILE)) / TILE).astype(np.int64)
-                ok = valid & (tx >= 1) & (ty >= 1) & (tx < nx - 1) & (ty < ny - 1)
-                # only light Cycles renders counts, as a receiver seen directly would get it (x0's
-                # diffuse bounce and the chain's events but the last fit the Light Paths limits)
-                ok &= limits.fits(cnt[diff] + ONE_DIFFUSE)
-                known = np.zeros(diff.size, bool)
-                for t in types_list:
-                    known |= sig[diff] == _code(t[::-1])
-                lum = beta[diff].mean(axis=1)
-                other[0] += float(lum[ok & ~known].sum())
-                other[1] += float(lum[ok & ~known & (length[diff] > max_chain)].sum())
-                for t in types_list:
-                    sel = ok & (sig[diff] == _code(t[::-1]))  # photons list vertices from the light
-                    if sel.any():
-                        np.add.at(flux[t], (ty[sel], tx[sel]), beta[diff][sel].mean(axis=1))
-                        m = marks[t]
-                        for dy in (-1, 0, 1):  # dilate by one tile
-                            for dx in (-1, 0, 1):
-                                m[ty[sel] + dy, tx[sel] + dx] = True
-            si = np.flatnonzero(spec)
-            if si.size == 0 or bounce == max_bounces:
-                break
-            p, ng, ns = h.p[idx][si], h.ng[idx][si], h.ns[idx][si]
-            d_new, beta, keep = scatter_specular(scene, rng, -d[si], ns, ng, mat[si], kind[si], beta[si],
-                                                 adjoint=True)
-            letter = specular_kind(d[si][keep], d_new, ng[keep])  # 1 R (glossy), 2 T (transmission)
-            sig = sig[si][keep] * 3 + letter
-            length = length[si][keep]
-            cnt = cnt[si][keep]
-            cnt[np.arange(len(letter)), letter] += length > 0
-            length = length + 1
-            o = tracer.spawn(p[keep], ng[keep], d_new)
-            d = d_new
+        key = int(rng.integers(2**62))
+
+        def part(a, b, lp=lp, key=key):
+            return _guide_part(scene, tracer, cam, plan, lp, types_list, np.random.default_rng([key, a]), b - a,
+                               photons_per_light, (nx, ny), max_bounces, check)
+
+        parts = lanes.blocks(part, photons_per_light, GUIDE_PART, tracer.threads)
+        marks, flux, other = parts[0][0], parts[0][1], parts[0][2]
+        for pm, pf, po, _ in parts[1:]:
+            for t in types_list:
+                marks[t] |= pm[t]
+                flux[t] += pf[t]
+            other += po
+        stats["photons"] += photons_per_light
+        stats["rays"] += sum(p[3] for p in parts)
         for t in types_list:
             masks[(lp.index, t)] = marks[t]
         walked = sum(float(f.sum()) for f in flux.values())
@@ -177,3 +131,82 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
         weak |= {(lp.index, t) for t in types_list
                  if walked > 0 and (share[t] * total / walked < WEAK_SHARE or peak[t] < WEAK_PEAK)}
     return masks, stats, frozenset(weak)
+
+
+GUIDE_PART = 32768  # photons per part of build_guide's pre-pass
+
+
+def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, max_bounces, check):
+    """n photons of the total of light lp traced through the specular chains: (marks, flux per
+    chain type on the (ny, nx) tiles, the flux in frame of other chains [all, longer than the
+    longest type], rays cast). Weighed as one of total photons (emit weighs by 1/n)."""
+    x0, x1, y0, y1 = cam.region
+    nx, ny = tiles
+    max_chain = max((len(t) for t in types_list), default=0)
+    limits = Limits.of(scene)
+    marks = {t: np.zeros((ny, nx), bool) for t in types_list}
+    flux = {t: np.zeros((ny, nx)) for t in types_list}  # arriving on receivers in the frame
+    ph = emit(scene, lp.index, lp.targets, n, rng)
+    o, d, beta = ph.o, ph.d, ph.w * (n / total)
+    sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
+    length = np.zeros(len(o), np.int64)
+    # events as trace_photons counts them: the specular ones but the first (the one next to the
+    # light: free under Cycles' Light Paths limits, bounces.py)
+    cnt = np.zeros((len(o), 3), np.int64)
+    other = np.zeros(2)  # flux in frame of chains not in types_list: [all of them, those longer than max_chain]
+    rays = 0
+    for bounce in range(max_bounces + 1):
+        if check is not None:
+            check()
+        if len(o) == 0:
+            break
+        h = tracer.intersect(o, d)
+        rays += len(o)
+        idx = np.flatnonzero(h.hit)
+        o, d, beta, sig, length = o[idx], d[idx], beta[idx], sig[idx], length[idx]
+        cnt = cnt[idx]
+        prim = h.prim[idx]
+        mat = scene.tri_material[prim]
+        kind = scene.mat_kind[mat]
+        obj = scene.tri_object[prim]
+        spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
+        if bounce == 0:
+            spec &= plan.casters[obj]
+        diff = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj] & (bounce > 0))
+        if diff.size:
+            rx, ry, _, _, _, valid = cam.project(h.p[idx][diff])
+            tx = np.floor((rx - (x0 - TILE)) / TILE).astype(np.int64)
+            ty = np.floor((ry - (y0 - TILE)) / TILE).astype(np.int64)
+            ok = valid & (tx >= 1) & (ty >= 1) & (tx < nx - 1) & (ty < ny - 1)
+            # only light Cycles renders counts, as a receiver seen directly would get it (x0's
+            # diffuse bounce and the chain's events but the last fit the Light Paths limits)
+            ok &= limits.fits(cnt[diff] + ONE_DIFFUSE)
+            known = np.zeros(diff.size, bool)
+            for t in types_list:
+                known |= sig[diff] == _code(t[::-1])
+            lum = beta[diff].mean(axis=1)
+            other[0] += float(lum[ok & ~known].sum())
+            other[1] += float(lum[ok & ~known & (length[diff] > max_chain)].sum())
+            for t in types_list:
+                sel = ok & (sig[diff] == _code(t[::-1]))  # photons list vertices from the light
+                if sel.any():
+                    np.add.at(flux[t], (ty[sel], tx[sel]), beta[diff][sel].mean(axis=1))
+                    m = marks[t]
+                    for dy in (-1, 0, 1):  # dilate by one tile
+                        for dx in (-1, 0, 1):
+                            m[ty[sel] + dy, tx[sel] + dx] = True
+        si = np.flatnonzero(spec)
+        if si.size == 0 or bounce == max_bounces:
+            break
+        p, ng, ns = h.p[idx][si], h.ng[idx][si], h.ns[idx][si]
+        d_new, beta, keep = scatter_specular(scene, rng, -d[si], ns, ng, mat[si], kind[si], beta[si],
+                                             adjoint=True)
+        letter = specular_kind(d[si][keep], d_new, ng[keep])  # 1 R (glossy), 2 T (transmission)
+        sig = sig[si][keep] * 3 + letter
+        length = length[si][keep]
+        cnt = cnt[si][keep]
+        cnt[np.arange(len(letter)), letter] += length > 0
+        length = length + 1
+        o = tracer.spawn(p[keep], ng[keep], d_new)
+        d = d_new
+    return marks, flux, other, rays
