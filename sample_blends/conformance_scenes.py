@@ -8,7 +8,7 @@ up for comparing caustics (no clamping, no Filter Glossy, no denoising, enough
 bounces). ``SCENES`` says what each one covers; together they cover the
 materials (Glass BSDF, Principled glass white and tinted, Refraction BSDF,
 Glossy BSDF, Principled metallic; IOR 1.33 and 1.5), the lights (point with and
-without soft falloff, spot, square and disk area lights, suns of angle 0, 2 and
+without soft falloff, spot, square and disk area lights, one of spread 30 degrees, suns of angle 0, 2 and
 4 degrees), the geometry (flat, wavy, spheres, a lens, bevelled cubes with
 internal reflection, a prism, open and closed glass) and how a receiver is seen
 (directly, through glass or water, in a mirror).
@@ -272,6 +272,25 @@ def mirror_point_hard():
     return scene
 
 
+def mirror_spread30():
+    """mirror_point_hard's mirror lit by a square area light of spread 30 degrees aimed past
+    its middle: the soft-box falloff (Cycles' area_light_spread_attenuation) shapes the
+    reflected light, and the cone's edge crosses the mirror."""
+    from mathutils import Vector
+
+    scene = _scene("mirror_spread30")
+    _floor(scene)
+    mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9))
+    v, f = B.grid(1.6, 1.0)
+    B.mesh_object(scene, "Mirror", v, f, mirror, location=(1.2, 0, 0.55),
+                  rotation=(0, math.radians(-90), 0), caster=True)
+    at, target = Vector((-0.2, -0.4, 1.5)), Vector((1.2, 0.35, 0.75))
+    B.add_light(scene, "Softbox", "AREA", tuple(at), (target - at).to_track_quat("-Z", "Y").to_euler(),
+                energy=60.0, shape="SQUARE", size=0.5, spread=math.radians(30))
+    B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
+    return scene
+
+
 def water_flat_sun0():
     """Flat water (Glass BSDF, IOR 1.33, an open plane) 0.5 m above the floor under a sun of
     angle 0; the camera looks down through the water. Path tracing cannot find a
@@ -382,6 +401,8 @@ SCENES = {
     "sphere_refraction_spot": (sphere_refraction_spot, "Refraction BSDF 1.33, spot light"),
     "mirror_point_hard": (mirror_point_hard, "Glossy BSDF flat mirror, point light without soft "
                           "falloff, receiver seen in the mirror"),
+    "mirror_spread30": (mirror_spread30, "Glossy BSDF flat mirror, square area light of spread 30 "
+                        "deg (the soft-box falloff)"),
     "water_flat_sun0": (water_flat_sun0, "flat open water 1.33, sun angle 0 (Cycles MNEE reference)"),
     "wavy_mirror_sun2": (wavy_mirror_sun2, "Glossy BSDF wavy sheet, sun 2 deg"),
     "through_glass_disk": (through_glass_disk, "Glass BSDF tinted 1.33, disk area, seen through glass"),

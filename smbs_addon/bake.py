@@ -25,6 +25,14 @@ from .plan import _rng, light_key, make_plan, refine_plan, spot_target
 from .tracer import Tracer
 
 METHODS = ("auto", "reference", "mnee", "sms", "smbs")
+F32_MAX = float(np.finfo(np.float32).max)
+# A walk stops within solver_threshold (radians) of its solution, and the Bernoulli trials know
+# two walks for the same solution when 1 - cos of their first directions is below uniqueness:
+# on the glass sphere (SMS, unbiased, 16 spp) a uniqueness under ~10 x threshold^2 made the
+# trials overcount (threshold 1e-3, uniqueness 1e-7: the layer +18%; 1e-4 with 1e-9: +30%;
+# 1e-2 with 1e-7: 35x), and any threshold up to 1e-2 was right with a uniqueness to match.
+MAX_SOLVER_THRESHOLD = 1e-5
+UNIQUENESS_PER_THRESHOLD_SQ = 10.0
 ESTIMATORS = ("unbiased", "biased")
 CHUNK = 65536  # lanes per chunk (keeps temporaries in cache, see performance-anchors.md)
 WALK_CHUNK = 65536  # eye samples per manifold chunk (each fans out to lights x chain types x trials): big
@@ -102,6 +110,16 @@ class BakeSettings:
             raise SceneError(f"tau must lie between 0 and 1, not {self.tau}")
         if not (self.solver_threshold > 0 and self.uniqueness > 0):
             raise SceneError("solver_threshold and uniqueness must be positive")
+        if not (self.solver_threshold <= MAX_SOLVER_THRESHOLD):
+            raise SceneError(f"solver_threshold {self.solver_threshold:g} is above {MAX_SOLVER_THRESHOLD:g} "
+                             f"radians: a walk would stop that far from its solution (Newton's steps converge "
+                             f"fast, so a tighter threshold costs an iteration or two)")
+        if not (self.uniqueness >= UNIQUENESS_PER_THRESHOLD_SQ * self.solver_threshold ** 2 * (1 - 1e-9)):
+            raise SceneError(f"uniqueness {self.uniqueness:g} is too strict for solver_threshold "
+                             f"{self.solver_threshold:g}: two walks to one solution end up to that angle apart, "
+                             f"and the Bernoulli trials would not know them for the same and count on (at "
+                             f"least {UNIQUENESS_PER_THRESHOLD_SQ:g} x the threshold squared: "
+                             f"{UNIQUENESS_PER_THRESHOLD_SQ * self.solver_threshold ** 2:.2g})")
         if not (isinstance(self.pilots, (int, np.integer)) and not isinstance(self.pilots, bool)
                 and self.pilots >= 0):
             raise SceneError(f"pilots must be 0 (bounds only) or a positive whole number, not {self.pilots!r}")
@@ -743,6 +761,12 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
     variance = film.variance
     if not (np.all(np.isfinite(image)) and np.all(np.isfinite(variance))):
         raise FloatingPointError("non-finite value in the caustic buffer")  # a bug, never user input
+    top = float(image.max()) if image.size else 0.0
+    if top > F32_MAX:  # Scene.validate bounds powers and colours; a focus can still concentrate them
+        bright = scene.light_names[int(np.argmax(scene.light_color.max(axis=1)))] if scene.n_lights else "?"
+        raise SceneError(f"scene '{scene.name}': the caustic layer's brightest pixel ({top:.3g}) is beyond what a "
+                         f"float32 image holds; lower the lights' power (the brightest: '{bright}')")
+    variance = np.minimum(variance, F32_MAX)  # its square can overflow where the image does not
     batch_lum = np.stack(film.batch_luminance)
     if scene.camera.use_border and scene.camera.use_crop_to_border:
         image = image[y0:y1, x0:x1]

@@ -54,6 +54,10 @@ class CameraModel:
         if cam.use_border:
             bx0, bx1, by0, by1 = (_border_pixel(f, n) for f, n in
                                   zip(cam.border, (self.W, self.W, self.H, self.H)))
+            # inside the frame whatever the border says (Scene.validate refuses fractions out of
+            # 0..1): the film and the splat kernels index pixels by this region
+            bx0, bx1 = min(max(bx0, 0), self.W), min(max(bx1, 0), self.W)
+            by0, by1 = min(max(by0, 0), self.H), min(max(by1, 0), self.H)
             self.region = (bx0, bx1, self.H - by1, self.H - by0)
         else:
             self.region = (0, self.W, 0, self.H)

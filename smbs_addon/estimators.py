@@ -27,7 +27,7 @@ from . import scene as S
 from .constraints import LightEnd
 from .geometry import packed_floats
 from .kernels import chain_kinds, chain_solve
-from .lights import soft_falloff_factor, spot_mask
+from .lights import has_spread, soft_falloff_factor, spot_mask, spread_factor
 from .optics import bent, bump_correction, specular_weights
 from .vec import dot, frame, normalize
 
@@ -75,6 +75,8 @@ def light_end_at_solution(scene, li, light: LightEnd, xk):
         ys = np.broadcast_to(ax[:, 0], (n, 3)).copy()
         yt = np.broadcast_to(ax[:, 1], (n, 3)).copy()
         e = np.where(facing[:, None], color / math.pi, 0.0)  # (P / (pi A)) / (1 / A)
+        if has_spread(scene, li):  # Cycles' soft-box spread, along the light's last segment
+            e = e * spread_factor(scene, li, dot(normalize(xk - light.y), nrm))[:, None]
         return LightEnd(False, light.y, ys, yt), e
     r = float(scene.light_radius[li])
     c = m[:3, 3]

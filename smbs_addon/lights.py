@@ -65,6 +65,9 @@ def spot_mask(scene, li: int, d: np.ndarray) -> np.ndarray:
     return _smoothstep((c - cos_half) / ((1.0 - cos_half) * blend))
 
 
+SPREAD_EPS = 1e-6  # radians: a spread this close to 180 degrees is 180 degrees (Blender's default)
+
+
 def area_light_shape(scene, li: int):
     """(center, x axis, y axis, normal = emission direction, half sizes, area)."""
     m = scene.light_matrix[li]
@@ -75,6 +78,27 @@ def area_light_shape(scene, li: int):
         sy = sx
     area = sx * sy if shape in (S.SQUARE, S.RECTANGLE) else math.pi * sx * sy / 4.0
     return m[:3, 3].copy(), ax[:, 0], ax[:, 1], -ax[:, 2], 0.5 * sx, 0.5 * sy, area
+
+
+def has_spread(scene, li: int) -> bool:
+    """Does area light li's spread narrow its emission (below 180 degrees)?"""
+    return bool(scene.light_spread[li] < math.pi - SPREAD_EPS)
+
+
+def spread_factor(scene, li: int, cos_t: np.ndarray):
+    """Cycles' soft-box spread of area light li (kernel/light/area.h,
+    area_light_spread_attenuation; scene/light.cpp): its radiance leaving at angle t from its
+    normal is P / (pi A) times max((tan h - tan t) N, 0), h half the spread and N = 1 / (tan h -
+    h) (3 / h^3 below h = 0.05, Cycles' Taylor branch), so that the power stays P whatever the
+    spread (on the axis at 30 degrees: 43.6x a lambertian light's radiance). 1 at 180 degrees
+    (None: nothing to multiply). cos_t: cosine to the emission normal (the emission side > 0)."""
+    if not has_spread(scene, li):
+        return None
+    h = 0.5 * float(scene.light_spread[li])  # > 0: plan.make_plan skips a spread of 0
+    norm = 1.0 / (math.tan(h) - h) if h > 0.05 else 3.0 / h**3
+    c = np.asarray(cos_t, np.float64)
+    tan_t = np.sqrt(np.maximum(0.0, 1.0 - c * c)) / np.maximum(c, 1e-300)
+    return np.where(c > 0, np.maximum((math.tan(h) - tan_t) * norm, 0.0), 0.0)
 
 
 def area_light_points(scene, li: int, n: int, rng) -> np.ndarray:
@@ -259,6 +283,8 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
         _emit_area(u, f64(cen), f64(ex), f64(ey), f64(nrm), float(hx), float(hy), float(area),
                    bool(scene.light_shape[li] in (S.DISK, S.ELLIPSE)), color / (math.pi * area), targets,
                    np.cumsum(probs), probs, o, d, w)
+        if has_spread(scene, li):
+            w *= spread_factor(scene, li, dot(d, nrm))[:, None]
         return Photons(o, d, w)
     if typ == S.SUN:
         area_k = math.pi * targets[:, 3] ** 2
@@ -286,7 +312,16 @@ def light_covers(scene, li: int, center: np.ndarray, radius: float) -> bool:
     if typ == S.AREA:
         cen, ex, ey, nrm, hx, hy, _ = area_light_shape(scene, li)
         reach = float(np.dot(center - cen, nrm)) + radius
-        return reach > 0
+        if reach <= 0:
+            return False
+        h = 0.5 * float(scene.light_spread[li])
+        if h >= 0.5 * math.pi - 1e-9:
+            return True
+        # a spread: the light leaves every point of the light within h of its normal; the sphere
+        # is out of reach when it lies wholly beyond that cone widened by the light's half diagonal
+        v = center - cen
+        side = float(np.linalg.norm(v - np.dot(v, nrm) * nrm))
+        return side - radius - math.hypot(hx, hy) <= math.tan(h) * reach
     return True
 
 
@@ -339,6 +374,8 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
         hit = front & (tt > 0) & inside
         t = np.where(hit, tt, np.inf)
         L = np.where(hit[:, None], color / (math.pi * area), 0.0)
+        if has_spread(scene, li):
+            L = L * spread_factor(scene, li, -den)[:, None]
         return L, t
     if typ == S.SUN and escaped is not None:
         half = 0.5 * float(scene.light_angle[li])

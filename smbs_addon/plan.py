@@ -115,6 +115,16 @@ def _use_flags(mode: str, flags: np.ndarray) -> bool:
     raise SceneError(f"use_cycles_flags must be AUTO, ON or OFF, not '{mode}'")
 
 
+def _degenerate_axes(scene: S.Scene, li: int) -> bool:
+    """Does light li's matrix lose an axis it needs: the direction (z) of a sun, spot or area
+    light, and an area light's x and y, which span its surface?"""
+    m = np.asarray(scene.light_matrix[li], float)[:3, :3]
+    need = {S.SUN: (2,), S.SPOT: (2,), S.AREA: (0, 1, 2)}.get(int(scene.light_type[li]), ())
+    scale = max(float(np.abs(m).max()), 1e-300)
+    return any(not (np.linalg.norm(m[:, k]) > 1e-9 * scale) for k in need) or \
+        (int(scene.light_type[li]) == S.AREA and not (abs(np.linalg.det(m)) > 1e-12 * scale ** 3))
+
+
 def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     """The plan from materials, Cycles' flags and bounds alone (no tracing). A scene with
     nothing to bake (no light, caster or receiver) gives a plan whose ``nothing`` says why."""
@@ -170,6 +180,13 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
             continue
         if scene.light_type[li] == S.AREA and not (scene.light_size[li].min() > 0):
             skipped.append(("light", name, "zero size"))
+            continue
+        if scene.light_type[li] == S.AREA and not (scene.light_spread[li] > 0):
+            skipped.append(("light", name, "spread 0: a beam along its normal, which no estimator here samples"))
+            continue
+        if _degenerate_axes(scene, li):
+            skipped.append(("light", name, "its object is scaled to zero along an axis the light needs "
+                                           "(no direction or no area)"))
             continue
         if any(light_covers(scene, li, sp[:3], sp[3]) for sp in rec_spheres):
             plan.indirect_lights.append(li)  # its light on a receiver may go on to a caster

@@ -9,6 +9,7 @@ A scene is saved and loaded as a single ``.npz`` file (``save`` / ``load``).
 from __future__ import annotations
 
 import dataclasses
+import math
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -42,6 +43,10 @@ PERSP, ORTHO = 0, 1
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
+MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
+MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
+MAX_POWER = 1e20  # a light's power (W) or a sun's strength: past it a caustic overflows float32
+MAX_COLOR = 1e6  # a material's colour channel (an albedo, 1 at most in a physical scene)
 
 
 def _column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -253,8 +258,21 @@ class Scene:
                 raise SceneError(f"camera {name} must be a positive number, not {v}")
         if not (np.isfinite(cam.shift_x) and np.isfinite(cam.shift_y)):
             raise SceneError("camera shift holds NaN or infinite values")
-        if cam.sensor_fit not in SENSOR_FITS or cam.type not in (PERSP, ORTHO):
-            raise SceneError(f"camera type {cam.type!r} / sensor fit {cam.sensor_fit!r} not supported")
+        if cam.type not in (PERSP, ORTHO):
+            raise SceneError(f"camera type {cam.type!r} not supported (perspective or orthographic)")
+        if cam.sensor_fit not in SENSOR_FITS:
+            raise SceneError(f"camera sensor fit {cam.sensor_fit!r} not supported ({', '.join(SENSOR_FITS)})")
+        if cam.filter_width > MAX_FILTER_WIDTH:
+            raise SceneError(f"camera filter_width {cam.filter_width:g} pixels: Cycles' pixel filter is at most "
+                             f"{MAX_FILTER_WIDTH:g}")
+        axes = np.asarray(cam.matrix_world, float)[:3, :3]
+        if not (abs(np.linalg.det(axes)) > 1e-12 * max(np.abs(axes).max(), 1e-300) ** 3):
+            raise SceneError("camera: its matrix is degenerate (an axis scaled to zero?), so it has no view direction")
+        if cam.use_border:
+            b = np.asarray(cam.border, float)
+            if b.shape != (4,) or not np.all(np.isfinite(b)) or b.min() < 0 or b.max() > 1:
+                raise SceneError(f"camera render border {tuple(np.ravel(b).tolist())}: expected min x, max x, min y, "
+                                 "max y, each a fraction of the frame from 0 to 1")
         bad = np.flatnonzero((self.mat_kind == DIELECTRIC) & ~(self.mat_ior > 0))
         if bad.size:
             raise SceneError(f"material '{self.mat_names[bad[0]]}': IOR must be positive")
@@ -263,6 +281,28 @@ class Scene:
         if np.any(self.light_color < 0):
             i = int(np.flatnonzero((self.light_color < 0).any(axis=1))[0])
             raise SceneError(f"light '{self.light_names[i]}': negative power")
+        if np.any(self.light_color > MAX_POWER):
+            i = int(np.flatnonzero((self.light_color > MAX_POWER).any(axis=1))[0])
+            raise SceneError(f"light '{self.light_names[i]}': power {self.light_color[i].max():.3g} is beyond "
+                             f"{MAX_POWER:g}, more than a float32 caustic layer can hold")
+        for name, label in (("mat_color", "colour"), ("mat_reflect_color", "reflection colour")):
+            c = getattr(self, name)
+            bad = np.flatnonzero(((c < 0) | (c > MAX_COLOR)).any(axis=1)) if len(c) else []
+            if len(bad):
+                raise SceneError(f"material '{self.mat_names[bad[0]]}': {label} {tuple(c[bad[0]].tolist())} "
+                                 f"must be between 0 and {MAX_COLOR:g}")
+        wide = np.flatnonzero((self.light_spread < 0) | (self.light_spread > math.pi + 1e-6)) if L else []
+        if len(wide):
+            raise SceneError(f"light '{self.light_names[wide[0]]}': spread {self.light_spread[wide[0]]:g} radians "
+                             "must be from 0 to pi (180 degrees)")
+        sizes = np.flatnonzero((self.light_size < 0).any(axis=1) | (self.light_radius < 0)
+                               | (self.light_angle < 0) | (self.light_spot_size < 0)) if L else []
+        if len(sizes):
+            raise SceneError(f"light '{self.light_names[sizes[0]]}': negative size, radius, angle or spot size")
+        lp = np.asarray(self.light_paths)
+        if not np.all(lp <= MAX_BOUNCES):  # negative: no limit (bounces.Limits.of)
+            raise SceneError(f"Light Paths bounces {tuple(lp.tolist())}: each at most {MAX_BOUNCES} "
+                             "(Blender's limit)")
         self.__dict__["_geometry_memo"] = ((id(self.tri_vertices), id(self.tri_object)), {})
 
     # -------------------------------------------------------------- save/load

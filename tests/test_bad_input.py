@@ -120,6 +120,82 @@ def test_nan_normals_name_the_array():
     assert str(e.value) == "scene array 'tri_normals' holds NaN or infinite values"
 
 
+def _invalid(scene) -> str:
+    with pytest.raises(SceneError) as e:
+        scene.validate()
+    return str(e.value)
+
+
+def test_out_of_range_values_a_fuzz_found_are_refused_with_their_name():
+    """Whole-bake fuzzing (stop 34, 956 bakes) found these passing validate(): a render border
+    outside 0..1 let the splat kernels write outside the film (a segfault or a heap corruption),
+    a border of NaN a bare ValueError, a negative colour negative energy, a power of 1e38 an
+    infinite variance and one of 1e200 a FloatingPointError naming nothing, and huge Light Paths
+    limits or filter widths a MemoryError or minutes of work."""
+    def fresh():
+        return scenes.mirror_scene(resolution=(8, 6))
+
+    sc = fresh()
+    sc.camera.use_border, sc.camera.border = True, (-0.5, 1.5, 0.0, 1.0)
+    assert _invalid(sc) == ("camera render border (-0.5, 1.5, 0.0, 1.0): expected min x, max x, min y, max y, "
+                            "each a fraction of the frame from 0 to 1")
+    sc.camera.border = (0.0, float("nan"), 0.0, 1.0)
+    assert _invalid(sc).startswith("camera render border (0.0, nan, 0.0, 1.0)")
+    sc.camera.use_border = False
+    sc.validate()  # a border that is not used is not looked at, as in Blender
+    sc = fresh()
+    sc.mat_color[0] = (0.8, -0.5, 0.8)
+    assert _invalid(sc) == "material 'floor': colour (0.8, -0.5, 0.8) must be between 0 and 1e+06"
+    sc = fresh()
+    sc.mat_reflect_color[1] = (1e300, 0.0, 0.0)
+    assert _invalid(sc) == "material 'mirror': reflection colour (1e+300, 0.0, 0.0) must be between 0 and 1e+06"
+    sc = fresh()
+    sc.light_color[0] = (1e38, 1e38, 1e38)
+    assert _invalid(sc) == ("light 'Disk': power 1e+38 is beyond 1e+20, more than a float32 caustic layer "
+                            "can hold")
+    sc = fresh()
+    sc.light_size[0] = (-0.5, 0.5)
+    assert _invalid(sc) == "light 'Disk': negative size, radius, angle or spot size"
+    sc = fresh()
+    sc.light_spread[0] = 10.0
+    assert _invalid(sc) == "light 'Disk': spread 10 radians must be from 0 to pi (180 degrees)"
+    sc = fresh()
+    sc.light_paths = np.array([-1, 2**40, -1, -1])
+    assert _invalid(sc) == "Light Paths bounces (-1, 1099511627776, -1, -1): each at most 1024 (Blender's limit)"
+    sc = fresh()
+    sc.camera.filter_width = 1e4
+    assert _invalid(sc) == "camera filter_width 10000 pixels: Cycles' pixel filter is at most 10"
+    sc = fresh()
+    sc.camera.matrix_world = np.diag([1.0, 0.0, 1.0, 1.0])
+    assert _invalid(sc) == "camera: its matrix is degenerate (an axis scaled to zero?), so it has no view direction"
+    sc = fresh()
+    sc.camera.type = "PERSP"
+    assert _invalid(sc) == "camera type 'PERSP' not supported (perspective or orthographic)"
+
+
+def test_a_light_scaled_to_zero_is_skipped_with_its_reason():
+    b = mirror_parts(SceneBuilder("Flat sun"))
+    b.light("Sun", "SUN", location=(0, 0, 5), target=(0, 0, 0), power=3.0)
+    sc = b.build()
+    sc.light_matrix[1][:3, 2] = 0.0  # its direction gone (an object scaled to 0 in z)
+    res = bake(sc, BakeSettings(method="mnee", spp=1, batches=2))
+    assert {"kind": "light", "name": "Sun", "reason": "its object is scaled to zero along an axis the light "
+            "needs (no direction or no area)"} in res.stats["skipped"]
+    assert list(res.stats["lights"]) == ["Disk"] and np.all(np.isfinite(res.image))
+
+
+def test_a_loose_solver_threshold_or_a_strict_uniqueness_is_refused():
+    """Each would bias the layer: the Bernoulli trials would not know two walks to one solution
+    for the same one (the glass sphere: threshold 1e-3 with the default uniqueness +18%, 1e-2
+    35x and a minute's work)."""
+    scene = scenes.mirror_scene(resolution=(8, 6))
+    assert bake_error(scene, solver_threshold=1e-3).startswith(
+        "solver_threshold 0.001 is above 1e-05 radians: a walk would stop that far from its solution")
+    assert bake_error(scene, solver_threshold=1e-5, uniqueness=1e-10).startswith(
+        "uniqueness 1e-10 is too strict for solver_threshold 1e-05: two walks to one solution end up")
+    bake(scene, BakeSettings(spp=1, batches=2, solver_threshold=1e-5, uniqueness=1e-9))
+
+
 # --------------------------------------------------------------------- resolution too large
 def test_resolution_too_large_is_refused_before_anything_is_allocated():
     scene = scenes.mirror_scene()

@@ -32,6 +32,9 @@ CASES = [
     ("sphere_refraction_spot", "reference", 32),
     ("sphere_refraction_spot", "smbs", 4),
     ("pool_sun4", "smbs", 4),
+    # an area light's spread of 30 degrees: 0.08 of Cycles before the soft-box factor
+    ("mirror_spread30", "reference", 256),
+    ("mirror_spread30", "sms", 4),
     ("water_flat_sun0", "smbs", 4),
     ("cube_white_glossy1", "reference", 256),  # Light Paths: 0.86 of the caustic without the limit
     # the reflection off a bevelled glass cube's outside: 0.74 without Cycles' Bump Map Correction

@@ -11,6 +11,10 @@ converged Cycles renders (bpy 5.0.1) and kept here as analytic checks:
 - Point and spot lights with soft falloff (the default) act, towards the first
   surface a caustic path meets, as a disk of radius r whose intensity is scaled
   by d^2 / (d^2 + r^2) (measured within 0.05%).
+- An area light's spread (a soft box) scales its radiance by max((tan h - tan t) N, 0), h
+  half the spread, N = 1 / (tan h - h) so that its power stays the same (Cycles' kernel/
+  light/area.h and scene/light.cpp): at 30 degrees 43.6x a lambertian light's on its axis.
+  Judged against Cycles by the conformance scene mirror_spread30 (tests/test_conformance.py).
 """
 import math
 
@@ -118,3 +122,48 @@ def test_soft_falloff_point_light_seen_in_a_mirror(method, spp):
     expected[region] = 0.8 / math.pi * E
     res = bake(scene, BakeSettings(method=method, spp=spp, seed=6, indirect=False))
     check_against(res, expected, region, tol=0.02)
+
+
+def test_area_light_spread_keeps_the_power_and_peaks_as_cycles_does():
+    """The soft-box factor (lights.spread_factor): its integral with the cosine over the
+    hemisphere is pi (the power of a lambertian light of the same radiance), 0 outside the cone,
+    on the axis tan h / (tan h - h) (43.57 at 30 degrees) and, below h = 0.05, Cycles' Taylor
+    normalisation 3 / h^3; none at 180 degrees."""
+    from smbs_addon.lights import spread_factor
+
+    sc = scenes.mirror_scene(resolution=(8, 6))
+    t = np.linspace(0.0, 0.5 * math.pi, 400_001)
+    c = np.cos(t)
+    for deg, axis in ((30, 43.5703585), (90, 4.6597924), (150, 1.5402261)):
+        sc.light_spread[0] = math.radians(deg)
+        f = spread_factor(sc, 0, c)
+        assert np.trapz(f * c * np.sin(t), t) * 2 * math.pi == pytest.approx(math.pi, rel=1e-6)
+        assert f[0] == pytest.approx(axis, rel=1e-6)
+        assert np.all(f[t > math.radians(deg) / 2 + 1e-9] == 0) and np.all(f >= 0)
+    sc.light_spread[0] = 0.08  # h = 0.04: the Taylor branch
+    assert spread_factor(sc, 0, np.ones(1))[0] == pytest.approx(math.tan(0.04) * 3 / 0.04**3, rel=1e-12)
+    sc.light_spread[0] = math.pi
+    assert spread_factor(sc, 0, c) is None
+
+
+def test_a_spread_light_aimed_away_reaches_no_caster_and_one_of_spread_0_is_skipped():
+    from smbs_addon.builder import SceneBuilder
+
+    def scene(target, spread):
+        b = SceneBuilder("softboxes")
+        b.plane("Floor", (0, 0, 0), 10, b.material("floor", "diffuse", color=(0.8,) * 3), receiver=True)
+        b.plane("Mirror", (0, 0, 1.5), 1.5, b.material("mirror", "conductor", color=(0.9,) * 3),
+                normal=np.array([-1, 0, -1]) / math.sqrt(2), caster=True)
+        b.light("Box", "AREA", location=(-2, 0, 1.5), target=(0, 0, 1.5), power=100.0, size=0.5)
+        b.light("Other", "AREA", location=(-2, 0, 1.5), target=target, power=100.0, size=0.5, spread=spread)
+        b.set_camera((0, -6, 5), (-0.2, 0, 0), lens=35, resolution_x=16, resolution_y=12)
+        return b.build()
+
+    for target, spread, reason in (((-2, 5, 1.5), math.radians(30), "reaches no caster"),
+                                   ((0, 0, 1.5), 0.0, "spread 0: a beam along its normal, which no "
+                                                      "estimator here samples")):
+        res = bake(scene(target, spread), BakeSettings(method="sms", spp=1, batches=2, seed=1))
+        assert res.stats["skipped"] == [{"kind": "light", "name": "Other", "reason": reason}]
+        assert list(res.stats["lights"]) == ["Box"]
+    res = bake(scene((-2, 5, 1.5), math.radians(120)), BakeSettings(method="sms", spp=1, batches=2, seed=1))
+    assert res.stats["skipped"] == []  # 120 degrees reach the mirror from there

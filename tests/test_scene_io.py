@@ -235,7 +235,7 @@ def test_validate_rejects_nan_in_any_float_array(name):
     ("clip_end", -1.0, "camera clip_end must be a positive number, not -1.0"),
     ("ortho_scale", float("inf"), "camera ortho_scale must be a positive number, not inf"),
     ("shift_x", float("nan"), "camera shift holds NaN or infinite values"),
-    ("sensor_fit", "DIAGONAL", "camera type 1 / sensor fit 'DIAGONAL' not supported"),
+    ("sensor_fit", "DIAGONAL", "camera sensor fit 'DIAGONAL' not supported (AUTO, HORIZONTAL, VERTICAL)"),
 ])
 def test_validate_rejects_bad_camera(field, value, message):
     sc = full_scene()

@@ -180,7 +180,7 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
                     "estimate stays unbiased. MNEE and the biased estimator never give up early",
     )
     solver_threshold: FloatProperty(
-        name="Threshold", default=1e-6, min=1e-12, soft_min=1e-9, max=1e-1,
+        name="Threshold", default=1e-6, min=1e-12, soft_min=1e-9, max=1e-5,
         precision=7, step=0.0001,
         description="A walk has converged when its direction towards the light sample is "
                     "off by less than this angle (radians)",
