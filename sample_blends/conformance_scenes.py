@@ -255,17 +255,23 @@ def sphere_refraction_spot():
     return scene
 
 
-def mirror_point_hard():
-    """Flat Glossy BSDF mirror standing on the floor, a point light of radius 0.2 without
-    soft falloff; the camera sees the reflected light on the floor directly and in the
-    mirror."""
-    scene = _scene("mirror_point_hard")
+def _standing_mirror(name):
+    """A scene with the floor and a flat Glossy BSDF mirror standing on it at x = 1.2."""
+    scene = _scene(name)
     _floor(scene)
     mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9))
     v, f = B.grid(1.6, 1.0)
     # local +Z -> -X: the mirror stands at x = 1.2 and faces the light and the camera
     B.mesh_object(scene, "Mirror", v, f, mirror, location=(1.2, 0, 0.55),
                   rotation=(0, math.radians(-90), 0), caster=True)
+    return scene
+
+
+def mirror_point_hard():
+    """Flat Glossy BSDF mirror standing on the floor, a point light of radius 0.2 without
+    soft falloff; the camera sees the reflected light on the floor directly and in the
+    mirror."""
+    scene = _standing_mirror("mirror_point_hard")
     B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
                 use_soft_falloff=False)
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
@@ -278,12 +284,7 @@ def mirror_spread30():
     reflected light, and the cone's edge crosses the mirror."""
     from mathutils import Vector
 
-    scene = _scene("mirror_spread30")
-    _floor(scene)
-    mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9))
-    v, f = B.grid(1.6, 1.0)
-    B.mesh_object(scene, "Mirror", v, f, mirror, location=(1.2, 0, 0.55),
-                  rotation=(0, math.radians(-90), 0), caster=True)
+    scene = _standing_mirror("mirror_spread30")
     at, target = Vector((-0.2, -0.4, 1.5)), Vector((1.2, 0.35, 0.75))
     B.add_light(scene, "Softbox", "AREA", tuple(at), (target - at).to_track_quat("-Z", "Y").to_euler(),
                 energy=60.0, shape="SQUARE", size=0.5, spread=math.radians(30))
