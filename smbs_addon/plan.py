@@ -161,6 +161,9 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         plan.nothing = (f"scene '{scene.name}' has no caustic receiver: no diffuse object"
                         + (" is flagged 'Receive Shadow Caustics'"
                            if flags != "OFF" and scene.object_receiver.any() else ""))
+    elif not (scene.camera.clip_start < scene.camera.clip_end):
+        plan.nothing = (f"the camera's clip start ({scene.camera.clip_start:g}) is not before its clip end "
+                        f"({scene.camera.clip_end:g}): it sees nothing")
     if plan.nothing:
         return _finish(plan, scene)
 

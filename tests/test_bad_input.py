@@ -173,6 +173,12 @@ def test_out_of_range_values_a_fuzz_found_are_refused_with_their_name():
     assert _invalid(sc) == "camera type 'PERSP' not supported (perspective or orthographic)"
 
 
+def test_a_camera_clipping_everything_bakes_nothing_and_says_so():
+    sc = scenes.mirror_scene(resolution=(32, 24))
+    sc.camera.clip_start, sc.camera.clip_end = 50.0, 10.0
+    assert nothing_to_bake(sc) == "the camera's clip start (50) is not before its clip end (10): it sees nothing"
+
+
 def test_a_light_scaled_to_zero_is_skipped_with_its_reason():
     b = mirror_parts(SceneBuilder("Flat sun"))
     b.light("Sun", "SUN", location=(0, 0, 5), target=(0, 0, 0), power=3.0)

@@ -186,7 +186,7 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
                     "off by less than this angle (radians)",
     )
     uniqueness: FloatProperty(
-        name="Uniqueness", default=1e-7, min=1e-12, soft_min=1e-10, max=1e-1,
+        name="Uniqueness", default=1e-7, min=1e-10, soft_min=1e-10, max=1e-1,
         precision=8, step=0.0001,
         description="Two solutions are the same when their directions differ by less than this",
     )
