@@ -252,8 +252,12 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
     (a grid of at most CAMERA_RAYS over a larger frame), split at glass into its reflection
     and its refraction. Returns (direct (O,) bool, through (O,2,3): per receiver the box of
     the points seen through mirrors or glass, padded (empty: lo > hi), sides (O,) the sides
-    of them seen (1 front, 2 back, by the geometric normal), rays)."""
-    from .optics import reflect, refract
+    of them seen (1 front, 2 back, by the geometric normal), rays).
+
+    The rays are traced in parts of SEES_PART that the threads take in turn (_sees_part); what
+    they find is merged by or, min and max, so the result is the one of a single part (but in a
+    maze of glass, where each part keeps its own regular subset of its rays)."""
+    from . import lanes
 
     O = len(scene.object_names)
     direct = np.zeros(O, bool)
@@ -265,6 +269,39 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
     if w * h == 0 or scene.n_tris == 0:
         return direct, through, sides, 0
     _, _, o, d = cam.pixel_rays(max(1, math.ceil(math.sqrt(w * h / CAMERA_RAYS))))
+    n = len(o)
+
+    def part(a, b):
+        return _sees_part(scene, tracer, plan, o[a:b], d[a:b], max_bounces, 4 * CAMERA_RAYS * (b - a) // max(n, 1))
+
+    rays = 0
+    for p_direct, p_through, p_sides, p_rays in lanes.blocks(part, n, SEES_PART, tracer.threads):
+        direct |= p_direct
+        np.minimum(through[:, 0], p_through[:, 0], out=through[:, 0])
+        np.maximum(through[:, 1], p_through[:, 1], out=through[:, 1])
+        sides |= p_sides
+        rays += p_rays
+    # the samples are a pixel apart: pad each box by a tenth of its size and 2% of the scene
+    seen = through[:, 0, 0] <= through[:, 1, 0]
+    pad = 0.1 * np.linalg.norm(through[:, 1] - through[:, 0], axis=1) + 0.02 * plan.scale
+    through[seen, 0] -= pad[seen, None]
+    through[seen, 1] += pad[seen, None]
+    return direct, through, sides, rays
+
+
+SEES_PART = 1 << 16  # camera rays per part of camera_sees
+
+
+def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
+    """camera_sees for the rays o, d: (direct, through (unpadded), sides, rays cast); past cap
+    rays at a bounce, a regular subset of them goes on."""
+    from .optics import reflect, refract
+
+    O = len(scene.object_names)
+    direct = np.zeros(O, bool)
+    through = np.empty((O, 2, 3))
+    through[:, 0], through[:, 1] = np.inf, -np.inf
+    sides = np.zeros(O, np.int64)
     rays = 0
     for depth in range(max_bounces + 1):
         if len(o) == 0:
@@ -292,15 +329,10 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
         no = np.concatenate([p[refl], p[glass][ok]])
         nd = np.concatenate([d_r, d_t[ok]])
         nn = np.concatenate([ng[refl], ng[glass][ok]])
-        if len(nd) > 4 * CAMERA_RAYS:  # a maze of glass: keep a regular subset
-            keep = np.arange(0, len(nd), math.ceil(len(nd) / (4 * CAMERA_RAYS)))
+        if len(nd) > max(cap, 1):  # a maze of glass: keep a regular subset
+            keep = np.arange(0, len(nd), math.ceil(len(nd) / max(cap, 1)))
             no, nd, nn = no[keep], nd[keep], nn[keep]
         o, d = tracer.spawn(no, nn, nd), nd
-    # the samples are a pixel apart: pad each box by a tenth of its size and 2% of the scene
-    seen = through[:, 0, 0] <= through[:, 1, 0]
-    pad = 0.1 * np.linalg.norm(through[:, 1] - through[:, 0], axis=1) + 0.02 * plan.scale
-    through[seen, 0] -= pad[seen, None]
-    through[seen, 1] += pad[seen, None]
     return direct, through, sides, rays
 
 
