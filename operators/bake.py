@@ -42,7 +42,7 @@ def _core():
     return SimpleNamespace(BakeSettings=BakeSettings, bake=bake, BakeCancelled=BakeCancelled,
                            SceneError=SceneError, export_scene=export.export_scene,
                            apply_layer=composite.apply_layer, remove_layer=composite.remove_layer,
-                           has_layer=composite.has_layer, write_exr=imageio.write_exr,
+                           has_layer=composite.has_layer, write_exr=imageio.write_exr, write_json=imageio.write_json,
                            make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels)
 
 
@@ -184,11 +184,7 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
         core.write_exr(path, result.image, core.exr_metadata(prep.settings, result), core.exr_channels(result))
-        stats_path = os.path.splitext(path)[0] + ".json"
-        tmp = os.path.join(os.path.dirname(stats_path), "." + os.path.basename(stats_path) + ".tmp")
-        with open(tmp, "w") as fh:
-            json.dump(stats, fh, indent=2)
-        os.replace(tmp, stats_path)
+        core.write_json(os.path.splitext(path)[0] + ".json", stats)
     except (core.SceneError, OSError) as e:
         # The bake is not thrown away: the layer is packed into the blend file instead.
         warnings.append(f"Could not write '{path}' ({e}); the caustic layer is packed into the blend file")

@@ -9,7 +9,6 @@ bake: its layer is all zero and the output says why), 1 the scene cannot be bake
 from __future__ import annotations
 
 import argparse
-import json
 import os
 import sys
 from pathlib import Path
@@ -277,6 +276,7 @@ def exr_channels(result) -> dict:
 def _compare(args, say) -> int:
     """python -m smbs_addon compare: an equal-time table of the scene (smbs_addon.compare)."""
     from .compare import Reference, compare, json_report, table_lines
+    from .imageio import write_json
 
     settings = _settings(args, args.methods[0], args.batches)  # one sample per pixel per batch
     out = Path(args.out) if args.out else None
@@ -294,13 +294,7 @@ def _compare(args, say) -> int:
 
     report = compare(scene, args.methods, args.time, settings, ref, progress=progress)
     if out is not None:
-        tmp = out.with_name(f".{out.name}.tmp")
-        try:
-            tmp.write_text(json.dumps(json_report(report), indent=2))
-            tmp.replace(out)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        write_json(out, json_report(report))
     print(f"scene '{scene.name}'")
     for line in table_lines(report):
         print(line)
@@ -324,7 +318,7 @@ def main(argv=None) -> int:
         if args.command == "compare":
             return _compare(args, say)
         from .bake import bake
-        from .imageio import write_exr
+        from .imageio import write_exr, write_json
 
         stop_rule = args.time is not None or args.noise is not None
         spp = args.spp if args.spp is not None else (args.batches if stop_rule else 16)
@@ -363,13 +357,7 @@ def main(argv=None) -> int:
             write_exr(out, result.image, exr_metadata(settings, result), exr_channels(result))
         except SceneError as e:  # an output that cannot be written is an I/O failure (exit 3)
             raise OSError(str(e)) from None
-        tmp = stats_path.with_name(f".{stats_path.name}.tmp")
-        try:
-            tmp.write_text(json.dumps(result.stats, indent=2))
-            tmp.replace(stats_path)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
+        write_json(stats_path, result.stats)
         for line in summary_lines(result.stats):
             say(line)
         say(f"wrote {out} and {stats_path}")

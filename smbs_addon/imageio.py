@@ -70,6 +70,20 @@ def write_exr(path, image: np.ndarray, metadata: dict | None = None, extra: dict
     return path
 
 
+def write_json(path, obj) -> Path:
+    """Write obj as indented JSON through a temporary file beside path, renamed over it: a failed
+    or interrupted write leaves the old file whole and no temporary file."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.tmp")
+    try:
+        tmp.write_text(json.dumps(obj, indent=2))
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path
+
+
 def read_exr(path, channel: str | None = None) -> tuple[np.ndarray, dict]:
     """Read an image as (H, W, C) float32 plus its smbs:* header entries: its colour
     channels (R, G, B, A, whichever it has; all channels if it has none of them), or with
