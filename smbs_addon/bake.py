@@ -183,8 +183,9 @@ def caustic_region(image: np.ndarray, frac: float = 0.05) -> np.ndarray:
     return convergence.caustic_region(image.mean(axis=2), frac)
 
 
-def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None) -> dict:
-    region = caustic_region(image)
+def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None, region=None) -> dict:
+    """The noise over the caustic region (caustic_region(image) unless the caller has it)."""
+    region = caustic_region(image) if region is None else region
     if not region.any():
         return {"region_pixels": 0, "mean": 0.0, "std_error_of_mean": 0.0, "relative_noise": 0.0,
                 "pixel_rms_noise": 0.0}
@@ -793,7 +794,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
         "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
         "plan": _plan_stats(plan),
         "nothing_to_bake": None,
-        "noise": noise_summary(image, variance, batch_lum),
+        "noise": noise_summary(image, variance, batch_lum, region),
         # an error bar and a price (convergence.py): noise only, a biased estimator's bias is not in it
         "relative_error": _finite_or_none(convergence.relative_error(batch_lum, region)),
         "error_leaves_out": bias_left_out(settings, light_stats),
