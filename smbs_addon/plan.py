@@ -122,7 +122,7 @@ def _degenerate_axes(scene: S.Scene, li: int) -> bool:
     need = {S.SUN: (2,), S.SPOT: (2,), S.AREA: (0, 1, 2)}.get(int(scene.light_type[li]), ())
     scale = max(float(np.abs(m).max()), 1e-300)
     return any(not (np.linalg.norm(m[:, k]) > 1e-9 * scale) for k in need) or \
-        (int(scene.light_type[li]) == S.AREA and not (abs(np.linalg.det(m)) > 1e-12 * scale ** 3))
+        (int(scene.light_type[li]) == S.AREA and S.flat_axes(m))
 
 
 def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
@@ -259,11 +259,7 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
     maze of glass, where each part keeps its own regular subset of its rays)."""
     from . import lanes
 
-    O = len(scene.object_names)
-    direct = np.zeros(O, bool)
-    through = np.empty((O, 2, 3))
-    through[:, 0], through[:, 1] = np.inf, -np.inf
-    sides = np.zeros(O, np.int64)
+    direct, through, sides = _nothing_seen(len(scene.object_names))
     x0, x1, y0, y1 = cam.region
     w, h = max(0, x1 - x0), max(0, y1 - y0)
     if w * h == 0 or scene.n_tris == 0:
@@ -292,16 +288,19 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
 SEES_PART = 1 << 16  # camera rays per part of camera_sees
 
 
+def _nothing_seen(n_objects: int):
+    """camera_sees' answer before any ray: (direct, through (empty boxes: lo > hi), sides)."""
+    through = np.empty((n_objects, 2, 3))
+    through[:, 0], through[:, 1] = np.inf, -np.inf
+    return np.zeros(n_objects, bool), through, np.zeros(n_objects, np.int64)
+
+
 def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
     """camera_sees for the rays o, d: (direct, through (unpadded), sides, rays cast); past cap
     rays at a bounce, a regular subset of them goes on."""
     from .optics import reflect, refract
 
-    O = len(scene.object_names)
-    direct = np.zeros(O, bool)
-    through = np.empty((O, 2, 3))
-    through[:, 0], through[:, 1] = np.inf, -np.inf
-    sides = np.zeros(O, np.int64)
+    direct, through, sides = _nothing_seen(len(scene.object_names))
     rays = 0
     for depth in range(max_bounces + 1):
         if len(o) == 0:

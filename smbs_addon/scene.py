@@ -49,6 +49,13 @@ MAX_POWER = 1e20  # a light's power (W) or a sun's strength: past it a caustic o
 MAX_COLOR = 1e6  # a material's colour channel (an albedo, 1 at most in a physical scene)
 
 
+def flat_axes(m3) -> bool:
+    """Does a 3x3 linear part lose a dimension (an axis scaled to zero, or the axes in a plane),
+    relative to its own scale?"""
+    m = np.asarray(m3, float)
+    return not (abs(np.linalg.det(m)) > 1e-12 * max(float(np.abs(m).max()), 1e-300) ** 3)
+
+
 def _column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(min, max) per column of v (N, 3): column by column, ~25x faster than numpy's reduction
     over axis 0 with 3 columns; raises on N = 0 as that reduction does."""
@@ -265,8 +272,7 @@ class Scene:
         if cam.filter_width > MAX_FILTER_WIDTH:
             raise SceneError(f"camera filter_width {cam.filter_width:g} pixels: Cycles' pixel filter is at most "
                              f"{MAX_FILTER_WIDTH:g}")
-        axes = np.asarray(cam.matrix_world, float)[:3, :3]
-        if not (abs(np.linalg.det(axes)) > 1e-12 * max(np.abs(axes).max(), 1e-300) ** 3):
+        if flat_axes(np.asarray(cam.matrix_world, float)[:3, :3]):
             raise SceneError("camera: its matrix is degenerate (an axis scaled to zero?), so it has no view direction")
         if cam.use_border:
             b = np.asarray(cam.border, float)
