@@ -25,12 +25,24 @@ MIN_FIT_POINTS = 3  # prefix variances (k = 2..G) needed for the log-log fit
 HEAVY_TAIL = 1.5  # error(all) / (error(first half) / sqrt 2) above this: the variance is still growing
 
 
-def box5(x: np.ndarray) -> np.ndarray:
-    """(H,W) -> the mean over each pixel's 5x5 neighbourhood (edges repeated), in two passes."""
+def box(x: np.ndarray, radius: int) -> np.ndarray:
+    """(H,W) -> the mean over each pixel's (2 radius + 1)^2 neighbourhood (edges repeated), in
+    two passes of shifted sums."""
     h, w = x.shape
-    p = np.pad(np.asarray(x, np.float64), 2, mode="edge")
-    rows = p[:, 0:w] + p[:, 1:w + 1] + p[:, 2:w + 2] + p[:, 3:w + 3] + p[:, 4:w + 4]
-    return (rows[0:h] + rows[1:h + 1] + rows[2:h + 2] + rows[3:h + 3] + rows[4:h + 4]) / 25.0
+    k = 2 * radius + 1
+    p = np.pad(np.asarray(x, np.float64), radius, mode="edge")
+    rows = p[:, 0:w]
+    for i in range(1, k):
+        rows = rows + p[:, i:w + i]
+    out = rows[0:h]
+    for i in range(1, k):
+        out = out + rows[i:h + i]
+    return out / float(k * k)
+
+
+def box5(x: np.ndarray) -> np.ndarray:
+    """(H,W) -> the mean over each pixel's 5x5 neighbourhood (edges repeated)."""
+    return box(x, 2)
 
 
 def caustic_region(lum: np.ndarray, frac: float = 0.05, blur: bool = True) -> np.ndarray:
