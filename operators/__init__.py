@@ -4,9 +4,9 @@ Each operator module keeps its classes in ``classes``.
 """
 import bpy
 
-from . import bake, cli
+from . import bake, cli, compare
 
-classes = (*bake.classes,)
+classes = (*bake.classes, *compare.classes)
 
 
 def register():

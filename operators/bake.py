@@ -151,12 +151,15 @@ class Prepared:
     started: float
 
 
-def prepare(context, core) -> Prepared:
-    """Export the scene and build the settings (raises SceneError)."""
+def prepare(context, core, output=True) -> Prepared:
+    """Export the scene and build the settings (raises SceneError). output False: nothing will
+    be written (Compare Methods), so no output path is resolved."""
     scene = context.scene
     props = scene.smbs_caustics
     warnings = []
-    path, stored_path, note = resolve_output_path(props.output_path)
+    path = stored_path = note = None
+    if output:
+        path, stored_path, note = resolve_output_path(props.output_path)
     if note:
         warnings.append(note)
     started = time.perf_counter()
@@ -225,10 +228,10 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     return True
 
 
-def report_failure(error, core, warnings, report) -> None:
+def report_failure(error, core, warnings, report, what="Caustics bake") -> None:
     """An exception from prepare() or the bake, as operator reports."""
     if isinstance(error, core.BakeCancelled):
-        report({'WARNING'}, "Caustics bake cancelled; nothing was changed")
+        report({'WARNING'}, f"{what} cancelled; nothing was changed")
         return
     for message in warnings:
         report({'WARNING'}, message)
@@ -256,11 +259,13 @@ def running_bake(scene=None):
 class ModalBake:
     """The state of one interactive bake, driven by the modal operator's events.
 
-    Kept apart from the Operator so that it can be exercised without a window.
-    """
+    Kept apart from the Operator so that it can be exercised without a window. ``task``: what
+    runs in the worker and what ends it on the main thread (a bake by default; Compare Methods
+    runs ``CompareTask``)."""
 
-    def __init__(self, report):
+    def __init__(self, report, task=None):
         self.report = report
+        self.task = task
         self.core = None
         self.prep: Prepared | None = None
         self.job: BakeJob | None = None
@@ -279,12 +284,17 @@ class ModalBake:
             self.report({'ERROR'}, f"A caustics bake is already running for scene '{scene.name}'")
             return False
         try:
-            self.prep = prepare(context, self.core)
+            if self.task is None:
+                self.prep = prepare(context, self.core)
+            else:
+                self.prep = prepare(context, self.core, output=False)
+                self.prep.settings = self.task.settings(self.prep.settings)
         except Exception as e:
-            report_failure(e, self.core, [], self.report)
+            report_failure(e, self.core, [], self.report, self.what)
             return False
         self.key = scene.name_full
-        self.job = BakeJob(self.core.bake, self.prep.data, self.prep.settings).start()
+        run = self.core.bake if self.task is None else self.task.run
+        self.job = BakeJob(run, self.prep.data, self.prep.settings).start()
         _running[self.key] = self
         context.window_manager.progress_begin(0, 100)
         return True
@@ -304,27 +314,33 @@ class ModalBake:
         if job.cancelled:
             job.wait(1.0)  # the core checks between chunks; the thread is a daemon either way
             self.stop(context)
-            self.report({'WARNING'}, "Caustics bake cancelled; nothing was changed")
+            self.report({'WARNING'}, f"{self.what} cancelled; nothing was changed")
             return {'CANCELLED'}
         if event_type != 'TIMER':
             return {'PASS_THROUGH'}
         if not job.done:
             fraction, message = job.status()
             context.window_manager.progress_update(100.0 * fraction)
-            self.text = f"SMBS Caustics: {100.0 * fraction:.0f}% {message} (Esc to cancel)"
+            what = "" if self.task is None else f"{self.what}: "
+            self.text = f"SMBS Caustics: {what}{100.0 * fraction:.0f}% {message} (Esc to cancel)"
             self._show(context, self.text)
             return {'PASS_THROUGH'}
         self.stop(context)
         if job.error is not None:
-            report_failure(job.error, self.core, self.prep.warnings, self.report)
+            report_failure(job.error, self.core, self.prep.warnings, self.report, self.what)
             return {'CANCELLED'}
         # Look the scene up again: it may have been deleted, or reloaded by an undo, meanwhile.
         scene = bpy.data.scenes.get(self.key)
         if scene is None or not hasattr(scene, "smbs_caustics"):
             self.report({'WARNING'}, f"Scene '{self.key}' is gone; the bake was not applied")
             return {'CANCELLED'}
-        ok = finish(scene, self.prep, job.result, self.core, self.report)
+        done = finish if self.task is None else self.task.finish
+        ok = done(scene, self.prep, job.result, self.core, self.report)
         return {'FINISHED'} if ok else {'CANCELLED'}
+
+    @property
+    def what(self) -> str:
+        return "Caustics bake" if self.task is None else self.task.what
 
     def stop(self, context):
         if _running.get(self.key) is self:

@@ -65,10 +65,13 @@ def _rmse(lum: np.ndarray, ref: Reference, region: np.ndarray) -> float:
     return math.sqrt(max(mse, 0.0)) / mean if mean > 0 else math.inf
 
 
-def compare(scene, methods, seconds: float, settings, reference: Reference | None = None, progress=None) -> dict:
+def compare(scene, methods, seconds: float, settings, reference: Reference | None = None, progress=None,
+            cancel=None, bake_progress=None) -> dict:
     """Bake scene with each of methods for seconds (settings: the rest of the bake's settings;
     its spp is the samples per batch times its batches, as the time rule takes it) and set the
-    bakes side by side (see the module's notes). progress(i, method) is called before each.
+    bakes side by side (see the module's notes). progress(i, method) is called before each;
+    bake_progress(fraction, message) as the bakes go (the fraction of the whole comparison);
+    cancel() returning True stops the bake under way (BakeCancelled, as bake).
 
     Returns {"region_pixels", "region_from", "seconds", "rows": [one dict per method, in the
     order given], "results": {method: BakeResult}}, and "nothing_to_bake" (why) for a scene
@@ -84,7 +87,12 @@ def compare(scene, methods, seconds: float, settings, reference: Reference | Non
         if progress is not None:
             progress(i, m)
         s = dataclasses.replace(settings, method=m, time_budget=float(seconds), noise_target=0.0)
-        results[m] = bake(scene, s)
+        step = None
+        if bake_progress is not None:
+            def step(fraction, message="", i=i, m=m):
+                bake_progress((i + min(max(float(fraction), 0.0), 1.0)) / len(methods),
+                              f"{m} ({i + 1} of {len(methods)})" + (f": {message}" if message else ""))
+        results[m] = bake(scene, s, progress=step, cancel=cancel)
         why = results[m].stats.get("nothing_to_bake")
         if why:  # the plan is the same for every method
             return {"region_pixels": 0, "region_from": "bakes", "seconds": float(seconds), "rows": [],

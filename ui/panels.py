@@ -164,19 +164,56 @@ def plan_lines(stats):
     return [str(w) for w in words] if isinstance(words, list) else []
 
 
-_parsed_cache = ("", {})
+_parsed_cache: dict = {}  # JSON text -> dict: the last bake's statistics and the last comparison
 
 
 def parse_stats(text):
-    """The stats dict stored as JSON on the scene ({} when empty or unreadable)."""
-    global _parsed_cache
-    if text != _parsed_cache[0]:
+    """A dict stored as JSON on the scene ({} when empty or unreadable): the last bake's
+    statistics, the last comparison. Parsed once per text, not on every redraw."""
+    value = _parsed_cache.get(text)
+    if value is None:
         try:
             value = json.loads(text) if text else {}
         except ValueError:
             value = {}
-        _parsed_cache = (text, value if isinstance(value, dict) else {})
-    return _parsed_cache[1]
+        if not isinstance(value, dict):
+            value = {}
+        if len(_parsed_cache) >= 4:
+            _parsed_cache.clear()
+        _parsed_cache[text] = value
+    return value
+
+
+def compare_rows(report):
+    """Compare Methods' report as (heading, rows of (method, noise, time for the same noise),
+    last line): what the panel shows. Empty heading: no comparison."""
+    if not isinstance(report, dict):
+        return "", [], ""
+    if report.get("nothing_to_bake"):
+        return "Nothing to compare", [], str(report["nothing_to_bake"])
+    rows = report.get("rows")
+    if not isinstance(rows, list) or not rows:
+        return "", [], ""
+    heading = f"{report.get('seconds', 0):g} s each, over {report.get('region_pixels', 0)} caustic pixels"
+    out = []
+    for r in rows:
+        err = r.get("error")
+        noise = "no error bar" if not _number(err) else f"\u00b1{100.0 * err:.1f}%" + (
+            " (heavy tail)" if r.get("heavy_tail") else "")
+        same = r.get("time_for_same_error")
+        if _number(same):
+            price = f"{same:.2f}x time"
+        elif r.get("leaves_out"):
+            price = "biased"
+        else:
+            price = ""
+        out.append((str(r.get("method", "?")), noise, price))
+    priced = [r for r in rows if _number(r.get("time_for_same_error"))]
+    last = ""
+    if len(priced) >= 2:
+        best = min(priced, key=lambda r: r["time_for_same_error"])
+        last = f"Fastest to a given noise: {best['method']}"
+    return heading, out, last
 
 
 def _draw_rows(layout, rows):
@@ -425,8 +462,42 @@ class SMBS_PT_caustics_statistics(_RenderPanel, bpy.types.Panel):
                 layout.label(text=line, icon='INFO')
 
 
+class SMBS_PT_caustics_compare(_RenderPanel, bpy.types.Panel):
+    """Compare Methods: each method baked for the same time, their noise side by side."""
+
+    bl_label = "Compare Methods"
+    bl_idname = "SMBS_PT_caustics_compare"
+    bl_parent_id = "SMBS_PT_caustics"
+    bl_options = {'DEFAULT_CLOSED'}
+
+    def draw(self, context):
+        layout = self.layout
+        settings = context.scene.smbs_caustics
+        row = layout.row(align=True)
+        row.prop(settings, "compare_methods", expand=True)
+        col = layout.column()
+        col.use_property_split = True
+        col.use_property_decorate = False
+        col.prop(settings, "compare_seconds")
+        layout.operator("smbs.compare_methods", icon='SORTTIME')
+        heading, rows, last = compare_rows(parse_stats(settings.compare_report))
+        if not heading:
+            return
+        box = layout.box()
+        box.label(text=heading, icon='SORTTIME')
+        col = box.column(align=True)
+        for method, noise, price in [("Method", "Noise", "Time for Same Noise"), *rows]:
+            split = col.split(factor=0.3)
+            split.label(text=method)
+            rest = split.split(factor=0.5)
+            rest.label(text=noise)
+            rest.label(text=price)
+        if last:
+            _draw_text(box, context, last, icon='INFO')
+
+
 classes = (SMBS_PT_caustics, SMBS_UL_participants, SMBS_PT_caustics_participants,
-           SMBS_PT_caustics_advanced, SMBS_PT_caustics_statistics)
+           SMBS_PT_caustics_advanced, SMBS_PT_caustics_compare, SMBS_PT_caustics_statistics)
 
 
 def register():

@@ -78,6 +78,16 @@ RADIANCE_ITEMS = (
 )
 
 
+# Compare Methods' toggles, in the order its table lists them.
+COMPARE_ITEMS = (
+    ("reference", "Light Tracing", "Brute-force light tracing (the Reference method)"),
+    ("mnee", "MNEE", "Manifold next event estimation (biased: its error bar leaves the bias out)"),
+    ("sms", "SMS", "Specular manifold sampling"),
+    ("smbs", "SMBS", "Specular manifold bisection sampling"),
+    ("auto", "Auto", "A short pilot picks a method per light and effect"),
+)
+
+
 class SMBSCausticsSettings(bpy.types.PropertyGroup):
     """Settings for baking the caustic layer of one scene."""
 
@@ -231,6 +241,22 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         description="Pilot photons per light and caster that find where its caustic lands before "
                     "baking; casters whose caustic the camera cannot see are skipped. 0: plan by "
                     "bounds only (bake every caster a light reaches)",
+    )
+
+    # Compare Methods (operators/compare.py).
+    compare_methods: EnumProperty(
+        name="Methods", items=COMPARE_ITEMS, options={'ENUM_FLAG'}, default={"reference", "sms", "smbs"},
+        description="The methods Compare Methods bakes, each for the same time",
+    )
+    compare_seconds: FloatProperty(
+        name="Seconds Each", default=10.0, min=1.0, soft_max=600.0, max=86400.0,
+        unit='TIME_ABSOLUTE', subtype='TIME_ABSOLUTE',
+        description="Compare Methods: how long each method bakes (plan, pre-pass and its samples); "
+                    "the other settings are the bake's, one sample per pixel per batch",
+    )
+    compare_report: StringProperty(
+        name="Comparison", default="", options={'HIDDEN'},
+        description="The last Compare Methods' table, as JSON",
     )
 
     # The participants list (UI only).
