@@ -370,21 +370,21 @@ def _idle(context):
             and running_bake(context.scene) is None)
 
 
-class SMBS_OT_bake_caustics(bpy.types.Operator):
-    """Bake the caustic layer of this scene, write it as an EXR and add it in the compositor"""
+class ModalOperator:
+    """invoke, modal and cancel of an operator that runs a ModalBake in the interface and
+    ``execute`` in background mode. ``modal_task(context)``: the ModalBake's task (None: a
+    bake), or False to stop before starting (the operator has reported why)."""
 
-    bl_idname = "smbs.bake_caustics"
-    bl_label = "Bake Caustics"
-    bl_options = {'REGISTER', 'UNDO'}
-
-    @classmethod
-    def poll(cls, context):
-        return _idle(context)
+    def modal_task(self, context):
+        return None
 
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
-        self._bake = ModalBake(self.report)
+        task = self.modal_task(context)
+        if task is False:
+            return {'CANCELLED'}
+        self._bake = ModalBake(self.report, task)
         if not self._bake.start(context):
             return {'CANCELLED'}
         wm = context.window_manager
@@ -403,6 +403,18 @@ class SMBS_OT_bake_caustics(bpy.types.Operator):
         self._bake.cancel()
         self._bake.step(context, 'TIMER')
         context.window_manager.event_timer_remove(self._timer)
+
+
+class SMBS_OT_bake_caustics(ModalOperator, bpy.types.Operator):
+    """Bake the caustic layer of this scene, write it as an EXR and add it in the compositor"""
+
+    bl_idname = "smbs.bake_caustics"
+    bl_label = "Bake Caustics"
+    bl_options = {'REGISTER', 'UNDO'}
+
+    @classmethod
+    def poll(cls, context):
+        return _idle(context)
 
     def execute(self, context):
         background = bpy.app.background

@@ -73,9 +73,7 @@ def _task(props) -> CompareTask:
                        float(props.compare_seconds))
 
 
-
-
-class SMBS_OT_compare_methods(bpy.types.Operator):
+class SMBS_OT_compare_methods(B.ModalOperator, bpy.types.Operator):
     """Bake this scene with each chosen method for the same time and show their noise side by
     side: which method reaches a given noise fastest here (nothing is written or composited)"""
 
@@ -87,41 +85,17 @@ class SMBS_OT_compare_methods(bpy.types.Operator):
     def poll(cls, context):
         return B._idle(context)
 
-    def _checked(self, context):
+    def modal_task(self, context):
+        """The task as the panel has it, or False (reported) when no method is chosen."""
         task = _task(context.scene.smbs_caustics)
         if not task.methods:
             self.report({'ERROR'}, "Compare Methods: choose at least one method")
-            return None
+            return False
         return task
 
-    def invoke(self, context, event):
-        if bpy.app.background or context.window is None:
-            return self.execute(context)
-        task = self._checked(context)
-        if task is None:
-            return {'CANCELLED'}
-        self._bake = B.ModalBake(self.report, task)
-        if not self._bake.start(context):
-            return {'CANCELLED'}
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.modal_handler_add(self)
-        return {'RUNNING_MODAL'}
-
-    def modal(self, context, event):
-        result = self._bake.step(context, event.type, event.value)
-        if result & {'FINISHED', 'CANCELLED'}:
-            context.window_manager.event_timer_remove(self._timer)
-        return result
-
-    def cancel(self, context):
-        self._bake.cancel()
-        self._bake.step(context, 'TIMER')
-        context.window_manager.event_timer_remove(self._timer)
-
     def execute(self, context):
-        task = self._checked(context)
-        if task is None:
+        task = self.modal_task(context)
+        if task is False:
             return {'CANCELLED'}
         try:
             core = B._core()

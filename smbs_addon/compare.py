@@ -87,12 +87,7 @@ def compare(scene, methods, seconds: float, settings, reference: Reference | Non
         if progress is not None:
             progress(i, m)
         s = dataclasses.replace(settings, method=m, time_budget=float(seconds), noise_target=0.0)
-        step = None
-        if bake_progress is not None:
-            def step(fraction, message="", i=i, m=m):
-                bake_progress((i + min(max(float(fraction), 0.0), 1.0)) / len(methods),
-                              f"{m} ({i + 1} of {len(methods)})" + (f": {message}" if message else ""))
-        results[m] = bake(scene, s, progress=step, cancel=cancel)
+        results[m] = bake(scene, s, progress=_one_of(bake_progress, i, m, len(methods)), cancel=cancel)
         why = results[m].stats.get("nothing_to_bake")
         if why:  # the plan is the same for every method
             return {"region_pixels": 0, "region_from": "bakes", "seconds": float(seconds), "rows": [],
@@ -132,6 +127,17 @@ def compare(scene, methods, seconds: float, settings, reference: Reference | Non
         row["time_for_same_error"] = c / best if c is not None and best > 0 else None
     return {"region_pixels": int(region.sum()), "region_from": source, "seconds": float(seconds),
             "rows": rows, "results": results}
+
+
+def _one_of(progress, i, method, n):
+    """Bake i of n's progress(fraction, message) as progress of the whole comparison."""
+    if progress is None:
+        return None
+
+    def step(fraction, message=""):
+        progress((i + min(max(float(fraction), 0.0), 1.0)) / n,
+                 f"{method} ({i + 1} of {n})" + (f": {message}" if message else ""))
+    return step
 
 
 def _pct(x) -> str:
