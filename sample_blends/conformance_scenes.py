@@ -388,6 +388,41 @@ def cube_white_glossy1():
     return scene
 
 
+def egg_sun_spot():
+    """A glass egg: a smooth sphere scaled (1.4, 0.8, 0.9) and turned (its normals must follow the
+    inverse transpose), Glass BSDF tinted, IOR 1.45, under two coloured lights at once: a warm sun
+    of angle 6 deg and a blue spot of radius 0.15 with blend 0.5."""
+    scene = _scene("egg_sun_spot")
+    _floor(scene)
+    glass = B.material("EggGlass", "glass", (0.95, 0.9, 0.8), ior=1.45)
+    egg = _sphere(scene, "Egg", glass, 0.5, (0, 0, 0.9))
+    egg.scale = (1.4, 0.8, 0.9)
+    egg.rotation_euler = (math.radians(15), 0, math.radians(30))
+    sun = B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(12), math.radians(-8), 0), energy=2.0,
+                      angle=math.radians(6.0))
+    sun.data.color = (1.0, 0.85, 0.7)
+    spot = B.add_light(scene, "Spot", "SPOT", (1.2, -0.6, 3.2), (math.radians(10), math.radians(20), 0),
+                       energy=900.0, shadow_soft_size=0.15, spot_size=math.radians(45), spot_blend=0.5)
+    spot.data.color = (0.6, 0.8, 1.0)
+    B.add_camera(scene, (0, -3.6, 3.0), (0, 0, 0.2), lens=38)
+    return scene
+
+
+def principled_floor():
+    """sphere_point_soft's glass ball over a floor of Blender's default material (Principled BSDF:
+    Base Color 0.8, Roughness 0.5, IOR 1.5, Specular IOR Level 0.5), seen at a slant: its glossy
+    layer takes its share of the light off the diffuse below, as Cycles layers it."""
+    scene = _scene("principled_floor")
+    floor = bpy.data.materials.new("DefaultFloor")  # Principled BSDF at Blender's defaults
+    v, f = B.grid(10.0, 10.0)
+    B.mesh_object(scene, "Floor", v, f, floor, receiver=True)
+    glass = principled("WhiteGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
+    _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
+    B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25)
+    B.add_camera(scene, (0, -4.2, 1.6), (0, 0, 0.0), lens=40)
+    return scene
+
+
 SCENES = {
     # name: (builder, what it covers)
     "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
@@ -414,6 +449,10 @@ SCENES = {
                        "(the tint alone)"),
     "cube_white_glossy1": (cube_white_glossy1, "the white cube with Light Paths glossy 1, max 12, "
                            "transmission 12 (bounce limits)"),
+    "principled_floor": (principled_floor, "a receiver of Blender's default material (Principled BSDF, "
+                         "roughness 0.5) seen at a slant, under a glass ball"),
+    "egg_sun_spot": (egg_sun_spot, "Glass BSDF tinted 1.45, non-uniformly scaled and turned smooth sphere, "
+                     "coloured sun 6 deg and coloured spot with blend together"),
 }
 # scenes whose reference is Cycles' MNEE (the light cannot be found by path tracing)
 MNEE_REFERENCE = {"water_flat_sun0"}

@@ -22,6 +22,7 @@ import numpy as np
 from . import scene as S
 from .builder import SceneBuilder
 from .errors import SceneError
+from .layer import principled_layer
 
 log = logging.getLogger(__name__)
 
@@ -195,7 +196,15 @@ def classify_material(mat, warn) -> dict:
                     warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
                 return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)),
                             reflect_color=np.ones(3), ior=ior, roughness=rough)
-            return dict(kind=S.DIFFUSE, color=base, roughness=rough)
+            # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
+            # dielectric glossy layer that takes its share towards the eye (layer.py)
+            level = _const(node, "Specular IOR Level") if node.inputs.get("Specular IOR Level") else 0.5
+            tint = _const(node, "Specular Tint") if node.inputs.get("Specular Tint") else np.ones(3)
+            eta, tint_max = principled_layer(ior, level, tint)
+            if active("Diffuse Roughness"):
+                warn(f"material '{mat.name}': Principled BSDF Diffuse Roughness ignored (treated as 0, Lambert)")
+            return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
+                        layer=(eta, float(rough), tint_max))
         if t == "BSDF_GLASS":
             c = _const(node, "Color")
             return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),

@@ -13,6 +13,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import scene as S
+from .layer import has_layers, table as layer_table, weight as layer_weight
+from .vec import dot
 
 EYE_MIN_PART = 8192  # eye paths per thread below which splitting does not pay (as tracer._MIN_SPLIT)
 
@@ -25,7 +27,9 @@ class Receivers:
     ng: np.ndarray
     ns: np.ndarray
     w_eye: np.ndarray  # (M,3) direction from x0 back along the eye path
-    beta: np.ndarray  # (M,3) eye-path throughput up to x0 (BSDF at x0 excluded)
+    # (M,3) eye-path throughput up to x0: x0's BSDF excluded but for the share its glossy layer
+    # leaves its diffuse towards the eye (layer.py; 1 but under a Principled BSDF's)
+    beta: np.ndarray
     mat: np.ndarray  # (M,) material at x0
     eye_specular: np.ndarray  # (M,) specular vertices between the camera and x0
     weight: np.ndarray  # (M,) splat weight of the eye sample
@@ -153,5 +157,8 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     stats["rays_eye"] = stats.get("rays_eye", 0) + sum(p[3] for p in parts)
     rec, rec_i, prior = (np.concatenate([p[k] for p in parts]) for k in range(3))
     ln = rec_i[:, 0]
+    beta = rec[:, 12:15]
+    if has_layers(scene):  # x0's diffuse under its glossy layer, towards the eye (layer.py)
+        beta = beta * layer_weight(layer_table(scene), rec_i[:, 2], dot(rec[:, 9:12], rec[:, 6:9]))[:, None]
     return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=rec[:, 0:3], ng=rec[:, 3:6], ns=rec[:, 6:9],
-                     w_eye=rec[:, 9:12], beta=rec[:, 12:15], mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior)
+                     w_eye=rec[:, 9:12], beta=beta, mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior)

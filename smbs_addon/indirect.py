@@ -31,7 +31,7 @@ import math
 
 import numpy as np
 
-from . import embree, kernels, lanes, optics
+from . import embree, kernels, lanes, layer, optics
 from . import scene as S
 from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .eye import Receivers, surface_at
@@ -190,6 +190,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             if diff.size:  # the next diffuse vertex
                 g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
                          mat=hmat[diff], has_s=has_s[diff], depth=depth[diff] + 1, cnt=cnt[diff])
+                if layer.has_layers(scene):  # its diffuse under its glossy layer, towards w (as eye_receivers)
+                    g["beta"] = g["beta"] * layer.weight(layer.table(scene), g["mat"], dot(g["w"], g["ns"]))[:, None]
                 alb = _albedo(scene, g["mat"])
                 lit = np.flatnonzero(g["has_s"] & lim.fits(g["cnt"]))  # direct light: every event before fits
                 for li in lights_direct:

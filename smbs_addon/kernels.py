@@ -31,6 +31,7 @@ from numba.extending import intrinsic
 
 from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
+from .layer import MU_STEPS
 from .optics import bend1, scatter1
 
 # packed vertex columns
@@ -184,6 +185,17 @@ def _normalize(a):
     n = math.sqrt(_dot(a, a))
     inv = 1.0 / n if n > 0 else 0.0
     return (a[0] * inv, a[1] * inv, a[2] * inv)
+
+
+@njit(**_JIT)
+def _tab_weight(tab, m, mu):
+    """layer.weight for one vertex: material m's diffuse weight under its glossy layer at the
+    eye's cosine mu (tab: layer.table, optics.materials' last entry; exactly 1 without a layer)."""
+    x = min(abs(mu), 1.0) * MU_STEPS
+    i = min(int(x), MU_STEPS - 1)
+    f = x - i
+    a = tab[m, i]
+    return a + (tab[m, i + 1] - a) * f
 
 
 @njit(inline="always", **_JIT)
@@ -1535,6 +1547,8 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
                                               b, True)
                 if not ok:
                     break
+                # the eye's path, the other way, arrives here from dd: the glossy layer's share
+                bb = _mul(_tab_weight(mats[6], m, _dot(dd, n)), bb)
                 nd += step
                 n_diff += 1
             else:
@@ -1656,11 +1670,11 @@ def camera_rays(cam, x, y):
 
 
 @njit(**_JIT)
-def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, eps, rx, ry, val):
+def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, layer_tab, eps, rx, ry, val):
     """camera_splats' loop, on borrowed arrays (its caller holds them). Returns (rays cast, splats
     written)."""
     ray = _borrowed(ray)
-    cam, rec, mat, mat_color, rx, ry, val = _borrowed((cam, rec, mat, mat_color, rx, ry, val))
+    cam, rec, mat, mat_color, layer_tab, rx, ry, val = _borrowed((cam, rec, mat, mat_color, layer_tab, rx, ry, val))
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
     ortho = cam[CAM_ORTHO] > 0
@@ -1707,8 +1721,8 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, eps, rx, ry, val):
         else:
             c3 = max(cos_axis, 1e-12) ** 3
             imp = abs(co_g) / (max(dist, 1e-300) ** 2 * cam[CAM_PIX_AREA] * c3)
-        k = corr * imp / math.pi
         m = mat[i]
+        k = corr * imp / math.pi * _tab_weight(layer_tab, m, _dot(to_cam, ns))  # under a glossy layer
         rx[n], ry[n] = px, py
         for c in range(3):
             val[n, c] = rec[i, REC_BETA + c] * mat_color[m, c] * k
@@ -1718,15 +1732,16 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, eps, rx, ry, val):
 
 @TypedOnce
 @njit(**_JIT)
-def camera_splats(rt, cam, margin, rec, mat, mat_color, eps, rx, ry, val):
+def camera_splats(rt, cam, margin, rec, mat, mat_color, layer_tab, eps, rx, ry, val):
     """reference.splat_records: the light tracer's records (rec: REC_* columns; mat: their
-    materials, diffuse with albedo mat_color[mat]): each diffuse vertex connected to the camera
+    materials, diffuse with albedo mat_color[mat] under the glossy layer of layer_tab, layer.table):
+    each diffuse vertex connected to the camera
     (cam: CameraModel.kernel_params; margin: the film's filter width in pixels around the render
     region), its shadow ray cast here, the splat's raster position and value (the flux times the
     diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
     ry, val. Returns (shadow rays cast, splats written, the ray counters)."""
     ray = ray_state(rt)
-    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, eps, rx, ry, val)
+    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, layer_tab, eps, rx, ry, val)
     return rays, n, ray[6]
 
 
@@ -1860,6 +1875,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                 if kind == _DIFFUSE:  # the next diffuse vertex
                     depth += 1
                     p, g, n, w, m = hp, hg, hn, _neg(d), hm
+                    b = _mul(_tab_weight(mats[6], m, _dot(w, n)), b)  # under its glossy layer, towards w
                     if want_vx and has_s and _fits(lim, nd, ngl, nt):  # direct light: every event before fits
                         if nvx == vx.shape[0]:
                             full = True

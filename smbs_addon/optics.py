@@ -171,8 +171,9 @@ def _row3(a, i):
 @njit(inline="always", **JIT)
 def _material(mats, m):
     """Material m's (kind, Fresnel model, colour, reflection tint, IOR) from the scene's tables
-    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior, bump correction)."""
-    kind, fres, color, rcolor, ior, _ = mats
+    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior, bump correction, layer
+    table): materials()."""
+    kind, fres, color, rcolor, ior = mats[0], mats[1], mats[2], mats[3], mats[4]
     return kind[m], fres[m], _row3(color, m), _row3(rcolor, m), ior[m]
 
 
@@ -309,10 +310,13 @@ def _refract_rows(w, n, eta):
 
 
 def materials(scene) -> tuple:
-    """The scene's material tables as scatter1 takes them."""
+    """The scene's material tables as scatter1 takes them; the last, layer.table: the diffuse's
+    weight under a glossy layer by the eye's cosine (kernels._tab_weight)."""
+    from .layer import table
+
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
-            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64))
+            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64), table(scene))
 
 
 def bump_correction(scene) -> np.ndarray:

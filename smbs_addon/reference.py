@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import embree, kernels, lanes
+from . import embree, kernels, lanes, layer
 from .optics import materials, scatter_rows
 from .estimators import concentration
 from .bounces import Limits
@@ -198,11 +198,12 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats):
     rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
     cam_p, rec = cam.kernel_params(), np.ascontiguousarray(rec, np.float64)
     mat, colors = np.ascontiguousarray(ids[:, 2], np.int64), np.ascontiguousarray(scene.mat_color, np.float64)
+    layer_tab = layer.table(scene)
 
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()
         rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], colors,
-                                                tracer.eps, rx[a:b], ry[a:b], val[a:b])
+                                                layer_tab, tracer.eps, rx[a:b], ry[a:b], val[a:b])
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays
 

@@ -41,7 +41,7 @@ AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
-OPTIONAL = ("light_paths", "mat_bump_correction")
+OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -150,6 +150,11 @@ class Scene:
     # reflection of the eye's direction would dip under the surface (optics.valid_reflection1);
     # empty: off for every material (a scene built in code, or saved before it was exported)
     mat_bump_correction: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    # (M,3): the dielectric glossy layer over a diffuse material (a Principled BSDF's): its index
+    # (0: none), Principled Roughness and Specular Tint's largest channel (layer.py: the diffuse
+    # then weighs 1 - A(mu) towards the eye); empty: no layers (a scene built in code, or saved
+    # before they were exported)
+    mat_layer: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -234,6 +239,12 @@ class Scene:
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
         if self.mat_bump_correction.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
+        if self.mat_layer.shape not in ((0, 3), (M, 3)):
+            raise SceneError(f"scene array 'mat_layer' must be ({M}, 3) or empty")
+        fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)
+        if not fine.all():
+            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(~fine)[0])]}': its glossy layer "
+                             f"(index, roughness, tint) must be finite numbers from 0 to {MAX_COLOR:g}")
         for name in ("mat_color", "mat_reflect_color"):
             if getattr(self, name).shape != (M, 3):
                 raise SceneError(f"scene array '{name}' must be ({M}, 3)")

@@ -39,6 +39,10 @@ CASES = [
     ("cube_white_glossy1", "reference", 256),  # Light Paths: 0.86 of the caustic without the limit
     # the reflection off a bevelled glass cube's outside: 0.74 without Cycles' Bump Map Correction
     ("cube_grey_reflect", "reference", 2048),
+    # a floor of Blender's default material (Principled BSDF) seen at a slant: 1.15 of Cycles before
+    # its glossy layer took its share off the diffuse (layer.py)
+    ("principled_floor", "reference", 256),
+    ("principled_floor", "smbs", 4),
 ]
 
 

@@ -8,6 +8,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake, embree, kernels, optics, reference
+from smbs_addon import scene as S
 from smbs_addon.bounces import Limits
 from smbs_addon.builder import SceneBuilder
 from smbs_addon.lights import emit
@@ -188,7 +189,7 @@ def test_light_tracer_same_image_whatever_the_threads():
     assert np.array_equal(a.image, b.image) and np.array_equal(a.variance, b.variance)
 
 
-def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo):
+def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo, under_layer):
     """The camera connection as reference.splat_to_camera made it in numpy (camera.CameraModel's
     towards and importance, tracer.spawn and occluded), for kernels.camera_splats to be held to:
     (raster x, raster y, value) of the splats, and the shadow rays cast."""
@@ -203,19 +204,26 @@ def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo):
     idx = idx[~blocked]
     corr = np.abs(ci_s[idx]) / np.maximum(np.abs(ci_g[idx]), 1e-12)
     imp = cam.importance(cos_axis[idx], dist[idx], co_g[idx])
-    return rx[idx], ry[idx], beta[idx] * (albedo[idx] / math.pi) * (corr * imp)[:, None], rays
+    glossy = under_layer(idx, (to_cam[idx] * ns[idx]).sum(1))  # the share a glossy layer leaves the diffuse
+    return rx[idx], ry[idx], beta[idx] * (albedo[idx] / math.pi) * (corr * imp * glossy)[:, None], rays
 
 
-@pytest.mark.parametrize("name", ["glass_sphere", "water_ortho"])
+@pytest.mark.parametrize("name", ["glass_sphere", "water_ortho", "glass_sphere_principled_floor"])
 def test_camera_splats_are_the_numpy_connection(name):
     """kernels.camera_splats (the light tracer's records connected to the camera, the shadow rays
     cast in the kernel) against the same connection made in numpy from CameraModel.towards and
     importance: the same splats (raster positions to 1e-9 pixel, values to 1e-12 relative), the
-    same shadow rays, on a perspective camera (the glass ball's caustic, some of it hidden by the ball)
-    and an orthographic one under water (records in the filter's margin count)."""
+    same shadow rays, on a perspective camera (the glass ball's caustic, some of it hidden by the ball),
+    an orthographic one under water (records in the filter's margin count), and the ball's floor
+    under a Principled BSDF's glossy layer (layer.weight towards the camera)."""
+    from smbs_addon import layer
     from smbs_addon.camera import CameraModel
 
-    scene = scenes.glass_sphere_scene(resolution=(32, 24)) if name == "glass_sphere" else scenes.water_scene("point")
+    scene = scenes.water_scene("point") if name == "water_ortho" else scenes.glass_sphere_scene(resolution=(32, 24))
+    if name.endswith("principled_floor"):
+        scene.mat_layer = np.zeros((len(scene.mat_kind), 3))
+        scene.mat_layer[scene.mat_kind == S.DIFFUSE] = (1.5, 0.5, 1.0)
+    tab = layer.table(scene)
     plan = make_plan(scene)
     tracer = Tracer(scene)
     cam = CameraModel(scene.camera)
@@ -226,11 +234,12 @@ def test_camera_splats_are_the_numpy_connection(name):
     margin = scene.camera.filter_width
     col = lambda k: rec[:, k:k + 3]  # noqa: E731
     want = _splat_to_camera_numpy(tracer, cam, margin, col(kernels.REC_P), col(kernels.REC_NG), col(kernels.REC_NS),
-                                  col(kernels.REC_W), col(kernels.REC_BETA), scene.mat_color[ids[:, 2]])
+                                  col(kernels.REC_W), col(kernels.REC_BETA), scene.mat_color[ids[:, 2]],
+                                  lambda idx, cos: layer.weight(tab, ids[idx, 2], cos))
     n = len(rec)
     rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
     rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
-                                       scene.mat_color, tracer.eps, rx, ry, val)
+                                       scene.mat_color, tab, tracer.eps, rx, ry, val)
     assert 100 < m <= rays <= n and rays == want[3]
     np.testing.assert_allclose(rx[:m], want[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(ry[:m], want[1], rtol=0, atol=1e-9)
