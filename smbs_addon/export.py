@@ -204,7 +204,7 @@ def classify_material(mat, warn) -> dict:
             if active("Diffuse Roughness"):
                 warn(f"material '{mat.name}': Principled BSDF Diffuse Roughness ignored (treated as 0, Lambert)")
             return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
-                        layer=(eta, float(rough), tint_max))
+                        layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans)))
         if t == "BSDF_GLASS":
             c = _const(node, "Color")
             return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),

@@ -82,7 +82,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=
     lim = Limits.of(scene)
     rec, ids, _, _, _ = run_photons(scene, tracer, plan, photons, rng, stats, indirect=True,
                                     max_iter=MAX_SPECULAR + min(lim.diffuse, 64) + 1, physical=physical)
-    splat_records(scene, tracer, cam, film, rec, ids, stats)
+    splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=False)
 
 
 def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
@@ -163,6 +163,10 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         go = np.flatnonzero(lim.fits(f_cnt + ONE_DIFFUSE))
         d, beta, k = _diffuse_bounce(rng, f_w[go], f_ng[go], f_ns[go], f_beta[go], _albedo(scene, f_mat[go]), False)
         sel = go[k]
+        x0 = np.flatnonzero(f_depth[sel] == 0)
+        if x0.size and layer.has_layers(scene):  # x0 under a Principled coat (kernels._gather_rows the same)
+            beta[x0] = beta[x0] * layer.coat_factor(scene, f_mat[sel[x0]], scene.mat_color, f_ns[sel[x0]],
+                                                    f_w[sel[x0]], d[x0])
         lane, has_s, depth = f_lane[sel], f_has_s[sel], f_depth[sel]
         cnt = f_cnt[sel] + ONE_DIFFUSE  # every event so far
         before = cnt.copy()  # the events before the latest
@@ -432,7 +436,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
     counts = kernels.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
                                    f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
-                                   tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
+                                   np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
                                    tracer.eps, seg, seg_n, hist, h_prim, cand, cdf, guide)
     tracer.cast_by_kernel(rt, counts)
     name = "bent" if bent else "handoff"

@@ -31,8 +31,8 @@ from numba.extending import intrinsic
 
 from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
-from .layer import MU_STEPS
-from .optics import bend1, scatter1
+from .layer import MU_STEPS, SINGULAR_ALPHA2
+from .optics import bend1, fresnel_dielectric1, scatter1
 
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
@@ -177,6 +177,53 @@ def _neg(a):
 @njit(inline="always", **_JIT)
 def _cross(a, b):
     return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+@njit(**_JIT)
+def _lambda_ggx(cos, a2):
+    c2 = max(cos * cos, 1e-12)
+    return 0.5 * (math.sqrt(1.0 + a2 * max(1.0 / c2 - 1.0, 0.0)) - 1.0)
+
+
+@njit(**_JIT)
+def _coat_factor(mats, m, n, w_view, w_light, share):
+    """layer.coat_factor for one path (mats: optics.materials): what Cycles' caustics on-minus-off
+    keeps of a path leaving material m's diffuse towards w_light, relative to the diffuse alone;
+    (1, 1, 1) exactly without a coat. The same sums as layer.coat_factor."""
+    lay = mats[8]
+    eta, rough, tint, wgt = lay[m, 0], lay[m, 1], lay[m, 2], lay[m, 3]
+    a2 = rough ** 4
+    if not (eta > 1.0 and a2 > SINGULAR_ALPHA2 and wgt > 0.0):
+        return 1.0, 1.0, 1.0
+    nv = _dot(n, w_view)
+    nn = _neg(n) if nv < 0 else n
+    mu_o = min(max(abs(nv), 1e-6), 1.0)
+    mu_i = _dot(nn, w_light)
+    if not mu_i > 1e-9:
+        return 1.0, 1.0, 1.0
+    h = _normalize(_add(w_view, w_light))
+    c_nh = _dot(h, nn)
+    d = a2 / (math.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
+    lam_o = _lambda_ggx(mu_o, a2)
+    g2 = 1.0 / (1.0 + lam_o + _lambda_ggx(mu_i, a2))
+    one_minus_a = _tab_weight(mats[6], m, mu_o)
+    eval_g = _tab_weight(mats[7], m, mu_o) * fresnel_dielectric1(_dot(h, w_view), eta) * tint * d * g2 / (4.0 * mu_o)
+    col = mats[2]
+    b0, b1, b2 = col[m, 0] / wgt, col[m, 1] / wgt, col[m, 2] / wgt
+    sw_d = (b0 + b1 + b2) / 3.0 * one_minus_a
+    if not sw_d > 0:
+        return 1.0, 1.0, 1.0
+    s = 1.0
+    if share:
+        pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
+        pdf_d = mu_i / math.pi
+        p_d = sw_d / max(sw_d + (1.0 - one_minus_a), 1e-300)
+        s = p_d * pdf_d / max(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300)
+    e_d = one_minus_a * mu_i / math.pi
+    k0 = s * (1.0 + eval_g / (b0 * e_d)) if b0 > 0 else 1.0
+    k1 = s * (1.0 + eval_g / (b1 * e_d)) if b1 > 0 else 1.0
+    k2 = s * (1.0 + eval_g / (b2 * e_d)) if b2 > 0 else 1.0
+    return k0, k1, k2
 
 
 @njit(inline="always", **_JIT)
@@ -1366,12 +1413,12 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
 
 
 @njit(**_JIT)
-def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n,
+def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg, seg_n,
                   hist, h_prim, cand, cdf, guide):
     """handoff_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
-        (x0, ng0, ns0, w0, beta0, alb, seg, seg_n, hist, h_prim, cand, cdf, guide))
+    x0, ng0, ns0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
+        (x0, ng0, ns0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
     targeted = cand.shape[0] > 0
     for lane in range(x0.shape[0] * samples):
@@ -1391,6 +1438,8 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, m
                                         _v(alb, i, 0), _v(beta0, i, 0), False)
         if not ok:
             continue
+        kc = _coat_factor(mats, mat0[i], _v(ns0, i, 0), _v(w0, i, 0), d, True)  # under a Principled coat
+        b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
         o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
         for bounce in range(K + 1):
             pr, t, p, gg, v0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
@@ -1429,7 +1478,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, m
 
 @TypedOnce
 @njit(**_JIT)
-def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n,
+def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg, seg_n,
                   hist, h_prim, cand, cdf, guide):
     """indirect.handoff_gather's paths, lane i // samples's receiver (x0, ng0, ns0, w0: the
     direction back to the eye, beta0: the throughput, alb: the albedo): a cosine bounce with
@@ -1449,7 +1498,7 @@ def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, ma
     one Cycles' Bump Map Correction bends there, or the lane ends. Returns the ray counters
     (embree.ray_state)."""
     ray = ray_state(rt)
-    _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, geo, mats, physical, eps, seg, seg_n,
+    _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg, seg_n,
                   hist, h_prim, cand, cdf, guide)
     return ray[6]
 
@@ -1670,11 +1719,13 @@ def camera_rays(cam, x, y):
 
 
 @njit(**_JIT)
-def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, layer_tab, eps, rx, ry, val):
+def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, rx, ry, val):
     """camera_splats' loop, on borrowed arrays (its caller holds them). Returns (rays cast, splats
     written)."""
     ray = _borrowed(ray)
-    cam, rec, mat, mat_color, layer_tab, rx, ry, val = _borrowed((cam, rec, mat, mat_color, layer_tab, rx, ry, val))
+    mats = _borrowed(mats)
+    cam, rec, mat, rx, ry, val = _borrowed((cam, rec, mat, rx, ry, val))
+    mat_color = mats[2]
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
     ortho = cam[CAM_ORTHO] > 0
@@ -1722,26 +1773,28 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, layer_tab, eps, rx
             c3 = max(cos_axis, 1e-12) ** 3
             imp = abs(co_g) / (max(dist, 1e-300) ** 2 * cam[CAM_PIX_AREA] * c3)
         m = mat[i]
-        k = corr * imp / math.pi * _tab_weight(layer_tab, m, _dot(to_cam, ns))  # under a glossy layer
+        k = corr * imp / math.pi * _tab_weight(mats[6], m, _dot(to_cam, ns))  # under a glossy coat
+        kc = _coat_factor(mats, m, ns, to_cam, w, first_order)  # and what on-minus-off keeps of it
         rx[n], ry[n] = px, py
         for c in range(3):
-            val[n, c] = rec[i, REC_BETA + c] * mat_color[m, c] * k
+            val[n, c] = rec[i, REC_BETA + c] * mat_color[m, c] * k * kc[c]
         n += 1
     return rays, n
 
 
 @TypedOnce
 @njit(**_JIT)
-def camera_splats(rt, cam, margin, rec, mat, mat_color, layer_tab, eps, rx, ry, val):
+def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, rx, ry, val):
     """reference.splat_records: the light tracer's records (rec: REC_* columns; mat: their
-    materials, diffuse with albedo mat_color[mat] under the glossy layer of layer_tab, layer.table):
-    each diffuse vertex connected to the camera
+    materials, diffuse with albedo mats[2][mat] under a Principled coat: layer.py, first_order: the
+    records are x0's own caustic, not light after a diffuse bounce): each diffuse vertex connected
+    to the camera
     (cam: CameraModel.kernel_params; margin: the film's filter width in pixels around the render
     region), its shadow ray cast here, the splat's raster position and value (the flux times the
     diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
     ry, val. Returns (shadow rays cast, splats written, the ray counters)."""
     ray = ray_state(rt)
-    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mat_color, layer_tab, eps, rx, ry, val)
+    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, rx, ry, val)
     return rays, n, ray[6]
 
 
@@ -1851,6 +1904,9 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
             ev += 1
             if not ok:
                 break
+            if depth == 0:  # x0 under a Principled coat: what on-minus-off keeps (layer.coat_factor)
+                kc = _coat_factor(mats, m, n, w, d, True)
+                b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
             nd += 1
             bd, bg, bt = nd, ngl, nt  # the events before the latest
             o = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn

@@ -23,6 +23,7 @@ from .constraints import LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import eye_receivers
 from .geometry import triangle_areas
+from .layer import coat_factor, has_layers
 from .lights import area_light_points, light_axis
 from .optics import has_reflection
 from .trials import bernoulli_trials
@@ -75,6 +76,7 @@ class Ctx:
         self.film = None  # the film the estimates are splatted on (the clamp's statistics count what lands)
         self.handoff_seen = False  # hand off focusing paths at receivers seen through mirrors or glass too
         self.first_order = False  # walking from receivers the camera sees (not later diffuse vertices)
+        self.coated = has_layers(scene)  # receivers under a Principled coat (layer.coat_factor)
 
     def part(self) -> "Ctx":
         """A copy for one part of a chunk's receivers, with counters of its own (merged by the
@@ -327,6 +329,8 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     ok = okg & (dot(d01, ng0) * side > 0) & (cos0 > 0)
     T = chain_throughput(scene, types, x0, verts, le.y, le.directional, ctx.physical)
     albedo = scene.mat_color[rc.mat[idx]]
+    if ctx.coated:  # under a Principled coat: Cycles' on-minus-off keeps (f_d + f_g) x the diffuse's MIS share
+        albedo = albedo * coat_factor(scene, rc.mat[idx], scene.mat_color, ns0, w_eye, d01, share=ctx.first_order)
     val = rc.beta[idx] * albedo / math.pi * (np.maximum(cos0, 0) * G)[:, None] * T * emit
     ok &= val.max(axis=1) > 0
     # shadow ray from the last vertex to the light sample

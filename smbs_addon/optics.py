@@ -310,13 +310,15 @@ def _refract_rows(w, n, eta):
 
 
 def materials(scene) -> tuple:
-    """The scene's material tables as scatter1 takes them; the last, layer.table: the diffuse's
-    weight under a glossy layer by the eye's cosine (kernels._tab_weight)."""
-    from .layer import table
+    """The scene's material tables as scatter1 takes them; then a Principled coat's (layer.py):
+    the diffuse's weight and the coat's multiple-scattering gain by the eye's cosine, and the
+    coats (Scene.mat_layer) (kernels._tab_weight, kernels._coat_factor)."""
+    from .layer import coat, gain_table, table
 
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
-            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64), table(scene))
+            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64), table(scene),
+            gain_table(scene), coat(scene))
 
 
 def bump_correction(scene) -> np.ndarray:

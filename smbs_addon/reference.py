@@ -17,7 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from . import embree, kernels, lanes, layer
+from . import embree, kernels, lanes
 from .optics import materials, scatter_rows
 from .estimators import concentration
 from .bounces import Limits
@@ -187,7 +187,7 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     return rec, ids, hist, h_prim, tally
 
 
-def splat_records(scene, tracer, cam, film, rec, ids, stats):
+def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     """Connect run_photons' records (diffuse vertices with the direction the photon arrived from
     and its flux) to the camera and splat flux x BSDF x importance, in one kernel call
     (kernels.camera_splats, the shadow rays cast there), or one per part on each thread as
@@ -197,13 +197,12 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats):
         return
     rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
     cam_p, rec = cam.kernel_params(), np.ascontiguousarray(rec, np.float64)
-    mat, colors = np.ascontiguousarray(ids[:, 2], np.int64), np.ascontiguousarray(scene.mat_color, np.float64)
-    layer_tab = layer.table(scene)
+    mat, mats = np.ascontiguousarray(ids[:, 2], np.int64), materials(scene)
 
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()
-        rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], colors,
-                                                layer_tab, tracer.eps, rx[a:b], ry[a:b], val[a:b])
+        rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], mats,
+                                                bool(first_order), tracer.eps, rx[a:b], ry[a:b], val[a:b])
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays
 

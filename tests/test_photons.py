@@ -204,8 +204,8 @@ def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo, u
     idx = idx[~blocked]
     corr = np.abs(ci_s[idx]) / np.maximum(np.abs(ci_g[idx]), 1e-12)
     imp = cam.importance(cos_axis[idx], dist[idx], co_g[idx])
-    glossy = under_layer(idx, (to_cam[idx] * ns[idx]).sum(1))  # the share a glossy layer leaves the diffuse
-    return rx[idx], ry[idx], beta[idx] * (albedo[idx] / math.pi) * (corr * imp * glossy)[:, None], rays
+    glossy = under_layer(idx, to_cam[idx], ns[idx], w_in[idx])  # what a Principled coat leaves the caustic
+    return rx[idx], ry[idx], beta[idx] * (albedo[idx] / math.pi) * (corr * imp)[:, None] * glossy, rays
 
 
 @pytest.mark.parametrize("name", ["glass_sphere", "water_ortho", "glass_sphere_principled_floor"])
@@ -215,14 +215,14 @@ def test_camera_splats_are_the_numpy_connection(name):
     importance: the same splats (raster positions to 1e-9 pixel, values to 1e-12 relative), the
     same shadow rays, on a perspective camera (the glass ball's caustic, some of it hidden by the ball),
     an orthographic one under water (records in the filter's margin count), and the ball's floor
-    under a Principled BSDF's glossy layer (layer.weight towards the camera)."""
+    under a Principled BSDF's glossy coat (layer.weight towards the camera, layer.coat_factor)."""
     from smbs_addon import layer
     from smbs_addon.camera import CameraModel
 
     scene = scenes.water_scene("point") if name == "water_ortho" else scenes.glass_sphere_scene(resolution=(32, 24))
     if name.endswith("principled_floor"):
-        scene.mat_layer = np.zeros((len(scene.mat_kind), 3))
-        scene.mat_layer[scene.mat_kind == S.DIFFUSE] = (1.5, 0.5, 1.0)
+        scene.mat_layer = np.zeros((len(scene.mat_kind), 4))
+        scene.mat_layer[scene.mat_kind == S.DIFFUSE] = (1.5, 0.5, 1.0, 1.0)
     tab = layer.table(scene)
     plan = make_plan(scene)
     tracer = Tracer(scene)
@@ -235,11 +235,12 @@ def test_camera_splats_are_the_numpy_connection(name):
     col = lambda k: rec[:, k:k + 3]  # noqa: E731
     want = _splat_to_camera_numpy(tracer, cam, margin, col(kernels.REC_P), col(kernels.REC_NG), col(kernels.REC_NS),
                                   col(kernels.REC_W), col(kernels.REC_BETA), scene.mat_color[ids[:, 2]],
-                                  lambda idx, cos: layer.weight(tab, ids[idx, 2], cos))
+                                  lambda idx, to_cam, ns, w: layer.weight(tab, ids[idx, 2], (to_cam * ns).sum(1))[:, None]
+                                  * layer.coat_factor(scene, ids[idx, 2], scene.mat_color, ns, to_cam, w))
     n = len(rec)
     rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
     rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
-                                       scene.mat_color, tab, tracer.eps, rx, ry, val)
+                                       optics.materials(scene), True, tracer.eps, rx, ry, val)
     assert 100 < m <= rays <= n and rays == want[3]
     np.testing.assert_allclose(rx[:m], want[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(ry[:m], want[1], rtol=0, atol=1e-9)
