@@ -53,6 +53,7 @@ SPP_BY_SCENE = {
     "gold_cylinder": {"sms": 16, "smbs": 16},
     # a floor under a glossy layer (its diffuse weighs 0.90-0.91 there): 2048 spp resolves 0.5%
     "principled_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
+    "rough_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "egg_sun_spot": {"sms": 16, "smbs": 16},
 }
 

@@ -408,19 +408,31 @@ def egg_sun_spot():
     return scene
 
 
-def principled_floor():
-    """sphere_point_soft's glass ball over a floor of Blender's default material (Principled BSDF:
-    Base Color 0.8, Roughness 0.5, IOR 1.5, Specular IOR Level 0.5), seen at a slant: its glossy
-    layer takes its share of the light off the diffuse below, as Cycles layers it."""
-    scene = _scene("principled_floor")
-    floor = bpy.data.materials.new("DefaultFloor")  # Principled BSDF at Blender's defaults
+def _slanted_ball(name, floor):
+    """sphere_point_soft's glass ball and bulb over a floor of material floor() (made once the
+    scene is new), the camera low (the caustic seen at mu ~0.36): for receivers whose shading
+    depends on the eye's direction."""
+    scene = _scene(name)
     v, f = B.grid(10.0, 10.0)
-    B.mesh_object(scene, "Floor", v, f, floor, receiver=True)
+    B.mesh_object(scene, "Floor", v, f, floor(), receiver=True)
     glass = principled("WhiteGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
     B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25)
     B.add_camera(scene, (0, -4.2, 1.6), (0, 0, 0.0), lens=40)
     return scene
+
+
+def principled_floor():
+    """The slanted glass ball over a floor of Blender's default material (Principled BSDF: Base
+    Color 0.8, Roughness 0.5, IOR 1.5, Specular IOR Level 0.5), seen at a slant: its glossy coat
+    takes its share of the light off the diffuse below, as Cycles layers it."""
+    return _slanted_ball("principled_floor", lambda: bpy.data.materials.new("DefaultFloor"))
+
+
+def rough_floor():
+    """The slanted glass ball over a Diffuse BSDF floor of Roughness 1 (Cycles' Oren-Nayar: at this
+    slant 0.4-1.5 of Lambert, by where the light comes from)."""
+    return _slanted_ball("rough_floor", lambda: B.material("RoughFloor", "diffuse", (0.8,) * 3, roughness=1.0))
 
 
 SCENES = {
@@ -451,6 +463,8 @@ SCENES = {
                            "transmission 12 (bounce limits)"),
     "principled_floor": (principled_floor, "a receiver of Blender's default material (Principled BSDF, "
                          "roughness 0.5) seen at a slant, under a glass ball"),
+    "rough_floor": (rough_floor, "a Diffuse BSDF receiver of Roughness 1 (Oren-Nayar) seen at a slant, "
+                    "under a glass ball"),
     "egg_sun_spot": (egg_sun_spot, "Glass BSDF tinted 1.45, non-uniformly scaled and turned smooth sphere, "
                      "coloured sun 6 deg and coloured spot with blend together"),
 }

@@ -201,10 +201,11 @@ def classify_material(mat, warn) -> dict:
             level = _const(node, "Specular IOR Level") if node.inputs.get("Specular IOR Level") else 0.5
             tint = _const(node, "Specular Tint") if node.inputs.get("Specular Tint") else np.ones(3)
             eta, tint_max = principled_layer(ior, level, tint)
-            if active("Diffuse Roughness"):
-                warn(f"material '{mat.name}': Principled BSDF Diffuse Roughness ignored (treated as 0, Lambert)")
+            # Cycles' Oren-Nayar from a Diffuse Roughness of 1e-5 (CLOSURE_WEIGHT_CUTOFF)
+            sigma = _const(node, "Diffuse Roughness") if node.inputs.get("Diffuse Roughness") else 0.0
+            sigma = float(min(sigma, 1.0)) if sigma >= 1e-5 else 0.0
             return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
-                        layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans)))
+                        layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma))
         if t == "BSDF_GLASS":
             c = _const(node, "Color")
             return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
@@ -219,9 +220,10 @@ def classify_material(mat, warn) -> dict:
                 warn(f"material '{mat.name}': Glossy BSDF anisotropy ignored")
             return dict(kind=S.CONDUCTOR, color=_const(node, "Color"),
                         roughness=_const(node, "Roughness"), fresnel=S.FRESNEL_NONE)
-        if t == "BSDF_DIFFUSE":
-            return dict(kind=S.DIFFUSE, color=_const(node, "Color"),
-                        roughness=_const(node, "Roughness"))
+        if t == "BSDF_DIFFUSE":  # Cycles' Oren-Nayar from a Roughness of 1e-5
+            sigma = float(_const(node, "Roughness"))
+            return dict(kind=S.DIFFUSE, color=_const(node, "Color"), roughness=sigma,
+                        layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0))
         if t == "EMISSION":
             return dict(kind=S.EMITTER, color=_const(node, "Color"),
                         strength=_const(node, "Strength"))

@@ -186,14 +186,42 @@ def _lambda_ggx(cos, a2):
 
 
 @njit(**_JIT)
+def _on_g(c):
+    """layer.oren_nayar_g for one cosine."""
+    if c < 1e-6:
+        return (math.pi / 2 - 2.0 / 3.0) - c
+    sn = math.sqrt(max(1.0 - c * c, 0.0))
+    th = math.acos(min(c, 1.0))
+    return sn * (th - 2.0 / 3.0 - sn * c) + 2.0 / 3.0 * (sn / c) * (1.0 - sn * sn * sn)
+
+
+@njit(**_JIT)
+def _on_ratio(sigma, alb, nv, nl, lv):
+    """layer.oren_nayar_ratio for one path and one channel's albedo alb."""
+    sigma = min(max(sigma, 0.0), 1.0)
+    a = 1.0 / (math.pi + sigma * (math.pi / 2 - 2.0 / 3.0))
+    b = sigma * a
+    t = lv - nl * nv
+    if t > 0:
+        t = t / (max(nl, nv) + 1e-38)
+    e_avg = a * math.pi + ((2 * math.pi - 5.6) / 3.0) * b
+    al = min(max(alb, 0.0), 1.0)
+    e_ms = (1.0 / math.pi) * al * al * (e_avg / (1.0 - e_avg)) / (1.0 - al * (1.0 - e_avg))
+    e_l = a * math.pi + b * _on_g(nl)
+    e_v = a * math.pi + b * _on_g(nv)
+    return math.pi * (a + b * t + e_ms * (1.0 - e_v) * (1.0 - e_l))
+
+
+@njit(**_JIT)
 def _coat_factor(mats, m, n, w_view, w_light, share):
     """layer.coat_factor for one path (mats: optics.materials): what Cycles' caustics on-minus-off
-    keeps of a path leaving material m's diffuse towards w_light, relative to the diffuse alone;
-    (1, 1, 1) exactly without a coat. The same sums as layer.coat_factor."""
+    keeps of a path leaving material m's diffuse towards w_light, relative to a Lambert diffuse;
+    (1, 1, 1) exactly for a Lambert diffuse without a coat. The same sums as layer.coat_factor."""
     lay = mats[8]
-    eta, rough, tint, wgt = lay[m, 0], lay[m, 1], lay[m, 2], lay[m, 3]
+    eta, rough, tint, wgt, sigma = lay[m, 0], lay[m, 1], lay[m, 2], lay[m, 3], lay[m, 4]
     a2 = rough ** 4
-    if not (eta > 1.0 and a2 > SINGULAR_ALPHA2 and wgt > 0.0):
+    coated = eta > 1.0 and a2 > SINGULAR_ALPHA2 and wgt > 0.0
+    if not (coated or sigma > 0.0):
         return 1.0, 1.0, 1.0
     nv = _dot(n, w_view)
     nn = _neg(n) if nv < 0 else n
@@ -201,28 +229,37 @@ def _coat_factor(mats, m, n, w_view, w_light, share):
     mu_i = _dot(nn, w_light)
     if not mu_i > 1e-9:
         return 1.0, 1.0, 1.0
-    h = _normalize(_add(w_view, w_light))
-    c_nh = _dot(h, nn)
-    d = a2 / (math.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
-    lam_o = _lambda_ggx(mu_o, a2)
-    g2 = 1.0 / (1.0 + lam_o + _lambda_ggx(mu_i, a2))
-    one_minus_a = _tab_weight(mats[6], m, mu_o)
-    eval_g = _tab_weight(mats[7], m, mu_o) * fresnel_dielectric1(_dot(h, w_view), eta) * tint * d * g2 / (4.0 * mu_o)
+    if not wgt > 0.0:
+        wgt = 1.0
     col = mats[2]
     b0, b1, b2 = col[m, 0] / wgt, col[m, 1] / wgt, col[m, 2] / wgt
+    one_minus_a = _tab_weight(mats[6], m, mu_o)
     sw_d = (b0 + b1 + b2) / 3.0 * one_minus_a
     if not sw_d > 0:
         return 1.0, 1.0, 1.0
+    r0 = r1 = r2 = 1.0
+    if sigma > 0.0:
+        lv = _dot(w_view, w_light)
+        r0, r1, r2 = (_on_ratio(sigma, b0, mu_o, mu_i, lv), _on_ratio(sigma, b1, mu_o, mu_i, lv),
+                      _on_ratio(sigma, b2, mu_o, mu_i, lv))
+    eval_g = 0.0
     s = 1.0
-    if share:
-        pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
-        pdf_d = mu_i / math.pi
-        p_d = sw_d / max(sw_d + (1.0 - one_minus_a), 1e-300)
-        s = p_d * pdf_d / max(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300)
+    if coated:
+        h = _normalize(_add(w_view, w_light))
+        c_nh = _dot(h, nn)
+        d = a2 / (math.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
+        lam_o = _lambda_ggx(mu_o, a2)
+        g2 = 1.0 / (1.0 + lam_o + _lambda_ggx(mu_i, a2))
+        eval_g = _tab_weight(mats[7], m, mu_o) * fresnel_dielectric1(_dot(h, w_view), eta) * tint * d * g2 / (4.0 * mu_o)
+        if share:
+            pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
+            pdf_d = mu_i / math.pi
+            p_d = sw_d / max(sw_d + (1.0 - one_minus_a), 1e-300)
+            s = p_d * pdf_d / max(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300)
     e_d = one_minus_a * mu_i / math.pi
-    k0 = s * (1.0 + eval_g / (b0 * e_d)) if b0 > 0 else 1.0
-    k1 = s * (1.0 + eval_g / (b1 * e_d)) if b1 > 0 else 1.0
-    k2 = s * (1.0 + eval_g / (b2 * e_d)) if b2 > 0 else 1.0
+    k0 = s * (r0 + eval_g / (b0 * e_d)) if b0 > 0 else 1.0
+    k1 = s * (r1 + eval_g / (b1 * e_d)) if b1 > 0 else 1.0
+    k2 = s * (r2 + eval_g / (b2 * e_d)) if b2 > 0 else 1.0
     return k0, k1, k2
 
 

@@ -1,4 +1,5 @@
-"""The glossy layer over a Principled BSDF's diffuse: how much of the light it leaves the diffuse.
+"""How Cycles shades a diffuse receiver that is not plain Lambert: the glossy coat over a
+Principled BSDF's diffuse, and a rough diffuse (Oren-Nayar).
 
 Blender's default material, and most floors and walls in users' scenes, is a Principled BSDF:
 a diffuse base under a dielectric specular layer (GGX, alpha = Roughness^2, Fresnel of the IOR
@@ -119,10 +120,11 @@ def layer_weights(ior: float, roughness: float, tint: float = 1.0) -> np.ndarray
 
 
 def coat(scene) -> np.ndarray:
-    """(M, 4) Scene.mat_layer, zeros where it is empty: index (0: none), roughness, tint, weight."""
+    """(M, 5) Scene.mat_layer, zeros where it is empty: the coat's index (0: none), roughness,
+    tint and weight, the diffuse's own roughness (Oren-Nayar sigma, 0: Lambert)."""
     M = len(scene.mat_kind)
-    lay = np.asarray(getattr(scene, "mat_layer", np.zeros((0, 4))), float)
-    return np.ascontiguousarray(lay) if lay.shape == (M, 4) else np.zeros((M, 4))
+    lay = np.asarray(getattr(scene, "mat_layer", np.zeros((0, 5))), float)
+    return np.ascontiguousarray(lay) if lay.shape == (M, 5) else np.zeros((M, 5))
 
 
 def _table(scene, k: int) -> np.ndarray:
@@ -145,7 +147,9 @@ def gain_table(scene) -> np.ndarray:
 
 
 def has_layers(scene) -> bool:
-    return bool(np.any(coat(scene)[:, 0] > 1.0))
+    """Does any material depart from Lambert (a coat, or a rough diffuse)?"""
+    lay = coat(scene)
+    return bool(np.any(lay[:, 0] > 1.0) or np.any(lay[:, 4] > 0.0))
 
 
 def weight(tab: np.ndarray, mat: np.ndarray, cos: np.ndarray) -> np.ndarray:
@@ -185,55 +189,87 @@ def _lambda_ggx(cos, a2):
     return 0.5 * (np.sqrt(1.0 + a2 * np.maximum(1.0 / c2 - 1.0, 0.0)) - 1.0)
 
 
-def coat_factor(scene, mat, color, n, w_view, w_light, share=True) -> np.ndarray:
-    """(N,3) what Cycles' caustics on-minus-off keeps of a light path leaving a receiver under a
-    glossy coat towards w_light (the caustic's first vertex), relative to its diffuse alone.
+def oren_nayar_g(c):
+    """Cycles' bsdf_oren_nayar_G of cosines c (its Taylor branch below 1e-6)."""
+    c = np.asarray(c, float)
+    sn = np.sqrt(np.maximum(1.0 - c * c, 0.0))
+    th = np.arccos(np.clip(c, -1.0, 1.0))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        g = sn * (th - 2.0 / 3.0 - sn * c) + 2.0 / 3.0 * (sn / c) * (1.0 - sn * sn * sn)
+    return np.where(c < 1e-6, (np.pi / 2 - 2.0 / 3.0) - c, g)
 
-    Cycles samples a Principled BSDF's closures by their sample weights (diffuse: its colour x (1 -
-    A); the coat: A) and weighs a sampled direction by every closure's eval over the closures'
-    combined pdf; the path is labelled by the closure it sampled. With caustics off a path
-    labelled diffuse stops at the glass, one labelled glossy goes on, in both renders. So the
-    caustic layer holds (f_d + f_g) x P_d p_d / (P_d p_d + P_g p_g) of such a direction, not f_d:
-    ~0.98 of the diffuse for light from above a floor seen at mu 0.36 (principled_floor), less
-    where the light arrives along the coat's lobe. Exactly 1 without a coat, and for a coat so
-    smooth that Cycles makes it a perfect mirror (no eval, no pdf off its one direction).
-    mat (N,): materials; color: Scene.mat_color; n: shading normals; w_view: towards the eye;
-    w_light: towards the light side (unit vectors). share False: a receiver the eye reaches after
-    a diffuse bounce, where Cycles' caustics-off render has stopped the path already whatever it
-    samples: all of f_d + f_g counts."""
+
+def oren_nayar_ratio(sigma, albedo, nv, nl, lv):
+    """(N,3) Cycles' Oren-Nayar diffuse (Fujii's, with OpenPBR's multiple scattering) over Lambert's,
+    for roughness sigma (N,), albedo (N,3), the cosines nv (eye), nl (light) and l.v."""
+    sigma = np.clip(np.asarray(sigma, float), 0.0, 1.0)
+    a = 1.0 / (np.pi + sigma * (np.pi / 2 - 2.0 / 3.0))
+    b = sigma * a
+    t = lv - nl * nv
+    t = np.where(t > 0, t / (np.maximum(nl, nv) + 1e-38), t)
+    e_avg = a * np.pi + ((2 * np.pi - 5.6) / 3.0) * b
+    alb = np.clip(np.asarray(albedo, float), 0.0, 1.0)
+    e_ms = (1.0 / np.pi) * alb * alb * (e_avg / (1.0 - e_avg))[:, None] / (1.0 - alb * (1.0 - e_avg)[:, None])
+    e_l = a * np.pi + b * oren_nayar_g(nl)
+    e_v = a * np.pi + b * oren_nayar_g(nv)
+    return np.pi * ((a + b * t)[:, None] + e_ms * ((1.0 - e_v) * (1.0 - e_l))[:, None])
+
+
+def coat_factor(scene, mat, color, n, w_view, w_light, share=True) -> np.ndarray:
+    """(N,3) what Cycles' caustics on-minus-off keeps of a light path leaving a diffuse receiver
+    towards w_light (the caustic's first vertex), relative to a Lambert diffuse of its colour.
+
+    - Under a Principled coat, Cycles samples the closures by their sample weights (diffuse: its
+      colour x (1 - A); the coat: A), weighs a sampled direction by every closure's eval over
+      their combined pdf and labels the path by the closure it picked. With caustics off a path
+      labelled diffuse stops at the glass, one labelled glossy goes on, in both renders. So the
+      layer holds (f_d + f_g) x P_d p_d / (P_d p_d + P_g p_g) of such a direction: ~0.98 of the
+      diffuse for light from above a floor seen at mu 0.36 (principled_floor), less along the
+      coat's lobe. A coat so smooth that Cycles makes it a perfect mirror takes no share.
+    - A rough diffuse (Diffuse BSDF Roughness, Principled Diffuse Roughness) is Cycles'
+      Oren-Nayar: f_d is that (oren_nayar_ratio x Lambert).
+    Exactly 1 for a Lambert diffuse without a coat. mat (N,): materials; color: Scene.mat_color;
+    n: shading normals; w_view: towards the eye; w_light: towards the light side (unit vectors).
+    share False: a receiver the eye reaches after a diffuse bounce, where Cycles' caustics-off
+    render has stopped the path already whatever it samples: all of f_d + f_g counts."""
     n, w_view, w_light = (np.asarray(a, float).reshape(-1, 3) for a in (n, w_view, w_light))
     mat = np.asarray(mat, np.int64).reshape(-1)
     out = np.ones((len(mat), 3))
     lay = coat(scene)[mat]
     a2 = lay[:, 1] ** 4
-    idx = np.flatnonzero((lay[:, 0] > 1.0) & (a2 > SINGULAR_ALPHA2) & (lay[:, 3] > 0))
+    coated = (lay[:, 0] > 1.0) & (a2 > SINGULAR_ALPHA2) & (lay[:, 3] > 0)
+    idx = np.flatnonzero(coated | (lay[:, 4] > 0))
     if idx.size == 0:
         return out
-    lay, a2, m = lay[idx], a2[idx], mat[idx]
-    nv = (n[idx] * w_view[idx]).sum(1)
+    lay, a2, m, coated = lay[idx], a2[idx], mat[idx], coated[idx]
+    wv, wl = w_view[idx], w_light[idx]
+    nv = (n[idx] * wv).sum(1)
     nn = n[idx] * np.where(nv < 0, -1.0, 1.0)[:, None]  # the normal on the eye's side
     mu_o = np.clip(np.abs(nv), 1e-6, 1.0)
-    mu_i = (nn * w_light[idx]).sum(1)
+    mu_i = (nn * wl).sum(1)
     ok = mu_i > 1e-9
-    h = w_view[idx] + w_light[idx]
+    wgt = np.where(lay[:, 3] > 0, lay[:, 3], 1.0)
+    base = np.asarray(color, float)[m] / wgt[:, None]
+    rough = np.ones((len(idx), 3))
+    on = np.flatnonzero(lay[:, 4] > 0)
+    if on.size:
+        rough[on] = oren_nayar_ratio(lay[on, 4], base[on], mu_o[on], np.maximum(mu_i[on], 0.0), (wv[on] * wl[on]).sum(1))
+    h = wv + wl
     h /= np.maximum(np.linalg.norm(h, axis=1), 1e-300)[:, None]
     c_nh = (h * nn).sum(1)
-    c_oh = (h * w_view[idx]).sum(1)
     d = a2 / (np.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
     lam_o = _lambda_ggx(mu_o, a2)
     g2 = 1.0 / (1.0 + lam_o + _lambda_ggx(np.maximum(mu_i, 1e-9), a2))
-    fres = fresnel_dielectric(c_oh, lay[:, 0])
+    fres = fresnel_dielectric((h * wv).sum(1), np.where(coated, lay[:, 0], 1.5))
     one_minus_a = weight(table(scene), m, mu_o)
     gain = weight(gain_table(scene), m, mu_o)
-    eval_g = gain * fres * lay[:, 2] * d * g2 / (4.0 * mu_o)
-    base = np.asarray(color, float)[m] / lay[:, 3][:, None]
-    eval_d = base * (one_minus_a * np.maximum(mu_i, 0.0) / np.pi)[:, None]
+    eval_g = np.where(coated, gain * fres * lay[:, 2] * d * g2 / (4.0 * mu_o), 0.0)
+    lambert = base * (one_minus_a * np.maximum(mu_i, 0.0) / np.pi)[:, None]
+    sw_d = base.mean(axis=1) * one_minus_a
+    p_d = sw_d / np.maximum(sw_d + (1.0 - one_minus_a), 1e-300)
     pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
     pdf_d = np.maximum(mu_i, 0.0) / np.pi
-    sw_d = base.mean(axis=1) * one_minus_a
-    sw_a = 1.0 - one_minus_a
-    p_d = sw_d / np.maximum(sw_d + sw_a, 1e-300)
-    share = p_d * pdf_d / np.maximum(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300) if share else np.ones(len(idx))
-    k = np.where(eval_d > 0, share[:, None] * (1.0 + eval_g[:, None] / np.where(eval_d > 0, eval_d, 1.0)), 1.0)
+    s = np.where(coated & share, p_d * pdf_d / np.maximum(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300), 1.0)
+    k = np.where(lambert > 0, s[:, None] * (rough + eval_g[:, None] / np.where(lambert > 0, lambert, 1.0)), 1.0)
     out[idx] = np.where((ok & (sw_d > 0))[:, None], k, 1.0)
     return out

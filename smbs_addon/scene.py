@@ -150,11 +150,13 @@ class Scene:
     # reflection of the eye's direction would dip under the surface (optics.valid_reflection1);
     # empty: off for every material (a scene built in code, or saved before it was exported)
     mat_bump_correction: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-    # (M,4): the dielectric glossy coat over a diffuse material (a Principled BSDF's): its index
-    # (0: none), Principled Roughness, Specular Tint's largest channel and the weight (1 -
-    # Metallic)(1 - Transmission) that mat_color holds (layer.py: the diffuse then weighs 1 - A(mu)
-    # towards the eye); empty: no coats (a scene built in code, or saved before they were exported)
-    mat_layer: np.ndarray = field(default_factory=lambda: np.zeros((0, 4)))
+    # (M,5): how a diffuse material departs from Lambert, as Cycles shades it (layer.py): the
+    # dielectric glossy coat over it (a Principled BSDF's): its index (0: none), Principled
+    # Roughness, Specular Tint's largest channel and the weight (1 - Metallic)(1 - Transmission)
+    # that mat_color holds (the diffuse then weighs 1 - A(mu) towards the eye); then the diffuse's
+    # own roughness (Oren-Nayar sigma; 0: Lambert). Empty: Lambert everywhere (a scene built in
+    # code, or saved before they were exported)
+    mat_layer: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -239,12 +241,12 @@ class Scene:
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
         if self.mat_bump_correction.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
-        if self.mat_layer.shape not in ((0, 4), (M, 4)):
-            raise SceneError(f"scene array 'mat_layer' must be ({M}, 4) or empty")
+        if self.mat_layer.shape not in ((0, 5), (M, 5)):
+            raise SceneError(f"scene array 'mat_layer' must be ({M}, 5) or empty")
         fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)
         if not fine.all():
             raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(~fine)[0])]}': its glossy layer "
-                             f"(index, roughness, tint, weight) must be finite numbers from 0 to {MAX_COLOR:g}")
+                             f"(index, roughness, tint, weight, diffuse roughness) must be finite numbers from 0 to {MAX_COLOR:g}")
         for name in ("mat_color", "mat_reflect_color"):
             if getattr(self, name).shape != (M, 3):
                 raise SceneError(f"scene array '{name}' must be ({M}, 3)")

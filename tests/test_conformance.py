@@ -43,6 +43,8 @@ CASES = [
     # its glossy layer took its share off the diffuse (layer.py)
     ("principled_floor", "reference", 256),
     ("principled_floor", "smbs", 4),
+    # a Diffuse BSDF of Roughness 1 (Cycles' Oren-Nayar): 1.066 of Cycles as Lambert
+    ("rough_floor", "reference", 1024),
 ]
 
 

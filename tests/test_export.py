@@ -482,7 +482,7 @@ def test_default_factory_material_is_principled_diffuse():
     sc, warnings = one_material(bpy.data.materials.new("New"))
     assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8, atol=1e-6)
     # under the glossy layer of Blender's defaults: IOR 1.5, Roughness 0.5, Specular Tint white
-    assert np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0], atol=1e-6)
+    assert np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0, 0.0], atol=1e-6)
     assert warnings == []
 
 
@@ -498,12 +498,25 @@ def test_principled_diffuse_keeps_what_metallic_transmission_and_its_glossy_laye
     assert sc.mat_kind[0] == S.DIFFUSE and w == []
     assert np.allclose(sc.mat_color[0], np.array([0.5, 0.6, 0.7]) * 0.8 * 0.75, atol=1e-6)
     f0 = ((1.4 - 1.0) / 2.4) ** 2 * 0.5
-    assert np.allclose(sc.mat_layer[0], [ior_from_f0(f0), 0.3, 0.9, 0.8 * 0.75], atol=1e-6)
+    assert np.allclose(sc.mat_layer[0], [ior_from_f0(f0), 0.3, 0.9, 0.8 * 0.75, 0.0], atol=1e-6)
+
+
+def test_rough_diffuse_is_oren_nayar():
+    """Cycles shades a Diffuse BSDF of Roughness 1e-5 or more, and a Principled BSDF's Diffuse
+    Roughness, by Oren-Nayar (layer.oren_nayar_ratio): its sigma is mat_layer's last column."""
+    sc, w = one_material(material("Rough", "ShaderNodeBsdfDiffuse", Color=(0.5, 0.5, 0.5), Roughness=0.6))
+    assert sc.mat_kind[0] == S.DIFFUSE and w == []
+    assert np.allclose(sc.mat_layer[0], [0.0, 0.0, 0.0, 1.0, 0.6], atol=1e-6)
+
+
+def test_principled_diffuse_roughness_is_oren_nayar_under_the_coat():
+    sc, w = one_material(material("RoughP", "ShaderNodeBsdfPrincipled", **{"Diffuse Roughness": 0.4}))
+    assert w == [] and np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0, 0.4], atol=1e-6)
 
 
 def test_principled_without_specular_has_no_glossy_layer():
     sc, _ = one_material(material("Matte", "ShaderNodeBsdfPrincipled", **{"Specular IOR Level": 0.0}))
-    assert sc.mat_kind[0] == S.DIFFUSE and sc.mat_layer.shape == (0, 4)  # no layer anywhere
+    assert sc.mat_kind[0] == S.DIFFUSE and sc.mat_layer.shape == (0, 5)  # no layer anywhere
 
 
 # ------------------------------------------------------------------------------- lights

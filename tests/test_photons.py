@@ -208,21 +208,24 @@ def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo, u
     return rx[idx], ry[idx], beta[idx] * (albedo[idx] / math.pi) * (corr * imp)[:, None] * glossy, rays
 
 
-@pytest.mark.parametrize("name", ["glass_sphere", "water_ortho", "glass_sphere_principled_floor"])
+@pytest.mark.parametrize("name", ["glass_sphere", "water_ortho", "glass_sphere_principled_floor",
+                                  "glass_sphere_rough_floor"])
 def test_camera_splats_are_the_numpy_connection(name):
     """kernels.camera_splats (the light tracer's records connected to the camera, the shadow rays
     cast in the kernel) against the same connection made in numpy from CameraModel.towards and
     importance: the same splats (raster positions to 1e-9 pixel, values to 1e-12 relative), the
     same shadow rays, on a perspective camera (the glass ball's caustic, some of it hidden by the ball),
     an orthographic one under water (records in the filter's margin count), and the ball's floor
-    under a Principled BSDF's glossy coat (layer.weight towards the camera, layer.coat_factor)."""
+    under a Principled BSDF's glossy coat (layer.weight towards the camera, layer.coat_factor) or
+    rough (Oren-Nayar)."""
     from smbs_addon import layer
     from smbs_addon.camera import CameraModel
 
     scene = scenes.water_scene("point") if name == "water_ortho" else scenes.glass_sphere_scene(resolution=(32, 24))
-    if name.endswith("principled_floor"):
-        scene.mat_layer = np.zeros((len(scene.mat_kind), 4))
-        scene.mat_layer[scene.mat_kind == S.DIFFUSE] = (1.5, 0.5, 1.0, 1.0)
+    if name.endswith("_floor"):  # a Principled coat; a rough (Oren-Nayar) diffuse
+        scene.mat_layer = np.zeros((len(scene.mat_kind), 5))
+        scene.mat_layer[scene.mat_kind == S.DIFFUSE] = (1.5, 0.5, 1.0, 1.0, 0.0) if "principled" in name else \
+            (0.0, 0.0, 0.0, 1.0, 1.0)
     tab = layer.table(scene)
     plan = make_plan(scene)
     tracer = Tracer(scene)
