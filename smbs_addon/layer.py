@@ -19,6 +19,8 @@ Then what Cycles' caustics on-minus-off keeps of a path from such a receiver int
 not the diffuse alone but (f_d + f_g) times the diffuse closure's share of Cycles' closure
 sampling (coat_factor; the caustics-off render stops only the paths labelled diffuse): 0.93-0.98
 of the diffuse on principled_floor, which read 1.028 with the weight alone and 1.010 with both.
+A rough diffuse (Diffuse BSDF Roughness, Principled Diffuse Roughness) is Cycles' Oren-Nayar
+(oren_nayar_ratio x Lambert), in the same factor; rough_floor read 1.066 as Lambert, 1.007 now.
 
 A is computed here, not read from Cycles' tables: the single-scattering albedo with the
 dielectric Fresnel, E_F(mu), from stratified samples of the visible normals (Heitz 2018), times
@@ -34,7 +36,7 @@ import numpy as np
 
 MU_STEPS = 64  # the table's cosines: 0, 1/64, ..., 1
 _GRID = 64  # stratified visible-normal samples per axis
-_cache: dict = {}  # (ior, roughness, tint) -> (MU_STEPS + 1,) weights
+_cache: dict = {}  # (ior, roughness, tint) -> (weights, gains), each (MU_STEPS + 1,)
 
 
 def fresnel_dielectric(cos_i, eta):
