@@ -255,11 +255,12 @@ def sphere_refraction_spot():
     return scene
 
 
-def _standing_mirror(name):
-    """A scene with the floor and a flat Glossy BSDF mirror standing on it at x = 1.2."""
+def _standing_mirror(name, mirror=None):
+    """A scene with the floor and a flat mirror standing on it at x = 1.2 (material mirror(), made
+    once the scene is new; default Glossy BSDF 0.9)."""
     scene = _scene(name)
     _floor(scene)
-    mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9))
+    mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9)) if mirror is None else mirror()
     v, f = B.grid(1.6, 1.0)
     # local +Z -> -X: the mirror stands at x = 1.2 and faces the light and the camera
     B.mesh_object(scene, "Mirror", v, f, mirror, location=(1.2, 0, 0.55),
@@ -272,6 +273,16 @@ def mirror_point_hard():
     soft falloff; the camera sees the reflected light on the floor directly and in the
     mirror."""
     scene = _standing_mirror("mirror_point_hard")
+    B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
+                use_soft_falloff=False)
+    B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
+    return scene
+
+
+def mirror_alloy():
+    """mirror_point_hard with a Principled mirror of Metallic 0.7 (Base Color 0.9, Roughness 0): Cycles
+    weighs its metal lobe by 0.7; the dielectric rest (a 4% coat over a diffuse) is left out."""
+    scene = _standing_mirror("mirror_alloy", lambda: principled("Alloy", base=(0.9, 0.9, 0.9), metallic=0.7))
     B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
                 use_soft_falloff=False)
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
@@ -449,6 +460,8 @@ SCENES = {
     "sphere_refraction_spot": (sphere_refraction_spot, "Refraction BSDF 1.33, spot light"),
     "mirror_point_hard": (mirror_point_hard, "Glossy BSDF flat mirror, point light without soft "
                           "falloff, receiver seen in the mirror"),
+    "mirror_alloy": (mirror_alloy, "mirror_point_hard's mirror as Principled Metallic 0.7 (a partly metallic "
+                     "lobe)"),
     "mirror_spread30": (mirror_spread30, "Glossy BSDF flat mirror, square area light of spread 30 "
                         "deg (the soft-box falloff)"),
     "water_flat_sun0": (water_flat_sun0, "flat open water 1.33, sun angle 0 (Cycles MNEE reference)"),

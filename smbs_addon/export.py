@@ -186,16 +186,29 @@ def classify_material(mat, warn) -> dict:
                 ignored.append("normal map")
             if ignored:
                 warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
+            # Cycles weighs the metal lobe by Metallic and the glass by (1 - Metallic) x Transmission;
+            # a material is the lobe that weighs most, the rest of it is left out (and said so)
             if metallic >= 0.5:
-                return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK)
+                # the rest is a dielectric coat (a mirror at Roughness 0: it casts) over a diffuse
+                level = _const(node, "Specular IOR Level") if node.inputs.get("Specular IOR Level") else 0.5
+                eta, _ = principled_layer(ior, level, np.ones(3))
+                if metallic < 1.0:
+                    warn(f"material '{mat.name}': Principled BSDF Metallic {metallic:g}: the diffuse under "
+                         f"its coat ({1 - metallic:.0%} of it) receives no caustics")
+                return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
+                            reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0)
             if trans >= 0.5:
+                w_glass = float((1.0 - metallic) * trans)
+                if w_glass < 1.0:
+                    warn(f"material '{mat.name}': Principled BSDF glass of weight {w_glass:.2f} ((1 - Metallic) x "
+                         f"Transmission); the rest neither casts nor receives caustics")
                 # Cycles' Principled glass tints transmission by sqrt(base colour) at every
                 # refraction and leaves reflection white (its Specular Tint scales f0 instead)
                 tint = _const(node, "Specular Tint") if node.inputs.get("Specular Tint") else np.ones(3)
                 if not np.allclose(tint, 1.0):
                     warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
-                return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)),
-                            reflect_color=np.ones(3), ior=ior, roughness=rough)
+                return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
+                            reflect_color=np.full(3, w_glass), ior=ior, roughness=rough)
             # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
             # dielectric glossy layer that takes its share towards the eye (layer.py)
             level = _const(node, "Specular IOR Level") if node.inputs.get("Specular IOR Level") else 0.5

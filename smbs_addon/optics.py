@@ -139,8 +139,9 @@ def specular_weights1(kind, fres, color, rcolor, eta, cos_i):
     """Weights (R, T) (3-tuples) of the mirror and refraction lobes of a material for
     incidence cos_i = w_i . n (its sign tells the side; Cycles' conventions):
 
-    - conductor: R = colour (Glossy BSDF) or Schlick from F0 = colour (Principled
-      metallic); T = 0;
+    - conductor: R = colour (Glossy BSDF) or Schlick from F0 = colour times the reflection tint
+      (Principled metallic: its Metallic weight m), plus (1 - m) x the dielectric Fresnel of
+      index eta (the coat over the rest); T = 0;
     - glass: R = F * reflection tint, T = (1 - F) * transmission tint, F the dielectric
       Fresnel term (1 under total internal reflection);
     - Refraction BSDF: R = 0, T = colour, and T = 0 under total internal reflection.
@@ -151,7 +152,14 @@ def specular_weights1(kind, fres, color, rcolor, eta, cos_i):
     if kind == _CONDUCTOR:
         if fres == _SCHLICK:
             m5 = math.pow(_clip01(1.0 - abs(cos_i)), 5.0)
-            return (_schlick(m5, color[0]), _schlick(m5, color[1]), _schlick(m5, color[2])), zero
+            # Principled metallic: Schlick from F0 = colour, weighed by Metallic (the reflection
+            # tint); what Metallic leaves is under a dielectric coat of index eta, a mirror too
+            r = (_schlick(m5, color[0]) * rcolor[0], _schlick(m5, color[1]) * rcolor[1],
+                 _schlick(m5, color[2]) * rcolor[2])
+            if rcolor[0] < 1.0:
+                fc = fresnel_dielectric1(abs(cos_i), eta)
+                r = (r[0] + (1.0 - rcolor[0]) * fc, r[1] + (1.0 - rcolor[1]) * fc, r[2] + (1.0 - rcolor[2]) * fc)
+            return r, zero
         return color, zero
     if kind == _DIELECTRIC:
         F = fresnel_dielectric1(cos_i, eta)
@@ -363,7 +371,7 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     cos_i = np.ascontiguousarray(cos_i, np.float64).reshape(-1)
     f0 = np.ascontiguousarray(np.broadcast_to(np.asarray(f0, np.float64), (len(cos_i), 3)))
     n = len(cos_i)
-    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.zeros((n, 3)), np.ones(n),
+    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.ones((n, 3)), np.ones(n),
             np.zeros(n, np.int64))
     return _weights_rows(np.arange(n), mats, cos_i)[0]
 

@@ -45,6 +45,8 @@ CASES = [
     ("principled_floor", "smbs", 4),
     # a Diffuse BSDF of Roughness 1 (Cycles' Oren-Nayar): 1.066 of Cycles as Lambert
     ("rough_floor", "reference", 1024),
+    # a Principled mirror of Metallic 0.7: 1.44 of Cycles as a whole metal
+    ("mirror_alloy", "reference", 256),
 ]
 
 

@@ -359,6 +359,35 @@ def test_principled_metallic_is_a_schlick_conductor():
     assert np.allclose(sc.mat_color[0], [1.0, 0.8, 0.3]) and np.isclose(sc.mat_roughness[0], 0.1)
 
 
+def test_a_partly_metallic_or_transmissive_principled_weighs_its_lobe():
+    """Cycles weighs a Principled BSDF's metal by Metallic and its glass by (1 - Metallic) x
+    Transmission; the lobe that weighs most is the material, at that weight. A metal's rest is a
+    dielectric coat (a mirror at Roughness 0) over a diffuse, whose diffuse is said to be left out
+    (mirror_alloy, Metallic 0.7: 1.44 of Cycles before, 0.95 with the metal's weight alone)."""
+    from smbs_addon.optics import fresnel_dielectric, fresnel_schlick, specular_weights
+
+    sc, w = one_material(material("Alloy", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (0.9, 0.6, 0.3), "Metallic": 0.8, "Roughness": 0.0}))
+    assert sc.mat_kind[0] == S.CONDUCTOR and np.allclose(sc.mat_reflect_color[0], 0.8)
+    assert w == ["material 'Alloy': Principled BSDF Metallic 0.8: the diffuse under its coat (20% of it) "
+                 "receives no caustics"]
+    cos = np.array([1.0, 0.5, 0.1])
+    R, T = specular_weights(sc, np.zeros(3, np.int64), cos)
+    m = sc.mat_reflect_color[0]  # the metal's Schlick, the coat's Fresnel (IOR 1.5) over the rest
+    np.testing.assert_allclose(R, m * fresnel_schlick(cos, sc.mat_color[0])
+                               + (1 - m) * fresnel_dielectric(cos, 1.5)[:, None], rtol=1e-6)
+    assert not T.any()
+
+
+def test_a_partly_transmissive_principled_glass_weighs_both_lobes():
+    sc, w = one_material(material("Frost", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (0.81, 1.0, 0.64), "Metallic": 0.1, "Transmission Weight": 0.9, "Roughness": 0.0}))
+    assert sc.mat_kind[0] == S.DIELECTRIC
+    np.testing.assert_allclose(sc.mat_color[0], np.sqrt([0.81, 1.0, 0.64]) * 0.81, rtol=1e-6)
+    np.testing.assert_allclose(sc.mat_reflect_color[0], 0.81, rtol=1e-6)
+    assert len(w) == 1 and "glass of weight 0.81" in w[0]
+
+
 def test_principled_transmission_is_a_dielectric():
     sc, _ = one_material(material("PGlass", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 1.0, 0.95), "Transmission Weight": 1.0, "IOR": 1.33,
