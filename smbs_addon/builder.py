@@ -48,7 +48,7 @@ class SceneBuilder:
     # ------------------------------------------------------------ materials
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
-                 bump_correction=False, layer=(0.0, 0.0, 0.0, 0.0, 0.0)) -> int:
+                 bump_correction=False, layer=(0.0,) * 8) -> int:
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -230,8 +230,8 @@ class SceneBuilder:
             light_paths=np.asarray(self.light_paths, np.int64),
             mat_bump_correction=np.array([x["bump_correction"] for x in m], bool)
             if any(x["bump_correction"] for x in m) else np.zeros(0, bool),
-            mat_layer=np.array([x["layer"] for x in m], float).reshape(-1, 5)
-            if any(x["layer"][0] > 0 or x["layer"][4] > 0 for x in m) else np.zeros((0, 5)),
+            mat_layer=np.array([x["layer"] for x in m], float).reshape(-1, 8)
+            if any(x["layer"][0] > 0 or x["layer"][4] > 0 or x["layer"][5] > 0 for x in m) else np.zeros((0, 8)),
         )
         sc.validate()
         return sc

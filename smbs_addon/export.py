@@ -175,8 +175,17 @@ def classify_material(mat, warn) -> dict:
 
             if active("Emission Strength") and active("Emission Color", lambda c: max(c[:3]) > 0):
                 ignored.append("emission")
-            for sock_name, label in (("Coat Weight", "coat"), ("Sheen Weight", "sheen"),
-                                     ("Subsurface Weight", "subsurface")):
+            receiver = metallic < 0.5 and trans < 0.5
+            coat_w = 0.0
+            if active("Coat Weight"):
+                # over a diffuse receiver the clear coat takes its share towards the eye (layer.py);
+                # its tint's absorption, its own normal, and a coat over metal or glass are not ours
+                tint_c = _const(node, "Coat Tint") if node.inputs.get("Coat Tint") else np.ones(3)
+                if receiver and np.allclose(tint_c, 1.0) and not _linked(node, "Coat Normal"):
+                    coat_w = float(min(_const(node, "Coat Weight"), 1.0))
+                else:
+                    ignored.append("coat")
+            for sock_name, label in (("Sheen Weight", "sheen"), ("Subsurface Weight", "subsurface")):
                 if active(sock_name):
                     ignored.append(label)
             a = node.inputs.get("Alpha")
@@ -217,8 +226,11 @@ def classify_material(mat, warn) -> dict:
             # Cycles' Oren-Nayar from a Diffuse Roughness of 1e-5 (CLOSURE_WEIGHT_CUTOFF)
             sigma = _const(node, "Diffuse Roughness") if node.inputs.get("Diffuse Roughness") else 0.0
             sigma = float(min(sigma, 1.0)) if sigma >= 1e-5 else 0.0
+            coat_ior = float(_const(node, "Coat IOR")) if node.inputs.get("Coat IOR") else 1.5
+            coat_rough = float(_const(node, "Coat Roughness")) if node.inputs.get("Coat Roughness") else 0.03
             return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
-                        layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma))
+                        layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
+                               coat_ior, coat_rough))
         if t == "BSDF_GLASS":
             c = _const(node, "Color")
             return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
@@ -236,7 +248,7 @@ def classify_material(mat, warn) -> dict:
         if t == "BSDF_DIFFUSE":  # Cycles' Oren-Nayar from a Roughness of 1e-5
             sigma = float(_const(node, "Roughness"))
             return dict(kind=S.DIFFUSE, color=_const(node, "Color"), roughness=sigma,
-                        layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0))
+                        layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0, 0.0, 0.0, 0.0))
         if t == "EMISSION":
             return dict(kind=S.EMITTER, color=_const(node, "Color"),
                         strength=_const(node, "Strength"))

@@ -233,7 +233,7 @@ def _coat_factor(mats, m, n, w_view, w_light, share):
         wgt = 1.0
     col = mats[2]
     b0, b1, b2 = col[m, 0] / wgt, col[m, 1] / wgt, col[m, 2] / wgt
-    one_minus_a = _tab_weight(mats[6], m, mu_o)
+    one_minus_a = _tab_weight(mats[9], m, mu_o)  # the glossy coat's alone: a clear coat scales all alike
     sw_d = (b0 + b1 + b2) / 3.0 * one_minus_a
     if not sw_d > 0:
         return 1.0, 1.0, 1.0

@@ -320,13 +320,14 @@ def _refract_rows(w, n, eta):
 def materials(scene) -> tuple:
     """The scene's material tables as scatter1 takes them; then a Principled coat's (layer.py):
     the diffuse's weight and the coat's multiple-scattering gain by the eye's cosine, and the
-    coats (Scene.mat_layer) (kernels._tab_weight, kernels._coat_factor)."""
-    from .layer import coat, gain_table, table
+    coats (Scene.mat_layer), the diffuse's weight under its glossy coat alone (kernels._tab_weight,
+    kernels._coat_factor)."""
+    from .layer import coat, gain_table, spec_table, table
 
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
             np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64), table(scene),
-            gain_table(scene), coat(scene))
+            gain_table(scene), coat(scene), spec_table(scene))
 
 
 def bump_correction(scene) -> np.ndarray:

@@ -154,9 +154,10 @@ class Scene:
     # dielectric glossy coat over it (a Principled BSDF's): its index (0: none), Principled
     # Roughness, Specular Tint's largest channel and the weight (1 - Metallic)(1 - Transmission)
     # that mat_color holds (the diffuse then weighs 1 - A(mu) towards the eye); then the diffuse's
-    # own roughness (Oren-Nayar sigma; 0: Lambert). Empty: Lambert everywhere (a scene built in
+    # own roughness (Oren-Nayar sigma; 0: Lambert); then the Principled clear coat over it all:
+    # Coat Weight (0: none), Coat IOR, Coat Roughness. Empty: Lambert everywhere (a scene built in
     # code, or saved before they were exported)
-    mat_layer: np.ndarray = field(default_factory=lambda: np.zeros((0, 5)))
+    mat_layer: np.ndarray = field(default_factory=lambda: np.zeros((0, 8)))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -241,12 +242,12 @@ class Scene:
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
         if self.mat_bump_correction.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
-        if self.mat_layer.shape not in ((0, 5), (M, 5)):
-            raise SceneError(f"scene array 'mat_layer' must be ({M}, 5) or empty")
+        if self.mat_layer.shape not in ((0, 8), (M, 8)):
+            raise SceneError(f"scene array 'mat_layer' must be ({M}, 8) or empty")
         fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)
         if not fine.all():
             raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(~fine)[0])]}': its glossy layer "
-                             f"(index, roughness, tint, weight, diffuse roughness) must be finite numbers from 0 to {MAX_COLOR:g}")
+                             f"(index, roughness, tint, weight, diffuse roughness, coat weight, coat index, coat roughness) must be finite numbers from 0 to {MAX_COLOR:g}")
         for name in ("mat_color", "mat_reflect_color"):
             if getattr(self, name).shape != (M, 3):
                 raise SceneError(f"scene array '{name}' must be ({M}, 3)")

@@ -150,12 +150,12 @@ def test_out_of_range_values_a_fuzz_found_are_refused_with_their_name():
     sc.mat_reflect_color[1] = (1e300, 0.0, 0.0)
     assert _invalid(sc) == "material 'mirror': reflection colour (1e+300, 0.0, 0.0) must be between 0 and 1e+06"
     sc = fresh()
-    sc.mat_layer = np.zeros((len(sc.mat_kind), 5))
-    sc.mat_layer[0] = (1.5, float("nan"), 1.0, 1.0, 0.0)
+    sc.mat_layer = np.zeros((len(sc.mat_kind), 8))
+    sc.mat_layer[0] = (1.5, float("nan"), 1.0, 1.0, 0.0, 0.0, 0.0, 0.0)
     assert _invalid(sc) == ("material 'floor': its glossy layer (index, roughness, tint, weight, diffuse "
-                            "roughness) must be finite numbers from 0 to 1e+06")
-    sc.mat_layer = np.zeros((1, 5))
-    assert _invalid(sc) == f"scene array 'mat_layer' must be ({len(sc.mat_kind)}, 5) or empty"
+                            "roughness, coat weight, coat index, coat roughness) must be finite numbers from 0 to 1e+06")
+    sc.mat_layer = np.zeros((1, 8))
+    assert _invalid(sc) == f"scene array 'mat_layer' must be ({len(sc.mat_kind)}, 8) or empty"
     sc = fresh()
     sc.light_color[0] = (1e38, 1e38, 1e38)
     assert _invalid(sc) == ("light 'Disk': power 1e+38 is beyond 1e+20, more than a float32 caustic layer "

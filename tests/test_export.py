@@ -511,7 +511,7 @@ def test_default_factory_material_is_principled_diffuse():
     sc, warnings = one_material(bpy.data.materials.new("New"))
     assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8, atol=1e-6)
     # under the glossy layer of Blender's defaults: IOR 1.5, Roughness 0.5, Specular Tint white
-    assert np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0, 0.0], atol=1e-6)
+    assert np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0, 0.0, 0.0, 1.5, 0.03], atol=1e-6)
     assert warnings == []
 
 
@@ -527,7 +527,7 @@ def test_principled_diffuse_keeps_what_metallic_transmission_and_its_glossy_laye
     assert sc.mat_kind[0] == S.DIFFUSE and w == []
     assert np.allclose(sc.mat_color[0], np.array([0.5, 0.6, 0.7]) * 0.8 * 0.75, atol=1e-6)
     f0 = ((1.4 - 1.0) / 2.4) ** 2 * 0.5
-    assert np.allclose(sc.mat_layer[0], [ior_from_f0(f0), 0.3, 0.9, 0.8 * 0.75, 0.0], atol=1e-6)
+    assert np.allclose(sc.mat_layer[0], [ior_from_f0(f0), 0.3, 0.9, 0.8 * 0.75, 0.0, 0.0, 1.5, 0.03], atol=1e-6)
 
 
 def test_rough_diffuse_is_oren_nayar():
@@ -535,17 +535,35 @@ def test_rough_diffuse_is_oren_nayar():
     Roughness, by Oren-Nayar (layer.oren_nayar_ratio): its sigma is mat_layer's last column."""
     sc, w = one_material(material("Rough", "ShaderNodeBsdfDiffuse", Color=(0.5, 0.5, 0.5), Roughness=0.6))
     assert sc.mat_kind[0] == S.DIFFUSE and w == []
-    assert np.allclose(sc.mat_layer[0], [0.0, 0.0, 0.0, 1.0, 0.6], atol=1e-6)
+    assert np.allclose(sc.mat_layer[0], [0.0, 0.0, 0.0, 1.0, 0.6, 0.0, 0.0, 0.0], atol=1e-6)
 
 
 def test_principled_diffuse_roughness_is_oren_nayar_under_the_coat():
     sc, w = one_material(material("RoughP", "ShaderNodeBsdfPrincipled", **{"Diffuse Roughness": 0.4}))
-    assert w == [] and np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0, 0.4], atol=1e-6)
+    assert w == [] and np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0, 0.4, 0.0, 1.5, 0.03], atol=1e-6)
+
+
+def test_principled_clear_coat_over_a_receiver():
+    """A Principled clear coat (Coat Weight) over a diffuse receiver takes its share towards the eye
+    too (layer.clearcoat_table); a tinted one, or one over metal, is warned about."""
+    from smbs_addon import layer
+
+    sc, w = one_material(material("Varnish", "ShaderNodeBsdfPrincipled", **{"Coat Weight": 1.0}))
+    assert w == [] and np.allclose(sc.mat_layer[0, 5:], [1.0, 1.5, 0.03], atol=1e-6)
+    # Cycles' plane under a sun, the default coat under Coat Weight 1 (tests/test_layer.py's way)
+    got = layer.weight(layer.table(sc), np.zeros(2, np.int64), np.array([1.0, 0.356]))
+    np.testing.assert_allclose(got, [0.9241, 0.7572], rtol=0.005)
+
+
+def test_a_clear_coat_over_metal_or_tinted_is_said_to_be_ignored():
+    sc, w = one_material(material("CarPaint", "ShaderNodeBsdfPrincipled", **{
+        "Coat Weight": 1.0, "Coat Tint": (0.8, 0.2, 0.2, 1.0)}))
+    assert w == ["material 'CarPaint': Principled BSDF coat ignored"] and sc.mat_layer[0, 5] == 0.0
 
 
 def test_principled_without_specular_has_no_glossy_layer():
     sc, _ = one_material(material("Matte", "ShaderNodeBsdfPrincipled", **{"Specular IOR Level": 0.0}))
-    assert sc.mat_kind[0] == S.DIFFUSE and sc.mat_layer.shape == (0, 5)  # no layer anywhere
+    assert sc.mat_kind[0] == S.DIFFUSE and sc.mat_layer.shape == (0, 8)  # no layer anywhere
 
 
 # ------------------------------------------------------------------------------- lights

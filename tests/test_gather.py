@@ -95,8 +95,8 @@ def test_compiled_gather_lights_later_diffuse_vertices_as_numpy_does(layered):
     more than a fifth."""
     scene = scenes.mirror_scene(radius=0.6)
     if layered:
-        scene.mat_layer = np.zeros((len(scene.mat_kind), 5))
-        scene.mat_layer[scene.mat_kind == 0] = (1.5, 0.5, 5.0, 1.0, 0.0)
+        scene.mat_layer = np.zeros((len(scene.mat_kind), 8))
+        scene.mat_layer[scene.mat_kind == 0] = (1.5, 0.5, 5.0, 1.0, 0.0, 0.0, 0.0, 0.0)
     copies = 100000
     rc = _receivers(scene, POINTS[:1], copies)
     lights = [lp.index for lp in make_plan(scene).lights]
@@ -109,7 +109,7 @@ def test_compiled_gather_lights_later_diffuse_vertices_as_numpy_does(layered):
     assert np.all(np.abs(m1 - m0) < 4 * np.hypot(s1, s0)), (m1, m0, s1, s0)
     assert np.all(np.hypot(s1, s0) < 0.1 * m0)
     if layered:
-        scene.mat_layer = np.zeros((0, 5))
+        scene.mat_layer = np.zeros((0, 8))
         bare, _ = _per_point(_gathered(scene, rc, 4, True, lights_direct=lights, lights_hit=())[0], copies)
         assert np.all(m1 < 0.8 * bare) and np.all(m0 < 0.8 * bare), (m1, m0, bare)
 

@@ -37,7 +37,7 @@ def test_a_rough_diffuse_is_cycles_oren_nayar(case):
     ratio = layer.oren_nayar_ratio(np.array([sigma]), np.full((1, 3), 0.8), np.array([wv[2]]), np.array([wl[2]]),
                                    np.array([wv @ wl]))[0, 0]
     assert ratio == pytest.approx(CYCLES_OREN_NAYAR[case], rel=5e-4)
-    scene = _one_material_scene((0.0, 0.0, 0.0, 1.0, sigma))
+    scene = _one_material_scene((0.0, 0.0, 0.0, 1.0, sigma, 0.0, 0.0, 0.0))
     scene.mat_color[0] = 0.8
     k = layer.coat_factor(scene, np.array([0]), scene.mat_color, np.array([[0.0, 0.0, 1.0]]), wv[None], wl[None])
     np.testing.assert_allclose(k[0], ratio, rtol=1e-12)
@@ -55,18 +55,18 @@ def test_a_smooth_layer_takes_exactly_the_fresnel_reflectance():
 def test_blenders_default_material_weighs_its_diffuse_as_cycles_does(mu):
     """Within 0.35% of Cycles from mu = 1 down to 0.356 (its lookup tables are coarse: 16-32 steps);
     at mu = 0.2 within 1%. Without the layer the caustic on such a floor read 1.15 of Cycles."""
-    tab = layer.table(_one_material_scene((1.5, 0.5, 1.0, 1.0, 0.0)))
+    tab = layer.table(_one_material_scene((1.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0)))
     ours = float(layer.weight(tab, np.array([0]), np.array([mu]))[0])
     assert ours == pytest.approx(CYCLES_DEFAULT[mu], rel=0.0035 if mu > 0.3 else 0.01)
 
 
 def test_the_weight_is_one_exactly_without_a_layer_and_falls_with_the_layer():
-    scene = _one_material_scene((0.0, 0.0, 0.0, 0.0, 0.0))
+    scene = _one_material_scene((0.0,) * 8)
     assert not layer.has_layers(scene)
     tab = layer.table(scene)
     cos = np.linspace(-1.0, 1.0, 101)
     assert np.all(layer.weight(tab, np.zeros(101, np.int64), cos) == 1.0)  # bit for bit: x 1.0
-    rough = [float(layer.weight(layer.table(_one_material_scene((1.5, r, 1.0, 1.0, 0.0))), np.array([0]), np.array([0.5]))[0])
+    rough = [float(layer.weight(layer.table(_one_material_scene((1.5, r, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0))), np.array([0]), np.array([0.5]))[0])
              for r in (0.0, 0.5, 1.0)]
     assert 0.9 < rough[0] < rough[1] < rough[2] < 1.0  # rougher: less reflected at this slant
     tinted = layer.layer_weights(1.5, 0.5, 0.5)
@@ -101,7 +101,7 @@ def test_the_coat_factor_is_what_cycles_closure_sampling_leaves_the_diffuse_labe
     is the integral of layer.coat_factor x the coated diffuse over that cone, within 3 standard
     errors, for light from above and along the coat's lobe (where the factor is 0.93)."""
     rng = np.random.default_rng(7)
-    lay = (1.5, 0.5, 1.0, 1.0, 0.0)
+    lay = (1.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0)
     base = 0.8
     scene = _one_material_scene(lay)
     scene.mat_color[0] = base

@@ -223,9 +223,9 @@ def test_camera_splats_are_the_numpy_connection(name):
 
     scene = scenes.water_scene("point") if name == "water_ortho" else scenes.glass_sphere_scene(resolution=(32, 24))
     if name.endswith("_floor"):  # a Principled coat; a rough (Oren-Nayar) diffuse
-        scene.mat_layer = np.zeros((len(scene.mat_kind), 5))
-        scene.mat_layer[scene.mat_kind == S.DIFFUSE] = (1.5, 0.5, 1.0, 1.0, 0.0) if "principled" in name else \
-            (0.0, 0.0, 0.0, 1.0, 1.0)
+        scene.mat_layer = np.zeros((len(scene.mat_kind), 8))
+        scene.mat_layer[scene.mat_kind == S.DIFFUSE] = (1.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0) if "principled" in name else \
+            (0.0, 0.0, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0)
     tab = layer.table(scene)
     plan = make_plan(scene)
     tracer = Tracer(scene)
