@@ -55,6 +55,7 @@ SPP_BY_SCENE = {
     "principled_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "rough_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "mirror_alloy": {"reference": 1024, "sms": 16, "smbs": 16},
+    "coated_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "egg_sun_spot": {"sms": 16, "smbs": 16},
 }
 

@@ -440,6 +440,18 @@ def principled_floor():
     return _slanted_ball("principled_floor", lambda: bpy.data.materials.new("DefaultFloor"))
 
 
+def _varnished():
+    m = bpy.data.materials.new("VarnishedFloor")
+    m.node_tree.nodes["Principled BSDF"].inputs["Coat Weight"].default_value = 1.0
+    return m
+
+
+def coated_floor():
+    """The slanted glass ball over Blender's default material with a clear coat (Coat Weight 1, Coat
+    IOR 1.5, Coat Roughness 0.03): the coat takes its share off everything under it."""
+    return _slanted_ball("coated_floor", _varnished)
+
+
 def rough_floor():
     """The slanted glass ball over a Diffuse BSDF floor of Roughness 1 (Cycles' Oren-Nayar: at this
     slant 0.4-1.5 of Lambert, by where the light comes from)."""
@@ -476,6 +488,7 @@ SCENES = {
                            "transmission 12 (bounce limits)"),
     "principled_floor": (principled_floor, "a receiver of Blender's default material (Principled BSDF, "
                          "roughness 0.5) seen at a slant, under a glass ball"),
+    "coated_floor": (coated_floor, "principled_floor's floor under a clear coat (Coat Weight 1)"),
     "rough_floor": (rough_floor, "a Diffuse BSDF receiver of Roughness 1 (Oren-Nayar) seen at a slant, "
                     "under a glass ball"),
     "egg_sun_spot": (egg_sun_spot, "Glass BSDF tinted 1.45, non-uniformly scaled and turned smooth sphere, "

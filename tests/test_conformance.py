@@ -47,6 +47,8 @@ CASES = [
     ("rough_floor", "reference", 1024),
     # a Principled mirror of Metallic 0.7: 1.44 of Cycles as a whole metal
     ("mirror_alloy", "reference", 256),
+    # a clear coat (Coat Weight 1) over the default material: 1.21 of Cycles when ignored
+    ("coated_floor", "reference", 512),
 ]
 
 
