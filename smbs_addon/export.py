@@ -72,6 +72,11 @@ def _follow(socket):
     return None
 
 
+def _input(node, name, default):
+    """_const of an input a node may lack (older or newer Blender): default where it has none."""
+    return _const(node, name) if node.inputs.get(name) is not None else default
+
+
 def _const(node, name):
     """The constant value of an input socket: its default, or an RGB/Value node feeding it.
 
@@ -180,7 +185,7 @@ def classify_material(mat, warn) -> dict:
             if active("Coat Weight"):
                 # over a diffuse receiver the clear coat takes its share towards the eye (layer.py);
                 # its tint's absorption, its own normal, and a coat over metal or glass are not ours
-                tint_c = _const(node, "Coat Tint") if node.inputs.get("Coat Tint") else np.ones(3)
+                tint_c = _input(node, "Coat Tint", np.ones(3))
                 if receiver and np.allclose(tint_c, 1.0) and not _linked(node, "Coat Normal"):
                     coat_w = float(min(_const(node, "Coat Weight"), 1.0))
                 else:
@@ -199,7 +204,7 @@ def classify_material(mat, warn) -> dict:
             # a material is the lobe that weighs most, the rest of it is left out (and said so)
             if metallic >= 0.5:
                 # the rest is a dielectric coat (a mirror at Roughness 0: it casts) over a diffuse
-                level = _const(node, "Specular IOR Level") if node.inputs.get("Specular IOR Level") else 0.5
+                level = _input(node, "Specular IOR Level", 0.5)
                 eta, _ = principled_layer(ior, level, np.ones(3))
                 if metallic < 1.0:
                     warn(f"material '{mat.name}': Principled BSDF Metallic {metallic:g}: the diffuse under "
@@ -213,21 +218,21 @@ def classify_material(mat, warn) -> dict:
                          f"Transmission); the rest neither casts nor receives caustics")
                 # Cycles' Principled glass tints transmission by sqrt(base colour) at every
                 # refraction and leaves reflection white (its Specular Tint scales f0 instead)
-                tint = _const(node, "Specular Tint") if node.inputs.get("Specular Tint") else np.ones(3)
+                tint = _input(node, "Specular Tint", np.ones(3))
                 if not np.allclose(tint, 1.0):
                     warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
                 return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
                             reflect_color=np.full(3, w_glass), ior=ior, roughness=rough)
             # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
             # dielectric glossy layer that takes its share towards the eye (layer.py)
-            level = _const(node, "Specular IOR Level") if node.inputs.get("Specular IOR Level") else 0.5
-            tint = _const(node, "Specular Tint") if node.inputs.get("Specular Tint") else np.ones(3)
+            level = _input(node, "Specular IOR Level", 0.5)
+            tint = _input(node, "Specular Tint", np.ones(3))
             eta, tint_max = principled_layer(ior, level, tint)
             # Cycles' Oren-Nayar from a Diffuse Roughness of 1e-5 (CLOSURE_WEIGHT_CUTOFF)
-            sigma = _const(node, "Diffuse Roughness") if node.inputs.get("Diffuse Roughness") else 0.0
+            sigma = _input(node, "Diffuse Roughness", 0.0)
             sigma = float(min(sigma, 1.0)) if sigma >= 1e-5 else 0.0
-            coat_ior = float(_const(node, "Coat IOR")) if node.inputs.get("Coat IOR") else 1.5
-            coat_rough = float(_const(node, "Coat Roughness")) if node.inputs.get("Coat Roughness") else 0.03
+            coat_ior = float(_input(node, "Coat IOR", 1.5))
+            coat_rough = float(_input(node, "Coat Roughness", 0.03))
             return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
                         layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
                                coat_ior, coat_rough))

@@ -27,8 +27,8 @@ class Receivers:
     ng: np.ndarray
     ns: np.ndarray
     w_eye: np.ndarray  # (M,3) direction from x0 back along the eye path
-    # (M,3) eye-path throughput up to x0: x0's BSDF excluded but for the share its glossy layer
-    # leaves its diffuse towards the eye (layer.py; 1 but under a Principled BSDF's)
+    # (M,3) eye-path throughput up to x0: x0's BSDF excluded but for the share its coats leave
+    # its diffuse towards the eye (layer.table; 1 but under a Principled BSDF's)
     beta: np.ndarray
     mat: np.ndarray  # (M,) material at x0
     eye_specular: np.ndarray  # (M,) specular vertices between the camera and x0

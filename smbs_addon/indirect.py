@@ -436,7 +436,8 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
     counts = kernels.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
                                    f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
-                                   np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters), optics.materials(scene), bool(physical),
+                                   np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters),
+                                   optics.materials(scene), bool(physical),
                                    tracer.eps, seg, seg_n, hist, h_prim, cand, cdf, guide)
     tracer.cast_by_kernel(rt, counts)
     name = "bent" if bent else "handoff"

@@ -273,8 +273,8 @@ def _normalize(a):
 
 @njit(**_JIT)
 def _tab_weight(tab, m, mu):
-    """layer.weight for one vertex: material m's diffuse weight under its glossy layer at the
-    eye's cosine mu (tab: layer.table, optics.materials' last entry; exactly 1 without a layer)."""
+    """layer.weight for one vertex: material m's entry of tab (one of layer.py's tables,
+    optics.materials' mats[6], [7] or [9]) at the eye's cosine mu; exactly 1 in a row of ones."""
     x = min(abs(mu), 1.0) * MU_STEPS
     i = min(int(x), MU_STEPS - 1)
     f = x - i

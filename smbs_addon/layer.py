@@ -34,25 +34,15 @@ import math
 
 import numpy as np
 
+from .optics import fresnel_dielectric
+
 MU_STEPS = 64  # the table's cosines: 0, 1/64, ..., 1
 _GRID = 64  # stratified visible-normal samples per axis
 _cache: dict = {}  # (ior, roughness, tint) -> (weights, gains), each (MU_STEPS + 1,)
 
 
-def fresnel_dielectric(cos_i, eta):
-    """Unpolarised Fresnel reflectance of a dielectric of relative index eta (> 0) for |cos_i|."""
-    c = np.abs(np.asarray(cos_i, float))
-    g2 = eta * eta - 1.0 + c * c
-    g = np.sqrt(np.maximum(g2, 0.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        a = (g - c) / (g + c)
-        b = (c * (g + c) - 1.0) / (c * (g - c) + 1.0)
-        f = 0.5 * a * a * (1.0 + b * b)
-    return np.where(g2 > 0, np.nan_to_num(f, nan=1.0), 1.0)
-
-
-def _lambda(cos, a2):
-    """Smith's Lambda of GGX for directions of cosine cos (> 0)."""
+def _lambda_ggx(cos, a2):
+    """Smith's Lambda of GGX (alpha^2 = a2) for directions of cosine cos (> 0)."""
     c2 = np.maximum(cos * cos, 1e-12)
     return 0.5 * (np.sqrt(1.0 + a2 * np.maximum(1.0 / c2 - 1.0, 0.0)) - 1.0)
 
@@ -88,9 +78,9 @@ def _albedos(mu: np.ndarray, alpha: float, eta: float) -> tuple[np.ndarray, np.n
     d = hx * wo_x + hz * m
     wi_z = 2.0 * d * hz - m
     up = wi_z > 0
-    lo = _lambda(m, a2)
-    g2_over_g1 = np.where(up, (1.0 + lo) / (1.0 + lo + _lambda(np.where(up, wi_z, 1.0), a2)), 0.0)
-    ef = (fresnel_dielectric(d, eta) * g2_over_g1).mean(axis=1)
+    lo = _lambda_ggx(m, a2)
+    g2_over_g1 = np.where(up, (1.0 + lo) / (1.0 + lo + _lambda_ggx(np.where(up, wi_z, 1.0), a2)), 0.0)
+    ef = (fresnel_dielectric(np.abs(d), eta) * g2_over_g1).mean(axis=1)
     e = g2_over_g1.mean(axis=1)
     return ef, e
 
@@ -133,40 +123,39 @@ def coat(scene) -> np.ndarray:
     return np.ascontiguousarray(lay) if lay.shape == (M, COLUMNS) else np.zeros((M, COLUMNS))
 
 
-def _table(scene, k: int) -> np.ndarray:
-    lay = coat(scene)
+def _table(lay, k: int, cols=(0, 1, 2), present=None) -> np.ndarray:
+    """(M, MU_STEPS + 1) entry k of _tables for each material of coats lay (coat()) whose columns
+    cols are (index, roughness, tint) and present (default: the index above 1); rows of 1 elsewhere."""
     t = np.ones((len(lay), MU_STEPS + 1))
-    for m in np.flatnonzero(lay[:, 0] > 1.0):
-        t[m] = _tables(lay[m, 0], lay[m, 1], lay[m, 2])[k]
+    ci, cr, ct = cols
+    for m in np.flatnonzero(lay[:, ci] > 1.0 if present is None else present):
+        t[m] = _tables(max(lay[m, ci], 1.0 + 1e-6), lay[m, cr], lay[m, ct])[k]
     return t
 
 
 def spec_table(scene) -> np.ndarray:
     """(M, MU_STEPS + 1): the diffuse's weight under its glossy coat alone (coat_factor's 1 - A)."""
-    return _table(scene, 0)
+    return _table(coat(scene), 0)
 
 
 def clearcoat_table(scene) -> np.ndarray:
     """(M, MU_STEPS + 1): the weight a Principled clear coat (Coat Weight c) leaves everything
     under it, 1 - c A_coat(mu); rows of exactly 1 without one."""
     lay = coat(scene)
-    t = np.ones((len(lay), MU_STEPS + 1))
-    for m in np.flatnonzero(lay[:, 5] > 0.0):
-        t[m] = _tables(max(lay[m, 6], 1.0 + 1e-6), lay[m, 7], lay[m, 5])[0]
-    return t
+    return _table(lay, 0, cols=(6, 7, 5), present=lay[:, 5] > 0.0)
 
 
-def table(scene) -> np.ndarray:
+def table(scene, spec=None) -> np.ndarray:
     """(M, MU_STEPS + 1) float64: each material's diffuse weight by the eye's cosine, under its
-    glossy coat and its clear coat; rows of exactly 1 for materials without either. Measured on
-    Cycles' planes: Coat Weight 1 (IOR 1.5, Roughness 0.03) over the default coat, 0.9240 of
-    Lambert at mu 1 (Cycles 0.9241), 0.7605 at 0.356 (0.7572)."""
-    return _table(scene, 0) * clearcoat_table(scene)
+    glossy coat and its clear coat; rows of exactly 1 for materials without either (spec: the
+    spec_table already made). Measured on Cycles' planes: Coat Weight 1 (IOR 1.5, Roughness 0.03)
+    over the default coat, 0.9240 of Lambert at mu 1 (Cycles 0.9241), 0.7605 at 0.356 (0.7572)."""
+    return (spec_table(scene) if spec is None else spec) * clearcoat_table(scene)
 
 
 def gain_table(scene) -> np.ndarray:
     """(M, MU_STEPS + 1): the coat's multiple-scattering gain by the eye's cosine (1 without one)."""
-    return _table(scene, 1)
+    return _table(coat(scene), 1)
 
 
 def has_layers(scene) -> bool:
@@ -205,11 +194,6 @@ def principled_layer(ior: float, level: float, tint) -> tuple[float, float]:
 
 
 SINGULAR_ALPHA2 = 1e-7  # Cycles' BSDF_ROUGHNESS_SQ_THRESH: a smoother coat is a perfect mirror
-
-
-def _lambda_ggx(cos, a2):
-    c2 = np.maximum(cos * cos, 1e-12)
-    return 0.5 * (np.sqrt(1.0 + a2 * np.maximum(1.0 / c2 - 1.0, 0.0)) - 1.0)
 
 
 def oren_nayar_g(c):
@@ -276,7 +260,8 @@ def coat_factor(scene, mat, color, n, w_view, w_light, share=True) -> np.ndarray
     rough = np.ones((len(idx), 3))
     on = np.flatnonzero(lay[:, 4] > 0)
     if on.size:
-        rough[on] = oren_nayar_ratio(lay[on, 4], base[on], mu_o[on], np.maximum(mu_i[on], 0.0), (wv[on] * wl[on]).sum(1))
+        rough[on] = oren_nayar_ratio(lay[on, 4], base[on], mu_o[on], np.maximum(mu_i[on], 0.0),
+                                     (wv[on] * wl[on]).sum(1))
     h = wv + wl
     h /= np.maximum(np.linalg.norm(h, axis=1), 1e-300)[:, None]
     c_nh = (h * nn).sum(1)

@@ -179,8 +179,8 @@ def _row3(a, i):
 @njit(inline="always", **JIT)
 def _material(mats, m):
     """Material m's (kind, Fresnel model, colour, reflection tint, IOR) from the scene's tables
-    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior, bump correction, layer
-    table): materials()."""
+    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior, bump correction, then
+    layer.py's tables): materials()."""
     kind, fres, color, rcolor, ior = mats[0], mats[1], mats[2], mats[3], mats[4]
     return kind[m], fres[m], _row3(color, m), _row3(rcolor, m), ior[m]
 
@@ -324,10 +324,11 @@ def materials(scene) -> tuple:
     kernels._coat_factor)."""
     from .layer import coat, gain_table, spec_table, table
 
+    spec = spec_table(scene)
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
-            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64), table(scene),
-            gain_table(scene), coat(scene), spec_table(scene))
+            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64),
+            table(scene, spec), gain_table(scene), coat(scene), spec)
 
 
 def bump_correction(scene) -> np.ndarray:

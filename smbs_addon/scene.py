@@ -247,7 +247,8 @@ class Scene:
         fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)
         if not fine.all():
             raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(~fine)[0])]}': its glossy layer "
-                             f"(index, roughness, tint, weight, diffuse roughness, coat weight, coat index, coat roughness) must be finite numbers from 0 to {MAX_COLOR:g}")
+                             f"(index, roughness, tint, weight, diffuse roughness, coat weight, coat index, "
+                             f"coat roughness) must be finite numbers from 0 to {MAX_COLOR:g}")
         for name in ("mat_color", "mat_reflect_color"):
             if getattr(self, name).shape != (M, 3):
                 raise SceneError(f"scene array '{name}' must be ({M}, 3)")

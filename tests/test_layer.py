@@ -5,6 +5,7 @@ import numpy as np
 import pytest
 
 from smbs_addon import layer
+from smbs_addon.optics import fresnel_dielectric
 
 # Cycles 5.0.1 (the bpy module), measured: a plane of Blender's default Principled BSDF (Base
 # Color 0.8, Roughness 0.5, IOR 1.5) and one of Diffuse BSDF 0.8 under a sun, seen by an
@@ -47,7 +48,7 @@ def test_a_smooth_layer_takes_exactly_the_fresnel_reflectance():
     """Roughness 0: the layer is a perfect dielectric mirror, A = F(mu) exactly."""
     w = layer.layer_weights(1.5, 0.0)
     mu = np.linspace(0.0, 1.0, layer.MU_STEPS + 1)[1:]
-    np.testing.assert_allclose(w[1:], 1.0 - layer.fresnel_dielectric(mu, 1.5), atol=5e-5)  # alpha 1e-4, not 0
+    np.testing.assert_allclose(w[1:], 1.0 - fresnel_dielectric(mu, 1.5), atol=5e-5)  # alpha 1e-4, not 0
     assert w[-1] == pytest.approx(0.96, abs=1e-9)  # F0 of IOR 1.5
 
 
@@ -66,8 +67,8 @@ def test_the_weight_is_one_exactly_without_a_layer_and_falls_with_the_layer():
     tab = layer.table(scene)
     cos = np.linspace(-1.0, 1.0, 101)
     assert np.all(layer.weight(tab, np.zeros(101, np.int64), cos) == 1.0)  # bit for bit: x 1.0
-    rough = [float(layer.weight(layer.table(_one_material_scene((1.5, r, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0))), np.array([0]), np.array([0.5]))[0])
-             for r in (0.0, 0.5, 1.0)]
+    rough = [float(layer.weight(layer.table(_one_material_scene((1.5, r, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0))),
+                                np.array([0]), np.array([0.5]))[0]) for r in (0.0, 0.5, 1.0)]
     assert 0.9 < rough[0] < rough[1] < rough[2] < 1.0  # rougher: less reflected at this slant
     tinted = layer.layer_weights(1.5, 0.5, 0.5)
     np.testing.assert_allclose(1.0 - tinted, 0.5 * (1.0 - layer.layer_weights(1.5, 0.5)), atol=1e-12)
@@ -122,7 +123,7 @@ def test_the_coat_factor_is_what_cycles_closure_sampling_leaves_the_diffuse_labe
         d = a2 / (np.pi * (1 + (a2 - 1) * h[:, 2] ** 2) ** 2)
         ci = np.maximum(w[:, 2], 0.0)
         g2 = 1 / (1 + lam(mu_o) + lam(np.maximum(ci, 1e-9)))
-        f = layer.fresnel_dielectric(h @ wv, 1.5)
+        f = fresnel_dielectric(h @ wv, 1.5)
         up = ci > 0
         return (np.where(up, base * one_minus_a * ci / np.pi, 0.0), np.where(up, gain * f * d * g2 / (4 * mu_o), 0.0),
                 ci / np.pi, np.where(up, d / (4 * mu_o * (1 + lam(mu_o))), 0.0))
