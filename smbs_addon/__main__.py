@@ -215,6 +215,10 @@ def summary_lines(stats: dict) -> list[str]:
     lines.append(f"  noise: mean {nz['mean']:.4g} over {nz['region_pixels']} caustic pixels, "
                  f"standard error {nz['std_error_of_mean']:.2g}, per-pixel relative noise {nz['relative_noise']:.1%}")
     lines.extend(error_lines(stats))
+    if "textured_share" in stats:
+        lines.append(f"  textured receivers: {stats['textured_share']:.0%} of the layer lies on them where the camera "
+                     f"sees them; it is written per unit albedo (channels per_albedo_R/G/B) for the render's "
+                     f"Diffuse Color pass to multiply, and left out of the colour channels")
     return lines
 
 
@@ -268,9 +272,15 @@ def exr_metadata(settings, result) -> dict:
 
 def exr_channels(result) -> dict:
     """The EXR's channels beside the colour: ``std``, each pixel's standard deviation of
-    the mean luminance (where the noise is, for a compositor)."""
+    the mean luminance (where the noise is, for a compositor); with textured receivers
+    ``per_albedo_R``, ``_G``, ``_B`` (BakeResult.per_albedo: the caustic on them per unit albedo,
+    for the render's Diffuse Color pass to multiply; the colour is then BakeResult.layer())."""
     std = getattr(result, "std", None)
-    return {} if std is None else {"std": std}
+    out = {} if std is None else {"std": std}
+    per_albedo = getattr(result, "per_albedo", None)
+    if per_albedo is not None:
+        out.update({f"per_albedo_{c}": per_albedo[:, :, i] for i, c in enumerate("RGB")})
+    return out
 
 
 def _compare(args, say) -> int:
@@ -354,7 +364,7 @@ def main(argv=None) -> int:
         if not args.quiet and tty:
             print(file=sys.stderr)
         try:
-            write_exr(out, result.image, exr_metadata(settings, result), exr_channels(result))
+            write_exr(out, result.layer(), exr_metadata(settings, result), exr_channels(result))
         except SceneError as e:  # an output that cannot be written is an I/O failure (exit 3)
             raise OSError(str(e)) from None
         write_json(stats_path, result.stats)

@@ -164,6 +164,18 @@ class BakeResult:
     batch_luminance: np.ndarray | None = None  # (B,H,W) float32, one image per independent batch
     # (or per group of equal batches, film.MAX_GROUPS at most)
     std: np.ndarray | None = None  # (H,W) float32, standard deviation of each pixel's mean luminance
+    # Receivers whose colour is a texture (Scene.mat_textured), where the camera sees them
+    # directly: Cycles' Diffuse Color pass has their albedo, the bake assumed a constant one.
+    # textured: the part of image that fell there; per_albedo: the same divided by the albedo the
+    # bake assumed (sample by sample). The layer to add over a render is layer() + per_albedo x
+    # the render's Diffuse Color pass. Both None where the scene has no textured receiver.
+    textured: np.ndarray | None = None  # (H,W,3) float32
+    per_albedo: np.ndarray | None = None  # (H,W,3) float32
+
+    def layer(self) -> np.ndarray:
+        """What is added over a render as it is: image, less its textured part (if any), which
+        per_albedo x the render's Diffuse Color pass replaces."""
+        return self.image if self.textured is None else self.image - self.textured
 
     def region_mean(self, region: np.ndarray) -> tuple[float, float]:
         """Mean luminance over a pixel mask and its standard error, from the spread
@@ -272,8 +284,8 @@ class _DeferredFilm:
     def __getattr__(self, name):
         return getattr(self._film, name)
 
-    def splat(self, rx, ry, rgb) -> None:
-        self.splats.append((rx, ry, rgb))
+    def splat(self, rx, ry, rgb, albedo=None) -> None:
+        self.splats.append((rx, ry, rgb, albedo))
 
 
 def _threaded_chunks(tracer, film, prog, n_chunks, run_chunk, stats, message=None):
@@ -620,7 +632,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
     check_memory(scene, cam.W, cam.H, settings.batches)
     if plan.nothing:
         return _nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
-    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
+    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region, textured=bool(np.any(scene.mat_textured)))
     tracer = _trace_plan(plan, scene, settings, cam)
     _note_bent(scene, tracer, plan)
     if on_plan is not None:
@@ -804,5 +816,9 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
                         "batches_per_kept": film.group_size},
         "stopped_by": stop.reason,
     }
+    textured, per_albedo = film.textured_parts()
+    if textured is not None:
+        stats["textured_share"] = float(textured.mean(axis=2).sum()) / layer if layer > 0 else 0.0
+        textured, per_albedo = textured.astype(np.float32), per_albedo.astype(np.float32)
     return BakeResult(image=image.astype(np.float32), variance=variance.astype(np.float32), stats=stats,
-                      batch_luminance=batch_lum, std=std)
+                      batch_luminance=batch_lum, std=std, textured=textured, per_albedo=per_albedo)

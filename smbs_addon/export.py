@@ -108,13 +108,63 @@ def _const(node, name):
     return float(np.dot(arr[:3], _LUMA))
 
 
+def _colour(node, name):
+    """(colour, textured) of a colour input: _const's value, or where a node other than an RGB
+    one drives it (an image or procedural texture, a mix of them: something that varies over the
+    surface), a stand-in and True: the mean of a Checker Texture's two constant colours or of an
+    Image Texture's pixels, else DEFAULT_ALBEDO. Cycles' Diffuse Color pass holds the texture's value where the camera sees
+    the surface (BakeResult.per_albedo)."""
+    try:
+        return _const(node, name), False
+    except _Unsupported:
+        src = _follow(node.inputs[name])
+        if src is None:
+            raise
+    tex = src[0]
+    if tex.type == "TEX_CHECKER":
+        try:
+            return 0.5 * (_const(tex, "Color1") + _const(tex, "Color2")), True
+        except _Unsupported:
+            pass
+    if tex.type == "TEX_IMAGE" and src[1].name == "Color":
+        mean = _image_mean(tex.image)
+        if mean is not None:
+            return mean, True
+    return np.full(3, DEFAULT_ALBEDO), True
+
+
+MAX_MEAN_PIXELS = 4096 * 4096  # an image's mean is read for its stand-in colour up to this size
+
+
+def _image_mean(img):
+    """The mean linear RGB of an image (Cycles reads an 8-bit sRGB image through the sRGB curve;
+    float images and the other colour spaces are taken as linear), or None: no image, none loaded
+    (a missing file), or one larger than MAX_MEAN_PIXELS (reading it would cost seconds and GBs)."""
+    if img is None:
+        return None
+    try:
+        w, h = (int(x) for x in img.size)
+        channels = int(img.channels)
+    except (AttributeError, RuntimeError, ValueError):
+        return None
+    if not 0 < w * h <= MAX_MEAN_PIXELS or channels < 3:
+        return None
+    px = np.empty(w * h * channels, np.float32)
+    img.pixels.foreach_get(px)
+    rgb = px.reshape(-1, channels)[:, :3].astype(np.float64)
+    if not img.is_float and img.colorspace_settings.name == "sRGB":
+        rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
+    mean = rgb.mean(axis=0)
+    return mean if np.all(np.isfinite(mean)) else None
+
+
 def _linked(node, name) -> bool:
     sock = node.inputs.get(name)
     return sock is not None and _follow(sock) is not None
 
 
-def _shader_node(tree, out_type):
-    """The shader node linked to the Surface of the active output, through simple cases."""
+def _output(tree, out_type):
+    """The output node Cycles renders from (None if there is none)."""
     out = None
     if hasattr(tree, "get_output_node"):
         try:
@@ -125,6 +175,12 @@ def _shader_node(tree, out_type):
         outs = [n for n in tree.nodes if n.type == out_type]
         outs.sort(key=lambda n: (not n.is_active_output, getattr(n, "target", "ALL") == "EEVEE"))
         out = outs[0] if outs else None
+    return out
+
+
+def _shader_node(tree, out_type):
+    """The shader node linked to the Surface of the active output, through simple cases."""
+    out = _output(tree, out_type)
     if out is None:
         raise _Unsupported("node tree has no output node")
     src = _follow(out.inputs["Surface"])
@@ -147,6 +203,12 @@ def _shader_node(tree, out_type):
 
 
 # --------------------------------------------------------------------------- materials
+def _say_textured(mat, stand_in, warn):
+    warn(f"material '{mat.name}': its colour is a texture: where the camera sees it, the caustic takes "
+         f"the render's Diffuse Color pass (composited); seen through mirrors or glass, and in light it "
+         f"passes on, it counts as albedo {float(np.mean(stand_in)):.3g}")
+
+
 def classify_material(mat, warn) -> dict:
     """Keyword arguments for ``SceneBuilder.material`` (minus the name) for a bpy Material."""
     def diffuse(reason, albedo=None):
@@ -159,6 +221,11 @@ def classify_material(mat, warn) -> dict:
     tree = mat.node_tree
     if tree is None or not _uses_nodes(mat):
         return diffuse("material has no shader nodes", np.array(mat.diffuse_color[:3], float))
+    out = _output(tree, "OUTPUT_MATERIAL")
+    vol = _follow(out.inputs["Volume"]) if out is not None and out.inputs.get("Volume") is not None else None
+    if vol is not None and not vol[0].mute:
+        warn(f"material '{mat.name}': its Volume ('{vol[0].name}') is ignored: light crosses the object "
+             f"unabsorbed and unscattered (Cycles absorbs it: a tinted glass's caustic comes out too bright)")
     try:
         node = _shader_node(tree, "OUTPUT_MATERIAL")
         if node is None:
@@ -167,7 +234,7 @@ def classify_material(mat, warn) -> dict:
             return dict(kind=S.DIFFUSE, color=np.zeros(3))
         t = node.type
         if t == "BSDF_PRINCIPLED":
-            base = _const(node, "Base Color")
+            base, textured = _colour(node, "Base Color")
             metallic = _const(node, "Metallic")
             rough = _const(node, "Roughness")
             trans = _const(node, "Transmission Weight")
@@ -200,6 +267,10 @@ def classify_material(mat, warn) -> dict:
                 ignored.append("normal map")
             if ignored:
                 warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
+            if textured and (metallic >= 0.5 or trans >= 0.5):
+                raise _Unsupported("a textured Base Color is supported on diffuse surfaces only")
+            if textured:
+                _say_textured(mat, base, warn)
             # Cycles weighs the metal lobe by Metallic and the glass by (1 - Metallic) x Transmission;
             # a material is the lobe that weighs most, the rest of it is left out (and said so)
             if metallic >= 0.5:
@@ -235,7 +306,7 @@ def classify_material(mat, warn) -> dict:
             coat_rough = float(_input(node, "Coat Roughness", 0.03))
             return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
                         layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
-                               coat_ior, coat_rough))
+                               coat_ior, coat_rough), textured=textured)
         if t == "BSDF_GLASS":
             c = _const(node, "Color")
             return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
@@ -252,7 +323,10 @@ def classify_material(mat, warn) -> dict:
                         roughness=_const(node, "Roughness"), fresnel=S.FRESNEL_NONE)
         if t == "BSDF_DIFFUSE":  # Cycles' Oren-Nayar from a Roughness of 1e-5
             sigma = float(_const(node, "Roughness"))
-            return dict(kind=S.DIFFUSE, color=_const(node, "Color"), roughness=sigma,
+            color, textured = _colour(node, "Color")
+            if textured:
+                _say_textured(mat, color, warn)
+            return dict(kind=S.DIFFUSE, color=color, roughness=sigma, textured=textured,
                         layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0, 0.0, 0.0, 0.0))
         if t == "EMISSION":
             return dict(kind=S.EMITTER, color=_const(node, "Color"),

@@ -41,6 +41,21 @@ class Receivers:
         return Receivers(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
 
 
+def direct_albedo(scene, rc: Receivers, idx=None) -> np.ndarray | None:
+    """Film.splat's albedo for the receivers rc (or rc's rows idx): where x0 is textured
+    (Scene.mat_textured) and the camera sees it directly, the albedo its estimate was multiplied
+    by, as Cycles' Diffuse Color pass holds it there (its colour times the share its coats leave
+    it towards the eye, which beta holds on a camera ray); zero elsewhere. None without textured
+    receivers."""
+    tex = scene.mat_textured
+    if not np.any(tex):
+        return None
+    mat, beta, spec = (rc.mat, rc.beta, rc.eye_specular) if idx is None else \
+        (rc.mat[idx], rc.beta[idx], rc.eye_specular[idx])
+    on = tex[mat] & (spec == 0)
+    return np.where(on[:, None], scene.mat_color[mat] * beta, 0.0)
+
+
 def surface_at(scene, h):
     """(triangle, material, kind) of each hit; misses get triangle 0 and kind -1."""
     prim = np.maximum(h.prim, 0)

@@ -34,7 +34,7 @@ class Film:
     """
 
     def __init__(self, width: int, height: int, filter_width: float = 1.5,
-                 region: tuple | None = None):
+                 region: tuple | None = None, textured: bool = False):
         self.W, self.H = int(width), int(height)
         self.filter_width = max(float(filter_width), 0.5)
         self.region = region or (0, self.W, 0, self.H)
@@ -50,16 +50,33 @@ class Film:
         self.batch_end = []
         self.group_size = 1
         self._pending, self._pending_n = None, 0
+        # with textured receivers (Scene.mat_textured): the splats that fell on them where the camera
+        # sees them, as they are and per unit albedo, summed over every batch (BakeResult.per_albedo)
+        self.textured = np.zeros((self.H * self.W, 3)) if textured else None
+        self.per_albedo = np.zeros((self.H * self.W, 3)) if textured else None
 
-    def splat(self, rx: np.ndarray, ry: np.ndarray, rgb: np.ndarray) -> None:
-        """Add rgb (N,3) at raster positions (rx, ry from top) through the filter."""
+    def splat(self, rx: np.ndarray, ry: np.ndarray, rgb: np.ndarray, albedo: np.ndarray | None = None) -> None:
+        """Add rgb (N,3) at raster positions (rx, ry from top) through the filter. albedo (N,3), on
+        a film with textured receivers: the albedo each sample's value was multiplied by where it
+        fell on one seen directly (the share of its diffuse Cycles' Diffuse Color pass holds), zero
+        elsewhere; those samples are also added to the textured part and, divided by it, to the
+        per-albedo part."""
         if len(rx) == 0:
             return
         r = self.filter_width
         k = int(math.ceil(r)) + 1
         x0, x1, y0, y1 = self.region
-        kernels.splat(self._cur, self.W, x0, x1, y0, y1, r, k, np.ascontiguousarray(rx, np.float64),
-                      np.ascontiguousarray(ry, np.float64), np.ascontiguousarray(rgb, np.float64))
+        rx, ry = np.ascontiguousarray(rx, np.float64), np.ascontiguousarray(ry, np.float64)
+        rgb = np.ascontiguousarray(rgb, np.float64)
+        kernels.splat(self._cur, self.W, x0, x1, y0, y1, r, k, rx, ry, rgb)
+        if albedo is None or self.textured is None:
+            return
+        on = np.flatnonzero(np.asarray(albedo).max(axis=1) > 0)
+        if on.size:
+            a, v = np.asarray(albedo, np.float64)[on], rgb[on]
+            kernels.splat(self.textured, self.W, x0, x1, y0, y1, r, k, rx[on], ry[on], v)
+            unit = np.divide(v, a, out=np.zeros_like(v), where=a > 0)
+            kernels.splat(self.per_albedo, self.W, x0, x1, y0, y1, r, k, rx[on], ry[on], unit)
 
     def frame_share(self, rx: np.ndarray, ry: np.ndarray) -> np.ndarray:
         """The share of a splat at (rx, ry) that lands in the render region: the filter's taps
@@ -94,6 +111,14 @@ class Film:
                 self.group_size *= 2
         self._cur[:] = 0.0
         self.batches += 1
+
+    def textured_parts(self):
+        """(textured, per_albedo): the means over the batches of splat()'s two parts, (H,W,3)
+        each; (None, None) on a film without textured receivers."""
+        if self.textured is None:
+            return None, None
+        b = max(self.batches, 1)
+        return tuple((x / b).reshape(self.H, self.W, 3) for x in (self.textured, self.per_albedo))
 
     @property
     def image(self) -> np.ndarray:

@@ -34,7 +34,7 @@ import numpy as np
 from . import embree, kernels, lanes, layer, optics
 from . import scene as S
 from .bounces import ONE_DIFFUSE, Limits, specular_kind
-from .eye import Receivers, surface_at
+from .eye import Receivers, direct_albedo, surface_at
 from .geometry import triangle_areas
 from .lights import light_radiance, area_light_shape
 from .reference import run_photons, scatter_specular, splat_records
@@ -151,7 +151,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     if connect is None and compiled:
         radiance = _traced_gather(scene, tracer, plan, rc, rng, stats, lights_direct, physical, lights_hit,
                                   count_first)
-        return _splat_gathered(film, rc, radiance, stats)
+        return _splat_gathered(scene, film, rc, radiance, stats)
     lim = Limits.of(scene)
     radiance = np.zeros((n, 3))
     # the frontier: diffuse vertices to bounce from, with the events before them
@@ -237,13 +237,13 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         cat = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
         f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
         f_beta, f_mat, f_has_s, f_depth, f_cnt = cat["beta"], cat["mat"], cat["has_s"], cat["depth"], cat["cnt"]
-    _splat_gathered(film, rc, radiance, stats)
+    _splat_gathered(scene, film, rc, radiance, stats)
 
 
-def _splat_gathered(film, rc: Receivers, radiance, stats):
+def _splat_gathered(scene, film, rc: Receivers, radiance, stats):
     hit = np.flatnonzero(radiance.max(axis=1) > 0)
     if hit.size:
-        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
+        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))
         stats["eye_splats"] = stats.get("eye_splats", 0) + int(hit.size)
 
 
@@ -346,7 +346,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
                 found[li] = found.get(li, 0) + v
     hit = np.flatnonzero(radiance.max(axis=1) > 0)
     if hit.size:
-        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None])
+        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))
 
 
 def _handoff_depth(handoffs: dict) -> int:

@@ -1756,12 +1756,13 @@ def camera_rays(cam, x, y):
 
 
 @njit(**_JIT)
-def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, rx, ry, val):
+def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, rx, ry, val, alb):
     """camera_splats' loop, on borrowed arrays (its caller holds them). Returns (rays cast, splats
     written)."""
     ray = _borrowed(ray)
     mats = _borrowed(mats)
     cam, rec, mat, rx, ry, val = _borrowed((cam, rec, mat, rx, ry, val))
+    textured, alb = _borrowed((textured, alb))
     mat_color = mats[2]
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
@@ -1810,18 +1811,22 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, rx, r
             c3 = max(cos_axis, 1e-12) ** 3
             imp = abs(co_g) / (max(dist, 1e-300) ** 2 * cam[CAM_PIX_AREA] * c3)
         m = mat[i]
-        k = corr * imp / math.pi * _tab_weight(mats[6], m, _dot(to_cam, ns))  # under a glossy coat
+        tw = _tab_weight(mats[6], m, _dot(to_cam, ns))  # under a glossy coat
+        k = corr * imp / math.pi * tw
         kc = _coat_factor(mats, m, ns, to_cam, w, first_order)  # and what on-minus-off keeps of it
         rx[n], ry[n] = px, py
+        tex = textured.shape[0] > 0 and textured[m]
         for c in range(3):
             val[n, c] = rec[i, REC_BETA + c] * mat_color[m, c] * k * kc[c]
+            if alb.shape[0] > 0:  # Cycles' Diffuse Color pass there (Film.splat)
+                alb[n, c] = mat_color[m, c] * tw if tex else 0.0
         n += 1
     return rays, n
 
 
 @TypedOnce
 @njit(**_JIT)
-def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, rx, ry, val):
+def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, rx, ry, val, alb):
     """reference.splat_records: the light tracer's records (rec: REC_* columns; mat: their
     materials, diffuse with albedo mats[2][mat] under a Principled coat: layer.py, first_order: the
     records are x0's own caustic, not light after a diffuse bounce): each diffuse vertex connected
@@ -1829,9 +1834,11 @@ def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, rx, ry, val
     (cam: CameraModel.kernel_params; margin: the film's filter width in pixels around the render
     region), its shadow ray cast here, the splat's raster position and value (the flux times the
     diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
-    ry, val. Returns (shadow rays cast, splats written, the ray counters)."""
+    ry, val; with textured (Scene.mat_textured, or empty) and alb (as val, or empty), the albedo of
+    each splat on a textured material (Film.splat), zero elsewhere. Returns (shadow rays cast,
+    splats written, the ray counters)."""
     ray = ray_state(rt)
-    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, rx, ry, val)
+    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, rx, ry, val, alb)
     return rays, n, ray[6]
 
 

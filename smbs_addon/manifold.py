@@ -21,7 +21,7 @@ from . import scene as S
 from .bounces import Limits
 from .constraints import LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
-from .eye import eye_receivers
+from .eye import direct_albedo, eye_receivers
 from .geometry import triangle_areas
 from .layer import coat_factor, has_layers
 from .lights import area_light_points, light_axis
@@ -595,7 +595,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     for ctx in ctxs.values():  # the walks at later diffuse vertices (indirect.gather) keep every path
         ctx.handoff_seen = ctx.first_order = False
     hit = np.flatnonzero(total.max(axis=1) > 0)
-    film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None])
+    film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))
     from .indirect import bending_lights, bent_gather, bent_receivers
 
     bent = bending_lights(scene, tracer, plan)

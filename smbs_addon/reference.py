@@ -198,11 +198,15 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
     cam_p, rec = cam.kernel_params(), np.ascontiguousarray(rec, np.float64)
     mat, mats = np.ascontiguousarray(ids[:, 2], np.int64), materials(scene)
+    # textured receivers: each splat's albedo (Film.splat); every splat here is seen directly
+    textured = np.ascontiguousarray(scene.mat_textured, np.bool_) if np.any(scene.mat_textured) else np.zeros(0, bool)
+    alb = np.zeros((n if textured.size else 0, 3))
 
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()
         rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], mats,
-                                                bool(first_order), tracer.eps, rx[a:b], ry[a:b], val[a:b])
+                                                bool(first_order), tracer.eps, textured, rx[a:b], ry[a:b], val[a:b],
+                                                alb[a:b] if textured.size else alb)
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays
 
@@ -211,7 +215,7 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     m = sum(int(p[1]) for p in parts)
     keep = slice(0, m) if len(parts) == 1 else np.concatenate([np.arange(a, a + k) for a, k, _ in parts])
     if m:
-        film.splat(rx[keep], ry[keep], val[keep])
+        film.splat(rx[keep], ry[keep], val[keep], alb[keep] if textured.size else None)
         stats["splats"] += m
 
 

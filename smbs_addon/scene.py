@@ -41,7 +41,7 @@ AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
-OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer")
+OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -158,6 +158,11 @@ class Scene:
     # Coat Weight (0: none), Coat IOR, Coat Roughness. Empty: Lambert everywhere (a scene built in
     # code, or saved before they were exported)
     mat_layer: np.ndarray = field(default_factory=lambda: np.zeros((0, 8)))
+    # (M,) bool: a diffuse material whose colour is a texture (an image or procedural on its Base
+    # Color): mat_color is a stand-in; where the camera sees it directly the bake also keeps the
+    # caustic per unit albedo (BakeResult.per_albedo) for the render's Diffuse Color pass to
+    # multiply. Empty: none (a scene built in code, or saved before it was exported)
+    mat_textured: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -242,6 +247,11 @@ class Scene:
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
         if self.mat_bump_correction.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
+        if self.mat_textured.shape not in ((0,), (M,)):
+            raise SceneError(f"scene array 'mat_textured' must have one entry per material ({M}) or none")
+        if self.mat_textured.size and np.any(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE)):
+            i = int(np.flatnonzero(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE))[0])
+            raise SceneError(f"material '{self.mat_names[i]}': only a diffuse material can be textured")
         if self.mat_layer.shape not in ((0, 8), (M, 8)):
             raise SceneError(f"scene array 'mat_layer' must be ({M}, 8) or empty")
         fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)

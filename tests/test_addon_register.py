@@ -11,6 +11,8 @@ from conftest import load_extension
 
 bpy = pytest.importorskip("bpy")
 
+from blend_helpers import image_pixels as _pixels, layer_image as _layer, our_nodes as _our_nodes, users_compositor  # noqa: E402,E501
+
 # Operators and panels show up in bpy.types; property groups do not.
 TYPES = ("SMBS_OT_bake_caustics", "SMBS_OT_cancel_bake", "SMBS_OT_remove_caustic_layer",
          "SMBS_PT_caustics", "SMBS_UL_participants", "SMBS_PT_caustics_participants",
@@ -158,6 +160,8 @@ def test_statistics_summary(addon):
     assert panels.per_light_stats(stats) == [("Key", [("Rays", "1.5 k"), ("Time", "1.50 s")])]
     assert panels.skipped_stats(stats) == ["light Fill: no casters"]
     assert panels.parse_stats("not json") == {}
+    textured = dict(panels.summarize_stats({**stats, "textured_share": 0.873}))
+    assert textured["On Textures"] == "87% \u00d7 Diffuse Color"
 
 
 def test_statistics_of_a_manifold_bake(addon):
@@ -326,24 +330,6 @@ def composite(empty_bpy):
     return importlib.import_module(load_extension().__name__ + ".smbs_addon.composite")
 
 
-def _layer(h=4, w=6, value=1.0):
-    img = np.zeros((h, w, 3), np.float32)
-    img[0] = (value, 0.0, 0.0)  # top row red
-    img[-1] = (0.0, 0.0, value)  # bottom row blue
-    return img
-
-
-def _pixels(image):
-    w, h = image.size
-    buf = np.empty(w * h * 4, np.float32)
-    image.pixels.foreach_get(buf)
-    return buf.reshape(h, w, 4)
-
-
-def _our_nodes(tree, role):
-    return [n for n in tree.nodes if n.get("smbs_caustics") == role]
-
-
 def _layer_images():
     return [im for im in bpy.data.images if im.name.startswith(LAYER)]
 
@@ -381,14 +367,7 @@ def test_apply_layer_twice_makes_one_image_and_one_group(composite):
 
 def test_apply_layer_joins_the_users_compositor(composite):
     scene = bpy.context.scene
-    tree = bpy.data.node_groups.new("Mine", "CompositorNodeTree")
-    tree.interface.new_socket(name="Image", in_out='OUTPUT', socket_type="NodeSocketColor")
-    rl = tree.nodes.new("CompositorNodeRLayers")
-    blur = tree.nodes.new("CompositorNodeBlur")
-    out = tree.nodes.new("NodeGroupOutput")
-    tree.links.new(rl.outputs["Image"], blur.inputs["Image"])
-    tree.links.new(blur.outputs["Image"], out.inputs[0])
-    scene.compositing_node_group = tree
+    tree, rl, blur, out = users_compositor(scene)
     mine = {n.name for n in tree.nodes}
 
     composite.apply_layer(scene, _layer())

@@ -157,6 +157,11 @@ def test_out_of_range_values_a_fuzz_found_are_refused_with_their_name():
     sc.mat_layer = np.zeros((1, 8))
     assert _invalid(sc) == f"scene array 'mat_layer' must be ({len(sc.mat_kind)}, 8) or empty"
     sc = fresh()
+    sc.mat_textured = np.array([True, True])  # the floor may be; the mirror may not
+    assert _invalid(sc) == "material 'mirror': only a diffuse material can be textured"
+    sc.mat_textured = np.array([True])
+    assert _invalid(sc) == f"scene array 'mat_textured' must have one entry per material ({len(sc.mat_kind)}) or none"
+    sc = fresh()
     sc.light_color[0] = (1e38, 1e38, 1e38)
     assert _invalid(sc) == ("light 'Disk': power 1e+38 is beyond 1e+20, more than a float32 caustic layer "
                             "can hold")

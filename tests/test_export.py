@@ -475,13 +475,83 @@ def test_mix_shader_with_constant_factor_one_is_followed():
 
 
 def test_linked_input_where_a_constant_is_needed_warns():
-    m = material("Textured", "ShaderNodeBsdfDiffuse")
+    m = material("Textured", "ShaderNodeBsdfGlass")
     tex = m.node_tree.nodes.new("ShaderNodeTexChecker")
-    m.node_tree.links.new(tex.outputs["Color"], m.node_tree.nodes["Diffuse BSDF"].inputs["Color"])
+    m.node_tree.links.new(tex.outputs["Color"], m.node_tree.nodes["Glass BSDF"].inputs["Color"])
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8)
     assert len(warnings) == 1 and warnings[0].startswith("material 'Textured': input 'Color'")
     assert "'Checker Texture'" in warnings[0] and warnings[0].endswith("(albedo 0.8)")
+
+
+def _textured(name, shader, socket, texture):
+    m = material(name, shader)
+    nt = m.node_tree
+    tex = nt.nodes.new(texture)
+    bsdf = next(n for n in nt.nodes if n.bl_idname == shader)
+    nt.links.new(tex.outputs["Color"], bsdf.inputs[socket])
+    return m, tex
+
+
+def test_a_textured_diffuse_colour_is_a_textured_receiver():
+    """A texture on a Diffuse BSDF's Color or a Principled Base Color: a receiver marked textured
+    (the render's Diffuse Color pass will hold its albedo where the camera sees it), its stand-in
+    colour the mean of a Checker Texture's two colours, else 0.8; said once, naming the material."""
+    m, tex = _textured("Checker", "ShaderNodeBsdfDiffuse", "Color", "ShaderNodeTexChecker")
+    tex.inputs["Color1"].default_value = (0.9, 0.6, 0.3, 1.0)
+    tex.inputs["Color2"].default_value = (0.1, 0.2, 0.3, 1.0)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and sc.mat_textured.tolist() == [True]
+    np.testing.assert_allclose(sc.mat_color[0], [0.5, 0.4, 0.3])
+    assert len(warnings) == 1 and warnings[0].startswith("material 'Checker': its colour is a texture")
+    assert "Diffuse Color pass" in warnings[0] and warnings[0].endswith("albedo 0.4")
+
+
+def test_a_textured_principled_base_colour_keeps_its_layers():
+    m, _ = _textured("Wood", "ShaderNodeBsdfPrincipled", "Base Color", "ShaderNodeTexImage")
+    m.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = 0.25
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and sc.mat_textured.tolist() == [True]
+    np.testing.assert_allclose(sc.mat_color[0], 0.8 * 0.75)  # the stand-in, times what Metallic leaves
+    assert sc.mat_layer[0, 0] > 1.0 and np.isclose(sc.mat_layer[0, 3], 0.75)  # under its glossy coat
+    assert len(warnings) == 1 and "its colour is a texture" in warnings[0]
+
+
+@pytest.mark.parametrize("is_float", [False, True])
+def test_an_image_textures_stand_in_is_its_mean_linear_colour(is_float):
+    """Its stand-in (seen through glass, in light it passes on) is the image's mean colour as
+    Cycles reads it: an 8-bit sRGB image through the sRGB curve, a float image as it is."""
+    m, tex = _textured("Wood", "ShaderNodeBsdfDiffuse", "Color", "ShaderNodeTexImage")
+    img = bpy.data.images.new("WoodGrain", 4, 2, float_buffer=is_float)
+    img.pixels.foreach_set(np.array([[0.2, 0.4, 0.6, 1.0], [0.8, 0.6, 0.1, 1.0]] * 4, np.float32).ravel())
+    tex.image = img
+    sc, warnings = one_material(m)
+    px = np.empty(32, np.float32)
+    img.pixels.foreach_get(px)  # as stored (8 bits: rounded)
+    rgb = px.reshape(-1, 4)[:, :3].astype(float)
+    want = rgb.mean(axis=0) if is_float else (((rgb + 0.055) / 1.055) ** 2.4).mean(axis=0)
+    assert sc.mat_textured.tolist() == [True]
+    np.testing.assert_allclose(sc.mat_color[0], want, rtol=1e-6)
+    if not is_float:
+        np.testing.assert_allclose(want, [0.318, 0.226, 0.164], atol=0.002)  # not the encoded 0.5, 0.5, 0.35
+
+
+def test_a_volume_is_said_to_be_ignored():
+    m = material("Wine", "ShaderNodeBsdfGlass")
+    nt = m.node_tree
+    vol = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    nt.links.new(vol.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC
+    assert len(warnings) == 1 and warnings[0].startswith("material 'Wine': its Volume ('Volume Absorption') is ignored")
+
+
+def test_a_textured_metal_is_still_a_diffuse_stand_in():
+    m, _ = _textured("Brass", "ShaderNodeBsdfPrincipled", "Base Color", "ShaderNodeTexNoise")
+    m.node_tree.nodes["Principled BSDF"].inputs["Metallic"].default_value = 1.0
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and not np.any(sc.mat_textured) and np.allclose(sc.mat_color[0], 0.8)
+    assert len(warnings) == 1 and "diffuse surfaces only" in warnings[0]
 
 
 def test_rgb_and_value_nodes_count_as_constants():

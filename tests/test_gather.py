@@ -24,7 +24,7 @@ class _Capture:
     def __init__(self, n):
         self.value = np.zeros((n, 3))
 
-    def splat(self, rx, ry, v):
+    def splat(self, rx, ry, v, albedo=None):
         np.add.at(self.value, rx.astype(np.int64), v)
 
 

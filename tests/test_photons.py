@@ -241,10 +241,16 @@ def test_camera_splats_are_the_numpy_connection(name):
                                   lambda idx, to_cam, ns, w: layer.weight(tab, ids[idx, 2], (to_cam * ns).sum(1))[:, None]
                                   * layer.coat_factor(scene, ids[idx, 2], scene.mat_color, ns, to_cam, w))
     n = len(rec)
-    rx, ry, val = np.empty(n), np.empty(n), np.empty((n, 3))
+    rx, ry, val, alb = np.empty(n), np.empty(n), np.empty((n, 3)), np.full((n, 3), np.nan)
+    textured = scene.mat_kind == S.DIFFUSE  # every receiver textured: each splat's albedo written beside it
     rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
-                                       optics.materials(scene), True, tracer.eps, rx, ry, val)
+                                       optics.materials(scene), True, tracer.eps, textured, rx, ry, val, alb)
     assert 100 < m <= rays <= n and rays == want[3]
+    floor = scene.mat_color[scene.mat_kind == S.DIFFUSE].max(axis=0)
+    if "principled" in name:  # the albedo under the coat, towards the camera: less than the colour
+        assert np.all((alb[:m] > 0.5 * floor) & (alb[:m] < floor))
+    else:
+        np.testing.assert_array_equal(alb[:m], np.broadcast_to(floor, (m, 3)))
     np.testing.assert_allclose(rx[:m], want[0], rtol=0, atol=1e-9)
     np.testing.assert_allclose(ry[:m], want[1], rtol=0, atol=1e-9)
     np.testing.assert_allclose(val[:m], want[2], rtol=1e-12, atol=0)

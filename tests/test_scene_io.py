@@ -19,7 +19,7 @@ def full_scene() -> Scene:
     """Every light type and area shape, every material kind, a smooth mesh with UVs,
     a non-default camera."""
     b = SceneBuilder("everything")
-    floor = b.material("Floor", "diffuse", color=(0.8, 0.7, 0.6))
+    floor = b.material("Floor", "diffuse", color=(0.8, 0.7, 0.6), textured=True)
     metal = b.material("Gold", "conductor", color=(1.0, 0.8, 0.3), fresnel=S.FRESNEL_SCHLICK)
     glass = b.material("Glass", "dielectric", color=(0.9, 1.0, 0.95), ior=1.45,
                        reflect_color=(1.0, 0.9, 0.9))
@@ -66,6 +66,7 @@ def test_round_trip_every_field(tmp_path):
     assert sc.n_lights == 7 and set(sc.light_type.tolist()) == {S.POINT, S.SPOT, S.AREA, S.SUN}
     assert set(sc.light_shape[sc.light_type == S.AREA].tolist()) == {S.SQUARE, S.RECTANGLE, S.DISK, S.ELLIPSE}
     assert set(sc.mat_kind.tolist()) == {S.DIFFUSE, S.CONDUCTOR, S.DIELECTRIC, S.EMITTER}
+    assert sc.mat_textured.tolist() == [True, False, False, False]
     path = tmp_path / "scene.npz"
     sc.save(path)
     back = Scene.load(path)

@@ -120,6 +120,8 @@ def summarize_stats(stats):
         rows.append(("Half the Error", f"+{_format_time(stats['seconds_to_halve_error'])}"))
     if stats.get("stopped_by") in ("time", "noise"):
         rows.append(("Stopped By", str(stats["stopped_by"]).title()))
+    if _number(stats.get("textured_share")):  # coloured by the render's Diffuse Color pass
+        rows.append(("On Textures", f"{100.0 * stats['textured_share']:.0f}% × Diffuse Color"))
     return rows
 
 
