@@ -42,6 +42,7 @@ def _core():
     return SimpleNamespace(BakeSettings=BakeSettings, bake=bake, BakeCancelled=BakeCancelled,
                            SceneError=SceneError, export_scene=export.export_scene,
                            apply_layer=composite.apply_layer, remove_layer=composite.remove_layer,
+                           diffuse_color_switched_on=composite.diffuse_color_switched_on,
                            has_layer=composite.has_layer, write_exr=imageio.write_exr, write_json=imageio.write_json,
                            make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels)
 
@@ -174,7 +175,8 @@ def prepare(context, core, output=True) -> Prepared:
 
 
 def finish(scene, prep: Prepared, result, core, report) -> bool:
-    """Write the EXR and statistics, add the layer, apply the Cycles policy.
+    """Write the EXR (and the per-albedo one, for textured receivers) and statistics, add the
+    layer, apply the Cycles policy.
 
     ``report(level_set, text)`` as Operator.report. Returns False on failure.
     """
@@ -183,22 +185,44 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     warnings.extend(str(w) for w in (getattr(result, "warnings", None) or ()))
     stats = json.loads(json.dumps(result.stats or {}, default=_json_default))
 
+    # On textured receivers the caustic is per_albedo x the render's Diffuse Color pass, added
+    # beside the rest of the layer (result.layer()); results without them (older cores, tests):
+    # the image is the whole layer.
+    layer = result.layer() if callable(getattr(result, "layer", None)) else result.image
+    per_albedo = getattr(result, "per_albedo", None)
     path, stored_path = prep.path, prep.stored_path
+    albedo_stored, writing = None, path
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
-        core.write_exr(path, result.image, core.exr_metadata(prep.settings, result), core.exr_channels(result))
+        metadata = core.exr_metadata(prep.settings, result)
+        core.write_exr(path, layer, metadata, core.exr_channels(result))
+        if per_albedo is not None:  # a file of its own beside it, for its Image datablock to read
+            writing = os.path.splitext(path)[0] + "_per_albedo.exr"
+            core.write_exr(writing, per_albedo, metadata)
+            albedo_stored = os.path.splitext(stored_path)[0] + "_per_albedo.exr" if stored_path else None
+            writing = path
         core.write_json(os.path.splitext(path)[0] + ".json", stats)
     except (core.SceneError, OSError) as e:
         # The bake is not thrown away: the layer is packed into the blend file instead.
-        warnings.append(f"Could not write '{path}' ({e}); the caustic layer is packed into the blend file")
-        stored_path = None
+        warnings.append(f"Could not write '{writing}' ({e}); the caustic layer is packed into the blend file")
+        stored_path = albedo_stored = None
+    switched_on = getattr(core, "diffuse_color_switched_on", lambda scene: None)
+    had_pass = switched_on(scene)
     try:
-        core.apply_layer(scene, result.image, name=LAYER_NAME, filepath=stored_path)
+        if per_albedo is None:
+            core.apply_layer(scene, layer, name=LAYER_NAME, filepath=stored_path)
+        else:
+            core.apply_layer(scene, layer, name=LAYER_NAME, filepath=stored_path,
+                             per_albedo=per_albedo, per_albedo_filepath=albedo_stored)
     except Exception as e:
         traceback.print_exc()
         report({'ERROR'}, f"Could not add the caustic layer to the compositor: {e}")
         return False
     props.last_stats = json.dumps(stats)
+    view_layer = switched_on(scene)
+    if view_layer and view_layer != had_pass:
+        report({'INFO'}, f"Switched on the Diffuse Color pass of view layer '{view_layer}': the caustic on "
+                         "textured surfaces is multiplied by their colour in the compositor")
 
     if hasattr(scene, "cycles"):
         try:

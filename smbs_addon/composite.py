@@ -12,7 +12,16 @@ scene, however often it is called:
   fed the Group Output and the output; none of their nodes is changed.
 - Already set up: only the image is updated.
 
-Our nodes, node group and image carry the custom property ``smbs_caustics`` so
+Receivers whose colour is a texture: the bake's albedo-free part ``per_albedo``
+is multiplied by the render's own Diffuse Color pass (which holds the albedo
+pixel by pixel) and added too. It is a second Image (``"<name> per Albedo"``),
+a Render Layers node of ours, a Multiply and a second Add that feed our Add's
+second input; so the only links to the user's nodes stay those of our Add, and
+taking our nodes out restores the user's compositor the same way with or
+without it. The view layer's Diffuse Color pass is switched on for it (and off
+again only if we switched it on, recorded in ``scene[TAG + "_enabled_diffcol"]``).
+
+Our nodes, node group and images carry the custom property ``smbs_caustics`` so
 they can be found again whatever they are called. ``remove_layer`` takes them
 out and restores the link the user had. Blender 4.2-4.5 (``scene.node_tree``,
 Composite and Mix RGB nodes) is handled by the same code paths, untested.
@@ -28,6 +37,12 @@ TAG = "smbs_caustics"  # custom property: node role, True on our group, layer na
 TREE_NAME = "SMBS Caustics Compositing"
 # Roles (the TAG value) of our nodes.
 IMAGE, ADD, RENDER_LAYERS, OUTPUT = "image", "add", "render_layers", "output"
+# ... and of the per-albedo part: its image, our Render Layers node for the Diffuse Color pass,
+# per_albedo x Diffuse Color, and the Add of that to IMAGE (which feeds ADD's second input).
+ALBEDO_IMAGE, DIFFUSE_COLOR, MULTIPLY, ALBEDO_ADD = "albedo_image", "diffuse_color", "multiply", "albedo_add"
+ALBEDO_ROLES = (ALBEDO_IMAGE, DIFFUSE_COLOR, MULTIPLY, ALBEDO_ADD)
+ENABLED_DIFFCOL = TAG + "_enabled_diffcol"  # scene property: the view layer we switched the pass on for
+_DIFFUSE_COLOR_OUTPUTS = ("Diffuse Color", "DiffCol")  # Render Layers output, Blender 5.0 / 4.x
 
 _LINEAR = ("Linear Rec.709", "Linear", "Linear BT.709")
 
@@ -177,25 +192,41 @@ def _new_node(tree, bl_idname, role, label, location):
     return node
 
 
-def _new_add_node(tree, location):
+def _new_add_node(tree, location, role=ADD, label="SMBS Caustics Add", blend='ADD'):
+    """A Mix node of ours (Add, or Multiply), factor 1, unclamped: (A, B, Result) as _add_sockets."""
     if _blender5():  # CompositorNodeMixRGB is gone; ShaderNodeMix works in compositor trees
-        node = _new_node(tree, "ShaderNodeMix", ADD, "SMBS Caustics Add", location)
+        node = _new_node(tree, "ShaderNodeMix", role, label, location)
         node.data_type = 'RGBA'
-        node.blend_type = 'ADD'
+        node.blend_type = blend
         node.clamp_result = False
         _socket(node.inputs, "Factor_Float", 0).default_value = 1.0
     else:
-        node = _new_node(tree, "CompositorNodeMixRGB", ADD, "SMBS Caustics Add", location)
-        node.blend_type = 'ADD'
+        node = _new_node(tree, "CompositorNodeMixRGB", role, label, location)
+        node.blend_type = blend
         node.use_clamp = False
         node.inputs[0].default_value = 1.0
     return node
 
 
+def _from(socket):
+    """The node feeding ``socket``, or None."""
+    return socket.links[0].from_node if socket.is_linked else None
+
+
+def _image_source(img_node, add):
+    """The node of ours feeding our Add's second input, if it brings the image: the image node,
+    or our per-albedo Add whose first input is the image node. None otherwise."""
+    node = _from(_add_sockets(add)[1])
+    if node == img_node:
+        return node
+    if node is not None and node.get(TAG) == ALBEDO_ADD and _from(_add_sockets(node)[0]) == img_node:
+        return node
+    return None
+
+
 def _is_complete(img_node, add):
-    a, b, result = _add_sockets(add)
-    return (b.is_linked and b.links[0].from_node == img_node
-            and result.is_linked and a.is_linked)
+    a, _, result = _add_sockets(add)
+    return _image_source(img_node, add) is not None and result.is_linked and a.is_linked
 
 
 def _unlink_ours(tree):
@@ -213,10 +244,12 @@ def _unlink_ours(tree):
             tree.nodes.remove(node)
 
 
-def _ensure_nodes(tree, img):
+def _ensure_nodes(tree, img, albedo=None):
+    """Our nodes, updated in place if they are all there; ``albedo`` as for _ensure_albedo_nodes."""
     images, adds = _ours(tree, IMAGE), _ours(tree, ADD)
     if len(images) == 1 and len(adds) == 1 and _is_complete(images[0], adds[0]):
         images[0].image = img
+        _ensure_albedo_nodes(tree, images[0], adds[0], albedo)
         return
     _unlink_ours(tree)  # half-removed or duplicated by the user: start again
 
@@ -241,29 +274,156 @@ def _ensure_nodes(tree, img):
     tree.links.new(source, a)
     tree.links.new(img_node.outputs["Image"], b)
     tree.links.new(result, target)
+    _ensure_albedo_nodes(tree, img_node, add, albedo)
 
 
-def apply_layer(bpy_scene, image, name="SMBS Caustics", filepath=None):
+def _diffuse_color_output(rl):
+    """The Render Layers node's Diffuse Color output (by iterating: a disabled output is not
+    found by name), or None."""
+    return next((s for s in rl.outputs if s.identifier in _DIFFUSE_COLOR_OUTPUTS), None)
+
+
+def _albedo_complete(tree, img_node, add):
+    """Our per-albedo nodes, one of each, linked as _ensure_albedo_nodes links them: a dict
+    role -> node, or None."""
+    parts = {role: _ours(tree, role) for role in ALBEDO_ROLES}
+    if any(len(nodes) != 1 for nodes in parts.values()):
+        return None
+    nodes = {role: found[0] for role, found in parts.items()}
+    sum_a, sum_b, _ = _add_sockets(nodes[ALBEDO_ADD])
+    mul_a, mul_b, _ = _add_sockets(nodes[MULTIPLY])
+    ok = (_image_source(img_node, add) == nodes[ALBEDO_ADD] and _from(sum_a) == img_node
+          and _from(sum_b) == nodes[MULTIPLY] and _from(mul_a) == nodes[ALBEDO_IMAGE]
+          and mul_b.is_linked and mul_b.links[0].from_socket == _diffuse_color_output(nodes[DIFFUSE_COLOR]))
+    return nodes if ok else None
+
+
+def _ensure_albedo_nodes(tree, img_node, add, albedo):
+    """``albedo``: None, or (Image, scene, view layer name). With it, our Add's second input is
+    image + albedo image x that view layer's Diffuse Color; without, the image alone and our
+    per-albedo nodes are gone. Updated in place when they are all there."""
+    b = _add_sockets(add)[1]
+    nodes = _albedo_complete(tree, img_node, add) if albedo is not None else None
+    if nodes is not None:
+        nodes[ALBEDO_IMAGE].image = albedo[0]
+        return
+    for role in ALBEDO_ROLES:
+        for node in _ours(tree, role):
+            tree.nodes.remove(node)
+    if albedo is None:
+        if _from(b) != img_node:
+            tree.links.new(img_node.outputs["Image"], b)
+        return
+    albedo_img, scene, layer = albedo
+    x, y = img_node.location
+    albedo_node = _new_node(tree, "CompositorNodeImage", ALBEDO_IMAGE, "SMBS Caustics per Albedo",
+                            (x - 300.0, y - 250.0))
+    albedo_node.image = albedo_img
+    rl = _new_node(tree, "CompositorNodeRLayers", DIFFUSE_COLOR, "SMBS Caustics Diffuse Color",
+                   (x - 300.0, y - 550.0))
+    rl.scene = scene  # not the context's scene: apply_layer may be called for another
+    rl.layer = layer
+    mul = _new_add_node(tree, (x, y - 350.0), MULTIPLY, "SMBS Caustics x Diffuse Color", 'MULTIPLY')
+    total = _new_add_node(tree, (x + 200.0, y - 150.0), ALBEDO_ADD, "SMBS Caustics Add per Albedo")
+    mul_a, mul_b, mul_result = _add_sockets(mul)
+    sum_a, sum_b, sum_result = _add_sockets(total)
+    tree.links.new(albedo_node.outputs["Image"], mul_a)
+    tree.links.new(_diffuse_color_output(rl), mul_b)
+    tree.links.new(img_node.outputs["Image"], sum_a)
+    tree.links.new(mul_result, sum_b)
+    tree.links.new(sum_result, b)
+
+
+def _render_view_layer(scene):
+    """The view layer our Render Layers node reads: the first one rendered, else the first."""
+    return next((vl for vl in scene.view_layers if vl.use), scene.view_layers[0])
+
+
+def _albedo_view_layer(tree, scene):
+    """The view layer for the Diffuse Color pass: the one our Render Layers node already reads
+    (the user may have chosen another), else _render_view_layer."""
+    for rl in _ours(tree, DIFFUSE_COLOR):
+        if rl.scene == scene and rl.layer in scene.view_layers:
+            return scene.view_layers[rl.layer]
+    return _render_view_layer(scene)
+
+
+def _switch_diffuse_color(scene, layer_name):
+    """The Diffuse Color pass on for the view layer ``layer_name`` (None: for none of ours).
+
+    Only a pass we switched on is recorded, and only that one is switched off again (when
+    ``layer_name`` is another view layer or None): a pass the user had on stays on.
+    """
+    ours = scene.get(ENABLED_DIFFCOL)
+    if ours is not None and ours != layer_name:
+        vl = scene.view_layers.get(ours)
+        if vl is not None:
+            vl.use_pass_diffuse_color = False
+        del scene[ENABLED_DIFFCOL]
+    vl = scene.view_layers.get(layer_name) if layer_name else None
+    if vl is not None and not vl.use_pass_diffuse_color:
+        vl.use_pass_diffuse_color = True
+        scene[ENABLED_DIFFCOL] = vl.name
+
+
+def diffuse_color_switched_on(bpy_scene):
+    """The name of the view layer whose Diffuse Color pass apply_layer switched on, or None."""
+    return bpy_scene.get(ENABLED_DIFFCOL)
+
+
+def albedo_image_name(name="SMBS Caustics") -> str:
+    return f"{name} per Albedo"
+
+
+def _remove_image(name):
+    img = _find_image(name)
+    if img is not None and img.users == 0:
+        bpy.data.images.remove(img)
+
+
+def apply_layer(bpy_scene, image, name="SMBS Caustics", filepath=None, per_albedo=None,
+                per_albedo_filepath=None):
     """Show ``image`` (H,W,3 float32, top row first) as an added layer in the compositor.
 
     ``filepath``: the EXR already holding ``image``; the Image datablock then
     reads from it. Without one the pixels are packed into the blend file.
-    Returns the Image datablock.
+
+    ``per_albedo`` (H,W,3, the caustic on textured receivers divided by their
+    albedo; ``per_albedo_filepath`` as ``filepath``): multiplied by the render's
+    Diffuse Color pass, which is switched on for the purpose
+    (diffuse_color_switched_on tells for which view layer), and added as well.
+    Without it, the per-albedo part of an earlier call goes again.
+    Returns the Image datablock of ``image``.
     """
+    if per_albedo is not None and np.shape(per_albedo)[:2] != np.shape(image)[:2]:
+        raise ValueError(f"per_albedo must be the size of the image {np.shape(image)[:2]}, "
+                         f"got shape {np.shape(per_albedo)}")
     img = _ensure_image(name, image, filepath)
     tree, _ = _scene_tree(bpy_scene, create=True)
-    _ensure_nodes(tree, img)
+    albedo = None
+    if per_albedo is not None:
+        albedo_img = _ensure_image(albedo_image_name(name), per_albedo, per_albedo_filepath)
+        # The pass first: the Render Layers node has no Diffuse Color output to link before.
+        vl = _albedo_view_layer(tree, bpy_scene)
+        _switch_diffuse_color(bpy_scene, vl.name)
+        albedo = (albedo_img, bpy_scene, vl.name)
+    _ensure_nodes(tree, img, albedo)
+    if per_albedo is None:
+        _switch_diffuse_color(bpy_scene, None)
+        _remove_image(albedo_image_name(name))
     return img
 
 
 def has_layer(bpy_scene, name="SMBS Caustics") -> bool:
-    """Is there a caustic layer (our image, or our nodes in the scene's compositor)?"""
+    """Is there a caustic layer (our images, or our nodes in the scene's compositor)?"""
     tree, _ = _scene_tree(bpy_scene, create=False)
-    return _find_image(name) is not None or (tree is not None and bool(_ours(tree)))
+    return (_find_image(name) is not None or _find_image(albedo_image_name(name)) is not None
+            or (tree is not None and bool(_ours(tree))))
 
 
 def remove_layer(bpy_scene, name="SMBS Caustics"):
-    """Take our nodes (or our whole node group) and image out again."""
+    """Take our nodes (or our whole node group) and images out again, and the Diffuse Color
+    pass off if we switched it on."""
     tree, owned = _scene_tree(bpy_scene, create=False)
     if tree is not None:
         # Our own group goes as a whole, unless the user has built on it since.
@@ -279,6 +439,6 @@ def remove_layer(bpy_scene, name="SMBS Caustics"):
     if bpy_scene.get(TAG + "_enabled_nodes"):  # Blender 4.x: we switched nodes on
         bpy_scene.use_nodes = False
         del bpy_scene[TAG + "_enabled_nodes"]
-    img = _find_image(name)
-    if img is not None and img.users == 0:
-        bpy.data.images.remove(img)
+    _switch_diffuse_color(bpy_scene, None)
+    _remove_image(name)
+    _remove_image(albedo_image_name(name))
