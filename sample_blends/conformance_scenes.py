@@ -458,6 +458,32 @@ def rough_floor():
     return _slanted_ball("rough_floor", lambda: B.material("RoughFloor", "diffuse", (0.8,) * 3, roughness=1.0))
 
 
+def _checker():
+    m = bpy.data.materials.new("CheckerFloor")
+    nt = m.node_tree
+    tex = nt.nodes.new("ShaderNodeTexChecker")
+    tex.inputs["Scale"].default_value = 20.0  # squares of 0.5 m on the 10 m floor (Generated coordinates)
+    tex.inputs["Color1"].default_value = (0.8, 0.7, 0.5, 1.0)
+    tex.inputs["Color2"].default_value = (0.1, 0.15, 0.3, 1.0)
+    # shifted so that the caustic's core (x -0.28..-0.06, y 0.06..0.18 m) lies inside one square:
+    # its edges at x -0.42 and y -0.15 (a pixel straddling an edge of the texture and the caustic's
+    # sharp rim is where the render's per-pixel albedo cannot stand in for the albedo per sample)
+    coords, mapping = nt.nodes.new("ShaderNodeTexCoord"), nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Location"].default_value = (0.0421, 0.015, 0.0)
+    nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], tex.inputs["Vector"])
+    nt.links.new(tex.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Base Color"])
+    return m
+
+
+def checker_floor():
+    """The slanted glass ball over Blender's default material with a Checker Texture on its Base
+    Color (warm 0.8/0.7/0.5 and dark blue squares of 0.5 m, the caustic's core inside one, its rim
+    over the next): the caustic takes the texture's colour square by square, through the render's
+    Diffuse Color pass."""
+    return _slanted_ball("checker_floor", _checker)
+
+
 SCENES = {
     # name: (builder, what it covers)
     "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
@@ -489,6 +515,8 @@ SCENES = {
     "principled_floor": (principled_floor, "a receiver of Blender's default material (Principled BSDF, "
                          "roughness 0.5) seen at a slant, under a glass ball"),
     "coated_floor": (coated_floor, "principled_floor's floor under a clear coat (Coat Weight 1)"),
+    "checker_floor": (checker_floor, "the slanted ball over a Principled floor whose Base Color is a Checker "
+                      "Texture (the render's Diffuse Color pass holds the albedo)"),
     "rough_floor": (rough_floor, "a Diffuse BSDF receiver of Roughness 1 (Oren-Nayar) seen at a slant, "
                     "under a glass ball"),
     "egg_sun_spot": (egg_sun_spot, "Glass BSDF tinted 1.45, non-uniformly scaled and turned smooth sphere, "

@@ -102,6 +102,9 @@ def load_reference(name: str) -> dict:
     with np.load(reference_path(name), allow_pickle=False) as z:
         ref = {k: z[k] for k in z.files}
     ref["meta"] = json.loads(str(ref["meta"]))
+    if diffcol_path(name).exists():
+        with np.load(diffcol_path(name)) as z:
+            ref["diffcol"] = z["diffcol"].astype(np.float64)
     if not ref["meta"].get("paired_off"):
         raise ValueError(f"{name}: this reference subtracts one shared 'off' render from both halves, which "
                          "leaves the noise of light seen through glass in it; render it again: python "
@@ -228,6 +231,60 @@ def _render(blend, spp, seed, caustics, mnee, path, threads=2):
     return time.perf_counter() - t
 
 
+def diffcol_path(name: str) -> Path:
+    return DATA / f"{name}_diffcol.npz"
+
+
+def render_diffuse_color(name: str, blend: Path, spp: int = 64, threads: int = 2) -> np.ndarray:
+    """Cycles' Diffuse Color pass of scene NAME ((H,W,3), top row first): where a receiver's colour
+    is a texture, the albedo our per-albedo layer is multiplied by, as the add-on's compositor does
+    (BakeResult.per_albedo). Stored beside the reference (diffcol_path)."""
+    import bpy
+    import OpenImageIO as oiio
+    from cycles_reference import _set_render
+
+    bpy.ops.wm.open_mainfile(filepath=str(blend))
+    scene = bpy.context.scene
+    _set_render(scene, spp, 1, False, threads)
+    scene.view_layers[0].use_pass_diffuse_color = True
+    scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
+    with tempfile.TemporaryDirectory() as tmp:
+        path = Path(tmp) / "diffcol.exr"
+        scene.render.filepath = str(path)
+        bpy.ops.render.render(write_still=True)
+        inp = oiio.ImageInput.open(str(path))
+        try:
+            sub = 0
+            while inp.seek_subimage(sub, 0):
+                names = list(inp.spec().channelnames)
+                if any("Diffuse Color" in c for c in names):
+                    px = np.asarray(inp.read_image(), np.float64)
+                    idx = [names.index(next(c for c in names if c.endswith(f"Diffuse Color.{ch}"))) for ch in "RGB"]
+                    dc = px[..., idx]
+                    break
+                sub += 1
+            else:
+                raise RuntimeError(f"{name}: the render has no Diffuse Color pass")
+        finally:
+            inp.close()
+    np.savez_compressed(diffcol_path(name), diffcol=dc.astype(np.float32), spp=np.asarray(spp))
+    return dc
+
+
+def composed_luminance(result, diffcol) -> np.ndarray:
+    """(B,H,W) our batches' luminance as the compositor shows them: the layer plus per_albedo x the
+    render's Diffuse Color pass where the scene has textured receivers (each batch scaled per pixel
+    by the composed mean over the bake's own); the batches as they are elsewhere."""
+    if getattr(result, "per_albedo", None) is None:
+        return result.batch_luminance
+    if diffcol is None:
+        raise ValueError("a scene with textured receivers needs its reference's Diffuse Color pass")
+    composed = (result.layer() + result.per_albedo * diffcol).mean(axis=2)
+    own = result.image.mean(axis=2)
+    scale = np.divide(composed, own, out=np.ones_like(composed), where=own > 0)
+    return result.batch_luminance * scale[None].astype(np.float32)
+
+
 def add_round(name: str, spp: int, threads: int = 2, fresh: bool = False) -> dict:
     """Render one more round of the reference of scene NAME and merge it in (fresh: start over).
 
@@ -248,6 +305,8 @@ def add_round(name: str, spp: int, threads: int = 2, fresh: bool = False) -> dic
     k = 0 if old is None else int(old["rounds"])
     with tempfile.TemporaryDirectory() as tmp:
         blend = scenes.build(name, Path(tmp))
+        if np.any(scene_arrays(name).mat_textured) and (fresh or not diffcol_path(name).exists()):
+            render_diffuse_color(name, blend, threads=threads)
         secs = {}
         halves, offs = {}, []
         for tag, seed in (("a", 2 * k + 1), ("b", 2 * k + 2)):
