@@ -57,6 +57,7 @@ SPP_BY_SCENE = {
     "mirror_alloy": {"reference": 1024, "sms": 16, "smbs": 16},
     "coated_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "checker_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
+    "tinted_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
     "egg_sun_spot": {"sms": 16, "smbs": 16},
 }
 

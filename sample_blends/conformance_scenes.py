@@ -242,6 +242,25 @@ def sphere_point_soft():
     return scene
 
 
+def tinted_ball():
+    """A Glass BSDF ball (IOR 1.5) whose Volume Absorption (Color 0.9/0.6/0.3, Density 1.5: (1 - Color)
+    x Density = 0.15/0.6/1.05 per metre) tints the light by its path inside (a chord of up to 1 m),
+    under sphere_point_soft's bulb and camera, which sees part of the caustic through the ball."""
+    scene = _scene("tinted_ball")
+    _floor(scene)
+    glass = B.material("TintedGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    nt = glass.node_tree
+    vol = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    vol.inputs["Color"].default_value = (0.9, 0.6, 0.3, 1.0)
+    vol.inputs["Density"].default_value = 1.5
+    nt.links.new(vol.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
+    B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
+                use_soft_falloff=True)
+    B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
+    return scene
+
+
 def sphere_refraction_spot():
     """Refraction BSDF sphere (tinted, IOR 1.33) under a spot light of radius 0.2."""
     scene = _scene("sphere_refraction_spot")
@@ -515,6 +534,8 @@ SCENES = {
     "principled_floor": (principled_floor, "a receiver of Blender's default material (Principled BSDF, "
                          "roughness 0.5) seen at a slant, under a glass ball"),
     "coated_floor": (coated_floor, "principled_floor's floor under a clear coat (Coat Weight 1)"),
+    "tinted_ball": (tinted_ball, "Glass BSDF ball with a Volume Absorption (0.15/0.6/1.05 per metre) under a "
+                    "point light, part of its caustic seen through it"),
     "checker_floor": (checker_floor, "the slanted ball over a Principled floor whose Base Color is a Checker "
                       "Texture (the render's Diffuse Color pass holds the albedo)"),
     "rough_floor": (rough_floor, "a Diffuse BSDF receiver of Roughness 1 (Oren-Nayar) seen at a slant, "

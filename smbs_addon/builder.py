@@ -48,7 +48,7 @@ class SceneBuilder:
     # ------------------------------------------------------------ materials
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
-                 bump_correction=False, layer=(0.0,) * 8, textured=False) -> int:
+                 bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0)) -> int:
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -57,7 +57,8 @@ class SceneBuilder:
                                    reflect_color=np.asarray(reflect_color, float), ior=float(ior),
                                    roughness=float(roughness), strength=float(strength),
                                    fresnel=int(fresnel), bump_correction=bool(bump_correction),
-                                   layer=np.asarray(layer, float), textured=bool(textured)))
+                                   layer=np.asarray(layer, float), textured=bool(textured),
+                                   absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy()))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
@@ -234,6 +235,8 @@ class SceneBuilder:
             if any(x["layer"][0] > 0 or x["layer"][4] > 0 or x["layer"][5] > 0 for x in m) else np.zeros((0, 8)),
             mat_textured=np.array([x["textured"] for x in m], bool) if any(x["textured"] for x in m)
             else np.zeros(0, bool),
+            mat_absorb=np.array([x["absorb"] for x in m], float).reshape(-1, 3) if any(x["absorb"].max() > 0 for x in m)
+            else np.zeros((0, 3)),
         )
         sc.validate()
         return sc

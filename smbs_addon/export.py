@@ -210,7 +210,33 @@ def _say_textured(mat, stand_in, warn):
 
 
 def classify_material(mat, warn) -> dict:
-    """Keyword arguments for ``SceneBuilder.material`` (minus the name) for a bpy Material."""
+    """Keyword arguments for ``SceneBuilder.material`` (minus the name) for a bpy Material: its
+    surface, and a glass's Volume Absorption."""
+    kw = _surface_material(mat, warn)
+    tree = mat.node_tree
+    out = _output(tree, "OUTPUT_MATERIAL") if tree is not None and _uses_nodes(mat) else None
+    vol = _follow(out.inputs["Volume"]) if out is not None and out.inputs.get("Volume") is not None else None
+    if vol is None or vol[0].mute:
+        return kw
+    node, why = vol[0], None
+    if kw["kind"] != S.DIELECTRIC:
+        why = "only a glass's volume is ours"
+    elif node.type != "VOLUME_ABSORPTION":
+        why = "only Volume Absorption is supported (no scattering, no emission)"
+    else:
+        try:  # Cycles: absorption (1 - Color) x Density, both clamped at 0
+            color = np.maximum(_const(node, "Color"), 0.0)
+            kw["absorb"] = np.maximum(1.0 - color, 0.0) * max(float(_const(node, "Density")), 0.0)
+        except _Unsupported as e:
+            why = str(e)
+    if why:
+        warn(f"material '{mat.name}': its Volume ('{node.name}') is ignored ({why}): light crosses the object "
+             f"unabsorbed and unscattered, where Cycles absorbs or scatters it")
+    return kw
+
+
+def _surface_material(mat, warn) -> dict:
+    """classify_material's surface."""
     def diffuse(reason, albedo=None):
         a = DEFAULT_ALBEDO if albedo is None else albedo
         a = np.broadcast_to(np.asarray(a, float), (3,))
@@ -221,11 +247,6 @@ def classify_material(mat, warn) -> dict:
     tree = mat.node_tree
     if tree is None or not _uses_nodes(mat):
         return diffuse("material has no shader nodes", np.array(mat.diffuse_color[:3], float))
-    out = _output(tree, "OUTPUT_MATERIAL")
-    vol = _follow(out.inputs["Volume"]) if out is not None and out.inputs.get("Volume") is not None else None
-    if vol is not None and not vol[0].mute:
-        warn(f"material '{mat.name}': its Volume ('{vol[0].name}') is ignored: light crosses the object "
-             f"unabsorbed and unscattered (Cycles absorbs it: a tinted glass's caustic comes out too bright)")
     try:
         node = _shader_node(tree, "OUTPUT_MATERIAL")
         if node is None:

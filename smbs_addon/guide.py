@@ -21,6 +21,7 @@ from . import scene as S
 from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .convergence import box
 from .lights import emit
+from .optics import absorption, arriving, inside, transmittance
 from .reference import scatter_specular
 
 TILE = 4  # pixels per tile side
@@ -161,6 +162,8 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
     cnt = np.zeros((len(o), 3), np.int64)
     other = np.zeros(2)  # flux in frame of chains not in types_list: [all of them, those longer than max_chain]
     rays = 0
+    medium = np.full(len(o), -1)  # inside a glass (its material) or not: its Volume Absorption
+    absorbing = bool(np.any(absorption(scene)))
     for bounce in range(max_bounces + 1):
         if check is not None:
             check()
@@ -170,9 +173,12 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         rays += len(o)
         idx = np.flatnonzero(h.hit)
         o, d, beta, sig, length = o[idx], d[idx], beta[idx], sig[idx], length[idx]
-        cnt = cnt[idx]
+        cnt, medium = cnt[idx], medium[idx]
         prim = h.prim[idx]
         mat = scene.tri_material[prim]
+        if absorbing:
+            seg_medium = arriving(scene, medium, mat, np.ones(len(idx), bool), d, h.ng[idx])
+            beta = beta * transmittance(scene, seg_medium, h.t[idx])
         kind = scene.mat_kind[mat]
         obj = scene.tri_object[prim]
         spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
@@ -211,6 +217,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         sig = sig[si][keep] * 3 + letter
         length = length[si][keep]
         cnt = cnt[si][keep]
+        medium = inside(scene, mat[si][keep], kind[si][keep] == S.DIELECTRIC, d_new, ng[keep])
         cnt[np.arange(len(letter)), letter] += length > 0
         length = length + 1
         o = tracer.spawn(p[keep], ng[keep], d_new)

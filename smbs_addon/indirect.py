@@ -172,6 +172,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         before = cnt.copy()  # the events before the latest
         o = tracer.spawn(f_p[sel], f_ng[sel], d)
         last_caster = np.zeros(len(lane), bool)
+        medium = np.full(len(lane), -1)  # inside a glass (its material) or not
+        absorbing = bool(np.any(optics.absorption(scene)))
         nxt = []
         for bounce in range(MAX_SPECULAR + 1):
             if len(lane) == 0:
@@ -190,6 +192,9 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                                        & lim.fits(before))
                 np.add.at(radiance, lane[count], beta[count] * seen_l[count])
             prim, hmat, kind = surface_at(scene, h)
+            if absorbing:  # the segment just crossed, inside a glass's volume (kernels._absorbed)
+                seg_medium = optics.arriving(scene, medium, hmat, h.hit, d, h.ng)
+                beta = beta * optics.transmittance(scene, seg_medium, np.where(h.hit, h.t, 0.0))
             diff = np.flatnonzero(kind == S.DIFFUSE)
             if diff.size:  # the next diffuse vertex
                 g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
@@ -222,6 +227,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                                             beta[spec], scale_eta=physical)
             sk = spec[keep]
             last_caster = plan.casters[scene.tri_object[prim[sk]]]
+            medium = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
             lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
             before = cnt[sk]
             cnt = before.copy()
@@ -231,6 +237,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             if alive.size < len(lane):
                 lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
                 last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
+                medium = medium[alive]
             o = tracer.spawn(h.p[sk], h.ng[sk], d)
         if not nxt:
             break

@@ -272,6 +272,27 @@ def _normalize(a):
 
 
 @njit(**_JIT)
+def _absorbed(mats, medium, m_hit, d, g_hit, t, b):
+    """b after a segment of length t along d inside a glass: medium (the glass it left into, -1:
+    none), else the glass of material m_hit if d arrives at its back (the segment began inside it:
+    a path from a receiver under water); times exp(-absorption t) (optics.transmittance;
+    mats[10]: Scene.mat_absorb)."""
+    if medium < 0 and mats[0][m_hit] == _DIELECTRIC and _dot(d, g_hit) > 0:
+        medium = m_hit
+    if medium < 0:
+        return b
+    a = mats[10]
+    return (b[0] * math.exp(-a[medium, 0] * t), b[1] * math.exp(-a[medium, 1] * t),
+            b[2] * math.exp(-a[medium, 2] * t))
+
+
+@njit(inline="always", **_JIT)
+def _medium_after(m, kind, dd, g):
+    """The medium a path is in leaving a vertex of material m along dd (optics.inside)."""
+    return m if kind == _DIELECTRIC and _dot(dd, g) < 0 else -1
+
+
+@njit(**_JIT)
 def _tab_weight(tab, m, mu):
     """layer.weight for one vertex: material m's entry of tab (one of layer.py's tables,
     optics.materials' mats[6], [7] or [9]) at the eye's cosine mu; exactly 1 in a row of ones."""
@@ -1478,6 +1499,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
         kc = _coat_factor(mats, mat0[i], _v(ns0, i, 0), _v(w0, i, 0), d, True)  # under a Principled coat
         b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
         o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
+        medium = -1
         for bounce in range(K + 1):
             pr, t, p, gg, v0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
             if bounce > 0:  # a segment after a specular vertex: the caller looks for lights on it
@@ -1488,6 +1510,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
                 seg_n[lane] = k + 1
             if pr < 0 or bounce == K or (bounce == 0 and targeted and pr != first):
                 break
+            b = _absorbed(mats, medium, tri_material[pr], d, gg, t, b)
             m = tri_material[pr]
             kind = mat_kind[m]
             if kind != _CONDUCTOR and kind != _DIELECTRIC:
@@ -1510,6 +1533,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
             hist[lane, bounce, 5] = 1.0 if _dot(d, n) * _dot(dd, n) < 0 else 0.0
             hist[lane, bounce, 6] = 1.0 if casters[tri_object[pr]] else 0.0
             o = _add(p, _mul(eps if _dot(dd, gg) >= 0 else -eps, gg))
+            medium = _medium_after(m, kind, dd, gg)
             d, b = dd, bb
 
 
@@ -1597,10 +1621,12 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
         has_s = False  # a specular vertex on a planned caster so far (indirect)
         n_diff = 0  # diffuse vertices so far (indirect)
         full = False
+        medium = -1  # inside a glass (its material) or not
         for it in range(max_iter):
-            pr, _, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
+            pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
+            b = _absorbed(mats, medium, tri_material[pr], d, g, t, b)
             if it == 0 and soft[3] > 0:  # lights.soft_falloff_factor
                 dc = _sub(p, (soft[0], soft[1], soft[2]))
                 d2 = _dot(dc, dc)
@@ -1666,6 +1692,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
                     hist[lane, it, 5] = 1.0 if _dot(d, n) * _dot(dd, n) < 0 else 0.0
                     hist[lane, it, 6] = 1.0 if casters[obj] else 0.0
             o = _add(p, _mul(eps if _dot(dd, g) >= 0 else -eps, g))  # tracer.spawn
+            medium = _medium_after(m, kind, dd, g)
             d, b = dd, bb
         if full:
             counts[0], counts[1], counts[KINDS] = c0, c1, c2
@@ -1855,10 +1882,12 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
         o, d = _camera_ray(cam, rx[lane], ry[lane])
         b = (1.0, 1.0, 1.0)
         ngl = nt = 0  # the camera's glossy and transmission bounces so far
+        medium = -1
         for depth in range(max_bounces + 1):
-            pr, _, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
+            pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
+            b = _absorbed(mats, medium, tri_material[pr], d, g, t, b)
             m = tri_material[pr]
             kind = mat_kind[m]
             if kind == _DIFFUSE:
@@ -1882,6 +1911,7 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
             else:
                 nt += 1
             o = _add(p, _mul(eps if _dot(dd, g) >= 0 else -eps, g))  # tracer.spawn
+            medium = _medium_after(m, kind, dd, g)
             d, b = dd, bb
     return nrec
 
@@ -1956,6 +1986,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
             o = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
             last_caster = False
             go_on = False  # a next diffuse vertex to bounce from
+            medium = -1
             for bounce in range(max_specular + 1):
                 pr, t, hp, hg, hn, _, _ = _next_surface(ray, o, d, tv, tng, tns, eps)
                 if (want_seg and bounce > 0 and last_caster and (depth >= 1 or count_first)
@@ -1970,6 +2001,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                     nseg += 1
                 if pr < 0:
                     break
+                b = _absorbed(mats, medium, tri_material[pr], d, hg, t, b)
                 hm = tri_material[pr]
                 kind = mat_kind[hm]
                 if kind == _DIFFUSE:  # the next diffuse vertex
@@ -2005,6 +2037,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                 if not _fits(lim, bd, bg, bt):  # the events before the latest no longer fit
                     break
                 o = _add(hp, _mul(eps if _dot(dd, hg) >= 0 else -eps, hg))
+                medium = _medium_after(hm, kind, dd, hg)
                 d, b = dd, bb
             if full or not go_on:
                 break

@@ -328,7 +328,39 @@ def materials(scene) -> tuple:
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
             np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64),
-            table(scene, spec), gain_table(scene), coat(scene), spec)
+            table(scene, spec), gain_table(scene), coat(scene), spec, absorption(scene))
+
+
+def absorption(scene) -> np.ndarray:
+    """(M,3) each glass's absorption per unit length inside it (Scene.mat_absorb; zeros where the
+    scene has none)."""
+    a = np.asarray(getattr(scene, "mat_absorb", np.zeros((0, 3))), np.float64)
+    return np.ascontiguousarray(a) if a.shape == (len(scene.mat_kind), 3) else np.zeros((len(scene.mat_kind), 3))
+
+
+def inside(scene, mat, kind_is_glass, d_out, ng) -> np.ndarray:
+    """(N,) the medium a path enters leaving a vertex along d_out: the vertex's material where it
+    is glass and d_out goes into the back of its geometric normal (into the object, or on inside it
+    after an internal reflection), else -1 (outside; Cycles' volume stack the same way for closed
+    meshes whose normals point out)."""
+    return np.where(kind_is_glass & (np.einsum("ij,ij->i", d_out, ng) < 0), mat, -1)
+
+
+def arriving(scene, medium, mat_hit, hit, d, ng_hit) -> np.ndarray:
+    """(N,) the medium of segments along d that end at a hit (hit: bool; mat_hit, ng_hit: its
+    material and geometric normal): medium (inside's, where the segment left a glass into it),
+    else the glass the segment arrives at from its back (it began inside: a receiver under
+    water), else -1 (kernels._absorbed the same)."""
+    back = hit & (scene.mat_kind[mat_hit] == S.DIELECTRIC) & (np.einsum("ij,ij->i", d, ng_hit) > 0)
+    return np.where(medium >= 0, medium, np.where(back, mat_hit, -1))
+
+
+def transmittance(scene, medium, length) -> np.ndarray:
+    """(N,3) what a path keeps crossing length inside medium (inside's; -1: none): exp(-absorb x
+    length)."""
+    a = absorption(scene)
+    sigma = np.where((medium >= 0)[:, None], a[np.maximum(medium, 0)], 0.0)
+    return np.exp(-sigma * np.asarray(length, np.float64)[:, None])
 
 
 def bump_correction(scene) -> np.ndarray:

@@ -41,7 +41,7 @@ AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
-OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured")
+OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -163,6 +163,10 @@ class Scene:
     # caustic per unit albedo (BakeResult.per_albedo) for the render's Diffuse Color pass to
     # multiply. Empty: none (a scene built in code, or saved before it was exported)
     mat_textured: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    # (M,3): a glass's Volume Absorption, the absorption coefficient per unit length ((1 - Color) x
+    # Density, as Cycles takes it): light crossing the glass over a length d keeps exp(-absorb d).
+    # Empty: none (a scene built in code, or saved before it was exported)
+    mat_absorb: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     # ------------------------------------------------------------------ derived
     @property
@@ -252,6 +256,15 @@ class Scene:
         if self.mat_textured.size and np.any(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE)):
             i = int(np.flatnonzero(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE))[0])
             raise SceneError(f"material '{self.mat_names[i]}': only a diffuse material can be textured")
+        if self.mat_absorb.shape not in ((0, 3), (M, 3)):
+            raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
+        bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []
+        if np.any(bad):
+            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': volume absorption must be "
+                             f"finite and not negative")
+        if self.mat_absorb.size and np.any((self.mat_absorb.max(axis=1) > 0) & (self.mat_kind != DIELECTRIC)):
+            i = int(np.flatnonzero((self.mat_absorb.max(axis=1) > 0) & (self.mat_kind != DIELECTRIC))[0])
+            raise SceneError(f"material '{self.mat_names[i]}': only glass can absorb light inside it")
         if self.mat_layer.shape not in ((0, 8), (M, 8)):
             raise SceneError(f"scene array 'mat_layer' must be ({M}, 8) or empty")
         fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)

@@ -53,6 +53,9 @@ CASES = [
     # pass: 0.66 of Cycles with the texture's mean colour alone (0.967 now: the colour of the floor seen through the
     # ball and of the coat's sampling share are the mean's)
     ("checker_floor", "reference", 512),
+    # a glass ball with a Volume Absorption (0.15/0.6/1.05 per metre): 1.63 of Cycles unabsorbed
+    ("tinted_ball", "reference", 256),
+    ("tinted_ball", "smbs", 4),
 ]
 
 

@@ -536,14 +536,31 @@ def test_an_image_textures_stand_in_is_its_mean_linear_colour(is_float):
         np.testing.assert_allclose(want, [0.318, 0.226, 0.164], atol=0.002)  # not the encoded 0.5, 0.5, 0.35
 
 
-def test_a_volume_is_said_to_be_ignored():
-    m = material("Wine", "ShaderNodeBsdfGlass")
+def _with_volume(m, node_type, **inputs):
     nt = m.node_tree
-    vol = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    vol = nt.nodes.new(node_type)
+    for k, v in inputs.items():
+        vol.inputs[k].default_value = v
     nt.links.new(vol.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    return m
+
+
+def test_a_glass_volume_absorption_is_its_absorption():
+    """Cycles absorbs (1 - Color) x Density per unit length inside the glass."""
+    m = _with_volume(material("Wine", "ShaderNodeBsdfGlass"), "ShaderNodeVolumeAbsorption",
+                     Color=(0.9, 0.3, 0.1, 1.0), Density=2.5)
     sc, warnings = one_material(m)
-    assert sc.mat_kind[0] == S.DIELECTRIC
-    assert len(warnings) == 1 and warnings[0].startswith("material 'Wine': its Volume ('Volume Absorption') is ignored")
+    assert sc.mat_kind[0] == S.DIELECTRIC and warnings == []
+    np.testing.assert_allclose(sc.mat_absorb[0], [0.25, 1.75, 2.25], rtol=1e-6)  # float32 sockets
+
+
+@pytest.mark.parametrize("surface,volume,why", [
+    ("ShaderNodeBsdfGlass", "ShaderNodeVolumeScatter", "only Volume Absorption is supported"),
+    ("ShaderNodeBsdfGlossy", "ShaderNodeVolumeAbsorption", "only a glass's volume is ours")])
+def test_other_volumes_are_said_to_be_ignored(surface, volume, why):
+    sc, warnings = one_material(_with_volume(material("Smoke", surface), volume))
+    assert not np.any(sc.mat_absorb)
+    assert len(warnings) == 1 and warnings[0].startswith("material 'Smoke': its Volume (") and why in warnings[0]
 
 
 def test_a_textured_metal_is_still_a_diffuse_stand_in():
