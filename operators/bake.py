@@ -227,7 +227,9 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     if hasattr(scene, "cycles"):
         try:
             plan = core.make_plan(prep.data, prep.settings.use_cycles_flags)
-            cov = policy.coverage(prep.data, plan, prep.settings.use_cycles_flags, prep.blender_lights)
+            noise = (result.stats or {}).get("noise") or {}
+            cov = policy.coverage(prep.data, plan, prep.settings.use_cycles_flags, prep.blender_lights,
+                                  layer_mean=noise.get("mean"))
         except Exception as e:
             traceback.print_exc()
             warnings.append(f"Could not tell which caustics the layer covers ({e}); "

@@ -8,9 +8,10 @@ drops glossy and transmission after a diffuse bounce, which also switches its
 shadow caustics (MNEE) off. Those switches are global, so:
 
 - the plan covers every caster, receiver and light of the scene (and there is
-  no world light or emissive material, which the layer does not handle): a
-  bake turns both switches off, remembering how they were; Remove Caustic
-  Layer puts them back;
+  no world light or emissive material, which the layer does not handle; a
+  constant world too faint to show through mirrors and glass is named as
+  dropped instead, see coverage): a bake turns both switches off, remembering
+  how they were; Remove Caustic Layer puts them back;
 - otherwise Cycles is left as it is, and the note says what is counted where.
 
 The user's caster / receiver / light flags are never changed.
@@ -22,6 +23,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 
+# A world of constant colour whose caustic can be at most this share of the layer's (its mean over
+# the caustic region) does not keep Cycles' caustics on: see coverage
+WORLD_NEGLIGIBLE = 0.01
+
+
 @dataclass
 class Coverage:
     covered: bool
@@ -29,6 +35,7 @@ class Coverage:
     receivers: list = field(default_factory=list)
     lights: list = field(default_factory=list)
     left_to_cycles: list = field(default_factory=list)  # what only Cycles renders, with why
+    dropped: list = field(default_factory=list)  # what neither renders once Cycles' are off, too faint to see
 
 
 def _names(names, mask):
@@ -40,11 +47,17 @@ def _short(names, most=4):
     return ", ".join(quoted) if len(quoted) <= most else ", ".join(quoted[:most]) + f" and {len(quoted) - most} more"
 
 
-def coverage(data, plan, flags_mode: str, blender_lights=()) -> Coverage:
+def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None) -> Coverage:
     """What the layer covers, from the exported scene ``data`` and its ``plan``.
 
     blender_lights: (name, is_portal) of the scene's renderable light objects,
-    to find lights the export could not represent.
+    to find lights the export could not represent. layer_mean: the bake's mean over its
+    caustic region (stats["noise"]["mean"]). A world of constant colour L makes no caustic
+    brighter than L x the brightest diffuse colour (radiance is conserved along mirrors and
+    glass, so a receiver lit by the whole sky through them sends at most that); where that is
+    at most WORLD_NEGLIGIBLE of layer_mean (Blender's default grey world under a lamp), it is
+    listed as dropped instead of keeping Cycles' caustics on, which would count the layer's
+    caustics twice.
     """
     from ..smbs_addon import scene as S
 
@@ -73,8 +86,16 @@ def coverage(data, plan, flags_mode: str, blender_lights=()) -> Coverage:
         if not any(e == name or e.endswith("/" + name) or e.startswith(name + ".") for e in exported):
             left.append(f"light '{name}' (a kind the layer cannot bake)")
 
-    if np.max(data.world_color, initial=0.0) > 0:
-        left.append("world lighting (the layer has no world light)")
+    dropped = []
+    world = float(np.max(data.world_color, initial=0.0))
+    if world > 0:
+        diffuse = data.mat_color[data.mat_kind == S.DIFFUSE]
+        bound = world * float(np.max(diffuse, initial=0.0))
+        if layer_mean is not None and layer_mean > 0 and bound <= WORLD_NEGLIGIBLE * layer_mean:
+            dropped.append(f"world lighting through mirrors and glass (at most {bound / layer_mean:.1%} of the "
+                           "layer's caustic)")
+        else:
+            left.append("world lighting (the layer has no world light)")
     used = np.unique(data.tri_material) if data.n_tris else np.zeros(0, int)
     for m in used:
         if data.mat_kind[m] == S.EMITTER:
@@ -84,7 +105,7 @@ def coverage(data, plan, flags_mode: str, blender_lights=()) -> Coverage:
                     casters=_names(data.object_names, plan.casters),
                     receivers=_names(data.object_names, plan.receivers),
                     lights=[lp.name for lp in plan.lights],
-                    left_to_cycles=left)
+                    left_to_cycles=left, dropped=dropped)
 
 
 def mnee_active(bpy_scene) -> bool:
@@ -132,6 +153,8 @@ def update_cycles(bpy_scene, props, cov: Coverage) -> tuple[bool, list[str]]:
                  "Remove Caustic Layer turns them back on.",
                  "Neither renders light that meets mirrors or glass after a diffuse bounce and then "
                  "lights another diffuse surface (diffuse light through mirrors and glass)."]
+        if cov.dropped:
+            lines.append("Too faint to see, rendered by neither: " + "; ".join(cov.dropped) + ".")
         kept_out = True
     else:
         restore_cycles(bpy_scene, props)

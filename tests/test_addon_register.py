@@ -632,16 +632,37 @@ def test_partial_plan_leaves_cycles_alone_and_says_why(empty_bpy, addon, tmp_pat
     assert _flags(scene) == flags
 
 
-def test_world_light_is_left_to_cycles(empty_bpy, addon, tmp_path):
-    scene = _mirror_scene()
+def _sky(scene, value):
     scene.world = world = bpy.data.worlds.new("Sky")
-    world.color = (0.05, 0.05, 0.05)
+    world.color = (value,) * 3
     background = world.node_tree and world.node_tree.nodes.get("Background")
     if background:
-        background.inputs["Color"].default_value = (0.05, 0.05, 0.05, 1.0)
+        background.inputs["Color"].default_value = (value, value, value, 1.0)
+
+
+def test_world_light_is_left_to_cycles(empty_bpy, addon, tmp_path):
+    """A world bright enough that its light through the mirror could show (its colour x the
+    floor's 0.8 against the layer's caustic) keeps Cycles' own caustics on."""
+    scene = _mirror_scene()
+    _sky(scene, 0.5)
     s = _bake(scene, tmp_path)
+    mean = json.loads(s.last_stats)["noise"]["mean"]
+    assert 0.5 * 0.8 > addon.operators.policy.WORLD_NEGLIGIBLE * mean
     assert scene.cycles.caustics_reflective and not s.cycles_kept_out
     assert "world lighting" in s.cycles_note
+
+
+def test_a_faint_world_does_not_keep_cycles_caustics_on(empty_bpy, addon, tmp_path):
+    """Blender's default world is a constant grey: its caustic can be no brighter than its colour
+    x the brightest diffuse colour (radiance is conserved through mirrors and glass). Under 1% of
+    the layer's caustic it is dropped, said so, and Cycles' caustics go off as without it."""
+    scene = _mirror_scene()
+    _sky(scene, 0.0005)
+    s = _bake(scene, tmp_path)
+    mean = json.loads(s.last_stats)["noise"]["mean"]
+    assert 0.0005 * 0.8 <= addon.operators.policy.WORLD_NEGLIGIBLE * mean
+    assert not scene.cycles.caustics_reflective and s.cycles_kept_out
+    assert "Too faint to see, rendered by neither: world lighting through mirrors and glass (at most" in s.cycles_note
 
 
 def test_keep_out_of_cycles_off(empty_bpy, addon, tmp_path):
