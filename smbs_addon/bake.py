@@ -467,17 +467,19 @@ def _summarise_walks(st: dict) -> None:
         st["rays"] += hs["rays_photon"] + hs["rays_camera"]
 
 
-def film_memory(width: int, height: int, batches: int) -> int:
+def film_memory(width: int, height: int, batches: int, textured: bool = False) -> int:
     """Bytes the film of a bake needs: per pixel the sum, sum of squares and current batch
     (3 float64 each), the image and variance made from them (float64, then float32), and one
-    float32 luminance image per batch (kept, then stacked)."""
+    float32 luminance image per batch (kept, then stacked); with textured receivers, their two
+    sums (3 float64 each) and the two float32 images made from them."""
     px = int(width) * int(height)
-    return px * (3 * 3 * 8 + 2 * 3 * 8 + 2 * 3 * 4) + 2 * int(batches) * px * 4
+    extra = px * 2 * 3 * (8 + 4) if textured else 0
+    return px * (3 * 3 * 8 + 2 * 3 * 8 + 2 * 3 * 4) + 2 * int(batches) * px * 4 + extra
 
 
 def check_memory(scene, width: int, height: int, batches: int) -> None:
     """Refuse, before anything is allocated, a film bigger than MEMORY_BUDGET."""
-    need = film_memory(width, height, batches)
+    need = film_memory(width, height, batches, bool(np.any(scene.mat_textured)))
     if need > MEMORY_BUDGET:
         raise SceneError(
             f"scene '{scene.name}': a {width} x {height} caustic layer needs about "

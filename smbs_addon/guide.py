@@ -173,10 +173,11 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         rays += len(o)
         idx = np.flatnonzero(h.hit)
         o, d, beta, sig, length = o[idx], d[idx], beta[idx], sig[idx], length[idx]
-        cnt, medium = cnt[idx], medium[idx]
+        cnt = cnt[idx]
         prim = h.prim[idx]
         mat = scene.tri_material[prim]
         if absorbing:
+            medium = medium[idx]
             seg_medium = arriving(scene, medium, mat, np.ones(len(idx), bool), d, h.ng[idx])
             beta = beta * transmittance(scene, seg_medium, h.t[idx])
         kind = scene.mat_kind[mat]
@@ -217,7 +218,8 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         sig = sig[si][keep] * 3 + letter
         length = length[si][keep]
         cnt = cnt[si][keep]
-        medium = inside(scene, mat[si][keep], kind[si][keep] == S.DIELECTRIC, d_new, ng[keep])
+        if absorbing:
+            medium = inside(scene, mat[si][keep], kind[si][keep] == S.DIELECTRIC, d_new, ng[keep])
         cnt[np.arange(len(letter)), letter] += length > 0
         length = length + 1
         o = tracer.spawn(p[keep], ng[keep], d_new)

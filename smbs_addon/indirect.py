@@ -227,7 +227,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                                             beta[spec], scale_eta=physical)
             sk = spec[keep]
             last_caster = plan.casters[scene.tri_object[prim[sk]]]
-            medium = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
+            if absorbing:
+                medium = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
             lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
             before = cnt[sk]
             cnt = before.copy()
@@ -237,7 +238,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             if alive.size < len(lane):
                 lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
                 last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
-                medium = medium[alive]
+                if absorbing:
+                    medium = medium[alive]
             o = tracer.spawn(h.p[sk], h.ng[sk], d)
         if not nxt:
             break

@@ -271,17 +271,19 @@ def _normalize(a):
     return (a[0] * inv, a[1] * inv, a[2] * inv)
 
 
-@njit(**_JIT)
-def _absorbed(mats, medium, m_hit, d, g_hit, t, b):
+@njit(inline="always", **_JIT)
+def _absorbed(kinds, a, medium, m_hit, d, g_hit, t, b):
     """b after a segment of length t along d inside a glass: medium (the glass it left into, -1:
     none), else the glass of material m_hit if d arrives at its back (the segment began inside it:
-    a path from a receiver under water); times exp(-absorption t) (optics.transmittance;
-    mats[10]: Scene.mat_absorb)."""
-    if medium < 0 and mats[0][m_hit] == _DIELECTRIC and _dot(d, g_hit) > 0:
+    a path from a receiver under water); times exp(-absorption t) (optics.transmittance; kinds,
+    a: optics.materials' mats[0] and mats[10], Scene.mat_absorb; the two arrays, not the whole
+    tuple, which numba would copy into every call)."""
+    if medium < 0 and kinds[m_hit] == _DIELECTRIC and _dot(d, g_hit) > 0:
         medium = m_hit
     if medium < 0:
         return b
-    a = mats[10]
+    if a[medium, 0] == 0.0 and a[medium, 1] == 0.0 and a[medium, 2] == 0.0:  # clear glass
+        return b
     return (b[0] * math.exp(-a[medium, 0] * t), b[1] * math.exp(-a[medium, 1] * t),
             b[2] * math.exp(-a[medium, 2] * t))
 
@@ -1510,7 +1512,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
                 seg_n[lane] = k + 1
             if pr < 0 or bounce == K or (bounce == 0 and targeted and pr != first):
                 break
-            b = _absorbed(mats, medium, tri_material[pr], d, gg, t, b)
+            b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, gg, t, b)
             m = tri_material[pr]
             kind = mat_kind[m]
             if kind != _CONDUCTOR and kind != _DIELECTRIC:
@@ -1626,7 +1628,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
             pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
-            b = _absorbed(mats, medium, tri_material[pr], d, g, t, b)
+            b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, g, t, b)
             if it == 0 and soft[3] > 0:  # lights.soft_falloff_factor
                 dc = _sub(p, (soft[0], soft[1], soft[2]))
                 d2 = _dot(dc, dc)
@@ -1887,7 +1889,7 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
             pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
-            b = _absorbed(mats, medium, tri_material[pr], d, g, t, b)
+            b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, g, t, b)
             m = tri_material[pr]
             kind = mat_kind[m]
             if kind == _DIFFUSE:
@@ -2001,7 +2003,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                     nseg += 1
                 if pr < 0:
                     break
-                b = _absorbed(mats, medium, tri_material[pr], d, hg, t, b)
+                b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, hg, t, b)
                 hm = tri_material[pr]
                 kind = mat_kind[hm]
                 if kind == _DIFFUSE:  # the next diffuse vertex
