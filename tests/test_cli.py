@@ -194,6 +194,28 @@ def test_bake_blend(tmp_path):
     assert re.search(r"^plan:\n  Light -> Mirror \(reflection\) -> Floor\n  auto, Light: ", proc.stdout, re.M), proc.stdout
 
 
+def test_bake_a_textured_floor_blend(tmp_path):
+    """A .blend whose floor's Base Color is a Checker Texture (the conformance suite's
+    checker_floor), baked by the command line: it says how much of the layer lies on textured
+    receivers, and the EXR carries that part per unit albedo beside the rest."""
+    pytest.importorskip("bpy")
+    sys.path.insert(0, str(ROOT / "sample_blends"))
+    import conformance_scenes
+
+    blend = conformance_scenes.build("checker_floor", tmp_path)
+    out = tmp_path / "checker.exr"
+    proc = run("bake", blend, "--method", "reference", "--spp", 64, "--out", out, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "its colour is a texture" in proc.stderr
+    share = re.search(r"^  textured receivers: (\d+)% of the layer", proc.stdout, re.M)
+    assert share and 80 <= int(share.group(1)) <= 100, proc.stdout
+    rgb, _ = read_exr(out)
+    per = np.stack([read_exr(out, f"per_albedo_{c}")[0] for c in "RGB"], axis=2)
+    assert per.shape == rgb.shape and per.max() > 0
+    # what is left in the colour channels: the caustic seen through the ball, a small part
+    assert rgb.sum() < 0.2 * (rgb.sum() + (per * 0.4).sum())
+
+
 def test_error_bar_and_price_in_output_json_and_exr(baked):
     """Every bake says how wrong it is and what half the error would cost, and the EXR
     carries the per-pixel standard deviation as a channel of its own."""
