@@ -2,6 +2,7 @@
 Diffuse Color pass is added beside the caustic layer, updated in place, and taken out again
 with the user's compositor and view layer passes as they were."""
 import importlib
+import json
 import time
 from types import SimpleNamespace
 
@@ -265,3 +266,29 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     assert np.allclose(imageio.read_exr(tmp_path / "layer.exr")[0][..., :3], image)
     assert _images() == [LAYER] and not scene.view_layers[0].use_pass_diffuse_color
     assert not any(_our_nodes(scene.compositing_node_group, role) for role in ALBEDO_ROLES)
+
+
+def test_the_operator_bakes_a_textured_floor_into_the_compositor(empty_bpy, addon, tmp_path):
+    """Bake Caustics on the mirror scene whose floor's colour is a Checker Texture: the layer EXR,
+    its per-albedo EXR beside it, both images in the compositor with the Diffuse Color pass
+    switched on, and the panel's statistics say the share; Remove Caustic Layer takes it all out."""
+    scene = _mirror_scene(24, 16)
+    floor = bpy.data.materials["Floor"]
+    nt = floor.node_tree
+    tex = nt.nodes.new("ShaderNodeTexChecker")
+    nt.links.new(tex.outputs["Color"], nt.nodes["Diffuse BSDF"].inputs["Color"])
+    s = scene.smbs_caustics
+    s.method, s.spp, s.batches, s.seed = "reference", 4, 2, 1
+    s.output_path = str(tmp_path / "layer.exr")
+    vl = scene.view_layers[0]
+    assert not vl.use_pass_diffuse_color
+    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
+    assert (tmp_path / "layer.exr").is_file() and (tmp_path / "layer_per_albedo.exr").is_file()
+    assert vl.use_pass_diffuse_color
+    assert bpy.data.images.get(ALBEDO) is not None
+    stats = json.loads(s.last_stats)
+    assert 0.9 < stats["textured_share"] <= 1.0 + 1e-6  # the floor is seen directly everywhere
+    tree = scene.compositing_node_group
+    assert len(_our_nodes(tree, "multiply")) == 1 and len(_our_nodes(tree, "albedo_image")) == 1
+    assert bpy.ops.smbs.remove_caustic_layer() == {'FINISHED'}
+    assert not vl.use_pass_diffuse_color and bpy.data.images.get(ALBEDO) is None
