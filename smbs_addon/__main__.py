@@ -267,6 +267,9 @@ def exr_metadata(settings, result) -> dict:
     for key in ("relative_error", "seconds_to_halve_error"):  # absent (None): not measurable
         if st.get(key) is not None:
             meta[key] = float(st[key])
+    if getattr(result, "per_albedo", None) is not None:  # a pipeline reading R, G, B alone would miss it
+        meta["composite"] = ("R, G, B + per_albedo_R, _G, _B x the render's Diffuse Color pass (the caustic on "
+                             "textured receivers seen directly, per unit albedo)")
     return meta
 
 

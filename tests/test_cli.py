@@ -209,7 +209,8 @@ def test_bake_a_textured_floor_blend(tmp_path):
     assert "its colour is a texture" in proc.stderr
     share = re.search(r"^  textured receivers: (\d+)% of the layer", proc.stdout, re.M)
     assert share and 80 <= int(share.group(1)) <= 100, proc.stdout
-    rgb, _ = read_exr(out)
+    rgb, meta = read_exr(out)
+    assert meta["composite"].startswith("R, G, B + per_albedo_R, _G, _B x the render's Diffuse Color pass")
     per = np.stack([read_exr(out, f"per_albedo_{c}")[0] for c in "RGB"], axis=2)
     assert per.shape == rgb.shape and per.max() > 0
     # what is left in the colour channels: the caustic seen through the ball, a small part
