@@ -47,7 +47,7 @@ def direct_albedo(scene, rc: Receivers, idx=None) -> np.ndarray | None:
     by, as Cycles' Diffuse Color pass holds it there (its colour times the share its coats leave
     it towards the eye, which beta holds on a camera ray); zero elsewhere. None without textured
     receivers."""
-    tex = scene.mat_textured
+    tex = np.asarray(scene.mat_textured, bool)  # a scene built in code may hold 0/1 numbers
     if not np.any(tex):
         return None
     mat, beta, spec = (rc.mat, rc.beta, rc.eye_specular) if idx is None else \

@@ -85,6 +85,17 @@ def test_under_a_principled_coat_the_albedo_is_what_the_coat_leaves():
     assert np.ptp(ratio[:, 0]) > 1e-3  # it follows mu across the floor
 
 
+def test_flags_given_as_numbers_split_the_same():
+    """A scene built in code may mark textured receivers with 0/1 numbers: the same split."""
+    settings = BakeSettings(method="smbs", spp=1, seed=6)
+    as_bool = bake(_textured(scenes.glass_sphere_scene(resolution=(16, 12))), settings)
+    sc = scenes.glass_sphere_scene(resolution=(16, 12))
+    sc.mat_textured = (sc.mat_kind == S.DIFFUSE).astype(float)
+    as_float = bake(sc, settings)
+    np.testing.assert_array_equal(as_float.per_albedo, as_bool.per_albedo)
+    np.testing.assert_array_equal(as_float.image, as_bool.image)
+
+
 def test_the_exr_holds_the_layer_and_the_per_albedo_channels():
     sc = _textured(scenes.glass_sphere_scene(resolution=(16, 12)))
     r = bake(sc, BakeSettings(method="reference", spp=1, seed=1))
