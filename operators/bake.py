@@ -186,10 +186,8 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     stats = json.loads(json.dumps(result.stats or {}, default=_json_default))
 
     # On textured receivers the caustic is per_albedo x the render's Diffuse Color pass, added
-    # beside the rest of the layer (result.layer()); results without them (older cores, tests):
-    # the image is the whole layer.
-    layer = result.layer() if callable(getattr(result, "layer", None)) else result.image
-    per_albedo = getattr(result, "per_albedo", None)
+    # beside the rest of the layer (result.layer(); the whole image without them)
+    layer, per_albedo = result.layer(), result.per_albedo
     path, stored_path = prep.path, prep.stored_path
     albedo_stored, writing = None, path
     try:
@@ -206,20 +204,16 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
         # The bake is not thrown away: the layer is packed into the blend file instead.
         warnings.append(f"Could not write '{writing}' ({e}); the caustic layer is packed into the blend file")
         stored_path = albedo_stored = None
-    switched_on = getattr(core, "diffuse_color_switched_on", lambda scene: None)
-    had_pass = switched_on(scene)
+    had_pass = core.diffuse_color_switched_on(scene)
     try:
-        if per_albedo is None:
-            core.apply_layer(scene, layer, name=LAYER_NAME, filepath=stored_path)
-        else:
-            core.apply_layer(scene, layer, name=LAYER_NAME, filepath=stored_path,
-                             per_albedo=per_albedo, per_albedo_filepath=albedo_stored)
+        core.apply_layer(scene, layer, name=LAYER_NAME, filepath=stored_path, per_albedo=per_albedo,
+                         per_albedo_filepath=albedo_stored)
     except Exception as e:
         traceback.print_exc()
         report({'ERROR'}, f"Could not add the caustic layer to the compositor: {e}")
         return False
     props.last_stats = json.dumps(stats)
-    view_layer = switched_on(scene)
+    view_layer = core.diffuse_color_switched_on(scene)
     if view_layer and view_layer != had_pass:
         report({'INFO'}, f"Switched on the Diffuse Color pass of view layer '{view_layer}': the caustic on "
                          "textured surfaces is multiplied by their colour in the compositor")

@@ -479,7 +479,7 @@ def film_memory(width: int, height: int, batches: int, textured: bool = False) -
 
 def check_memory(scene, width: int, height: int, batches: int) -> None:
     """Refuse, before anything is allocated, a film bigger than MEMORY_BUDGET."""
-    need = film_memory(width, height, batches, bool(np.any(scene.mat_textured)))
+    need = film_memory(width, height, batches, scene.textured_materials() is not None)
     if need > MEMORY_BUDGET:
         raise SceneError(
             f"scene '{scene.name}': a {width} x {height} caustic layer needs about "
@@ -634,7 +634,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
     check_memory(scene, cam.W, cam.H, settings.batches)
     if plan.nothing:
         return _nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
-    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region, textured=bool(np.any(scene.mat_textured)))
+    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region, textured=scene.textured_materials() is not None)
     tracer = _trace_plan(plan, scene, settings, cam)
     _note_bent(scene, tracer, plan)
     if on_plan is not None:

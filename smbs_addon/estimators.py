@@ -28,7 +28,7 @@ from .constraints import LightEnd
 from .geometry import packed_floats
 from .kernels import chain_kinds, chain_solve
 from .lights import has_spread, soft_falloff_factor, spot_mask, spread_factor
-from .optics import absorption, arriving, bent, bump_correction, inside, specular_weights, transmittance
+from .optics import absorbing, arriving, bent, bump_correction, inside, specular_weights, transmittance
 from .vec import dot, frame, normalize
 
 def chain_throughput(scene, types, x0, verts, light_point, directional, physical=False):
@@ -55,7 +55,7 @@ def chain_throughput(scene, types, x0, verts, light_point, directional, physical
                 ratio = np.where(dot(wi, v.ng) < 0, eta, 1.0 / eta)  # eta(w_i side) / eta(w_o side)
                 w = w * (ratio**2)[:, None]
             T *= w
-    if np.any(absorption(scene)):  # inside glass: what its Volume Absorption leaves (optics.transmittance)
+    if absorbing(scene):  # inside glass: what its Volume Absorption leaves (optics.transmittance)
         glass = scene.mat_kind == S.DIELECTRIC
         v0 = verts[0]  # x0 to the first vertex: inside where x0 lies under it (a pool's floor)
         seg = x0 - v0.p

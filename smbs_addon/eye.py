@@ -47,8 +47,8 @@ def direct_albedo(scene, rc: Receivers, idx=None) -> np.ndarray | None:
     by, as Cycles' Diffuse Color pass holds it there (its colour times the share its coats leave
     it towards the eye, which beta holds on a camera ray); zero elsewhere. None without textured
     receivers."""
-    tex = np.asarray(scene.mat_textured, bool)  # a scene built in code may hold 0/1 numbers
-    if not np.any(tex):
+    tex = scene.textured_materials()
+    if tex is None:
         return None
     mat, beta, spec = (rc.mat, rc.beta, rc.eye_specular) if idx is None else \
         (rc.mat[idx], rc.beta[idx], rc.eye_specular[idx])

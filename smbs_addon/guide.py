@@ -21,7 +21,7 @@ from . import scene as S
 from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .convergence import box
 from .lights import emit
-from .optics import absorption, arriving, inside, transmittance
+from .optics import absorbing, arriving, inside, transmittance
 from .reference import scatter_specular
 
 TILE = 4  # pixels per tile side
@@ -163,7 +163,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
     other = np.zeros(2)  # flux in frame of chains not in types_list: [all of them, those longer than max_chain]
     rays = 0
     medium = np.full(len(o), -1)  # inside a glass (its material) or not: its Volume Absorption
-    absorbing = bool(np.any(absorption(scene)))
+    absorbs = absorbing(scene)
     for bounce in range(max_bounces + 1):
         if check is not None:
             check()
@@ -176,7 +176,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         cnt = cnt[idx]
         prim = h.prim[idx]
         mat = scene.tri_material[prim]
-        if absorbing:
+        if absorbs:
             medium = medium[idx]
             seg_medium = arriving(scene, medium, mat, np.ones(len(idx), bool), d, h.ng[idx])
             beta = beta * transmittance(scene, seg_medium, h.t[idx])
@@ -218,7 +218,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         sig = sig[si][keep] * 3 + letter
         length = length[si][keep]
         cnt = cnt[si][keep]
-        if absorbing:
+        if absorbs:
             medium = inside(scene, mat[si][keep], kind[si][keep] == S.DIELECTRIC, d_new, ng[keep])
         cnt[np.arange(len(letter)), letter] += length > 0
         length = length + 1

@@ -158,6 +158,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
     f_beta, f_mat, f_cnt = rc.beta, rc.mat, rc.prior
     f_has_s, f_depth = np.zeros(n, bool), np.zeros(n, np.int64)
+    absorbing = optics.absorbing(scene)
     while len(f_lane):
         # a diffuse bounce is never a caustic path's last event: it must fit the limits
         go = np.flatnonzero(lim.fits(f_cnt + ONE_DIFFUSE))
@@ -173,7 +174,6 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         o = tracer.spawn(f_p[sel], f_ng[sel], d)
         last_caster = np.zeros(len(lane), bool)
         medium = np.full(len(lane), -1)  # inside a glass (its material) or not
-        absorbing = bool(np.any(optics.absorption(scene)))
         nxt = []
         for bounce in range(MAX_SPECULAR + 1):
             if len(lane) == 0:

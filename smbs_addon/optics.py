@@ -338,6 +338,12 @@ def absorption(scene) -> np.ndarray:
     return np.ascontiguousarray(a) if a.shape == (len(scene.mat_kind), 3) else np.zeros((len(scene.mat_kind), 3))
 
 
+def absorbing(scene) -> bool:
+    """Does any glass of the scene absorb (Scene.mat_absorb)? Without making absorption's table."""
+    a = np.asarray(getattr(scene, "mat_absorb", np.zeros((0, 3))))
+    return bool(a.size) and bool(np.any(a > 0))
+
+
 def inside(scene, mat, kind_is_glass, d_out, ng) -> np.ndarray:
     """(N,) the medium a path enters leaving a vertex along d_out: the vertex's material where it
     is glass and d_out goes into the back of its geometric normal (into the object, or on inside it

@@ -199,7 +199,8 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     cam_p, rec = cam.kernel_params(), np.ascontiguousarray(rec, np.float64)
     mat, mats = np.ascontiguousarray(ids[:, 2], np.int64), materials(scene)
     # textured receivers: each splat's albedo (Film.splat); every splat here is seen directly
-    textured = np.ascontiguousarray(scene.mat_textured, np.bool_) if np.any(scene.mat_textured) else np.zeros(0, bool)
+    textured = scene.textured_materials()
+    textured = np.zeros(0, bool) if textured is None else np.ascontiguousarray(textured)
     alb = np.zeros((n if textured.size else 0, 3))
 
     def part(a, b):  # records a..b-1, their splats packed from a on

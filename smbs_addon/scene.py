@@ -169,6 +169,12 @@ class Scene:
     mat_absorb: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     # ------------------------------------------------------------------ derived
+    def textured_materials(self) -> np.ndarray | None:
+        """(M,) bool: the materials whose colour is a texture (mat_textured read as flags: a scene
+        built in code may hold 0/1 numbers), or None where there is none."""
+        t = np.asarray(self.mat_textured, bool)
+        return t if t.any() else None
+
     @property
     def n_tris(self) -> int:
         return int(self.tri_vertices.shape[0])
@@ -253,18 +259,20 @@ class Scene:
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
         if self.mat_textured.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_textured' must have one entry per material ({M}) or none")
-        if self.mat_textured.size and np.any(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE)):
-            i = int(np.flatnonzero(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE))[0])
-            raise SceneError(f"material '{self.mat_names[i]}': only a diffuse material can be textured")
+        wrong = np.flatnonzero(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE)) if self.mat_textured.size \
+            else []
+        if len(wrong):
+            raise SceneError(f"material '{self.mat_names[int(wrong[0])]}': only a diffuse material can be textured")
         if self.mat_absorb.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []
         if np.any(bad):
             raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': volume absorption must be "
                              f"finite and not negative")
-        if self.mat_absorb.size and np.any((self.mat_absorb.max(axis=1) > 0) & (self.mat_kind != DIELECTRIC)):
-            i = int(np.flatnonzero((self.mat_absorb.max(axis=1) > 0) & (self.mat_kind != DIELECTRIC))[0])
-            raise SceneError(f"material '{self.mat_names[i]}': only glass can absorb light inside it")
+        wrong = np.flatnonzero((self.mat_absorb.max(axis=1) > 0) & (self.mat_kind != DIELECTRIC)) \
+            if self.mat_absorb.size else []
+        if len(wrong):
+            raise SceneError(f"material '{self.mat_names[int(wrong[0])]}': only glass can absorb light inside it")
         if self.mat_layer.shape not in ((0, 8), (M, 8)):
             raise SceneError(f"scene array 'mat_layer' must be ({M}, 8) or empty")
         fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)

@@ -4,7 +4,6 @@ with the user's compositor and view layer passes as they were."""
 import importlib
 import json
 import time
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -220,8 +219,8 @@ def test_cycles_render_adds_per_albedo_times_diffuse_color(composite, tmp_path):
 
 def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp_path):
     """finish(): the EXR holds result.layer(), a sidecar EXR the per-albedo image, both read by
-    their Image datablocks; the switched-on pass is reported once; results without a per-albedo
-    part (or without layer(), as fakes) take it out again."""
+    their Image datablocks; the switched-on pass is reported once; a result without a per-albedo
+    part takes it out again."""
     bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
     core_bake = importlib.import_module(addon.__name__ + ".smbs_addon.bake")
     imageio = importlib.import_module(addon.__name__ + ".smbs_addon.imageio")
@@ -260,9 +259,9 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     assert not [text for _, text in reports if "Diffuse Color pass" in text]
     assert _images() == [LAYER, ALBEDO]
 
-    fake = SimpleNamespace(image=image, stats=stats, std=None, warnings=[])
+    plain = core_bake.BakeResult(image=image, variance=np.zeros_like(image), stats=stats)
     prep.started = time.perf_counter()
-    assert bake_op.finish(scene, prep, fake, core, report)
+    assert bake_op.finish(scene, prep, plain, core, report)
     assert np.allclose(imageio.read_exr(tmp_path / "layer.exr")[0][..., :3], image)
     assert _images() == [LAYER] and not scene.view_layers[0].use_pass_diffuse_color
     assert not any(_our_nodes(scene.compositing_node_group, role) for role in ALBEDO_ROLES)
