@@ -18,6 +18,7 @@ import numpy as np
 from . import convergence, lanes, reference
 from . import scene as S
 from .camera import CameraModel
+from .compiles import CompileWatch
 from .errors import BakeCancelled, SceneError
 from .film import Film
 from .lights import emit
@@ -494,12 +495,20 @@ class _Stop:
     Time: at least two batches, then another one only while it would end nearer the
     budget than stopping now (a batch is predicted to take as long as the last one), so
     the whole bake ends within half a batch of the budget. Noise: from NOISE_MIN_BATCHES
-    on, stop once the estimated relative_error is at or below the target."""
+    on, stop once the estimated relative_error is at or below the target.
 
-    def __init__(self, settings: BakeSettings, film: Film, t0: float):
-        self.s, self.film, self.t0 = settings, film, t0
+    The budget is the bake's own work: time spent compiling kernels (watch, a CompileWatch: the
+    first bake after installing or updating) is not in it, so that a budget buys the same image
+    on its first bake as on later ones (the statistics' time_s holds the whole wall time,
+    compile_s what compiling took of it)."""
+
+    def __init__(self, settings: BakeSettings, film: Film, t0: float, watch):
+        self.s, self.film, self.t0, self.watch = settings, film, t0, watch
         self.reason = "samples"
         self.last_error = math.inf
+
+    def _now(self) -> float:
+        return time.perf_counter() - self.t0 - self.watch.now()
 
     def _error(self) -> float:
         groups = np.stack(self.film.batch_luminance) if len(self.film.batch_luminance) >= 2 else None
@@ -512,7 +521,7 @@ class _Stop:
         """Progress of a time or noise rule (noise: error ~ t^-1/2, so (target / error)^2)."""
         f = 0.0
         if self.s.time_budget > 0:
-            f = (time.perf_counter() - self.t0) / self.s.time_budget
+            f = self._now() / self.s.time_budget
         if self.s.noise_target > 0 and math.isfinite(self.last_error) and self.last_error > 0:
             f = max(f, min(0.99, (self.s.noise_target / self.last_error) ** 2))
         return min(f, 0.99)
@@ -528,8 +537,7 @@ class _Stop:
                 self.reason = "noise"
                 return True
         if s.time_budget > 0 and b >= 2:
-            now = time.perf_counter() - self.t0
-            if now + 0.5 * last_batch_s >= s.time_budget:
+            if self._now() + 0.5 * last_batch_s >= s.time_budget:
                 self.reason = "time"
                 return True
         if b >= MAX_BATCHES:
@@ -538,19 +546,24 @@ class _Stop:
         return False
 
 
-def _bake_batches(settings: BakeSettings, film: Film, t0: float, prog: _Progress, run_batch):
+def _bake_batches(settings: BakeSettings, film: Film, t0: float, prog: _Progress, run_batch, watch):
     """run_batch(b) adds batch b to the film's current batch; batches go on until the stop
-    rule says enough. Returns (batches done, the stop rule, seconds before the first)."""
-    stop = _Stop(settings, film, t0)
+    rule says enough. Returns (batches done, the stop rule, seconds before the first).
+
+    The batches' clock (the film's batch ends, the seconds before the first, the last batch's
+    length the time rule looks ahead by) leaves out the time spent compiling kernels (watch:
+    a CompileWatch), which later bakes do not pay: the price of more batches is what they cost,
+    and a time budget buys what it buys on later bakes (_Stop)."""
+    stop = _Stop(settings, film, t0, watch)
     prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
-    t_first = time.perf_counter() - t0
+    t_first = time.perf_counter() - t0 - watch.now()
     b = 0
     while True:
-        t_b = time.perf_counter()
+        t_b, c_b = time.perf_counter(), watch.now()
         run_batch(b)
-        film.end_batch(time.perf_counter() - t0)
+        film.end_batch(time.perf_counter() - t0 - watch.now())
         b += 1
-        if stop(b, time.perf_counter() - t_b):
+        if stop(b, time.perf_counter() - t_b - (watch.now() - c_b)):
             return b, stop, t_first
 
 
@@ -617,14 +630,48 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     progress(fraction, message) is called between chunks; cancel() returning
     True stops the bake with BakeCancelled (nothing is returned or written);
     on_plan(lines) gets the plan in words before any caustic is traced. A scene
-    with nothing to bake gives an all-zero layer, stats["nothing_to_bake"] says why."""
-    try:
-        return _bake(scene, settings, progress, cancel, on_plan)
-    finally:
-        lanes.free_scratch()  # the work arrays the threads kept (lanes.scratch)
+    with nothing to bake gives an all-zero layer, stats["nothing_to_bake"] says why.
+
+    The first bake after installing or updating compiles the kernels it uses (compiles.py):
+    progress says so while it does, stats["compile_s"] is the time it took (in time_s, not in
+    the price of more batches: later bakes load the kernels from the disk cache)."""
+    report = _Reporter(progress)
+    with CompileWatch(on_start=report.compiling, on_end=report.compiled) as watch:
+        try:
+            result = _bake(scene, settings, report, cancel, on_plan, watch)
+        finally:
+            lanes.free_scratch()  # the work arrays the threads kept (lanes.scratch)
+    result.stats["compile_s"] = watch.seconds
+    result.stats["kernels_compiled"] = watch.kernels
+    return result
 
 
-def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
+class _Reporter:
+    """The caller's progress(fraction, message), remembering the last call, so that a compile
+    (the first bake after installing or updating) can say so and then give the message back."""
+
+    COMPILING = ("compiling the kernels for this machine (once after installing or updating; "
+                 "later bakes load them from the cache)")
+
+    def __init__(self, progress):
+        self.progress = progress
+        self.last = (0.0, "")
+
+    def __call__(self, fraction, message=""):
+        self.last = (fraction, message or self.last[1])
+        if self.progress is not None:
+            self.progress(fraction, message)
+
+    def compiling(self):
+        if self.progress is not None:
+            self.progress(self.last[0], self.COMPILING)
+
+    def compiled(self):
+        if self.progress is not None:
+            self.progress(*self.last)
+
+
+def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
     settings = settings or BakeSettings()
     settings.validate()
     scene.validate()
@@ -694,7 +741,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
                              eye_cells)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
 
-        b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)
+        b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch, watch)
         extra["batches_done"] = b
         rays = (sum(s["rays_photon"] + s["rays_camera"] for s in light_stats.values())
                 + _eye_rays(eye_stats) + plan.cost.get("rays", 0))
@@ -749,7 +796,7 @@ def _bake(scene, settings, progress, cancel, on_plan) -> BakeResult:
                            guide, {li: c.photon_factor for li, c in choices.items() if c.photons_direct})
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
 
-        b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch)
+        b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch, watch)
         extra["batches_done"] = b
         for st in light_stats.values():
             _summarise_walks(st)

@@ -162,6 +162,9 @@ def test_statistics_summary(addon):
     assert panels.parse_stats("not json") == {}
     textured = dict(panels.summarize_stats({**stats, "textured_share": 0.873}))
     assert textured["On Textures"] == "87% \u00d7 Diffuse Color"
+    first = dict(panels.summarize_stats({**stats, "compile_s": 61.5}))  # the first bake after installing
+    assert first["Of Which Compiling"] == "1 min 2 s (once)"
+    assert "Of Which Compiling" not in dict(panels.summarize_stats({**stats, "compile_s": 0.0}))
 
 
 def test_statistics_of_a_manifold_bake(addon):

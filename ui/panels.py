@@ -108,6 +108,8 @@ def summarize_stats(stats):
     seconds = _first(stats, _TIME)
     if seconds is not None:
         rows.append(("Time", _format_time(seconds)))
+    if _number(stats.get("compile_s")) and stats["compile_s"] > 0:  # the first bake after installing
+        rows.append(("Of Which Compiling", f"{_format_time(stats['compile_s'])} (once)"))
     noise = stats.get("noise")
     if isinstance(noise, dict) and _number(noise.get("relative_noise")) and noise.get("region_pixels"):
         rows.append(("Relative Noise", f"{100.0 * noise['relative_noise']:.1f}%"))
