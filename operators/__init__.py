@@ -4,9 +4,9 @@ Each operator module keeps its classes in ``classes``.
 """
 import bpy
 
-from . import bake, cli, compare
+from . import bake, cli, compare, kernels
 
-classes = (*bake.classes, *compare.classes)
+classes = (*bake.classes, *compare.classes, *kernels.classes)
 
 
 def register():

@@ -306,6 +306,8 @@ class ModalBake:
         try:
             if self.task is None:
                 self.prep = prepare(context, self.core)
+            elif not getattr(self.task, "exports", True):  # a task without the scene (Prepare Kernels)
+                self.prep = Prepared(None, None, "", "", [], [], time.perf_counter())
             else:
                 self.prep = prepare(context, self.core, output=False)
                 self.prep.settings = self.task.settings(self.prep.settings)

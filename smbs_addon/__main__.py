@@ -1,5 +1,6 @@
 """Command line: ``python -m smbs_addon bake IN [options]``, ``... compare IN --time S``
-(an equal-time table of the scene's methods) and ``... export IN OUT``.
+(an equal-time table of the scene's methods), ``... export IN OUT`` and ``... prepare`` (compile
+the kernels before the first bake).
 
 IN is a .blend file (opened with the bpy module) or an exported .npz scene.
 Exit codes a render farm can trust: 0 done (also for a scene with no caustic to
@@ -72,6 +73,30 @@ def _methods(s):
     return ms
 
 
+def _part(s):
+    try:
+        i, n = (int(x) for x in s.split("/"))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not i/n") from None
+    if not 0 <= i < n:
+        raise argparse.ArgumentTypeError(f"'{s}': i must lie in 0..n-1")
+    return i, n
+
+
+def _prepare(args, say) -> int:
+    """python -m smbs_addon prepare: compile the kernels (smbs_addon.prepare)."""
+    from . import prepare
+
+    if args.part is not None:  # one of prepare()'s processes: its count is read by the parent
+        out = prepare.run(*args.part, say=say)
+        print(f"kernels compiled: {out['kernels']} in {out['compile_s']:.1f} s")
+        return EXIT_OK
+    out = prepare.prepare(args.jobs, say=say)
+    say(f"prepared: {_count(out['kernels'], 'kernel')} compiled in {out['seconds']:.1f} s "
+        f"({_count(out['jobs'], 'process')}); bakes on this machine load them from the cache")
+    return EXIT_OK
+
+
 def _bake_options(b):
     """The settings a bake and a comparison share."""
     b.add_argument("--estimator", choices=("unbiased", "biased"), default="unbiased")
@@ -135,6 +160,11 @@ def build_parser() -> argparse.ArgumentParser:
     _bake_options(c)
     c.add_argument("--out", default=None, metavar="JSON", help="also write the table's numbers as JSON")
     c.add_argument("--quiet", action="store_true", help="no progress lines")
+    r = sub.add_parser("prepare", help="compile the kernels now, so that the first bake on this machine does not "
+                                       "(after installing or updating; cached on disk)")
+    r.add_argument("--jobs", type=_positive_int, default=None,
+                   help="processes compiling at once (default: one per core)")
+    r.add_argument("--part", type=_part, default=None, help=argparse.SUPPRESS)  # i/n: one process's share
     e = sub.add_parser("export", help="export a .blend to a .npz scene")
     e.add_argument("input")
     e.add_argument("output")
@@ -339,6 +369,8 @@ def main(argv=None) -> int:
             return EXIT_OK
         if args.command == "compare":
             return _compare(args, say)
+        if args.command == "prepare":
+            return _prepare(args, say)
         from .bake import bake
         from .imageio import write_exr, write_json
 

@@ -430,6 +430,9 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         sub.active = settings.method == "smbs" and settings.large_mutation_slow
         sub.prop(settings, "tau")
 
+        # the kernels compile on their first use after installing or updating (minutes, once)
+        layout.operator("smbs.prepare_kernels", icon='SETTINGS')
+
 
 class SMBS_PT_caustics_statistics(_RenderPanel, bpy.types.Panel):
     bl_label = "Statistics"

@@ -1,0 +1,89 @@
+"""Prepare Kernels: compile the render core's kernels now, not in the first bake.
+
+The kernels compile with numba on their first use after installing or updating the extension
+and load from a disk cache afterwards (smbs_addon/jit.py); the first bake otherwise spends a
+few minutes compiling (its statistics say how long: "Of Which Compiling"). This operator makes
+the tiny bakes of ``smbs_addon.prepare`` in Blender's own process, so the kernels are compiled
+under the name Blender imports the extension by (the CLI's ``python -m smbs_addon prepare``
+compiles those of the command line). Nothing of the scene is read or changed.
+
+In the interface it runs like a bake (a worker thread, the panel's progress bar and Cancel
+button, Esc); in background mode synchronously: on a farm node,
+``blender -b --python-expr "import bpy; bpy.ops.smbs.prepare_kernels()"``.
+"""
+from __future__ import annotations
+
+import dataclasses
+
+import bpy
+
+from . import bake as B
+
+
+@dataclasses.dataclass
+class PrepareTask:
+    """ModalBake's task for Prepare Kernels."""
+    what: str = "Kernel preparation"
+    exports: bool = False  # no scene to export: ModalBake starts it without one
+
+    @staticmethod
+    def run(data, settings, progress=None, cancel=None) -> dict:
+        from ..smbs_addon import prepare
+
+        return prepare.run(progress=progress, cancel=cancel)
+
+    @staticmethod
+    def finish(scene, prep, result: dict, core, say) -> bool:
+        say({'INFO'}, message(result))
+        return True
+
+
+def message(result: dict) -> str:
+    n = result["kernels"]
+    if not n:
+        return "SMBS Caustics: the kernels were compiled already; bakes load them from the cache"
+    return (f"SMBS Caustics: compiled {n} kernel{'' if n == 1 else 's'} in {result['compile_s']:.0f} s; "
+            f"bakes on this machine load them from the cache")
+
+
+class SMBS_OT_prepare_kernels(B.ModalOperator, bpy.types.Operator):
+    """Compile the caustic baker's kernels for this machine now (a few minutes, once after
+    installing or updating), so that the first bake does not"""
+
+    bl_idname = "smbs.prepare_kernels"
+    bl_label = "Prepare Kernels"
+    bl_options = {'REGISTER'}
+
+    @classmethod
+    def poll(cls, context):
+        return B._idle(context)
+
+    def modal_task(self, context):
+        return PrepareTask()
+
+    def execute(self, context):
+        try:
+            core = B._core()
+        except ImportError as e:
+            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
+            return {'CANCELLED'}
+        task = PrepareTask()
+        background = bpy.app.background
+        progress = B._Progress(context.window_manager, background)
+        if not background:
+            context.window_manager.progress_begin(0, 100)
+        try:
+            result = task.run(None, None, progress=progress)
+        except Exception as e:
+            B.report_failure(e, core, [], self.report, task.what)
+            return {'CANCELLED'}
+        finally:
+            if not background:
+                context.window_manager.progress_end()
+        if bpy.app.background:
+            print(message(result), flush=True)
+        self.report({'INFO'}, message(result))
+        return {'FINISHED'}
+
+
+classes = (SMBS_OT_prepare_kernels,)

@@ -1,0 +1,126 @@
+"""Compile the kernels before the first bake: ``python -m smbs_addon prepare [--jobs N]``.
+
+A kernel compiles with numba on its first use after installing or updating (jit.py) and loads
+from the disk cache afterwards; a first bake that compiles the kernels it needs costs a few
+minutes more on a 2-core machine (compiles.py measures it). prepare makes a handful of tiny
+bakes that between them use the kernels bakes use (every light type, a mirror and an absorbing
+glass with Cycles' Bump Map Correction, a textured floor, every method and both estimators), so a
+farm node, a CI machine or an artist's first bake finds them compiled. With jobs > 1 the bakes
+are shared out over that many processes (``--part i/n``): numba compiles one kernel at a time in
+a process, and its cache writes each kernel's file whole, so processes compiling at once do not
+corrupt one another.
+
+The disk cache is kept per name the package is imported under (jit.py): the kernels this command
+compiles as ``smbs_addon`` serve ``python -m smbs_addon`` and scripts importing ``smbs_addon``;
+Blender imports the extension under its own name and compiles its own: the operator
+``smbs.prepare_kernels`` (the panel's Prepare Kernels, or ``blender -b --python-expr "import bpy;
+bpy.ops.smbs.prepare_kernels()"`` on a farm node) runs these bakes in Blender's process.
+"""
+from __future__ import annotations
+
+import math
+import os
+import subprocess
+import sys
+import time
+
+from .compiles import CompileWatch
+
+# (scene, settings) of the bakes, in the order one process makes them; part i of n takes every
+# n-th from i. Two parts split the compiling between the walks (the first bake: walks alone, no
+# photon pre-pass, pilots or hand-off) and the photons, eye paths and gathering (the light
+# tracer's bakes); each part's later bakes find most of the other's kernels in the cache.
+WALKS_ONLY = dict(method="smbs", guide=False, pilots=0, handoff=0.0, indirect=False)
+BAKES = (
+    ("plain", WALKS_ONLY),
+    ("plain", dict(method="reference")),
+    ("plain", dict(method="smbs")),
+    ("textured", dict(method="reference")),
+    ("plain", dict(method="sms", estimator="biased")),
+    ("textured", dict(method="auto")),
+    ("plain", dict(method="mnee")),
+    ("textured", dict(method="smbs")),
+    ("plain", dict(method="sms")),
+)
+
+
+def scene(name: str):
+    """A small scene that uses what bakes use: a floor seen by the camera, a mirror and an absorbing
+    glass ball (smooth shaded, with Cycles' Bump Map Correction) over it, a point, a spot, an area
+    and a sun light; 'textured': the floor's colour a texture's, under a Principled glossy coat."""
+    from .builder import SceneBuilder
+
+    b = SceneBuilder(f"prepare_{name}")
+    # textured: also a Principled floor's glossy coat over its diffuse (scene.mat_layer)
+    layer = (1.5, 0.5, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0) if name == "textured" else (0.0,) * 8
+    floor = b.material("floor", "diffuse", color=(0.8, 0.7, 0.6), textured=name == "textured", layer=layer)
+    glass = b.material("glass", "dielectric", ior=1.45, bump_correction=True, absorb=(0.2, 0.1, 0.0))
+    mirror = b.material("mirror", "conductor", color=(0.9, 0.8, 0.5))
+    b.plane("Floor", (0, 0, 0), 4.0, floor, receiver=True)
+    b.uv_sphere("Ball", (0, 0, 0.6), 0.4, glass, segments=16, rings=8, caster=True, receiver=True)
+    b.plane("Mirror", (-1.2, 0, 0.6), (0.8, 1.2), mirror, normal=(1, 0, 0.3), caster=True)
+    b.light("Point", "POINT", location=(0.3, 0.2, 2.5), power=300.0, radius=0.05)
+    b.light("Spot", "SPOT", location=(1.5, 0.5, 2.0), target=(0, 0, 0.5), power=300.0, radius=0.05)
+    b.light("Area", "AREA", location=(-0.5, 1.0, 2.5), target=(0, 0, 0), power=200.0, size=0.3)
+    b.light("Sun", "SUN", location=(0, 0, 5), target=(0.3, 0.2, 0), power=2.0, angle=math.radians(2))
+    b.set_camera(location=(0.0, -3.0, 2.5), target=(0, 0, 0.3), resolution_x=24, resolution_y=18)
+    return b.build()
+
+
+def bakes(part: int = 0, parts: int = 1):
+    """The bakes of part `part` of `parts`: [(scene name, settings keywords)]."""
+    return list(BAKES[part::parts])
+
+
+def run(part: int = 0, parts: int = 1, say=None, progress=None, cancel=None) -> dict:
+    """Make part `part`'s bakes in this process; returns {"seconds", "compile_s", "kernels"}.
+    progress(fraction, message) before each bake; cancel() returning True stops between and
+    inside bakes (BakeCancelled, as bake)."""
+    from .bake import BakeSettings, bake
+    from .errors import BakeCancelled
+
+    todo = bakes(part, parts)
+    scenes = {}
+    t0 = time.perf_counter()
+    with CompileWatch() as watch:
+        for i, (name, kw) in enumerate(todo):
+            if cancel is not None and cancel():
+                raise BakeCancelled("kernel preparation cancelled")
+            if progress is not None:
+                progress(i / len(todo), f"compiling the kernels: bake {i + 1} of {len(todo)} ({kw['method']})")
+            if name not in scenes:
+                scenes[name] = scene(name)
+            before = watch.kernels
+            bake(scenes[name], BakeSettings(**{**dict(spp=1, batches=2, seed=1, pilots=256), **kw}), cancel=cancel)
+            if say is not None:
+                n = watch.kernels - before
+                say(f"{name} {kw}: {n} kernel{'' if n == 1 else 's'} compiled")
+    return {"seconds": time.perf_counter() - t0, "compile_s": watch.seconds, "kernels": watch.kernels}
+
+
+def prepare(jobs: int | None = None, say=None) -> dict:
+    """All the bakes, in `jobs` processes (default: one per core, at most one per bake) running
+    ``python -m <this package> prepare --part i/jobs``; one job runs them here. Returns
+    {"seconds": wall time, "kernels": compiled, "jobs": processes}."""
+    jobs = max(1, min(jobs or os.cpu_count() or 1, len(BAKES)))
+    t0 = time.perf_counter()
+    if jobs == 1:
+        out = run(0, 1, say)
+        return {"seconds": out["seconds"], "kernels": out["kernels"], "jobs": 1}
+    package = __name__.rpartition(".")[0]
+    procs = [subprocess.Popen([sys.executable, "-m", package, "prepare", "--part", f"{i}/{jobs}"],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+             for i in range(jobs)]
+    kernels, failed = 0, []
+    for i, p in enumerate(procs):
+        text, _ = p.communicate()
+        for line in text.splitlines():
+            if line.startswith("kernels compiled: "):
+                kernels += int(line.split(": ")[1].split()[0])
+            elif say is not None:
+                say(f"[{i + 1}/{jobs}] {line}")
+        if p.returncode != 0:
+            failed.append(f"part {i + 1} of {jobs} exited with {p.returncode}: {text.strip()[-2000:]}")
+    if failed:
+        raise RuntimeError("; ".join(failed))
+    return {"seconds": time.perf_counter() - t0, "kernels": kernels, "jobs": jobs}

@@ -1,0 +1,45 @@
+"""python -m smbs_addon prepare: the kernels compiled before the first bake (smbs_addon/prepare.py).
+
+What it saves is measured in bench/ (a cold cache is minutes of compiling, too long for a test);
+here: its bakes run and are shared out between processes exactly, and the command reports."""
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from smbs_addon import prepare
+from smbs_addon.bake import BakeSettings, bake
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def test_parts_share_out_every_bake_once():
+    for n in (1, 2, 3, len(prepare.BAKES), len(prepare.BAKES) + 2):
+        got = [b for i in range(n) for b in prepare.bakes(i, n)]
+        assert sorted(map(repr, got)) == sorted(map(repr, prepare.BAKES))
+        assert len(got) == len(prepare.BAKES)
+    assert prepare.bakes(0, 2)[0] != prepare.bakes(1, 2)[0]  # each part starts with a different bake
+
+
+def test_the_scenes_have_caustics_from_every_light():
+    """The scenes use what bakes use: all four light types, a mirror and a glass each casting, and
+    the bakes find a caustic (so the walks, photons and their kernels do run)."""
+    for name in ("plain", "textured"):
+        sc = prepare.scene(name)
+        assert sorted(sc.light_type.tolist()) == [0, 1, 2, 3]
+        assert (sc.mat_textured.any() if sc.mat_textured.size else False) == (name == "textured")
+        res = bake(sc, BakeSettings(method="smbs", spp=1, batches=2, seed=1, pilots=256))
+        assert res.stats["walks"] > 0 and res.stats["successes"] > 0
+        assert {"R", "TT"} <= set(res.stats["chain_types"])
+        assert np.isfinite(res.image).all() and res.image.mean() > 0
+
+
+def test_prepare_command_in_two_processes():
+    out = subprocess.run([sys.executable, "-m", "smbs_addon", "prepare", "--jobs", "2"], cwd=ROOT,
+                         capture_output=True, text=True, timeout=1800)
+    assert out.returncode == 0, out.stderr + out.stdout
+    last = out.stdout.strip().splitlines()[-1]
+    assert last.startswith("prepared: ") and "(2 processes); bakes on this machine load them from the cache" in last
+    lines = [x for x in out.stdout.splitlines() if x.startswith(("[1/2] ", "[2/2] "))]
+    assert len(lines) == len(prepare.BAKES)  # a line per bake, from both parts
