@@ -248,6 +248,18 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     return True
 
 
+def prepare_task(context, core, task, progress=None) -> Prepared:
+    """What a task (Compare Methods, Prepare Kernels) runs on: the exported scene and its
+    settings as the task takes them, or nothing for a task without the scene (exports False)."""
+    if not getattr(task, "exports", True):
+        return Prepared(None, None, "", "", [], [], time.perf_counter())
+    if progress is not None:
+        progress.update(0.0, "exporting the scene")
+    prep = prepare(context, core, output=False)
+    prep.settings = task.settings(prep.settings)
+    return prep
+
+
 def report_failure(error, core, warnings, report, what="Caustics bake") -> None:
     """An exception from prepare() or the bake, as operator reports."""
     if isinstance(error, core.BakeCancelled):
@@ -306,11 +318,8 @@ class ModalBake:
         try:
             if self.task is None:
                 self.prep = prepare(context, self.core)
-            elif not getattr(self.task, "exports", True):  # a task without the scene (Prepare Kernels)
-                self.prep = Prepared(None, None, "", "", [], [], time.perf_counter())
             else:
-                self.prep = prepare(context, self.core, output=False)
-                self.prep.settings = self.task.settings(self.prep.settings)
+                self.prep = prepare_task(context, self.core, self.task)
         except Exception as e:
             report_failure(e, self.core, [], self.report, self.what)
             return False
@@ -397,6 +406,10 @@ class ModalOperator:
     ``execute`` in background mode. ``modal_task(context)``: the ModalBake's task (None: a
     bake), or False to stop before starting (the operator has reported why)."""
 
+    @classmethod
+    def poll(cls, context):
+        return _idle(context)
+
     def modal_task(self, context):
         return None
 
@@ -426,6 +439,32 @@ class ModalOperator:
         self._bake.step(context, 'TIMER')
         context.window_manager.event_timer_remove(self._timer)
 
+    def execute_task(self, context, task) -> set:
+        """execute() of a task's operator: the task on this thread (background mode, or no
+        window), with the same progress lines and reports as a bake."""
+        try:
+            core = _core()
+        except ImportError as e:
+            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
+            return {'CANCELLED'}
+        background = bpy.app.background
+        progress = _Progress(context.window_manager, background)
+        if not background:
+            context.window_manager.progress_begin(0, 100)
+        prep = None
+        try:
+            prep = prepare_task(context, core, task, progress)
+            result = task.run(prep.data, prep.settings, progress=progress)
+        except Exception as e:
+            report_failure(e, core, prep.warnings if prep else [], self.report, task.what)
+            return {'CANCELLED'}
+        finally:
+            if not background:
+                context.window_manager.progress_end()
+        task.finish(context.scene, prep, result, core, self.report)
+        progress.update(100.0, f"done in {time.perf_counter() - prep.started:.1f} s")
+        return {'FINISHED'}
+
 
 class SMBS_OT_bake_caustics(ModalOperator, bpy.types.Operator):
     """Bake the caustic layer of this scene, write it as an EXR and add it in the compositor"""
@@ -433,10 +472,6 @@ class SMBS_OT_bake_caustics(ModalOperator, bpy.types.Operator):
     bl_idname = "smbs.bake_caustics"
     bl_label = "Bake Caustics"
     bl_options = {'REGISTER', 'UNDO'}
-
-    @classmethod
-    def poll(cls, context):
-        return _idle(context)
 
     def execute(self, context):
         background = bpy.app.background

@@ -12,7 +12,6 @@ from __future__ import annotations
 
 import dataclasses
 import json
-import time
 
 import bpy
 
@@ -81,10 +80,6 @@ class SMBS_OT_compare_methods(B.ModalOperator, bpy.types.Operator):
     bl_label = "Compare Methods"
     bl_options = {'REGISTER'}
 
-    @classmethod
-    def poll(cls, context):
-        return B._idle(context)
-
     def modal_task(self, context):
         """The task as the panel has it, or False (reported) when no method is chosen."""
         task = _task(context.scene.smbs_caustics)
@@ -97,30 +92,7 @@ class SMBS_OT_compare_methods(B.ModalOperator, bpy.types.Operator):
         task = self.modal_task(context)
         if task is False:
             return {'CANCELLED'}
-        try:
-            core = B._core()
-        except ImportError as e:
-            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
-            return {'CANCELLED'}
-        background = bpy.app.background
-        progress = B._Progress(context.window_manager, background)
-        if not background:
-            context.window_manager.progress_begin(0, 100)
-        prep = None
-        try:
-            progress.update(0.0, "exporting the scene")
-            prep = B.prepare(context, core, output=False)
-            prep.settings = task.settings(prep.settings)
-            report = task.run(prep.data, prep.settings, progress=progress)
-        except Exception as e:
-            B.report_failure(e, core, prep.warnings if prep else [], self.report, task.what)
-            return {'CANCELLED'}
-        finally:
-            if not background:
-                context.window_manager.progress_end()
-        task.finish(context.scene, prep, report, core, self.report)
-        progress.update(100.0, f"done in {time.perf_counter() - prep.started:.1f} s")
-        return {'FINISHED'}
+        return self.execute_task(context, task)
 
 
 classes = (SMBS_OT_compare_methods,)

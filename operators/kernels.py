@@ -34,6 +34,8 @@ class PrepareTask:
 
     @staticmethod
     def finish(scene, prep, result: dict, core, say) -> bool:
+        if bpy.app.background:
+            print(message(result), flush=True)
         say({'INFO'}, message(result))
         return True
 
@@ -54,36 +56,11 @@ class SMBS_OT_prepare_kernels(B.ModalOperator, bpy.types.Operator):
     bl_label = "Prepare Kernels"
     bl_options = {'REGISTER'}
 
-    @classmethod
-    def poll(cls, context):
-        return B._idle(context)
-
     def modal_task(self, context):
         return PrepareTask()
 
     def execute(self, context):
-        try:
-            core = B._core()
-        except ImportError as e:
-            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
-            return {'CANCELLED'}
-        task = PrepareTask()
-        background = bpy.app.background
-        progress = B._Progress(context.window_manager, background)
-        if not background:
-            context.window_manager.progress_begin(0, 100)
-        try:
-            result = task.run(None, None, progress=progress)
-        except Exception as e:
-            B.report_failure(e, core, [], self.report, task.what)
-            return {'CANCELLED'}
-        finally:
-            if not background:
-                context.window_manager.progress_end()
-        if bpy.app.background:
-            print(message(result), flush=True)
-        self.report({'INFO'}, message(result))
-        return {'FINISHED'}
+        return self.execute_task(context, PrepareTask())
 
 
 classes = (SMBS_OT_prepare_kernels,)

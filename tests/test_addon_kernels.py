@@ -5,11 +5,10 @@ A cold cache is minutes of compiling, so these runs mostly find the kernels comp
 addon tests before them baked under the same name); what they check is that the operator makes
 prepare's bakes in both of its ways and reports, and that the modal one is a bake-like job."""
 import importlib
-import time
 
 import pytest
 
-from test_addon_modal import _Reports, _scene_state
+from test_addon_modal import _Reports, _run_to_end, _scene_state
 from test_addon_register import _mirror_scene
 
 bpy = pytest.importorskip("bpy")
@@ -44,14 +43,7 @@ def test_prepare_kernels_runs_like_a_bake_in_the_interface(ops):
     job = bake_op.ModalBake(reports, kernels.PrepareTask())
     assert job.start(bpy.context)
     assert bake_op.running_bake(scene) is job and not bpy.ops.smbs.bake_caustics.poll()
-    texts = set()
-    end = time.monotonic() + 900
-    while time.monotonic() < end:
-        result = job.step(bpy.context, 'TIMER')
-        if result != {'PASS_THROUGH'}:
-            break
-        texts.add(job.text)
-        time.sleep(0.01)
+    result, texts = _run_to_end(job, 900)
     assert result == {'FINISHED'}, reports
     assert all(t.startswith("SMBS Caustics: Kernel preparation: ") for t in texts if t), texts
     assert reports.of('INFO') and reports.of('INFO')[0].startswith("SMBS Caustics: ")

@@ -52,6 +52,19 @@ def _wait_for_progress(bake, timeout=60.0):
     return bake.job.status()
 
 
+def _run_to_end(bake, timeout):
+    """Timer events until the modal job ends: (its result, the status texts it showed)."""
+    texts = set()
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        result = bake.step(bpy.context, 'TIMER')
+        if result != {'PASS_THROUGH'}:
+            return result, texts
+        texts.add(bake.text)
+        time.sleep(0.01)
+    return None, texts
+
+
 def test_worker_thread_is_cancelled_between_chunks(bake_op, tmp_path):
     """BakeJob runs the core in a thread, reports its progress and stops on cancel()."""
     core = bake_op._core()
@@ -83,14 +96,7 @@ def test_modal_bake_runs_to_the_end(bake_op, tmp_path):
     assert not bpy.ops.smbs.bake_caustics.poll()  # one bake per scene at a time
     assert bpy.ops.smbs.cancel_bake.poll()
     assert bake.step(bpy.context, 'MOUSEMOVE') == {'PASS_THROUGH'}  # the interface stays live
-    texts = set()
-    end = time.monotonic() + 120
-    while time.monotonic() < end:
-        result = bake.step(bpy.context, 'TIMER')
-        if result != {'PASS_THROUGH'}:
-            break
-        texts.add(bake.text)
-        time.sleep(0.01)
+    result, texts = _run_to_end(bake, 120)
     assert result == {'FINISHED'}, reports
     assert any("%" in t and "Esc to cancel" in t for t in texts), texts
     assert bake_op.running_bake(scene) is None and bpy.ops.smbs.bake_caustics.poll()

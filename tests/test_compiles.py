@@ -29,6 +29,20 @@ def _fresh_kernel():
     return kernel
 
 
+class _CompilingProgress(list):
+    """A progress callback that keeps the messages and compiles a fresh kernel at its second
+    call (between two chunks of the first batch, while the bake's watch is on)."""
+
+    def __init__(self):
+        super().__init__()
+        self.kernel = _fresh_kernel()
+
+    def __call__(self, fraction, message=""):
+        self.append(message)
+        if len(self) == 2:
+            self.kernel(1.0)
+
+
 def test_watch_counts_each_outermost_compile_once():
     kernel = _fresh_kernel()
     calls = []
@@ -61,14 +75,7 @@ def test_a_bake_that_compiles_says_so_and_leaves_it_out_of_the_batches_clock():
     batches' clock (the film's batch ends, from which the price of more batches is measured)
     does not: the last batch ends before time_s - compile_s, which it could not if the compile,
     inside the first batch, were on that clock."""
-    kernel = _fresh_kernel()
-    said = []
-
-    def progress(fraction, message=""):
-        said.append(message)
-        if len(said) == 2:
-            kernel(1.0)
-
+    said = progress = _CompilingProgress()
     sc = scenes.glass_sphere_scene(resolution=(48, 36))
     warm = bake(sc, BakeSettings(method="reference", spp=2, batches=2, seed=4))  # the bake's own kernels
     res = bake(sc, BakeSettings(method="reference", spp=2, batches=2, seed=4), progress=progress)
@@ -91,14 +98,7 @@ def test_a_time_budget_is_spent_baking_not_compiling():
     """Stop By Time on a first bake: the budget's seconds go to batches; compiling (here a kernel
     compiled inside the first batch) comes on top, as compile_s, so the image is what the budget
     buys on later bakes."""
-    kernel = _fresh_kernel()
-    said = []
-
-    def progress(fraction, message=""):
-        said.append(message)
-        if len(said) == 2:
-            kernel(1.0)
-
+    progress = _CompilingProgress()
     sc = scenes.glass_sphere_scene(resolution=(48, 36))
     bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4))  # the bake's own kernels
     res = bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4, time_budget=1.0), progress=progress)
@@ -114,14 +114,7 @@ def test_compare_gives_a_method_that_compiles_its_seconds_and_says_so():
 
     from smbs_addon.compare import compare, table_lines
 
-    kernel = _fresh_kernel()
-    calls = []
-
-    def bake_progress(fraction, message=""):
-        calls.append(message)
-        if len(calls) == 2:
-            kernel(1.0)
-
+    bake_progress = _CompilingProgress()
     sc = scenes.glass_sphere_scene(resolution=(48, 36))
     settings = BakeSettings(method="reference", spp=2, batches=2, seed=4)
     for m in ("reference", "smbs"):
