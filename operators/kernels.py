@@ -3,9 +3,10 @@
 The kernels compile with numba on their first use after installing or updating the extension
 and load from a disk cache afterwards (smbs_addon/jit.py); the first bake otherwise spends a
 few minutes compiling (its statistics say how long: "Of Which Compiling"). This operator makes
-the tiny bakes of ``smbs_addon.prepare`` in Blender's own process, so the kernels are compiled
-under the name Blender imports the extension by (the CLI's ``python -m smbs_addon prepare``
-compiles those of the command line). Nothing of the scene is read or changed.
+the tiny bakes of ``smbs_addon.prepare`` in one process of Blender's Python per core, each
+importing the core under the name Blender imports the extension by, so that Blender's bakes find
+them (numba's cache is kept per name: the CLI's ``python -m smbs_addon prepare`` compiles those of
+the command line). Nothing of the scene is read or changed.
 
 In the interface it runs like a bake (a worker thread, the panel's progress bar and Cancel
 button, Esc); in background mode synchronously: on a farm node,
@@ -30,7 +31,9 @@ class PrepareTask:
     def run(data, settings, progress=None, cancel=None) -> dict:
         from ..smbs_addon import prepare
 
-        return prepare.run(progress=progress, cancel=cancel)
+        # one process per core, each of Blender's Python importing the core under this name: the
+        # interface stays free while they compile (the worker thread only waits for them)
+        return prepare.prepare(progress=progress, cancel=cancel)
 
     @staticmethod
     def finish(scene, prep, result: dict, core, say) -> bool:
@@ -44,7 +47,7 @@ def message(result: dict) -> str:
     n = result["kernels"]
     if not n:
         return "SMBS Caustics: the kernels were compiled already; bakes load them from the cache"
-    return (f"SMBS Caustics: compiled {n} kernel{'' if n == 1 else 's'} in {result['compile_s']:.0f} s; "
+    return (f"SMBS Caustics: compiled {n} kernel{'' if n == 1 else 's'} in {result['seconds']:.0f} s; "
             f"bakes on this machine load them from the cache")
 
 

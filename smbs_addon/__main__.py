@@ -73,24 +73,10 @@ def _methods(s):
     return ms
 
 
-def _part(s):
-    try:
-        i, n = (int(x) for x in s.split("/"))
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{s}' is not i/n") from None
-    if not 0 <= i < n:
-        raise argparse.ArgumentTypeError(f"'{s}': i must lie in 0..n-1")
-    return i, n
-
-
 def _prepare(args, say) -> int:
     """python -m smbs_addon prepare: compile the kernels (smbs_addon.prepare)."""
     from . import prepare
 
-    if args.part is not None:  # one of prepare()'s processes: its count is read by the parent
-        out = prepare.run(*args.part, say=say)
-        print(f"kernels compiled: {out['kernels']} in {out['compile_s']:.1f} s")
-        return EXIT_OK
     out = prepare.prepare(args.jobs, say=say)
     say(f"prepared: {_count(out['kernels'], 'kernel')} compiled in {out['seconds']:.1f} s "
         f"({_count(out['jobs'], 'process')}); bakes on this machine load them from the cache")
@@ -164,7 +150,6 @@ def build_parser() -> argparse.ArgumentParser:
                                        "(after installing or updating; cached on disk)")
     r.add_argument("--jobs", type=_positive_int, default=None,
                    help="processes compiling at once (default: one per core)")
-    r.add_argument("--part", type=_part, default=None, help=argparse.SUPPRESS)  # i/n: one process's share
     e = sub.add_parser("export", help="export a .blend to a .npz scene")
     e.add_argument("input")
     e.add_argument("output")

@@ -4,24 +4,26 @@ A kernel compiles with numba on its first use after installing or updating (jit.
 from the disk cache afterwards; a first bake that compiles the kernels it needs costs a few
 minutes more on a 2-core machine (compiles.py measures it). prepare makes a handful of tiny
 bakes that between them use the kernels bakes use (every light type, a mirror and an absorbing
-glass with Cycles' Bump Map Correction, a textured floor, every method and both estimators), so a
-farm node, a CI machine or an artist's first bake finds them compiled. With jobs > 1 the bakes
-are shared out over that many processes (``--part i/n``): numba compiles one kernel at a time in
-a process, and its cache writes each kernel's file whole, so processes compiling at once do not
-corrupt one another.
+glass with Cycles' Bump Map Correction, a plain and a textured, coated floor, every method and
+both estimators), so a farm node, a CI machine or an artist's first bake finds them compiled.
+With jobs > 1 the bakes are shared out over that many processes (numba compiles one kernel at a
+time in a process; its cache writes each kernel's file whole, so processes compiling at once do
+not corrupt one another).
 
-The disk cache is kept per name the package is imported under (jit.py): the kernels this command
-compiles as ``smbs_addon`` serve ``python -m smbs_addon`` and scripts importing ``smbs_addon``;
-Blender imports the extension under its own name and compiles its own: the operator
-``smbs.prepare_kernels`` (the panel's Prepare Kernels, or ``blender -b --python-expr "import bpy;
-bpy.ops.smbs.prepare_kernels()"`` on a farm node) runs these bakes in Blender's process.
+The disk cache is kept per name the package is imported under (jit.py), so the processes import
+the core under the name this module was imported by, from the same folder: ``smbs_addon`` for
+``python -m smbs_addon prepare``, the extension's name for the operator ``smbs.prepare_kernels``
+in Blender (the panel's Prepare Kernels, or ``blender -b --python-expr "import bpy;
+bpy.ops.smbs.prepare_kernels()"`` on a farm node), whose processes are Blender's own Python.
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import subprocess
 import sys
+import threading
 import time
 
 from .compiles import CompileWatch
@@ -42,6 +44,9 @@ BAKES = (
     ("textured", dict(method="smbs")),
     ("plain", dict(method="sms")),
 )
+
+
+_BAKE_LINE = "bake "  # run()'s line per bake
 
 
 def scene(name: str):
@@ -94,33 +99,82 @@ def run(part: int = 0, parts: int = 1, say=None, progress=None, cancel=None) -> 
             bake(scenes[name], BakeSettings(**{**dict(spp=1, batches=2, seed=1, pilots=256), **kw}), cancel=cancel)
             if say is not None:
                 n = watch.kernels - before
-                say(f"{name} {kw}: {n} kernel{'' if n == 1 else 's'} compiled")
+                say(f"{_BAKE_LINE}{name} {kw}: {n} kernel{'' if n == 1 else 's'} compiled")
     return {"seconds": time.perf_counter() - t0, "compile_s": watch.seconds, "kernels": watch.kernels}
 
 
-def prepare(jobs: int | None = None, say=None) -> dict:
-    """All the bakes, in `jobs` processes (default: one per core, at most one per bake) running
-    ``python -m <this package> prepare --part i/jobs``; one job runs them here. Returns
-    {"seconds": wall time, "kernels": compiled, "jobs": processes}."""
+# A process of prepare(): imports the core under the name its parent imported it by (numba's
+# disk cache is kept per name, jit.py) from the same folder, without running the packages above
+# it (Blender's extension package imports bpy), and makes its part of the bakes.
+_PART = """
+import importlib, json, os, sys, types
+package, folder, path, part, parts = sys.argv[1:6]
+names = package.split(".")
+if len(names) == 1:
+    sys.path.insert(0, os.path.dirname(folder))
+for k in range(1, len(names)):
+    up = folder
+    for _ in range(len(names) - k):
+        up = os.path.dirname(up)
+    stub = types.ModuleType(".".join(names[:k]))  # the package whose folder is `up`
+    stub.__path__ = [up]
+    sys.modules[stub.__name__] = stub
+sys.path.extend(p for p in json.loads(path) if p not in sys.path)
+prepare = importlib.import_module(package + ".prepare")
+out = prepare.run(int(part), int(parts), say=lambda m: print(m, flush=True))
+print(f"kernels compiled: {out['kernels']} in {out['compile_s']:.1f} s as {prepare.__name__}", flush=True)
+"""
+
+
+def prepare(jobs: int | None = None, say=None, progress=None, cancel=None) -> dict:
+    """All the bakes, in `jobs` processes (default: one per core, at most one per bake) of this
+    Python (sys.executable: Blender's own in Blender), each importing the core under this name;
+    one job runs them here. progress(fraction, message) as bakes end; cancel() returning True
+    stops the processes (BakeCancelled). Returns {"seconds": wall time, "kernels": compiled,
+    "jobs": processes, "as": the name the kernels were compiled under}."""
+    from .errors import BakeCancelled
+
     jobs = max(1, min(jobs or os.cpu_count() or 1, len(BAKES)))
+    package = __name__.rpartition(".")[0]
     t0 = time.perf_counter()
     if jobs == 1:
-        out = run(0, 1, say)
-        return {"seconds": out["seconds"], "kernels": out["kernels"], "jobs": 1}
-    package = __name__.rpartition(".")[0]
-    procs = [subprocess.Popen([sys.executable, "-m", package, "prepare", "--part", f"{i}/{jobs}"],
+        out = run(0, 1, say, progress, cancel)
+        return {"seconds": out["seconds"], "kernels": out["kernels"], "jobs": 1, "as": __name__}
+    folder = os.path.dirname(os.path.abspath(__file__))
+    procs = [subprocess.Popen([sys.executable, "-c", _PART, package, folder, json.dumps(sys.path), str(i), str(jobs)],
                               stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
              for i in range(jobs)]
-    kernels, failed = 0, []
-    for i, p in enumerate(procs):
-        text, _ = p.communicate()
-        for line in text.splitlines():
+    lines = [[] for _ in procs]
+    readers = [threading.Thread(target=lambda p=p, out=out: out.extend(p.stdout), daemon=True)
+               for p, out in zip(procs, lines)]
+    for r in readers:
+        r.start()
+    try:
+        while any(p.poll() is None for p in procs):
+            if cancel is not None and cancel():
+                raise BakeCancelled("kernel preparation cancelled")
+            if progress is not None:
+                done = sum(x.startswith(_BAKE_LINE) for out in lines for x in list(out))
+                progress(done / len(BAKES), f"compiling the kernels in {jobs} processes: {done} of {len(BAKES)} "
+                                            f"bakes done")
+            time.sleep(0.1)
+    finally:
+        for p in procs:
+            if p.poll() is None:
+                p.kill()
+            p.wait()
+        for r in readers:
+            r.join()
+    kernels, names, failed = 0, set(), []
+    for i, (p, out) in enumerate(zip(procs, lines)):
+        for line in (x.rstrip("\n") for x in out):
             if line.startswith("kernels compiled: "):
                 kernels += int(line.split(": ")[1].split()[0])
+                names.add(line.rsplit(" as ", 1)[1])
             elif say is not None:
                 say(f"[{i + 1}/{jobs}] {line}")
         if p.returncode != 0:
-            failed.append(f"part {i + 1} of {jobs} exited with {p.returncode}: {text.strip()[-2000:]}")
+            failed.append(f"part {i + 1} of {jobs} exited with {p.returncode}: {''.join(out).strip()[-2000:]}")
     if failed:
         raise RuntimeError("; ".join(failed))
-    return {"seconds": time.perf_counter() - t0, "kernels": kernels, "jobs": jobs}
+    return {"seconds": time.perf_counter() - t0, "kernels": kernels, "jobs": jobs, "as": ", ".join(sorted(names))}

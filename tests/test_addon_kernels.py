@@ -28,14 +28,27 @@ def test_prepare_kernels_in_background_reports_and_changes_nothing(ops, capsys):
     assert _scene_state(scene) == before
     out = capsys.readouterr().out
     assert "SMBS Caustics: the kernels were compiled already" in out or "SMBS Caustics: compiled " in out
-    assert kernels.message({"kernels": 0, "compile_s": 0.0}).endswith("bakes load them from the cache")
-    assert kernels.message({"kernels": 31, "compile_s": 140.4}) == (
+    assert kernels.message({"kernels": 0, "seconds": 3.0}).endswith("bakes load them from the cache")
+    assert kernels.message({"kernels": 31, "seconds": 140.4}) == (
         "SMBS Caustics: compiled 31 kernels in 140 s; bakes on this machine load them from the cache")
 
 
+def test_the_processes_compile_under_the_extensions_name(ops):
+    """prepare's processes import the core as Blender's process does (here smbs_caustics.smbs_addon,
+    in Blender bl_ext.<repo>.smbs_caustics.smbs_addon), from the same folder, without running the
+    extension's __init__ (it imports bpy): numba's disk cache is kept per name, so kernels compiled
+    under another name would not serve the bakes."""
+    prep = importlib.import_module(ops[0].__name__.rpartition(".")[0].rpartition(".")[0] + ".smbs_addon.prepare")
+    said = []
+    out = prep.prepare(jobs=2, say=said.append)
+    assert out["jobs"] == 2 and out["as"] == "smbs_caustics.smbs_addon.prepare"
+    assert len([x for x in said if x.startswith(("[1/2] bake ", "[2/2] bake "))]) == len(prep.BAKES), said
+
+
 def test_prepare_kernels_runs_like_a_bake_in_the_interface(ops):
-    """The modal way: a worker thread with progress ("compiling the kernels: bake i of n"), one
-    job per scene at a time, ended by the timer with a report; Esc stops it like a bake."""
+    """The modal way: a worker thread waiting for the processes, with progress ("compiling the
+    kernels in 2 processes: i of n bakes done"), one job per scene at a time, ended by the timer
+    with a report; Esc stops it like a bake (the processes killed)."""
     kernels, bake_op = ops
     scene = _mirror_scene(16, 12)
     before = _scene_state(scene)

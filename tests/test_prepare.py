@@ -41,5 +41,5 @@ def test_prepare_command_in_two_processes():
     assert out.returncode == 0, out.stderr + out.stdout
     last = out.stdout.strip().splitlines()[-1]
     assert last.startswith("prepared: ") and "(2 processes); bakes on this machine load them from the cache" in last
-    lines = [x for x in out.stdout.splitlines() if x.startswith(("[1/2] ", "[2/2] "))]
+    lines = [x for x in out.stdout.splitlines() if x.startswith(("[1/2] bake ", "[2/2] bake "))]
     assert len(lines) == len(prepare.BAKES)  # a line per bake, from both parts
