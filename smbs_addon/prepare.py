@@ -106,7 +106,7 @@ def run(part: int = 0, parts: int = 1, say=None, progress=None, cancel=None) -> 
 # A process of prepare(): imports the core under the name its parent imported it by (numba's
 # disk cache is kept per name, jit.py) from the same folder, without running the packages above
 # it (Blender's extension package imports bpy), and makes its part of the bakes.
-_PART = """
+_IMPORT = """
 import importlib, json, os, sys, types
 package, folder, path, part, parts = sys.argv[1:6]
 names = package.split(".")
@@ -121,9 +121,19 @@ for k in range(1, len(names)):
     sys.modules[stub.__name__] = stub
 sys.path.extend(p for p in json.loads(path) if p not in sys.path)
 prepare = importlib.import_module(package + ".prepare")
+"""
+_PART = _IMPORT + """
 out = prepare.run(int(part), int(parts), say=lambda m: print(m, flush=True))
 print(f"kernels compiled: {out['kernels']} in {out['compile_s']:.1f} s as {prepare.__name__}", flush=True)
 """
+
+
+def part_command(code: str, part: int, parts: int) -> list:
+    """The command line of prepare()'s process `part` of `parts` running `code` (_PART, or _IMPORT
+    and a check of one's own): this Python, the core's package name and folder, sys.path."""
+    package = __name__.rpartition(".")[0]
+    folder = os.path.dirname(os.path.abspath(__file__))
+    return [sys.executable, "-c", code, package, folder, json.dumps(sys.path), str(part), str(parts)]
 
 
 def prepare(jobs: int | None = None, say=None, progress=None, cancel=None) -> dict:
@@ -135,14 +145,11 @@ def prepare(jobs: int | None = None, say=None, progress=None, cancel=None) -> di
     from .errors import BakeCancelled
 
     jobs = max(1, min(jobs or os.cpu_count() or 1, len(BAKES)))
-    package = __name__.rpartition(".")[0]
     t0 = time.perf_counter()
     if jobs == 1:
         out = run(0, 1, say, progress, cancel)
         return {"seconds": out["seconds"], "kernels": out["kernels"], "jobs": 1, "as": __name__}
-    folder = os.path.dirname(os.path.abspath(__file__))
-    procs = [subprocess.Popen([sys.executable, "-c", _PART, package, folder, json.dumps(sys.path), str(i), str(jobs)],
-                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    procs = [subprocess.Popen(part_command(_PART, i, jobs), stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
              for i in range(jobs)]
     lines = [[] for _ in procs]
     readers = [threading.Thread(target=lambda p=p, out=out: out.extend(p.stdout), daemon=True)

@@ -69,6 +69,12 @@ assert result == {'FINISHED'}, result
 assert "bake_caustics" in dir(bpy.ops.smbs) and hasattr(bpy.context.scene, "smbs_caustics")
 for core in ("export", "bake", "composite", "imageio"):  # relative imports hold inside the zip
     importlib.import_module(ext + ".smbs_addon." + core)
+# Prepare Kernels' processes import the installed core under this name, bpy left out
+import subprocess
+prepare = importlib.import_module(ext + ".smbs_addon.prepare")
+check = prepare._IMPORT + "print('PART', prepare.__name__, prepare.__file__, 'bpy' in sys.modules)"
+part = subprocess.run(prepare.part_command(check, 0, 2), capture_output=True, text=True, timeout=120)
+assert part.stdout.split() == ["PART", ext + ".smbs_addon.prepare", prepare.__file__, "False"], part.stdout + part.stderr
 bpy.ops.preferences.addon_disable(module=ext)
 assert "bake_caustics" not in dir(bpy.ops.smbs) and not hasattr(bpy.context.scene, "smbs_caustics")
 print("INSTALL-OK")
