@@ -507,7 +507,8 @@ class _Stop:
         self.reason = "samples"
         self.last_error = math.inf
 
-    def _now(self) -> float:
+    def clock(self) -> float:
+        """Seconds into the bake, compiling left out: the batches' clock (_bake_batches)."""
         return time.perf_counter() - self.t0 - self.watch.now()
 
     def _error(self) -> float:
@@ -521,7 +522,7 @@ class _Stop:
         """Progress of a time or noise rule (noise: error ~ t^-1/2, so (target / error)^2)."""
         f = 0.0
         if self.s.time_budget > 0:
-            f = self._now() / self.s.time_budget
+            f = self.clock() / self.s.time_budget
         if self.s.noise_target > 0 and math.isfinite(self.last_error) and self.last_error > 0:
             f = max(f, min(0.99, (self.s.noise_target / self.last_error) ** 2))
         return min(f, 0.99)
@@ -537,7 +538,7 @@ class _Stop:
                 self.reason = "noise"
                 return True
         if s.time_budget > 0 and b >= 2:
-            if self._now() + 0.5 * last_batch_s >= s.time_budget:
+            if self.clock() + 0.5 * last_batch_s >= s.time_budget:
                 self.reason = "time"
                 return True
         if b >= MAX_BATCHES:
@@ -556,14 +557,15 @@ def _bake_batches(settings: BakeSettings, film: Film, t0: float, prog: _Progress
     and a time budget buys what it buys on later bakes (_Stop)."""
     stop = _Stop(settings, film, t0, watch)
     prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
-    t_first = time.perf_counter() - t0 - watch.now()
+    t_first = stop.clock()
     b = 0
     while True:
-        t_b, c_b = time.perf_counter(), watch.now()
+        begun = stop.clock()
         run_batch(b)
-        film.end_batch(time.perf_counter() - t0 - watch.now())
+        ended = stop.clock()
+        film.end_batch(ended)
         b += 1
-        if stop(b, time.perf_counter() - t_b - (watch.now() - c_b)):
+        if stop(b, ended - begun):
             return b, stop, t_first
 
 
