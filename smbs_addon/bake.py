@@ -247,8 +247,11 @@ def _eye_per_batch(cam, film, settings) -> int:
     return max(1, film_cells(cam, film) * settings.spp // settings.batches)
 
 
-def _specular_visible(scene, tracer, cam) -> tuple[bool, int]:
-    """Does any pixel see a mirror or glass surface first? (one ray per pixel: how many it cast)"""
+def _specular_visible(scene, tracer, cam, plan) -> tuple[bool, int]:
+    """Does any pixel see a mirror or glass surface first? (one ray per pixel: how many it cast;
+    none where the plan's look from the camera cast the same rays: plan.specular_seen)"""
+    if plan.specular_seen is not None:
+        return plan.specular_seen, 0
     jj, _, o, d = cam.pixel_rays()
     if jj.size == 0:
         return False, 0
@@ -727,7 +730,7 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
                                      "lost_shading_normal"), 0))
         from .eye import film_cells, specular_cells
 
-        enabled, rays_visible = _specular_visible(scene, tracer, cam)
+        enabled, rays_visible = _specular_visible(scene, tracer, cam, plan)
         eye_stats = {"eye_paths": 0, "rays_eye": 0, "rays_visible": rays_visible, "eye_splats": 0, "time_s": 0.0,
                      "enabled": enabled, "film_cells": film_cells(cam, film)}
         # eye paths traced only from the film cells that can see a mirror or glass first

@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import lanes
 from . import scene as S
 from .errors import SceneError
 from .lights import light_axis, light_covers
@@ -52,6 +53,9 @@ class Plan:
     cost: dict = field(default_factory=dict)  # rays and seconds the plan took
     indirect_words: list = field(default_factory=list)  # light -> diffuse -> casters -> receivers
     bent: tuple | None = None  # indirect.bent_candidates (kept once found): triangles, cdf, guide
+    # whether some pixel's ray meets a mirror or glass first (camera_sees); None: not known (the
+    # plan was not traced, or its grid skipped pixels)
+    specular_seen: bool | None = None
 
     def words(self) -> list:
         """The plan in an artist's words, one line per light that bakes, then what is skipped."""
@@ -252,26 +256,27 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
     (a grid of at most CAMERA_RAYS over a larger frame), split at glass into its reflection
     and its refraction. Returns (direct (O,) bool, through (O,2,3): per receiver the box of
     the points seen through mirrors or glass, padded (empty: lo > hi), sides (O,) the sides
-    of them seen (1 front, 2 back, by the geometric normal), rays).
+    of them seen (1 front, 2 back, by the geometric normal), rays, specular: whether a mirror
+    or glass is what some pixel sees first, None where the grid skips pixels).
 
     The rays are traced in parts of SEES_PART that the threads take in turn (_sees_part); what
     they find is merged by or, min and max, so the result is the one of a single part (but in a
     maze of glass, where each part keeps its own regular subset of its rays)."""
-    from . import lanes
-
     direct, through, sides = _nothing_seen(len(scene.object_names))
     x0, x1, y0, y1 = cam.region
     w, h = max(0, x1 - x0), max(0, y1 - y0)
     if w * h == 0 or scene.n_tris == 0:
-        return direct, through, sides, 0
-    _, _, o, d = cam.pixel_rays(max(1, math.ceil(math.sqrt(w * h / CAMERA_RAYS))))
+        return direct, through, sides, 0, False
+    step = max(1, math.ceil(math.sqrt(w * h / CAMERA_RAYS)))
+    _, _, o, d = cam.pixel_rays(step)
     n = len(o)
 
     def part(a, b):
         return _sees_part(scene, tracer, plan, o[a:b], d[a:b], max_bounces, 4 * CAMERA_RAYS * (b - a) // max(n, 1))
 
-    rays = 0
-    for p_direct, p_through, p_sides, p_rays in lanes.blocks(part, n, SEES_PART, tracer.threads):
+    rays, specular = 0, False
+    for p_direct, p_through, p_sides, p_rays, p_specular in lanes.blocks(part, n, SEES_PART, tracer.threads):
+        specular |= p_specular
         direct |= p_direct
         np.minimum(through[:, 0], p_through[:, 0], out=through[:, 0])
         np.maximum(through[:, 1], p_through[:, 1], out=through[:, 1])
@@ -282,7 +287,7 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
     pad = 0.1 * np.linalg.norm(through[:, 1] - through[:, 0], axis=1) + 0.02 * plan.scale
     through[seen, 0] -= pad[seen, None]
     through[seen, 1] += pad[seen, None]
-    return direct, through, sides, rays
+    return direct, through, sides, rays, (specular if step == 1 else None)
 
 
 SEES_PART = 1 << 16  # camera rays per part of camera_sees
@@ -296,12 +301,13 @@ def _nothing_seen(n_objects: int):
 
 
 def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
-    """camera_sees for the rays o, d: (direct, through (unpadded), sides, rays cast); past cap
-    rays at a bounce, a regular subset of them goes on."""
+    """camera_sees for the rays o, d: (direct, through (unpadded), sides, rays cast, whether a
+    mirror or glass is the first hit of one of them); past cap rays at a bounce, a regular subset
+    of them goes on."""
     from .optics import reflect, refract
 
     direct, through, sides = _nothing_seen(len(scene.object_names))
-    rays = 0
+    rays, specular = 0, False
     for depth in range(max_bounces + 1):
         if len(o) == 0:
             break
@@ -316,6 +322,7 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
             front = dot(d[i[r]], hit.ng[i[r]]) < 0
             np.bitwise_or.at(sides, obj[r], np.where(front, 1, 2))
         spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))  # any mirror or glass, as the eye
+        specular |= depth == 0 and spec.size > 0
         if spec.size == 0 or depth == max_bounces:
             break
         j = i[spec]
@@ -332,7 +339,7 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
             keep = np.arange(0, len(nd), math.ceil(len(nd) / max(cap, 1)))
             no, nd, nn = no[keep], nd[keep], nn[keep]
         o, d = tracer.spawn(no, nn, nd), nd
-    return direct, through, sides, rays
+    return direct, through, sides, rays, specular
 
 
 def _sees_point(scene, tracer, cam, p, ng, w_in):
@@ -423,6 +430,17 @@ def _letters(row) -> str:
     return "".join("R" if c == 1 else "T" for c in row[::-1] if c)
 
 
+def _chain_flux(letters: np.ndarray, w: np.ndarray) -> dict:
+    """{chain letters: flux} of pilot paths (letters (K, bounces) as _pilot gives them, w (K,)
+    their flux), the chains in the order they first appear. Each chain's flux is added up in the
+    paths' order, one path after the other (np.bincount), as a loop over the paths would."""
+    if not len(letters):
+        return {}
+    rows, first, inv = np.unique(letters, axis=0, return_index=True, return_inverse=True)
+    flux = np.bincount(inv.ravel(), weights=w, minlength=len(rows))
+    return {_letters(rows[u]): float(flux[u]) for u in np.argsort(first, kind="stable")}
+
+
 def spot_target(scene, li: int, sphere: np.ndarray) -> tuple[np.ndarray, float]:
     """Where light li's photons aim at a sphere (1,4) that holds what they may light (the
     diffuse surfaces for the plan's pilots, the scene for the bake's photons after a diffuse
@@ -452,6 +470,54 @@ def spot_target(scene, li: int, sphere: np.ndarray) -> tuple[np.ndarray, float]:
     return target, min(1.0, solid_angle(target[0, 3]) / solid_angle(float(sphere[0, 3])))
 
 
+def _caster_pilot(scene, tracer, cam, plan, seen, seed, lp, k, pilots, max_bounces):
+    """refine_plan's pilots of light lp's k-th caster: (photons, rays, None where none of its
+    caustic lands in view, else (chain shares, receiver names, flux, casters met))."""
+    from .lights import emit
+
+    o = lp.caster_objects[k]
+    rng = _rng(seed, 7, lp.key, light_key(scene.object_names[o]))
+    ph = emit(scene, lp.index, lp.targets[k:k + 1], pilots, rng)
+    hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, ph, *seen, rng, max_bounces, o)
+    first = hist[:, 0] == o
+    flux = float(wgt[first].sum())
+    if not flux > 0:
+        return pilots, r, None
+    chains = _chain_flux(letters[first], wgt[first])
+    return pilots, r, ({t: v / flux for t, v in chains.items()},
+                       [scene.object_names[x] for x in np.unique(recv[first])], flux,
+                       {int(x) for x in np.unique(hist[first]) if x >= 0})
+
+
+def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere, max_bounces):
+    """refine_plan's pilots of light li through a diffuse bounce: n_ind photons onto the diffuse
+    surfaces (the sphere dif_sphere), a cosine bounce, then _pilot. (photons, rays, None where
+    none lands in view, else (flux, casters met, receiver names))."""
+    from .lights import Photons, emit
+    from .vec import cosine_hemisphere, frame, to_world
+
+    rng = _rng(seed, 8, light_key(scene.light_names[li]))
+    ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng)  # onto the diffuse surfaces
+    lit = np.flatnonzero(ph.w.max(axis=1) > 0)
+    h = tracer.intersect(ph.o[lit], ph.d[lit])
+    i = np.flatnonzero(h.hit)
+    mat = scene.tri_material[h.prim[i]]
+    dif = np.flatnonzero(scene.mat_kind[mat] == S.DIFFUSE)
+    if dif.size == 0:
+        return n_ind, lit.size, None
+    j = i[dif]
+    ng = h.ng[j] * np.sign(-dot(ph.d[lit[j]], h.ng[j]))[:, None]  # the lit side
+    s_, t_ = frame(ng)
+    d2 = to_world(cosine_hemisphere(rng.random(j.size), rng.random(j.size)), s_, t_, ng)
+    w2 = ph.w[lit[j]] * scene.mat_color[mat[dif]]  # cosine sampling: the albedo
+    bounce = Photons(tracer.spawn(h.p[j], ng, d2), d2, w2)
+    hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, bounce, *seen, rng, max_bounces, None)
+    if not wgt.sum() > 0:
+        return n_ind, lit.size + r, None
+    return n_ind, lit.size + r, (float(wgt.sum()), {int(x) for x in np.unique(hist) if x >= 0},
+                                 [scene.object_names[x] for x in np.unique(recv)])
+
+
 def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: int = PILOT_PHOTONS,
                 max_bounces: int = PILOT_BOUNCES, indirect: bool = True) -> Plan:
     """The traced part of the plan: which receivers the camera sees, and per light, by
@@ -465,68 +531,38 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
     t0 = time.perf_counter()
     if not indirect:  # the bake leaves out caustics after a diffuse bounce
         plan.indirect_lights = []
-    direct, through, sides, rays = camera_sees(scene, tracer, cam, plan)
+    direct, through, sides, rays, plan.specular_seen = camera_sees(scene, tracer, cam, plan)
     for o in np.flatnonzero(plan.receivers):
         if direct[o] or through[o, 0, 0] <= through[o, 1, 0]:
             plan.seen[scene.object_names[o]] = "directly" if direct[o] else "through mirrors or glass"
     photons = 0
     if pilots > 0 and plan.lights:
-        from .lights import Photons, emit
-        from .vec import cosine_hemisphere, frame, to_world
-
-        found = []  # per light: {caster: (shares, receivers, flux, casters met)}
-        for lp in plan.lights:
-            per = {}
-            for k, o in enumerate(lp.caster_objects):
-                rng = _rng(seed, 7, lp.key, light_key(scene.object_names[o]))
-                ph = emit(scene, lp.index, lp.targets[k:k + 1], pilots, rng)
-                photons += pilots
-                hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng,
-                                                     max_bounces, o)
-                rays += r
-                first = hist[:, 0] == o
-                flux = float(wgt[first].sum())
-                if not flux > 0:
-                    continue
-                chains = {}
-                for row, wv in zip(letters[first], wgt[first]):
-                    t = _letters(row)
-                    chains[t] = chains.get(t, 0.0) + float(wv)
-                per[o] = ({t: v / flux for t, v in chains.items()},
-                          [scene.object_names[x] for x in np.unique(recv[first])], flux,
-                          {int(x) for x in np.unique(hist[first]) if x >= 0})
-            found.append(per)
-        # caustics through a diffuse bounce first (light -> diffuse -> caster -> ... -> seen;
-        # indirect.py): pilots from each light onto every diffuse surface, then a cosine bounce
-        indirect = {}
+        seen = (direct, through, sides)
+        # every light's pilots per caster, then each indirect light's (caustics through a diffuse
+        # bounce first, light -> diffuse -> caster -> ... -> seen; indirect.py): tasks the threads
+        # take in turn, each with its own random stream; their answers are read in task order
+        tasks = [(lp, k, o) for lp in plan.lights for k, o in enumerate(lp.caster_objects)]
+        tasks += [(None, li, None) for li in plan.indirect_lights]
         n_ind = max(64, pilots // 2)
         dif = _bounds_over(scene, np.unique(scene.tri_object[scene.mat_kind[scene.tri_material] == S.DIFFUSE]))
         dif_sphere = _bounding_sphere(*dif, scene)[None, :] if dif else plan.scene_sphere
-        for li in plan.indirect_lights:
-            name = scene.light_names[li]
-            rng = _rng(seed, 8, light_key(name))
-            ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng)  # onto the diffuse surfaces
-            photons += n_ind
-            lit = np.flatnonzero(ph.w.max(axis=1) > 0)
-            h = tracer.intersect(ph.o[lit], ph.d[lit])
-            rays += lit.size
-            i = np.flatnonzero(h.hit)
-            mat = scene.tri_material[h.prim[i]]
-            dif = np.flatnonzero(scene.mat_kind[mat] == S.DIFFUSE)
-            if dif.size == 0:
-                continue
-            j = i[dif]
-            ng = h.ng[j] * np.sign(-dot(ph.d[lit[j]], h.ng[j]))[:, None]  # the lit side
-            s_, t_ = frame(ng)
-            d2 = to_world(cosine_hemisphere(rng.random(j.size), rng.random(j.size)), s_, t_, ng)
-            w2 = ph.w[lit[j]] * scene.mat_color[mat[dif]]  # cosine sampling: the albedo
-            bounce = Photons(tracer.spawn(h.p[j], ng, d2), d2, w2)
-            hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, bounce, direct, through, sides, rng,
-                                                 max_bounces, None)
+
+        def task(a, _b):
+            lp, k, o = tasks[a]
+            if lp is None:
+                return _indirect_pilot(scene, tracer, cam, plan, seen, seed, k, n_ind, dif_sphere, max_bounces)
+            return _caster_pilot(scene, tracer, cam, plan, seen, seed, lp, k, pilots, max_bounces)
+
+        found = [{} for _ in plan.lights]  # per light: {caster: (shares, receivers, flux, casters met)}
+        where = {id(lp): i for i, lp in enumerate(plan.lights)}
+        indirect = {}
+        for (lp, k, o), (n, r, out) in zip(tasks, lanes.blocks(task, len(tasks), 1, tracer.threads)):
+            photons += n
             rays += r
-            if wgt.sum() > 0:
-                indirect[li] = (float(wgt.sum()), {int(x) for x in np.unique(hist) if x >= 0},
-                                [scene.object_names[x] for x in np.unique(recv)])
+            if out is not None and lp is None:
+                indirect[k] = out
+            elif out is not None:
+                found[where[id(lp)]][o] = out
         total = sum(f[2] for per in found for f in per.values()) + sum(v[0] for v in indirect.values())
         kept_lights, no_direct = [], []
         used = np.zeros_like(plan.casters)

@@ -214,3 +214,72 @@ def _sample_plan(name):
 @pytest.mark.parametrize("name", sorted(SAMPLE_PLANS))
 def test_sample_scene_plans(name):
     assert _sample_plan(name) == SAMPLE_PLANS[name]
+
+
+def test_chain_flux_adds_up_as_a_loop_over_the_paths():
+    """plan._chain_flux (np.unique and np.bincount) against the loop over pilot paths it replaced:
+    the same chains in the order they first appear, and the same sums to the last bit."""
+    from smbs_addon.plan import _chain_flux, _letters
+
+    rng = np.random.default_rng(11)
+    for n in (0, 1, 7, 3000):
+        lengths = rng.integers(1, 5, n)
+        letters = np.where(np.arange(4) < lengths[:, None], rng.integers(1, 3, (n, 4)), 0).astype(np.int8)
+        w = rng.random(n) * 10.0 ** rng.uniform(-6, 6, n)
+        loop = {}
+        for row, wv in zip(letters, w):
+            loop[_letters(row)] = loop.get(_letters(row), 0.0) + float(wv)
+        got = _chain_flux(letters, w)
+        assert list(got.items()) == list(loop.items())
+        assert len(got) == len({tuple(r) for r in letters})
+
+
+def test_the_plans_look_from_the_camera_answers_the_light_tracers():
+    """The plan's camera rays are the light tracer's look for mirrors and glass in view (one ray
+    per pixel) when its grid skips no pixel: plan.specular_seen is that look's answer, found on
+    the way (ball: yes; a pane seen only past its edge: no; the camera's grid coarser than the
+    pixels: not known), and the bake casts those rays once (eye_pass.rays_visible 0)."""
+    from smbs_addon.bake import _specular_visible
+    from smbs_addon.plan import CAMERA_RAYS
+
+    def look(scene):  # the light tracer's own look, as before the plan answered it
+        cam = CameraModel(scene.camera)
+        _, _, o, d = cam.pixel_rays()
+        h = Tracer(scene).intersect(o, d)
+        kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
+        return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)))
+
+    ball = scenes.glass_sphere_scene(resolution=(64, 48))
+    floor_only = scenes.glass_sphere_scene(resolution=(64, 48))
+    floor_only.camera.matrix_world = floor_only.camera.matrix_world.copy()
+    floor_only.camera.matrix_world[:3, 3] += np.array([6.0, 0.0, 0.0])  # the ball out of the frame
+    for scene, want in ((ball, True), (floor_only, False)):
+        plan = make_plan(scene)
+        refine_plan(plan, scene, Tracer(scene), CameraModel(scene.camera), seed=0)
+        assert look(scene) is want and plan.specular_seen is want
+        if not plan.nothing:
+            st = bake(scene, BakeSettings(method="reference", spp=1, seed=1)).stats
+            assert st["eye_pass"]["rays_visible"] == 0 and st["eye_pass"]["enabled"] is want
+    big = scenes.glass_sphere_scene(resolution=(600, 500))
+    assert 600 * 500 > CAMERA_RAYS
+    plan = make_plan(big)
+    refine_plan(plan, big, Tracer(big), CameraModel(big.camera), seed=0, pilots=0)
+    assert plan.specular_seen is None  # more pixels than CAMERA_RAYS: the light tracer looks itself
+    cam = CameraModel(big.camera)
+    assert _specular_visible(big, Tracer(big), cam, plan) == (look(big), len(cam.pixel_rays()[0]))
+
+
+def test_pilots_on_one_thread_or_two_plan_the_same():
+    """refine_plan's pilots run as tasks the threads take in turn (per light and caster, per
+    indirect light), each with its own random stream: the plan on one thread is the plan on two,
+    word for word, with the same rays (four lights, glass and a mirror: prepare's scene)."""
+    from smbs_addon import prepare
+
+    scene = prepare.scene("plain")
+    plans = []
+    for threads in (1, 2):
+        plan = make_plan(scene)
+        refine_plan(plan, scene, Tracer(scene, threads=threads), CameraModel(scene.camera), seed=3)
+        plans.append((plan.words(), plan.cost["rays"], plan.cost["pilot_photons"], plan.indirect_lights))
+    assert plans[0] == plans[1]
+    assert len(plans[0][0]) >= 4 and plans[0][3]
