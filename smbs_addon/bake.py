@@ -24,6 +24,7 @@ from .film import Film
 from .lights import emit
 from .plan import _rng, light_key, make_plan, refine_plan, spot_target
 from .tracer import Tracer
+from .vec import channel_mean
 
 METHODS = ("auto", "reference", "mnee", "sms", "smbs")
 F32_MAX = float(np.finfo(np.float32).max)
@@ -193,7 +194,7 @@ def region_mean_error(batch_luminance, region) -> tuple[float, float]:
 
 def caustic_region(image: np.ndarray, frac: float = 0.05) -> np.ndarray:
     """Pixels where the caustic is clearly non-zero: luminance above frac of its 99.5th percentile."""
-    return convergence.caustic_region(image.mean(axis=2), frac)
+    return convergence.caustic_region(channel_mean(image), frac)
 
 
 def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None, region=None) -> dict:
@@ -202,8 +203,8 @@ def noise_summary(image: np.ndarray, variance: np.ndarray, batch_luminance=None,
     if not region.any():
         return {"region_pixels": 0, "mean": 0.0, "std_error_of_mean": 0.0, "relative_noise": 0.0,
                 "pixel_rms_noise": 0.0}
-    lum = image.mean(axis=2)[region]
-    var = variance.mean(axis=2)[region]  # variance of the channel mean (conservative: /3 ignored)
+    lum = channel_mean(image)[region]
+    var = channel_mean(variance)[region]  # variance of the channel mean (conservative: /3 ignored)
     mean = float(lum.mean())
     se = region_mean_error(batch_luminance, region)[1] if batch_luminance is not None else float("nan")
     return {
@@ -518,7 +519,7 @@ class _Stop:
         groups = np.stack(self.film.batch_luminance) if len(self.film.batch_luminance) >= 2 else None
         if groups is None:
             return math.inf
-        lum = self.film.image.mean(axis=2)
+        lum = channel_mean(self.film.image)
         return convergence.relative_error(groups, convergence.caustic_region(lum))
 
     def fraction(self) -> float:
@@ -686,8 +687,9 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
     check_memory(scene, cam.W, cam.H, settings.batches)
     if plan.nothing:
         return _nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
-    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region, textured=scene.textured_materials() is not None)
     tracer = _trace_plan(plan, scene, settings, cam)
+    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region, textured=scene.textured_materials() is not None,
+                threads=tracer.threads)
     _note_bent(scene, tracer, plan)
     if on_plan is not None:
         on_plan(plan.words())
@@ -844,7 +846,7 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
                                    film.group_size * len(batch_lum))
     std = convergence.pixel_std(batch_lum)
     elapsed = time.perf_counter() - t0
-    layer = float(image.mean(axis=2).sum())
+    layer = float(channel_mean(image).sum())
     for st in light_stats.values():  # the trial cap's bias, at least, as a share of the layer
         if "trials" in st:
             st["trials"]["capped_share_min"] = st["trials"]["capped_energy_min"] / layer if layer > 0 else 0.0
@@ -872,7 +874,7 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
     }
     textured, per_albedo = film.textured_parts()
     if textured is not None:
-        stats["textured_share"] = float(textured.mean(axis=2).sum()) / layer if layer > 0 else 0.0
+        stats["textured_share"] = float(channel_mean(textured).sum()) / layer if layer > 0 else 0.0
         textured, per_albedo = textured.astype(np.float32), per_albedo.astype(np.float32)
     return BakeResult(image=image.astype(np.float32), variance=variance.astype(np.float32), stats=stats,
                       batch_luminance=batch_lum, std=std, textured=textured, per_albedo=per_albedo)

@@ -13,8 +13,10 @@ import math
 
 import numpy as np
 
-from . import kernels
+from . import kernels, lanes
+from .vec import channel_mean
 
+SPLAT_SPLIT = 4096  # samples from which a splat's rows are shared over the threads
 MAX_GROUPS = 64  # batch images kept (even); more batches are merged in pairs
 
 
@@ -34,8 +36,9 @@ class Film:
     """
 
     def __init__(self, width: int, height: int, filter_width: float = 1.5,
-                 region: tuple | None = None, textured: bool = False):
+                 region: tuple | None = None, textured: bool = False, threads: int = 1):
         self.W, self.H = int(width), int(height)
+        self.threads = max(1, int(threads))  # splats of many samples: each thread its own rows
         self.filter_width = max(float(filter_width), 0.5)
         self.region = region or (0, self.W, 0, self.H)
         self.sum = np.zeros((self.H * self.W, 3))
@@ -63,20 +66,31 @@ class Film:
         per-albedo part."""
         if len(rx) == 0:
             return
-        r = self.filter_width
-        k = int(math.ceil(r)) + 1
-        x0, x1, y0, y1 = self.region
         rx, ry = np.ascontiguousarray(rx, np.float64), np.ascontiguousarray(ry, np.float64)
         rgb = np.ascontiguousarray(rgb, np.float64)
-        kernels.splat(self._cur, self.W, x0, x1, y0, y1, r, k, rx, ry, rgb)
+        self._splat(self._cur, rx, ry, rgb)
         if albedo is None or self.textured is None:
             return
         on = np.flatnonzero(np.asarray(albedo).max(axis=1) > 0)
         if on.size:
             a, v = np.asarray(albedo, np.float64)[on], rgb[on]
-            kernels.splat(self.textured, self.W, x0, x1, y0, y1, r, k, rx[on], ry[on], v)
+            self._splat(self.textured, rx[on], ry[on], v)
             unit = np.divide(v, a, out=np.zeros_like(v), where=a > 0)
-            kernels.splat(self.per_albedo, self.W, x0, x1, y0, y1, r, k, rx[on], ry[on], unit)
+            self._splat(self.per_albedo, rx[on], ry[on], unit)
+
+    def _splat(self, into, rx, ry, rgb) -> None:
+        """kernels.splat into `into`; a splat of SPLAT_SPLIT samples or more on the threads, each
+        adding to rows of its own (the same image)."""
+        r = self.filter_width
+        k = int(math.ceil(r)) + 1
+        x0, x1, y0, y1 = self.region
+        bands = self.threads if len(rx) >= SPLAT_SPLIT else 1
+        edges = [y0 + (y1 - y0) * i // bands for i in range(bands + 1)]
+
+        def band(a, b):
+            kernels.splat(into, self.W, x0, x1, edges[a], edges[b], r, k, rx, ry, rgb)
+
+        lanes.run(band, bands, bands, 1)
 
     def frame_share(self, rx: np.ndarray, ry: np.ndarray) -> np.ndarray:
         """The share of a splat at (rx, ry) that lands in the render region: the filter's taps
@@ -97,7 +111,7 @@ class Film:
         """Close the current batch (t: when it ended, seconds into the bake)."""
         self.sum += self._cur
         self.sumsq += self._cur * self._cur
-        lum = self._cur.mean(axis=1).reshape(self.H, self.W)
+        lum = channel_mean(self._cur).reshape(self.H, self.W)
         self._pending = lum if self._pending is None else self._pending + lum
         self._pending_n += 1
         if self._pending_n == self.group_size:

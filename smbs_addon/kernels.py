@@ -1324,11 +1324,15 @@ def blackman_harris(x, r):
 @njit(**_JIT)
 def splat(cur, W, x0, x1, y0, y1, r, k, rx, ry, rgb):
     """film.Film.splat's loop: every sample through the (2k+1)^2 filter taps into cur (H*W, 3),
-    samples in order (one thread: the sums' order, and so the image, are fixed)."""
+    samples in order, on the rows y0 <= y < y1 and columns x0 <= x < x1 alone (each pixel's sums
+    in the samples' order, whoever adds them: threads given rows of their own make the image one
+    thread makes, bit for bit)."""
     wx = np.zeros(2 * k + 1)
     for i in range(rx.shape[0]):
         fx = math.floor(rx[i])
         fy = math.floor(ry[i])
+        if fy + k < y0 or fy - k >= y1:
+            continue  # no tap on these rows
         for ox in range(-k, k + 1):
             wx[ox + k] = _blackman_harris(fx + ox + 0.5 - rx[i], r)
         for oy in range(-k, k + 1):

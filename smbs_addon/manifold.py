@@ -27,7 +27,7 @@ from .layer import coat_factor, has_layers
 from .lights import area_light_points, light_axis
 from .optics import has_reflection
 from .trials import bernoulli_trials
-from .vec import dot, normalize, uniform_cone, frame, to_world
+from .vec import channel_mean, dot, normalize, uniform_cone, frame, to_world
 from .walk import OUTCOMES, TRIGGERS, WalkConfig, newton_walk, propagate
 
 
@@ -353,7 +353,7 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     val = np.where(ok[:, None], val, 0.0)
     ctx.clamp_cut = None
     if ctx.clamp > 0:  # biased: caps the fold's (and G's) spikes; what is cut goes to the statistics
-        lum = val.mean(axis=1)
+        lum = channel_mean(val)
         over = lum > ctx.clamp
         val[over] *= (ctx.clamp / lum[over])[:, None]
         ctx.clamp_cut = np.where(over, lum - ctx.clamp, 0.0)

@@ -193,3 +193,29 @@ def test_noise_estimate_statistically_honest():
     true = sigma**2 / B
     # the mean of 6000 chi-square(5)/5 variables: relative standard deviation sqrt(2/5/6000)
     assert est == pytest.approx(true, rel=4 * math.sqrt(2 / 5 / 6000))
+
+
+@pytest.mark.parametrize("w", [0.5, 1.5, 3.0])
+def test_a_splat_shared_over_threads_is_one_threads_bit_for_bit(w):
+    """Film.splat of SPLAT_SPLIT samples or more: each thread adds to rows of its own, so every
+    pixel's sum is made in the samples' order, as on one thread: the same image, bit for bit
+    (2, 3 and 7 threads; rows fewer than threads; a region; textured parts alike)."""
+    from smbs_addon.film import SPLAT_SPLIT
+
+    rng = np.random.default_rng(5)
+    W, H, n = 40, 30, 3 * SPLAT_SPLIT
+    rx, ry = rng.uniform(-3, W + 3, n), rng.uniform(-3, H + 3, n)
+    rgb = rng.lognormal(0.0, 3.0, size=(n, 3))
+    albedo = np.where(rng.random((n, 1)) < 0.5, rng.random((n, 3)), 0.0)
+    for region in (None, (5, 33, 3, 27), (0, W, 11, 13)):
+        films = [Film(W, H, filter_width=w, region=region, textured=True, threads=t) for t in (1, 2, 3, 7)]
+        for f in films:
+            f.splat(rx, ry, rgb, albedo)
+            f.splat(rx[:100], ry[:100], rgb[:100])  # below SPLAT_SPLIT: one call
+            f.end_batch()
+        for f in films[1:]:
+            assert np.array_equal(f.image, films[0].image)
+            for a, b in zip(f.textured_parts(), films[0].textured_parts()):
+                assert np.array_equal(a, b)
+        x0, x1, y0, y1 = region or (0, W, 0, H)
+        assert np.count_nonzero(films[0].image[..., 0]) == (x1 - x0) * (y1 - y0)  # every pixel of the region
