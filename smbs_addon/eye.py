@@ -118,9 +118,14 @@ def specular_cells(scene, tracer, cam, film) -> np.ndarray | None:
     kind = scene.mat_kind[scene.tri_material]
     spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
     mask = np.zeros((ch, cw), bool)
-    for o in np.unique(scene.tri_object[spec]):
-        v = tracer.v[spec[scene.tri_object[spec] == o]].reshape(-1, 3)
-        lo, hi = np.min(v, axis=0), np.max(v, axis=0)
+    n_objects = len(scene.object_names)
+    n_spec = np.bincount(scene.tri_object[spec], minlength=n_objects)
+    n_all = np.bincount(scene.tri_object, minlength=n_objects)
+    for o in np.flatnonzero(n_spec):
+        if n_spec[o] == n_all[o]:  # all mirror or glass: the object's box
+            lo, hi = tracer.obj_lo[o], tracer.obj_hi[o]
+        else:
+            lo, hi = S.column_bounds(tracer.v[spec[scene.tri_object[spec] == o]].reshape(-1, 3))
         corners = np.array([[(lo, hi)[a][0], (lo, hi)[b][1], (lo, hi)[c][2]] for a in (0, 1) for b in (0, 1)
                             for c in (0, 1)])
         c = cam.to_camera(corners)

@@ -56,7 +56,7 @@ def flat_axes(m3) -> bool:
     return not (abs(np.linalg.det(m)) > 1e-12 * max(float(np.abs(m).max()), 1e-300) ** 3)
 
 
-def _column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(min, max) per column of v (N, 3): column by column, ~25x faster than numpy's reduction
     over axis 0 with 3 columns; raises on N = 0 as that reduction does."""
     return (np.array([v[:, c].min() for c in range(3)]), np.array([v[:, c].max() for c in range(3)]))
@@ -204,7 +204,7 @@ class Scene:
         def compute():
             if self.n_tris == 0:
                 return np.zeros(3), np.zeros(3)
-            return _column_bounds(self.tri_vertices.reshape(-1, 3))
+            return column_bounds(self.tri_vertices.reshape(-1, 3))
 
         lo, hi = self.derived("bounds", compute)
         return lo.copy(), hi.copy()
@@ -216,23 +216,40 @@ class Scene:
         d = float(np.linalg.norm(hi - lo))
         return d if d > 0 else 1.0
 
-    def object_bounds(self, obj: int) -> tuple[np.ndarray, np.ndarray]:
-        def every():  # every object's at once: one sort, not a mask per object
-            order = np.argsort(self.tri_object, kind="stable")
-            objs, start = np.unique(self.tri_object[order], return_index=True)
-            if len(objs) == 0:
-                return {}
-            v = self.tri_vertices[order]
-            lo = np.minimum(np.minimum(v[:, 0], v[:, 1]), v[:, 2])
-            hi = np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
-            lo = np.stack([np.minimum.reduceat(lo[:, c], start) for c in range(3)], axis=1)
-            hi = np.stack([np.maximum.reduceat(hi[:, c], start) for c in range(3)], axis=1)
-            return {int(o): (lo[i], hi[i]) for i, o in enumerate(objs)}
+    def _every_object_bounds(self) -> dict:
+        """{object: (lo, hi)} of the objects with triangles, all at once: one sort, not a mask per
+        object."""
+        order = np.argsort(self.tri_object, kind="stable")
+        objs, start = np.unique(self.tri_object[order], return_index=True)
+        if len(objs) == 0:
+            return {}
+        v = self.tri_vertices[order]
+        lo = np.minimum(np.minimum(v[:, 0], v[:, 1]), v[:, 2])
+        hi = np.maximum(np.maximum(v[:, 0], v[:, 1]), v[:, 2])
+        lo = np.stack([np.minimum.reduceat(lo[:, c], start) for c in range(3)], axis=1)
+        hi = np.stack([np.maximum.reduceat(hi[:, c], start) for c in range(3)], axis=1)
+        return {int(o): (lo[i], hi[i]) for i, o in enumerate(objs)}
 
-        got = self.derived("object_bounds", every).get(int(obj)) if self._memo() is not None else None
+    def object_bounds(self, obj: int) -> tuple[np.ndarray, np.ndarray]:
+        got = self.derived("object_bounds", self._every_object_bounds).get(int(obj)) \
+            if self._memo() is not None else None
         if got is None:  # not validated, or no triangles (raises, as numpy's reduction of nothing does)
-            return _column_bounds(self.tri_vertices[self.tri_object == obj].reshape(-1, 3))
+            return column_bounds(self.tri_vertices[self.tri_object == obj].reshape(-1, 3))
         return got[0].copy(), got[1].copy()
+
+    def object_boxes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Every object's bounding box: (lo (O,3), hi (O,3), has (O,) whether it has triangles;
+        zeros where not), float64, kept like object_bounds (read-only arrays)."""
+        def compute():
+            O = len(self.object_names)
+            lo, hi, has = np.zeros((O, 3)), np.zeros((O, 3)), np.zeros(O, bool)
+            for o, (a, b) in self.derived("object_bounds", self._every_object_bounds).items():
+                lo[o], hi[o], has[o] = a, b, True
+            for x in (lo, hi, has):
+                x.flags.writeable = False
+            return lo, hi, has
+
+        return self.derived("object_boxes", compute)
 
     # ---------------------------------------------------------------- validate
     def validate(self) -> None:

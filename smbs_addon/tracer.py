@@ -55,15 +55,9 @@ class Tracer:
         self.area2 = np.sqrt(dot(n_raw, n_raw))  # twice the triangle area
         self.ng = normalize(n_raw)
         self.ns_corner = scene.tri_normals.astype(np.float64)
-        # every object's bounding box in one pass (zeros for an object without triangles):
-        # SMBS's GetRatio and the sphere-light cap read them for every chunk and light
-        O = len(scene.object_names)
-        lo_o, hi_o = np.full((O, 3), np.inf), np.full((O, 3), -np.inf)
-        np.minimum.at(lo_o, scene.tri_object, self.v.min(axis=1))
-        np.maximum.at(hi_o, scene.tri_object, self.v.max(axis=1))
-        self.obj_has_tris = np.isfinite(lo_o[:, 0])
-        self.obj_lo = np.where(self.obj_has_tris[:, None], lo_o, 0.0)
-        self.obj_hi = np.where(self.obj_has_tris[:, None], hi_o, 0.0)
+        # every object's bounding box (zeros for an object without triangles; kept with a validated
+        # scene): SMBS's GetRatio and the sphere-light cap read them for every chunk and light
+        self.obj_lo, self.obj_hi, self.obj_has_tris = (x.copy() for x in scene.object_boxes())
         self.set_extent(*scene.bounds())
         self._embree = embree.Scene(self.v) if scene.n_tris else None
         self.rays_cast = 0

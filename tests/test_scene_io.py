@@ -271,6 +271,9 @@ def test_geometry_memo_is_exact_and_never_stale():
     values, read afresh after an edit in place once the scene is validated again, and ignored
     when the geometry arrays were replaced without validating."""
     sc = scenes.ring_scene()
+    sc.object_names = [*sc.object_names, "Empty"]  # an object without triangles
+    for name in ("object_caster", "object_receiver", "object_smooth"):
+        setattr(sc, name, np.append(getattr(sc, name), False))
 
     def naive(obj=None):
         v = sc.tri_vertices if obj is None else sc.tri_vertices[sc.tri_object == obj]
@@ -283,6 +286,11 @@ def test_geometry_memo_is_exact_and_never_stale():
         for got, want in [(sc.bounds(), naive())] + [(sc.object_bounds(o), naive(o))
                                                      for o in np.unique(sc.tri_object)]:
             assert np.array_equal(got[0], want[0]) and np.array_equal(got[1], want[1])
+        lo, hi, has = sc.object_boxes()  # all at once: the same, zeros for an object without triangles
+        assert np.array_equal(has, np.isin(np.arange(len(sc.object_names)), sc.tri_object)) and not has.all()
+        for o in range(len(sc.object_names)):
+            want = naive(o) if has[o] else (np.zeros(3), np.zeros(3))
+            assert np.array_equal(lo[o], want[0]) and np.array_equal(hi[o], want[1])
     lo, _ = sc.bounds()
     lo[:] = 99.0  # the caller's copy: the memo keeps its own
     assert np.array_equal(sc.bounds()[0], naive()[0])
