@@ -15,10 +15,29 @@ button, Esc); in background mode synchronously: on a farm node,
 from __future__ import annotations
 
 import dataclasses
+import time
 
 import bpy
 
 from . import bake as B
+
+STATE_RECHECK_S = 10.0  # the panel redraws often: prepare.ready() is read at most this often
+_state = {"at": -1e9, "ready": None}
+
+
+def state() -> bool | None:
+    """Whether the kernels are compiled for this machine (smbs_addon.prepare.ready: True, False, None
+    for no telling), read afresh at most every STATE_RECHECK_S seconds and after Prepare Kernels."""
+    now = time.monotonic()
+    if now - _state["at"] > STATE_RECHECK_S:
+        from ..smbs_addon import prepare
+
+        _state["ready"], _state["at"] = prepare.ready(), now
+    return _state["ready"]
+
+
+def forget_state() -> None:
+    _state["at"] = -1e9
 
 
 @dataclasses.dataclass
@@ -37,6 +56,7 @@ class PrepareTask:
 
     @staticmethod
     def finish(scene, prep, result: dict, core, say) -> bool:
+        forget_state()
         if bpy.app.background:
             print(message(result), flush=True)
         say({'INFO'}, message(result))

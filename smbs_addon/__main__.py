@@ -5,7 +5,8 @@ the kernels before the first bake).
 IN is a .blend file (opened with the bpy module) or an exported .npz scene.
 Exit codes a render farm can trust: 0 done (also for a scene with no caustic to
 bake: its layer is all zero and the output says why), 1 the scene cannot be baked,
-2 bad arguments, 3 unreadable input or unwritable output, 130 cancelled.
+2 bad arguments, 3 unreadable input or unwritable output, 130 cancelled; ``prepare --check``:
+0 the kernels are compiled for this machine, 1 not (or no telling).
 """
 from __future__ import annotations
 
@@ -15,6 +16,7 @@ import sys
 from pathlib import Path
 
 EXIT_OK, EXIT_SCENE, EXIT_USAGE, EXIT_IO, EXIT_CANCELLED = 0, 1, 2, 3, 130
+EXIT_NOT_READY = 1  # prepare --check
 
 
 class _Parser(argparse.ArgumentParser):
@@ -77,6 +79,13 @@ def _prepare(args, say) -> int:
     """python -m smbs_addon prepare: compile the kernels (smbs_addon.prepare)."""
     from . import prepare
 
+    if args.check:  # for scripts: prepare --check || prepare
+        state = prepare.ready()
+        say({True: "kernels: compiled for this machine; bakes load them from the cache",
+             False: "kernels: not compiled for this code on this machine; the first bake compiles them "
+                    "(a few minutes), `python -m smbs_addon prepare` does it now",
+             None: "kernels: cannot tell whether they are compiled (this numba keeps its cache otherwise)"}[state])
+        return EXIT_OK if state else EXIT_NOT_READY
     out = prepare.prepare(args.jobs, say=say)
     say(f"prepared: {_count(out['kernels'], 'kernel')} compiled in {out['seconds']:.1f} s "
         f"({_count(out['jobs'], 'process')}); bakes on this machine load them from the cache")
@@ -150,6 +159,8 @@ def build_parser() -> argparse.ArgumentParser:
                                        "(after installing or updating; cached on disk)")
     r.add_argument("--jobs", type=_positive_int, default=None,
                    help="processes compiling at once (default: one per core)")
+    r.add_argument("--check", action="store_true",
+                   help="compile nothing: exit 0 if the kernels are compiled for this machine, 1 if not")
     e = sub.add_parser("export", help="export a .blend to a .npz scene")
     e.add_argument("input")
     e.add_argument("output")

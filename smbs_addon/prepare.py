@@ -48,6 +48,33 @@ BAKES = (
 
 _BAKE_LINE = "bake "  # run()'s line per bake
 
+# the kernels a bake calls from Python (each compiles the helpers it calls inside it): ready()
+# looks for them in the disk cache
+KERNELS = ("walk_lanes", "bernoulli_lanes", "chain_solve", "handoff_lanes", "photon_lanes", "eye_lanes",
+           "gather_lanes", "camera_splats", "splat")
+
+
+def ready() -> bool | None:
+    """Whether numba's disk cache holds the KERNELS compiled for this code and this processor,
+    under the name this module is imported by (jit.py), so that a bake loads them instead of
+    compiling: True or False; None where this numba keeps its cache otherwise than numba 0.60
+    (no telling). Reads their cache index files (~15 ms); compiles nothing. A kernel for a rarer
+    setting (the textured coat, say) may still compile in a bake where this says True."""
+    from . import kernels
+
+    try:
+        for name in KERNELS:
+            kernel = getattr(kernels, name)
+            kernel = getattr(kernel, "dispatcher", kernel)  # kernels.TypedOnce
+            this_cpu = kernel.targetctx.codegen().magic_tuple()
+            # the index is empty where its stamp is not this code's (jit.py); its keys are
+            # (signature, the processor compiled for, ...)
+            if not any(key[1] == this_cpu for key in kernel._cache._cache_file._load_index()):
+                return False
+    except Exception:  # noqa: BLE001 - numba's cache internals moved: no telling, and no harm
+        return None
+    return True
+
 
 def scene(name: str):
     """A small scene that uses what bakes use: a floor seen by the camera, a mirror and an absorbing

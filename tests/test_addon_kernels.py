@@ -66,3 +66,30 @@ def test_prepare_kernels_runs_like_a_bake_in_the_interface(ops):
     assert cancelled.start(bpy.context)
     assert cancelled.step(bpy.context, 'ESC', 'PRESS') == {'CANCELLED'}
     assert bake_op.running_bake(scene) is None and _scene_state(scene) == before
+
+
+def test_the_panel_says_whether_the_kernels_are_compiled(ops, addon, monkeypatch):
+    """The Advanced panel says above Prepare Kernels whether the kernels are compiled for this
+    machine (prepare.ready, under the extension's name: compiled once Prepare Kernels has run),
+    and says nothing where it cannot tell. The answer is read once per STATE_RECHECK_S (panels
+    redraw often) and afresh after Prepare Kernels."""
+    from test_addon_register import _draw_all
+
+    kernels, _ = ops
+    panels = addon.ui.panels
+    prep = importlib.import_module(addon.__name__ + ".smbs_addon.prepare")
+    labels = {panels.KERNELS_READY, panels.KERNELS_NOT_READY}
+    kernels.state()  # an answer kept from before ...
+    assert bpy.ops.smbs.prepare_kernels() == {'FINISHED'}  # ... forgotten here
+    assert prep.ready() is True
+    for answer, want in ((True, panels.KERNELS_READY), (False, panels.KERNELS_NOT_READY), (None, None)):
+        calls = []
+        if answer is not True:
+            monkeypatch.setattr(prep, "ready", lambda a=answer: calls.append(a) or a)
+            kernels.forget_state()
+        drawn = []
+        for _ in range(3):
+            _draw_all(addon, bpy.context.scene, drawn)
+        assert labels & set(drawn) == ({want} if want else set()), drawn
+        assert "smbs.prepare_kernels" in drawn
+        assert len(calls) == (0 if answer is True else 1)  # read once, not once per draw

@@ -43,3 +43,25 @@ def test_prepare_command_in_two_processes():
     assert last.startswith("prepared: ") and "(2 processes); bakes on this machine load them from the cache" in last
     lines = [x for x in out.stdout.splitlines() if x.startswith(("[1/2] bake ", "[2/2] bake "))]
     assert len(lines) == len(prepare.BAKES)  # a line per bake, from both parts
+
+
+def test_check_says_whether_the_kernels_are_compiled(tmp_path, monkeypatch):
+    """prepare --check / prepare.ready(): 0 and "compiled" here (the suite has baked by now, and
+    prepare above compiled what it had not); 1 and "not compiled" for a copy of the package in
+    another folder (its own, empty cache: nothing compiled there), without compiling anything; None
+    (no telling) where numba's cache is not where ready() looks."""
+    import shutil
+
+    def check(cwd):
+        return subprocess.run([sys.executable, "-m", "smbs_addon", "prepare", "--check"], cwd=cwd,
+                              capture_output=True, text=True, timeout=300)
+
+    here = check(ROOT)
+    assert here.returncode == 0 and here.stdout.startswith("kernels: compiled for this machine"), here
+    shutil.copytree(ROOT / "smbs_addon", tmp_path / "smbs_addon", ignore=shutil.ignore_patterns("__pycache__"))
+    copy = check(tmp_path)
+    assert copy.returncode == 1 and copy.stdout.startswith("kernels: not compiled"), copy
+    assert sorted(p.name for p in (tmp_path / "smbs_addon" / "__pycache__").glob("*.nb*")) == []
+    assert prepare.ready() is True
+    monkeypatch.setattr(prepare, "KERNELS", ("no_such_kernel",))
+    assert prepare.ready() is None

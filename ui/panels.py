@@ -388,6 +388,10 @@ class SMBS_PT_caustics_participants(_RenderPanel, bpy.types.Panel):
         _draw_text(layout, context, text, icon='INFO')
 
 
+KERNELS_READY = "Kernels compiled for this machine"
+KERNELS_NOT_READY = "Kernels not compiled yet: the first bake adds minutes"
+
+
 class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
     bl_label = "Advanced"
     bl_idname = "SMBS_PT_caustics_advanced"
@@ -431,6 +435,11 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         sub.prop(settings, "tau")
 
         # the kernels compile on their first use after installing or updating (minutes, once)
+        from ..operators.kernels import state
+
+        ready = state()
+        if ready is not None:
+            layout.label(text=KERNELS_READY if ready else KERNELS_NOT_READY, icon='CHECKMARK' if ready else 'INFO')
         layout.operator("smbs.prepare_kernels", icon='SETTINGS')
 
 
