@@ -195,3 +195,19 @@ def test_the_error_bar_says_which_bias_it_leaves_out():
     (light,) = res.stats["lights"].values()
     capped = light["trials"]
     assert capped["capped"] > 0 and f"at least {capped['capped_share_min']:.1%} of the layer" in got[0]
+
+
+def test_box_is_the_mean_over_each_pixels_neighbourhood():
+    """convergence.box against a direct mean over each pixel's (2r+1)^2 window, the edges
+    repeated (np.pad's 'edge'), on odd shapes and radii 1-3; its input is left as it was."""
+    from smbs_addon.convergence import box
+
+    rng = np.random.default_rng(4)
+    for shape, r in (((7, 5), 1), ((9, 13), 2), ((4, 3), 3), ((1, 6), 2)):
+        x = rng.lognormal(0, 2, shape)
+        keep = x.copy()
+        p = np.pad(x, r, mode="edge")
+        want = np.array([[p[i:i + 2 * r + 1, j:j + 2 * r + 1].mean() for j in range(shape[1])]
+                         for i in range(shape[0])])
+        np.testing.assert_allclose(box(x, r), want, rtol=1e-13)
+        assert np.array_equal(x, keep)
