@@ -248,14 +248,28 @@ def _eye_per_batch(cam, film, settings) -> int:
     return max(1, film_cells(cam, film) * settings.spp // settings.batches)
 
 
-def _specular_visible(scene, tracer, cam, plan) -> tuple[bool, int]:
-    """Does any pixel see a mirror or glass surface first? (one ray per pixel: how many it cast;
-    none where the plan's look from the camera cast the same rays: plan.specular_seen)"""
+def _specular_visible(scene, tracer, cam, plan, film, cells=None) -> tuple[bool, int]:
+    """Does any pixel see a mirror or glass surface first? One ray per pixel, from the pixels of
+    the film cells `cells` alone (eye.specular_cells, None: every pixel; every pixel that can see
+    one first is in them): (the answer, rays cast). None cast where the plan's look from the
+    camera cast the same rays (plan.specular_seen)."""
+    from . import kernels
+
     if plan.specular_seen is not None:
         return plan.specular_seen, 0
-    jj, _, o, d = cam.pixel_rays()
+    x0, x1, y0, y1 = cam.region
+    if cells is None:
+        jj, ii = np.mgrid[y0:y1, x0:x1]
+        jj, ii = jj.ravel(), ii.ravel()
+    else:  # cells: the film's grid widened by the filter's reach (eye.film_cells), row by row
+        r = int(np.ceil(film.filter_width))
+        k = np.flatnonzero(cells)
+        jj, ii = k // (x1 - x0 + 2 * r) + (y0 - r), k % (x1 - x0 + 2 * r) + (x0 - r)
+        inside = (jj >= y0) & (jj < y1) & (ii >= x0) & (ii < x1)
+        jj, ii = jj[inside], ii[inside]
     if jj.size == 0:
         return False, 0
+    o, d = kernels.camera_rays(cam.kernel_params(), ii + 0.5, jj + 0.5)  # CameraModel.pixel_rays' rays
     h = tracer.intersect(o, d)
     kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
     from . import scene as S
@@ -732,11 +746,13 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
                                      "lost_shading_normal"), 0))
         from .eye import film_cells, specular_cells
 
-        enabled, rays_visible = _specular_visible(scene, tracer, cam, plan)
+        # the film cells that can see a mirror or glass first: the look for one in view casts
+        # from their pixels alone, and the eye paths start in them alone
+        eye_cells = specular_cells(scene, tracer, cam, film)
+        enabled, rays_visible = _specular_visible(scene, tracer, cam, plan, film, eye_cells)
         eye_stats = {"eye_paths": 0, "rays_eye": 0, "rays_visible": rays_visible, "eye_splats": 0, "time_s": 0.0,
                      "enabled": enabled, "film_cells": film_cells(cam, film)}
-        # eye paths traced only from the film cells that can see a mirror or glass first
-        eye_cells = specular_cells(scene, tracer, cam, film) if eye_stats["enabled"] else None
+        eye_cells = eye_cells if enabled else None
         eye_stats["cells"] = eye_stats["film_cells"] if eye_cells is None else int(eye_cells.sum())
         per_batch = max(1, per_light // settings.batches)
         eye_chunks = math.ceil(_eye_per_batch(cam, film, settings) / CHUNK) if eye_stats["enabled"] else 0

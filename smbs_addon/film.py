@@ -17,6 +17,7 @@ from . import kernels, lanes
 from .vec import channel_mean
 
 SPLAT_SPLIT = 4096  # samples from which a splat's rows are shared over the threads
+END_BATCH_PART = 1 << 17  # pixels per thread at least when a batch's sums are added up
 MAX_GROUPS = 64  # batch images kept (even); more batches are merged in pairs
 
 
@@ -109,9 +110,17 @@ class Film:
 
     def end_batch(self, t: float = 0.0) -> None:
         """Close the current batch (t: when it ended, seconds into the bake)."""
-        self.sum += self._cur
-        self.sumsq += self._cur * self._cur
-        lum = channel_mean(self._cur).reshape(self.H, self.W)
+        lum = np.empty(self.H * self.W)
+
+        def part(a, b):  # pixels a..b-1 (elementwise: the threads' parts give the same bits)
+            cur = self._cur[a:b]
+            self.sum[a:b] += cur
+            self.sumsq[a:b] += cur * cur
+            lum[a:b] = channel_mean(cur)
+            cur[:] = 0.0
+
+        lanes.run(part, self.H * self.W, self.threads, END_BATCH_PART)
+        lum = lum.reshape(self.H, self.W)
         self._pending = lum if self._pending is None else self._pending + lum
         self._pending_n += 1
         if self._pending_n == self.group_size:
@@ -123,7 +132,6 @@ class Film:
                 self.batch_luminance = [0.5 * (g[i] + g[i + 1]) for i in range(0, len(g), 2)]
                 self.batch_end = self.batch_end[1::2]
                 self.group_size *= 2
-        self._cur[:] = 0.0
         self.batches += 1
 
     def textured_parts(self):

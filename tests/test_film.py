@@ -219,3 +219,25 @@ def test_a_splat_shared_over_threads_is_one_threads_bit_for_bit(w):
                 assert np.array_equal(a, b)
         x0, x1, y0, y1 = region or (0, W, 0, H)
         assert np.count_nonzero(films[0].image[..., 0]) == (x1 - x0) * (y1 - y0)  # every pixel of the region
+
+
+def test_a_batchs_sums_on_the_threads_are_one_threads():
+    """Film.end_batch adds a batch to the sums in parts of pixels on the threads (a film of 2.3
+    END_BATCH_PART pixels: 1, 2 and 3 parts): the image, the variance and the batches' luminances
+    are one thread's, bit for bit, and the next batch starts from zero."""
+    from smbs_addon.film import END_BATCH_PART
+
+    W, H = 600, END_BATCH_PART * 23 // 10 // 600
+    rng = np.random.default_rng(8)
+    films = [Film(W, H, filter_width=1.5, threads=t) for t in (1, 2, 3)]
+    for b in range(3):
+        n = 5000
+        rx, ry, rgb = rng.uniform(0, W, n), rng.uniform(0, H, n), rng.lognormal(0, 2, (n, 3))
+        for f in films:
+            f.splat(rx, ry, rgb)
+            f.end_batch(float(b))
+            assert not f._cur.any()
+    for f in films[1:]:
+        assert np.array_equal(f.image, films[0].image) and np.array_equal(f.variance, films[0].variance)
+        assert all(np.array_equal(a, b) for a, b in zip(f.batch_luminance, films[0].batch_luminance))
+    assert films[0].image.any() and len(films[0].batch_luminance) == 3

@@ -237,8 +237,10 @@ def test_chain_flux_adds_up_as_a_loop_over_the_paths():
 def test_the_plans_look_from_the_camera_answers_the_light_tracers():
     """The plan's camera rays are the light tracer's look for mirrors and glass in view (one ray
     per pixel) when its grid skips no pixel: plan.specular_seen is that look's answer, found on
-    the way (ball: yes; a pane seen only past its edge: no; the camera's grid coarser than the
-    pixels: not known), and the bake casts those rays once (eye_pass.rays_visible 0)."""
+    the way (ball: yes; the ball out of the frame: no; the camera's grid coarser than the pixels:
+    not known), and the bake casts those rays once (eye_pass.rays_visible 0). Where not known, the
+    light tracer's own look casts from the pixels that can see a mirror or glass alone: the same
+    answer from a quarter of the rays, none with the ball out of the frame."""
     from smbs_addon.bake import _specular_visible
     from smbs_addon.plan import CAMERA_RAYS
 
@@ -260,13 +262,26 @@ def test_the_plans_look_from_the_camera_answers_the_light_tracers():
         if not plan.nothing:
             st = bake(scene, BakeSettings(method="reference", spp=1, seed=1)).stats
             assert st["eye_pass"]["rays_visible"] == 0 and st["eye_pass"]["enabled"] is want
-    big = scenes.glass_sphere_scene(resolution=(600, 500))
-    assert 600 * 500 > CAMERA_RAYS
-    plan = make_plan(big)
-    refine_plan(plan, big, Tracer(big), CameraModel(big.camera), seed=0, pilots=0)
-    assert plan.specular_seen is None  # more pixels than CAMERA_RAYS: the light tracer looks itself
-    cam = CameraModel(big.camera)
-    assert _specular_visible(big, Tracer(big), cam, plan) == (look(big), len(cam.pixel_rays()[0]))
+    # more pixels than CAMERA_RAYS: not known from the plan, the light tracer looks itself, from the
+    # pixels of the film cells that can see a mirror or glass (eye.specular_cells) alone
+    from smbs_addon.eye import specular_cells
+    from smbs_addon.film import Film
+
+    for shift, want in ((0.0, True), (6.0, False)):
+        big = scenes.glass_sphere_scene(resolution=(600, 500))
+        big.camera.matrix_world = big.camera.matrix_world.copy()
+        big.camera.matrix_world[0, 3] += shift
+        assert 600 * 500 > CAMERA_RAYS
+        plan = make_plan(big)
+        tracer, cam = Tracer(big), CameraModel(big.camera)
+        refine_plan(plan, big, tracer, cam, seed=0, pilots=0)
+        assert plan.specular_seen is None
+        film = Film(cam.W, cam.H, big.camera.filter_width, cam.region)
+        cells = specular_cells(big, tracer, cam, film)
+        every = _specular_visible(big, tracer, cam, plan, film)
+        some = _specular_visible(big, tracer, cam, plan, film, cells)
+        assert look(big) is want and every == (want, 600 * 500) and some[0] is want
+        assert some[1] == 0 if not want else 0 < some[1] < 0.3 * 600 * 500, some  # the ball's box: 26% of the frame
 
 
 def test_pilots_on_one_thread_or_two_plan_the_same():
