@@ -1,7 +1,7 @@
 """How fast the bake casts rays against what embree can: the measurement behind issue 11.
 
     .venv/bin/python bench/throughput.py [--size 512] [--spp 1] [--scenes sphere,ring,hammered]
-        [--methods sms,smbs,reference] [--out bench/results]
+        [--methods sms,smbs,reference] [--reps 3] [--out bench/results]
 
 Per scene and method, in one run on the same geometry:
 - embree's own rate: incoherent rays (origins uniform in the scene's box, directions uniform on
@@ -16,6 +16,9 @@ Per scene and method, in one run on the same geometry:
   cost about 4x random rays in the scene's box (two thirds of which leave it without a hit);
   ``ratio (same rays)`` is the bake's rate over this one, the share of the time it spends
   tracing;
+- the bake's wall time: the median of --reps bakes after a warm-up bake (the kernels loaded from
+  numba's cache, the scene's memo), none of them recording rays (that takes one more bake);
+  --reps 1 times the one bake that records, as this script did before 2026-11-26;
 - ``cpu/wall``: the process's CPU time over the bake's wall time
   (2.0 means both cores busy the whole time); peak memory (the process's maximum resident set;
   the recorded rays add about 7 bytes per ray cast).
@@ -125,18 +128,35 @@ def replay_rate(scene, logs: list) -> float:
     return n / (time.perf_counter() - t0)
 
 
-def measure(name: str, method: str, size: int, spp: int) -> dict:
+def measure(name: str, method: str, size: int, spp: int, reps: int = 1) -> dict:
+    """One row: with reps > 1, a warm-up bake (the kernels loaded from the cache, the scene's
+    memo) and the median wall time of reps bakes (cpu/wall over them all); the rays replayed
+    (same rays) are recorded in one more bake of the same seed, so the recording's own cost is
+    in no timed bake. reps = 1: one bake, timed and recorded (the table's older rows)."""
     sc = SCENES[name]((size, size))
-    cpu0 = time.process_time()
-    t = time.perf_counter()
-    with RayRecorder() as rec:
-        r = bake(sc, BakeSettings(method=method, spp=spp, batches=min(spp, 2) if spp > 1 else 1, seed=1))
-    wall = time.perf_counter() - t
-    cpu = time.process_time() - cpu0
+    settings = BakeSettings(method=method, spp=spp, batches=min(spp, 2) if spp > 1 else 1, seed=1)
+    walls, cpus = [], []
+    if reps > 1:
+        bake(sc, settings)
+    for _ in range(reps):
+        cpu0 = time.process_time()
+        t = time.perf_counter()
+        if reps > 1:
+            r = bake(sc, settings)
+        else:
+            with RayRecorder() as rec:
+                r = bake(sc, settings)
+        walls.append(time.perf_counter() - t)
+        cpus.append(time.process_time() - cpu0)
+    if reps > 1:
+        with RayRecorder() as rec:
+            bake(sc, settings)
+    wall, cpu_wall = float(np.median(walls)), sum(cpus) / sum(walls)
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20
     st = r.stats
     rays = int(st["rays"])
-    raw = raw_rate(sc, int(min(max(rays, 100_000), 8_000_000)))
+    n_raw = int(min(max(rays, 100_000), 8_000_000))
+    raw = float(np.median([raw_rate(sc, n_raw, seed) for seed in range(1 if reps == 1 else 3)]))
     same = replay_rate(sc, rec.logs)
     del rec
     # Newton steps of the primary walks and of the unbiased estimator's Bernoulli re-walks
@@ -144,7 +164,7 @@ def measure(name: str, method: str, size: int, spp: int) -> dict:
     return {"scene": name, "method": method, "size": size, "spp": spp, "wall": wall, "rays": rays,
             "effective": rays / wall, "raw": raw, "ratio": rays / wall / raw, "same": same,
             "ratio_same": rays / wall / same, "steps_per_s": steps / wall,
-            "cpu_wall": cpu / wall, "peak_gib": peak}
+            "cpu_wall": cpu_wall, "peak_gib": peak, "wall_min": min(walls), "wall_max": max(walls)}
 
 
 def main(argv=None):
@@ -153,29 +173,34 @@ def main(argv=None):
     ap.add_argument("--spp", type=int, default=1)
     ap.add_argument("--scenes", default=",".join(SCENES))
     ap.add_argument("--methods", default="sms,smbs,reference")
+    ap.add_argument("--reps", type=int, default=3,
+                    help="timed bakes per row after a warm-up, their median (1: one bake, timed while recorded)")
     ap.add_argument("--out", type=Path, default=ROOT / "bench" / "results")
     args = ap.parse_args(argv)
     rows = []
     for spec in args.scenes.split(","):
         name, _, size = spec.partition(":")  # name:size overrides --size for that scene
         for method in args.methods.split(","):
-            rows.append(measure(name, method, int(size or args.size), args.spp))
+            rows.append(measure(name, method, int(size or args.size), args.spp, args.reps))
             r = rows[-1]
-            print(f"{name} {method}: {r['wall']:.1f} s, {r['rays']:,} rays, effective {r['effective'] / 1e6:.2f} M/s, "
+            print(f"{name} {method}: {r['wall']:.2f} s ({r['wall_min']:.2f}-{r['wall_max']:.2f}), {r['rays']:,} rays, effective {r['effective'] / 1e6:.2f} M/s, "
                   f"raw {r['raw'] / 1e6:.2f} M/s, ratio: {r['ratio']:.3f}, same rays {r['same'] / 1e6:.2f} M/s, "
                   f"ratio (same rays): {r['ratio_same']:.3f}, steps {r['steps_per_s'] / 1e3:.0f} k/s, "
                   f"cpu/wall: {r['cpu_wall']:.2f}, peak {r['peak_gib']:.2f} GiB", flush=True)
     lines = ["# Throughput: the bake's ray rate against embree's", "",
              f"Made by `python bench/throughput.py --size {args.size} --spp {args.spp} --scenes {args.scenes} "
-             f"--methods {args.methods}` (2 cores). Raw: plain embreex, incoherent closest-hit rays threaded over "
-             "all cores, as many as the bake cast; same rays: every 4th ray the bake cast, replayed through plain "
-             "embreex threaded over all cores. Peak memory is the process's maximum so far (it only grows "
-             "down the table).", "",
+             f"--methods {args.methods} --reps {args.reps}` ({default_threads()} threads). Wall: the median of "
+             f"{args.reps} bakes after a warm-up (min-max), cpu/wall over them. Raw: plain embreex, incoherent "
+             "closest-hit rays threaded over all cores, as many as the bake cast (the median of 3 runs); same "
+             "rays: every 4th ray the bake cast, recorded in one more bake, replayed through plain embreex "
+             "threaded over all cores. Peak memory is the process's maximum so far (it only grows down the "
+             "table).", "",
              "| scene | method | wall s | rays | effective M rays/s | raw M rays/s | ratio | same rays M rays/s "
              "| ratio (same rays) | Newton steps k/s | cpu/wall | peak GiB |",
              "|---|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
-        lines.append(f"| {r['scene']} {r['size']}^2 | {r['method']} | {r['wall']:.1f} | {r['rays']:,} | {r['effective'] / 1e6:.2f} | "
+        lines.append(f"| {r['scene']} {r['size']}^2 | {r['method']} | {r['wall']:.2f} ({r['wall_min']:.2f}-"
+                     f"{r['wall_max']:.2f}) | {r['rays']:,} | {r['effective'] / 1e6:.2f} | "
                      f"{r['raw'] / 1e6:.2f} | {r['ratio']:.3f} | {r['same'] / 1e6:.2f} | {r['ratio_same']:.3f} | "
                      f"{r['steps_per_s'] / 1e3:.0f} | {r['cpu_wall']:.2f} | "
                      f"{r['peak_gib']:.2f} |")
