@@ -64,10 +64,11 @@ class PrepareTask:
 
 
 def message(result: dict) -> str:
-    n = result["kernels"]
-    if not n:
+    from ..smbs_addon.compiles import counted
+
+    if not result["kernels"]:
         return "SMBS Caustics: the kernels were compiled already; bakes load them from the cache"
-    return (f"SMBS Caustics: compiled {n} kernel{'' if n == 1 else 's'} in {result['seconds']:.0f} s; "
+    return (f"SMBS Caustics: compiled {counted(result['kernels'], 'kernel')} in {result['seconds']:.0f} s; "
             f"bakes on this machine load them from the cache")
 
 

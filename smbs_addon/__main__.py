@@ -15,6 +15,8 @@ import os
 import sys
 from pathlib import Path
 
+from .compiles import counted
+
 EXIT_OK, EXIT_SCENE, EXIT_USAGE, EXIT_IO, EXIT_CANCELLED = 0, 1, 2, 3, 130
 EXIT_NOT_READY = 1  # prepare --check
 
@@ -87,8 +89,8 @@ def _prepare(args, say) -> int:
              None: "kernels: cannot tell whether they are compiled (this numba keeps its cache otherwise)"}[state])
         return EXIT_OK if state else EXIT_NOT_READY
     out = prepare.prepare(args.jobs, say=say)
-    say(f"prepared: {_count(out['kernels'], 'kernel')} compiled in {out['seconds']:.1f} s "
-        f"({_count(out['jobs'], 'process')}); bakes on this machine load them from the cache")
+    say(f"prepared: {counted(out['kernels'], 'kernel')} compiled in {out['seconds']:.1f} s "
+        f"({counted(out['jobs'], 'process')}); bakes on this machine load them from the cache")
     return EXIT_OK
 
 
@@ -216,7 +218,7 @@ def summary_lines(stats: dict) -> list[str]:
         return lines + [f"  nothing to bake: {stats['nothing_to_bake']}; the caustic layer is all zero"]
     if stats.get("compile_s"):
         lines.append(f"  of which compiling the kernels for this machine: {stats['compile_s']:.1f} s "
-                     f"({_count(stats.get('kernels_compiled', 0), 'kernel')}; once after installing or updating, "
+                     f"({counted(stats.get('kernels_compiled', 0), 'kernel')}; once after installing or updating, "
                      f"later bakes load them from the cache)")
     plan = stats.get("plan", {})
     if plan.get("rays"):
@@ -250,10 +252,6 @@ def summary_lines(stats: dict) -> list[str]:
                      f"sees them; it is written per unit albedo (channels per_albedo_R/G/B) for the render's "
                      f"Diffuse Color pass to multiply, and left out of the colour channels")
     return lines
-
-
-def _count(n: int, noun: str) -> str:
-    return f"{n} {noun}" if n == 1 else f"{n} {noun}{'es' if noun.endswith('s') else 's'}"
 
 
 def error_lines(stats: dict) -> list[str]:

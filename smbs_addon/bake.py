@@ -253,23 +253,20 @@ def _specular_visible(scene, tracer, cam, plan, film, cells=None) -> tuple[bool,
     the film cells `cells` alone (eye.specular_cells, None: every pixel; every pixel that can see
     one first is in them): (the answer, rays cast). None cast where the plan's look from the
     camera cast the same rays (plan.specular_seen)."""
-    from . import kernels
-
     if plan.specular_seen is not None:
         return plan.specular_seen, 0
-    x0, x1, y0, y1 = cam.region
     if cells is None:
-        jj, ii = np.mgrid[y0:y1, x0:x1]
-        jj, ii = jj.ravel(), ii.ravel()
+        jj, _, o, d = cam.pixel_rays()
     else:  # cells: the film's grid widened by the filter's reach (eye.film_cells), row by row
+        x0, x1, y0, y1 = cam.region
         r = int(np.ceil(film.filter_width))
         k = np.flatnonzero(cells)
         jj, ii = k // (x1 - x0 + 2 * r) + (y0 - r), k % (x1 - x0 + 2 * r) + (x0 - r)
         inside = (jj >= y0) & (jj < y1) & (ii >= x0) & (ii < x1)
         jj, ii = jj[inside], ii[inside]
+        o, d = cam.centre_rays(jj, ii)
     if jj.size == 0:
         return False, 0
-    o, d = kernels.camera_rays(cam.kernel_params(), ii + 0.5, jj + 0.5)  # CameraModel.pixel_rays' rays
     h = tracer.intersect(o, d)
     kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
     from . import scene as S

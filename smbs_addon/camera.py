@@ -118,13 +118,17 @@ class CameraModel:
     def pixel_rays(self, step: int = 1):
         """Rays through the centres of the render region's pixels (every step-th on each
         axis): (rows, columns, origins on the near clip plane, unit directions)."""
-        from . import kernels
-
         x0, x1, y0, y1 = self.region
         jj, ii = np.mgrid[y0:y1:step, x0:x1:step]
         jj, ii = jj.ravel(), ii.ravel()
-        o, d = kernels.camera_rays(self.kernel_params(), ii + 0.5, jj + 0.5)  # rays(), on the near plane
-        return jj, ii, o, d
+        return (jj, ii) + self.centre_rays(jj, ii)
+
+    def centre_rays(self, jj: np.ndarray, ii: np.ndarray):
+        """Rays through the centres of pixels (rows jj, columns ii): (origins on the near clip
+        plane, unit directions), as rays() makes them."""
+        from . import kernels
+
+        return kernels.camera_rays(self.kernel_params(), ii + 0.5, jj + 0.5)
 
     def towards(self, p: np.ndarray, margin: float = 0.0):
         """Connections of world points to the camera: raster positions, unit directions to

@@ -8,6 +8,11 @@ from __future__ import annotations
 import time
 
 
+def counted(n: int, noun: str) -> str:
+    """'1 kernel', '31 kernels', '2 processes': what the messages about compiling count."""
+    return f"{n} {noun}" if n == 1 else f"{n} {noun}{'es' if noun.endswith('s') else 's'}"
+
+
 class CompileWatch:
     """The time numba spends compiling this package's kernels while the watch is on (with ... as
     watch): a kernel compiles on its first use after installing or updating and is loaded from the

@@ -39,7 +39,7 @@ class Film:
     def __init__(self, width: int, height: int, filter_width: float = 1.5,
                  region: tuple | None = None, textured: bool = False, threads: int = 1):
         self.W, self.H = int(width), int(height)
-        self.threads = max(1, int(threads))  # splats of many samples: each thread its own rows
+        self.threads = max(1, int(threads))  # for large splats (each its own rows) and a batch's sums
         self.filter_width = max(float(filter_width), 0.5)
         self.region = region or (0, self.W, 0, self.H)
         self.sum = np.zeros((self.H * self.W, 3))

@@ -541,28 +541,27 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
         # every light's pilots per caster, then each indirect light's (caustics through a diffuse
         # bounce first, light -> diffuse -> caster -> ... -> seen; indirect.py): tasks the threads
         # take in turn, each with its own random stream; their answers are read in task order
-        tasks = [(lp, k, o) for lp in plan.lights for k, o in enumerate(lp.caster_objects)]
-        tasks += [(None, li, None) for li in plan.indirect_lights]
+        tasks = [(i, lp, k, o) for i, lp in enumerate(plan.lights) for k, o in enumerate(lp.caster_objects)]
+        tasks += [(None, None, li, None) for li in plan.indirect_lights]
         n_ind = max(64, pilots // 2)
         dif = _bounds_over(scene, np.unique(scene.tri_object[scene.mat_kind[scene.tri_material] == S.DIFFUSE]))
         dif_sphere = _bounding_sphere(*dif, scene)[None, :] if dif else plan.scene_sphere
 
         def task(a, _b):
-            lp, k, o = tasks[a]
+            _, lp, k, _ = tasks[a]
             if lp is None:
                 return _indirect_pilot(scene, tracer, cam, plan, seen, seed, k, n_ind, dif_sphere, max_bounces)
             return _caster_pilot(scene, tracer, cam, plan, seen, seed, lp, k, pilots, max_bounces)
 
         found = [{} for _ in plan.lights]  # per light: {caster: (shares, receivers, flux, casters met)}
-        where = {id(lp): i for i, lp in enumerate(plan.lights)}
         indirect = {}
-        for (lp, k, o), (n, r, out) in zip(tasks, lanes.blocks(task, len(tasks), 1, tracer.threads)):
+        for (i, _, k, o), (n, r, out) in zip(tasks, lanes.blocks(task, len(tasks), 1, tracer.threads)):
             photons += n
             rays += r
-            if out is not None and lp is None:
+            if out is not None and i is None:
                 indirect[k] = out
             elif out is not None:
-                found[where[id(lp)]][o] = out
+                found[i][o] = out
         total = sum(f[2] for per in found for f in per.values()) + sum(v[0] for v in indirect.values())
         kept_lights, no_direct = [], []
         used = np.zeros_like(plan.casters)

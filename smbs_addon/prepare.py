@@ -26,7 +26,7 @@ import sys
 import threading
 import time
 
-from .compiles import CompileWatch
+from .compiles import CompileWatch, counted
 
 # (scene, settings) of the bakes, in the order one process makes them; part i of n takes every
 # n-th from i. Two parts split the compiling between the walks (the first bake: walks alone, no
@@ -125,8 +125,7 @@ def run(part: int = 0, parts: int = 1, say=None, progress=None, cancel=None) -> 
             before = watch.kernels
             bake(scenes[name], BakeSettings(**{**dict(spp=1, batches=2, seed=1, pilots=256), **kw}), cancel=cancel)
             if say is not None:
-                n = watch.kernels - before
-                say(f"{_BAKE_LINE}{name} {kw}: {n} kernel{'' if n == 1 else 's'} compiled")
+                say(f"{_BAKE_LINE}{name} {kw}: {counted(watch.kernels - before, 'kernel')} compiled")
     return {"seconds": time.perf_counter() - t0, "compile_s": watch.seconds, "kernels": watch.kernels}
 
 
