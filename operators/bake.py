@@ -223,7 +223,7 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
             plan = core.make_plan(prep.data, prep.settings.use_cycles_flags)
             noise = (result.stats or {}).get("noise") or {}
             cov = policy.coverage(prep.data, plan, prep.settings.use_cycles_flags, prep.blender_lights,
-                                  layer_mean=noise.get("mean"))
+                                  layer_mean=noise.get("mean"), skipped=(result.stats or {}).get("skipped", ()))
         except Exception as e:
             traceback.print_exc()
             warnings.append(f"Could not tell which caustics the layer covers ({e}); "

@@ -7,11 +7,11 @@ Cycles renders the same paths itself unless its Light Paths > Caustics switches
 drops glossy and transmission after a diffuse bounce, which also switches its
 shadow caustics (MNEE) off. Those switches are global, so:
 
-- the plan covers every caster, receiver and light of the scene (and there is
-  no world light or emissive material, which the layer does not handle; a
-  constant world too faint to show through mirrors and glass is named as
-  dropped instead, see coverage): a bake turns both switches off, remembering
-  how they were; Remove Caustic Layer puts them back;
+- the plan covers every caster, receiver and light of the scene (a world of
+  constant colour is one of its lights; there is no emissive material, which the
+  layer does not handle; a world too faint to show through mirrors and glass is
+  named as dropped instead, see coverage): a bake turns both switches off,
+  remembering how they were; Remove Caustic Layer puts them back;
 - otherwise Cycles is left as it is, and the note says what is counted where.
 
 The user's caster / receiver / light flags are never changed.
@@ -47,19 +47,17 @@ def _short(names, most=4):
     return ", ".join(quoted) if len(quoted) <= most else ", ".join(quoted[:most]) + f" and {len(quoted) - most} more"
 
 
-def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None) -> Coverage:
+def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, skipped=()) -> Coverage:
     """What the layer covers, from the exported scene ``data`` and its ``plan``.
 
     blender_lights: (name, is_portal) of the scene's renderable light objects,
     to find lights the export could not represent. layer_mean: the bake's mean over its
-    caustic region (stats["noise"]["mean"]). A world of constant colour L makes no caustic
-    brighter than L x the brightest diffuse colour (radiance is conserved along mirrors and
-    glass, so a receiver lit by the whole sky through them sends at most that); where that is
-    at most WORLD_NEGLIGIBLE of layer_mean (Blender's default grey world under a lamp), it is
-    listed as dropped instead of keeping Cycles' caustics on, which would count the layer's
-    caustics twice.
+    caustic region (stats["noise"]["mean"]), to judge a world the bake left out (_world).
+    skipped: what the bake skipped (stats["skipped"], dicts of kind, name and reason), from its
+    traced plan: a world its pilots found too faint is dropped, not a light of the layer.
     """
     from ..smbs_addon import scene as S
+    from ..smbs_addon.plan import FAINT
 
     O = len(data.object_names)
     kind = data.mat_kind[data.tri_material] if data.n_tris else np.zeros(0, np.int32)
@@ -71,11 +69,18 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None) ->
     for name in _names(data.object_names, has_diff & ~plan.receivers):
         left.append(f"receiver '{name}' (not flagged Receive Shadow Caustics)")
 
-    planned = {lp.index for lp in plan.lights}
+    faint = {x["name"]: x["reason"] for x in list(skipped) + [dict(kind=k, name=n, reason=r) for k, n, r in plan.skipped]
+             if x["kind"] == "light" and x["reason"].startswith(FAINT)}
+    planned = {lp.index for lp in plan.lights} | set(plan.indirect_lights)
     light_flags_used = flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.light_caustics)))
+    dropped = []
     for li, name in enumerate(data.light_names):
-        if li in planned or not (data.light_color[li].max() > 0):
+        if (li in planned and name not in faint) or not (data.light_color[li].max() > 0):
             continue  # in the layer, or dark
+        if data.light_type[li] == S.WORLD:
+            if name in faint or light_flags_used:
+                _world(data, li, faint.get(name), layer_mean, left, dropped)
+            continue  # otherwise its caustic lands on nothing the camera sees
         if light_flags_used and not data.light_caustics[li]:
             left.append(f"light '{name}' (not flagged Shadow Caustics)")
         # a lit light outside the plan otherwise reaches no caster: it makes no caustic
@@ -86,16 +91,6 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None) ->
         if not any(e == name or e.endswith("/" + name) or e.startswith(name + ".") for e in exported):
             left.append(f"light '{name}' (a kind the layer cannot bake)")
 
-    dropped = []
-    world = float(np.max(data.world_color, initial=0.0))
-    if world > 0:
-        diffuse = data.mat_color[data.mat_kind == S.DIFFUSE]
-        bound = world * float(np.max(diffuse, initial=0.0))
-        if layer_mean is not None and layer_mean > 0 and bound <= WORLD_NEGLIGIBLE * layer_mean:
-            dropped.append(f"world lighting through mirrors and glass (at most {bound / layer_mean:.1%} of the "
-                           "layer's caustic)")
-        else:
-            left.append("world lighting (the layer has no world light)")
     used = np.unique(data.tri_material) if data.n_tris else np.zeros(0, int)
     for m in used:
         if data.mat_kind[m] == S.EMITTER:
@@ -104,8 +99,33 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None) ->
     return Coverage(covered=not left,
                     casters=_names(data.object_names, plan.casters),
                     receivers=_names(data.object_names, plan.receivers),
-                    lights=[lp.name for lp in plan.lights],
+                    lights=[lp.name for lp in plan.lights if lp.name not in faint],
                     left_to_cycles=left, dropped=dropped)
+
+
+def _world(data, li, faint, layer_mean, left, dropped):
+    """coverage's words for a world of constant colour (a light of the layer, S.WORLD) the bake
+    left out: too faint by the plan's pilots (faint: the plan's reason), or not flagged. An
+    unflagged world makes no caustic
+    brighter than its radiance L x the brightest diffuse colour (radiance is conserved along
+    mirrors and glass, so a receiver lit by the whole sky through them sends at most that); where
+    that is at most WORLD_NEGLIGIBLE of layer_mean (Blender's default grey world under a lamp), it
+    is dropped rather than keeping Cycles' caustics on, which would count the layer's twice."""
+    from ..smbs_addon import scene as S
+
+    from ..smbs_addon.plan import FAINT
+
+    name = data.light_names[li]
+    if faint is not None:  # "... too faint to show (0.4% of the caustic light the camera sees)"
+        dropped.append(f"world '{name}' through mirrors and glass ({faint[len(FAINT):].strip(' ()')})")
+        return
+    diffuse = data.mat_color[data.mat_kind == S.DIFFUSE]
+    bound = float(data.light_color[li].max()) * float(np.max(diffuse, initial=0.0))
+    if layer_mean is not None and layer_mean > 0 and bound <= WORLD_NEGLIGIBLE * layer_mean:
+        dropped.append(f"world '{name}' through mirrors and glass (at most {bound / layer_mean:.1%} of the "
+                       "layer's caustic)")
+    else:
+        left.append(f"world '{name}' (not flagged Shadow Caustics)")
 
 
 def mnee_active(bpy_scene) -> bool:

@@ -3,13 +3,14 @@
     python sample_blends/conformance_scenes.py OUTDIR [NAME ...]     (default: every scene)
 
 Each scene is built from nothing with the bpy data API (deterministic: the same
-bpy gives the same file), at 96 x 72 pixels with a black world and Cycles set
+bpy gives the same file), at 96 x 72 pixels with a black world (but the world_ scenes,
+lit by a world of constant colour) and Cycles set
 up for comparing caustics (no clamping, no Filter Glossy, no denoising, enough
 bounces). ``SCENES`` says what each one covers; together they cover the
 materials (Glass BSDF, Principled glass white and tinted, Refraction BSDF,
 Glossy BSDF, Principled metallic; IOR 1.33 and 1.5), the lights (point with and
 without soft falloff, spot, square and disk area lights, one of spread 30 degrees, suns of angle 0, 2 and
-4 degrees), the geometry (flat, wavy, spheres, a lens, bevelled cubes with
+4 degrees, a world of constant colour), the geometry (flat, wavy, spheres, a lens, bevelled cubes with
 internal reflection, a prism, open and closed glass) and how a receiver is seen
 (directly, through glass or water, in a mirror).
 
@@ -503,6 +504,38 @@ def checker_floor():
     return _slanted_ball("checker_floor", _checker)
 
 
+def _sky(scene, color, strength):
+    """The scene's world a constant colour (its Background node's Color and Strength)."""
+    w = scene.world
+    w.color = color
+    bg = w.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+
+
+def world_ball():
+    """sphere_point_soft's ball as Glass BSDF under a pale blue world of constant colour and no lamp:
+    the floor under the ball sees the sky through it."""
+    scene = _scene("world_ball")
+    _floor(scene)
+    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
+    _sky(scene, (0.6, 0.75, 1.0), 1.5)
+    B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
+    return scene
+
+
+def world_mirror_bulb():
+    """mirror_point_hard's mirror and bulb under a grey world bright enough to matter (0.4), flagged
+    Shadow Caustics as the bulb is: the floor in front of the mirror gets the sky's reflection
+    beside the bulb's."""
+    scene = mirror_point_hard()
+    scene.name = "world_mirror_bulb"
+    _sky(scene, (0.4, 0.4, 0.4), 1.0)
+    scene.world.cycles.is_caustics_light = True  # flagged like the bulb (Cycles' flags select the lights)
+    return scene
+
+
 SCENES = {
     # name: (builder, what it covers)
     "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
@@ -542,6 +575,10 @@ SCENES = {
                     "under a glass ball"),
     "egg_sun_spot": (egg_sun_spot, "Glass BSDF tinted 1.45, non-uniformly scaled and turned smooth sphere, "
                      "coloured sun 6 deg and coloured spot with blend together"),
+    "world_ball": (world_ball, "a world of constant colour (pale blue) as the only light, through a Glass BSDF "
+                   "ball"),
+    "world_mirror_bulb": (world_mirror_bulb, "mirror_point_hard with a grey world (0.4): the sky's reflection "
+                          "and the bulb's together"),
 }
 # scenes whose reference is Cycles' MNEE (the light cannot be found by path tracing)
 MNEE_REFERENCE = {"water_flat_sun0"}

@@ -447,7 +447,7 @@ def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per
         tau = {t: 0.0 if guide is not None and guide.is_weak(lp.index, t) else opts.handoff for t in types}
         # the photons also take every path the walks cannot (a chain type they do not walk), so
         # that nothing the camera sees directly is dropped
-        handoff = reference.Handoff(tau, bool(scene.light_type[lp.index] == S.SUN), others=True)
+        handoff = reference.Handoff(tau, bool(scene.light_type[lp.index] in S.DISTANT), others=True)
         st["time_s"] += _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, hs, prog, 4,
                                      handoff, step=False)
 

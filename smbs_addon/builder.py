@@ -170,7 +170,7 @@ class SceneBuilder:
               color=(1.0, 1.0, 1.0), radius=0.0, soft_falloff=False, spot_size=math.radians(45),
               spot_blend=0.15, shape="SQUARE", size=(1.0, 1.0), spread=math.pi, angle=0.0,
               caustics=True) -> int:
-        """power: watts (point/spot/area) or irradiance W/m^2 (sun)."""
+        """power: watts (point/spot/area) or irradiance W/m^2 (sun); a world: see world()."""
         if matrix is None:
             loc = np.zeros(3) if location is None else location
             tgt = np.asarray(loc, float) - np.array([0, 0, 1.0]) if target is None else target
@@ -184,6 +184,12 @@ class SceneBuilder:
             size=np.asarray(size, float), spread=float(spread), angle=float(angle),
             caustics=bool(caustics)))
         return len(self.lights) - 1
+
+    def world(self, color, strength=1.0, name="World", caustics=True) -> int:
+        """A world of constant colour (Cycles' Background node): radiance color x strength from
+        every direction, kept as world_color and baked as a light of its own (S.WORLD)."""
+        self.world_color = np.asarray(color, float)[:3] * float(strength)
+        return self.light(name, "WORLD", matrix=np.eye(4), color=self.world_color, power=1.0, caustics=caustics)
 
     # --------------------------------------------------------------- camera
     def set_camera(self, location=None, target=None, matrix=None, **kw) -> S.Camera:

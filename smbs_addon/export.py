@@ -547,6 +547,21 @@ def _world_color(bpy_scene, warn) -> np.ndarray:
         return np.zeros(3)
 
 
+def _world_seen_by_caustics(w, warn) -> bool:
+    """Does the world light the last segment of a caustic path, a ray leaving a mirror (glossy)
+    or glass (transmission)? Its Ray Visibility (World > Settings) says; the layer cannot leave
+    out one kind alone and bakes both then, which it says."""
+    vis = getattr(w, "cycles_visibility", None)
+    glossy, transmission = (True, True) if vis is None else (bool(vis.glossy), bool(vis.transmission))
+    if not (glossy or transmission):
+        return False  # Cycles' world lights no caustic either
+    if not (glossy and transmission):
+        off = "glossy" if not glossy else "transmission"
+        warn(f"world '{w.name}': its Ray Visibility has {off} rays off; the layer bakes its caustics through "
+             "mirrors and glass alike")
+    return True
+
+
 # ------------------------------------------------------------------------------ export
 def _default_depsgraph(bpy_scene):
     ctx = bpy.context
@@ -587,7 +602,11 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
 
     b = SceneBuilder(bpy_scene.name)
     b.camera = camera
-    b.world_color = _world_color(bpy_scene, _warn)
+    b.world_color = world = _world_color(bpy_scene, _warn)
+    if world.max() > 0 and _world_seen_by_caustics(bpy_scene.world, _warn):
+        # a light of the layer's: its light through mirrors and glass is a caustic too
+        w = bpy_scene.world
+        b.world(world, name=w.name, caustics=bool(getattr(w.cycles, "is_caustics_light", False)))
     c = getattr(bpy_scene, "cycles", None)
     if c is not None:  # Light Paths > Max Bounces, as Cycles renders with them (bounces.py)
         b.light_paths = np.array([c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces],

@@ -5,7 +5,9 @@ Units (measured against Cycles, see testing-against-cycles.md):
   P / (4 pi^2 r^2)); a spot is a point light masked by its cone (power is not
   concentrated into the cone);
 - area: one-sided radiance P / (pi A) along the light's local -Z;
-- sun: strength S is the irradiance on a plane facing the sun.
+- sun: strength S is the irradiance on a plane facing the sun;
+- world (a constant Background colour): radiance L from every direction, a sun
+  whose disc fills the sky (distant_cone).
 
 A caustic path starts light -> caster, so photons are only emitted towards the
 bounding spheres of the casters ("targets"). Directions are drawn from a
@@ -52,6 +54,16 @@ def light_axis(scene, li: int) -> np.ndarray:
     """The unit direction light li points along (its local -Z): a spot's cone axis, a sun's light."""
     m = scene.light_matrix[li]
     return -m[:3, 2] / np.linalg.norm(m[:3, 2])
+
+
+def distant_cone(scene, li: int):
+    """A light at infinity (S.DISTANT) as the cone of directions its light travels along:
+    (unit axis, half-angle, strength S), S in a sun's units: radiance S / (2 pi (1 - cos half))
+    inside the cone. A world of constant colour is the whole sphere: half pi, S = 4 pi L."""
+    color = np.asarray(scene.light_color[li], np.float64)
+    if scene.light_type[li] == S.WORLD:
+        return np.array([0.0, 0.0, -1.0]), math.pi, 4.0 * math.pi * color
+    return light_axis(scene, li), 0.5 * float(scene.light_angle[li]), color
 
 
 def spot_mask(scene, li: int, d: np.ndarray) -> np.ndarray:
@@ -286,12 +298,13 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
         if has_spread(scene, li):
             w *= spread_factor(scene, li, dot(d, nrm))[:, None]
         return Photons(o, d, w)
-    if typ == S.SUN:
+    if typ in S.DISTANT:
         area_k = math.pi * targets[:, 3] ** 2
         probs = area_k / area_k.sum()
         far = 2.0 * (scene.scale + float(np.abs(targets[:, :3]).max()))
-        _emit_sun(u, np.ascontiguousarray(light_axis(scene, li), np.float64), 0.5 * float(scene.light_angle[li]),
-                  color, targets, np.cumsum(probs), probs, far, o, d, w)
+        axis, half, strength = distant_cone(scene, li)
+        _emit_sun(u, np.ascontiguousarray(axis, np.float64), half, strength, targets, np.cumsum(probs), probs,
+                  far, o, d, w)
         return Photons(o, d, w)
     raise ValueError(f"light '{scene.light_names[li]}': unknown type {typ}")
 
@@ -340,7 +353,7 @@ def _sphere_hit(o, d, c, r):
 
 def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.ndarray | None = None):
     """Radiance a ray o + t d sees from light li, and the distance (inf if the ray
-    misses it). escaped marks rays that left the scene (needed for the sun).
+    misses it). escaped marks rays that left the scene (needed for a sun or the world).
     Point lights of radius 0 cannot be hit (delta lights)."""
     n = len(o)
     L = np.zeros((n, 3))
@@ -377,13 +390,12 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
         if has_spread(scene, li):
             L = L * spread_factor(scene, li, -den)[:, None]
         return L, t
-    if typ == S.SUN and escaped is not None:
-        half = 0.5 * float(scene.light_angle[li])
+    if typ in S.DISTANT and escaped is not None:
+        axis, half, strength = distant_cone(scene, li)
         if half <= 0:
             return L, t
-        axis = light_axis(scene, li)
-        inside = escaped & (dot(-d, axis) >= math.cos(half))
+        inside = escaped & ((half >= math.pi) | (dot(-d, axis) >= math.cos(half)))
         omega = 2.0 * math.pi * (1.0 - math.cos(half))
-        L = np.where(inside[:, None], color / omega, 0.0)
+        L = np.where(inside[:, None], strength / omega, 0.0)
         t = np.where(inside, 1e30, np.inf)
     return L, t

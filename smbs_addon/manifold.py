@@ -24,7 +24,7 @@ from .estimators import chain_throughput, concentration, geometric_term, light_e
 from .eye import direct_albedo, eye_receivers
 from .geometry import triangle_areas
 from .layer import coat_factor, has_layers
-from .lights import area_light_points, light_axis
+from .lights import area_light_points, distant_cone
 from .optics import has_reflection
 from .trials import bernoulli_trials
 from .vec import channel_mean, dot, normalize, uniform_cone, frame, to_world
@@ -148,7 +148,7 @@ def chain_types(scene, plan, opts: ManifoldOptions, light_paths: bool = True) ->
                 types += ["T" + "R" * r + "T" for r in range(1, opts.max_chain - 1)]
                 lo, hi = scene.object_bounds(o)
                 inside = [scene.light_matrix[lp.index][:3, 3] for lp in plan.lights
-                          if scene.light_type[lp.index] != S.SUN]
+                          if scene.light_type[lp.index] not in S.DISTANT]
                 lit_inside = any(np.all(lo <= y) and np.all(y <= hi) for y in inside)
                 if (np.all(rec_lo <= hi) and np.all(lo <= rec_hi)) or lit_inside:
                     types.append("T")  # a receiver may reach inside, or a light sits inside
@@ -185,14 +185,14 @@ def sphere_cap(scene, li, lo, hi):
 
 def sample_light(scene, li, n, rng, cap=None) -> LightEnd:
     """One light sample per lane: a point on the light (uniform in area; on a sphere
-    light, uniform over ``cap`` when given), or a sun direction (uniform in its cone).
+    light, uniform over ``cap`` when given), or a sun's or the world's direction (uniform in
+    its cone; the world's is the whole sphere).
     Tangents are set at the solution."""
     typ = scene.light_type[li]
     m = scene.light_matrix[li]
     z = np.zeros((n, 3))
-    if typ == S.SUN:
-        axis = light_axis(scene, li)
-        half = 0.5 * float(scene.light_angle[li])
+    if typ in S.DISTANT:
+        axis, half, _ = distant_cone(scene, li)
         to_sun = np.broadcast_to(-axis, (n, 3)).copy()
         if half > 0:
             s, t = frame(to_sun)
@@ -582,7 +582,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
             others = guide is None or guide.stats.get("other_share", {}).get(lp.name, 1.0) >= OTHERS_MIN_SHARE
             if seen_focus or others:
                 tau = max(opts.handoff, SEEN_HANDOFF_MIN) if seen_focus else math.inf
-                handoffs[lp.index] = Handoff({t: tau for t in types_list}, bool(scene.light_type[lp.index] == S.SUN),
+                handoffs[lp.index] = Handoff({t: tau for t in types_list}, bool(scene.light_type[lp.index] in S.DISTANT),
                                              others=others)
             if seen_focus:
                 focus.add(lp.index)
@@ -644,7 +644,7 @@ def light_can_be_hit(scene, li) -> bool:
     typ = scene.light_type[li]
     if typ == S.AREA:
         return True
-    if typ == S.SUN:
-        return bool(scene.light_angle[li] > 0)
+    if typ in S.DISTANT:
+        return bool(distant_cone(scene, li)[1] > 0)
     return bool(scene.light_radius[li] > 0)
 

@@ -236,6 +236,13 @@ def _finish(plan: Plan, scene: S.Scene) -> Plan:
 PILOT_PHOTONS = 4096  # per light and caster
 PILOT_BOUNCES = 8  # specular bounces a pilot photon follows
 PLAN_MIN_SHARE = 1e-5  # a caster bringing less of the light the camera sees (by the pilots) is left out
+# A world of constant colour whose caustic can be at most this share of the lamps' (caustic_irradiance)
+# is left out: it would cost a light's bake (a world of 0.05 beside the glass ball's area light: +67%
+# time, SMBS) for a change the eye cannot see. Lamps are never dropped for being faint: a user put
+# them there.
+WORLD_MIN_SHARE = 0.01
+CELLS = 64  # caustic_irradiance's cells: this many across the diagonal of what takes part
+FAINT = "its caustic is too faint to show"
 CAMERA_RAYS = 1 << 18  # at most this many rays for what the camera sees (a grid over the frame)
 
 
@@ -358,8 +365,8 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
     through mirrors and glass (glass: both ways while the lanes
     stay few, else one way at random) to their first diffuse surface. Returns, per photon
     path that lands where the camera sees it: the casters it met (K, max_bounces) object
-    ids (-1 past its end), its chain letters, the receiver and the flux it carries
-    (luminance, through the Fresnel weights); and the rays cast. target None: photons
+    ids (-1 past its end), its chain letters, the receiver, the flux it carries
+    (luminance, through the Fresnel weights) and where it lands; and the rays cast. target None: photons
     leaving a diffuse surface (ph.o is on it), the first specular hit on any caster."""
     from .optics import reflect, refract, specular_weights
 
@@ -390,7 +397,7 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
                 v, r = _sees_point(scene, tracer, cam, h.p[li_[check]], h.ng[li_[check]], -d[li_[check]])
                 rays += r
                 seen[check] = v
-            out.append((hist[li_[seen]], letters[li_[seen]], obj[land[seen]], w[li_[seen]]))
+            out.append((hist[li_[seen]], letters[li_[seen]], obj[land[seen]], w[li_[seen]], pl[seen]))
         spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
         spec &= np.isin(obj, target) if depth == 0 else True  # the pilots of caster target: paths from it
         sp = np.flatnonzero(spec)
@@ -422,7 +429,22 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
     if out:
         return tuple(np.concatenate(x) for x in zip(*out)) + (rays,)
     return (np.zeros((0, max_bounces), np.int64), np.zeros((0, max_bounces), np.int8), np.zeros(0, np.int64),
-            np.zeros(0), rays)
+            np.zeros(0), np.zeros((0, 3)), rays)
+
+
+def caustic_irradiance(at: np.ndarray, w: np.ndarray, scale: float) -> float:
+    """The irradiance of a caustic over its bright part, from pilot photons landing at ``at`` (K,3)
+    with flux ``w`` (K,): their flux summed in cubes of side scale / CELLS, the mean over the cubes
+    holding more than 5% of the fullest one's (as convergence.caustic_region picks pixels), per
+    unit area. Cubes wider than the caustic's focus dilute it, so it errs low: a world compared
+    with it is left out only when its caustic is surely faint. 0 for no photon."""
+    if not len(at):
+        return 0.0
+    h = scale / CELLS
+    _, inv = np.unique(np.floor(at / h).astype(np.int64), axis=0, return_inverse=True)
+    cell = np.bincount(inv.ravel(), weights=w)
+    bright = cell > 0.05 * cell.max()
+    return float(cell[bright].sum() / (bright.sum() * h * h))
 
 
 def _letters(row) -> str:
@@ -472,13 +494,14 @@ def spot_target(scene, li: int, sphere: np.ndarray) -> tuple[np.ndarray, float]:
 
 def _caster_pilot(scene, tracer, cam, plan, seen, seed, lp, k, pilots, max_bounces):
     """refine_plan's pilots of light lp's k-th caster: (photons, rays, None where none of its
-    caustic lands in view, else (chain shares, receiver names, flux, casters met))."""
+    caustic lands in view, else (chain shares, receiver names, flux, casters met, where the
+    pilots land, their flux))."""
     from .lights import emit
 
     o = lp.caster_objects[k]
     rng = _rng(seed, 7, lp.key, light_key(scene.object_names[o]))
     ph = emit(scene, lp.index, lp.targets[k:k + 1], pilots, rng)
-    hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, ph, *seen, rng, max_bounces, o)
+    hist, letters, recv, wgt, at, r = _pilot(scene, tracer, cam, plan, ph, *seen, rng, max_bounces, o)
     first = hist[:, 0] == o
     flux = float(wgt[first].sum())
     if not flux > 0:
@@ -486,7 +509,7 @@ def _caster_pilot(scene, tracer, cam, plan, seen, seed, lp, k, pilots, max_bounc
     chains = _chain_flux(letters[first], wgt[first])
     return pilots, r, ({t: v / flux for t, v in chains.items()},
                        [scene.object_names[x] for x in np.unique(recv[first])], flux,
-                       {int(x) for x in np.unique(hist[first]) if x >= 0})
+                       {int(x) for x in np.unique(hist[first]) if x >= 0}, at[first], wgt[first])
 
 
 def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere, max_bounces):
@@ -511,7 +534,7 @@ def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere,
     d2 = to_world(cosine_hemisphere(rng.random(j.size), rng.random(j.size)), s_, t_, ng)
     w2 = ph.w[lit[j]] * scene.mat_color[mat[dif]]  # cosine sampling: the albedo
     bounce = Photons(tracer.spawn(h.p[j], ng, d2), d2, w2)
-    hist, letters, recv, wgt, r = _pilot(scene, tracer, cam, plan, bounce, *seen, rng, max_bounces, None)
+    hist, letters, recv, wgt, _, r = _pilot(scene, tracer, cam, plan, bounce, *seen, rng, max_bounces, None)
     if not wgt.sum() > 0:
         return n_ind, lit.size + r, None
     return n_ind, lit.size + r, (float(wgt.sum()), {int(x) for x in np.unique(hist) if x >= 0},
@@ -563,9 +586,21 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
             elif out is not None:
                 found[i][o] = out
         total = sum(f[2] for per in found for f in per.values()) + sum(v[0] for v in indirect.values())
+        lamps = [f for lp, per in zip(plan.lights, found) if scene.light_type[lp.index] != S.WORLD
+                 for f in per.values()]
+        lamps_E = caustic_irradiance(np.concatenate([f[4] for f in lamps]) if lamps else np.zeros((0, 3)),
+                                     np.concatenate([f[5] for f in lamps]) if lamps else np.zeros(0), plan.scale)
+        faint = {}  # worlds too faint to show: light index -> their brightest caustic / the lamps'
+        for li in dict.fromkeys([lp.index for lp in plan.lights] + list(plan.indirect_lights)):
+            if scene.light_type[li] == S.WORLD and lamps_E > 0:
+                bound = math.pi * float(np.mean(scene.light_color[li]))  # the irradiance of the whole sky
+                if bound < WORLD_MIN_SHARE * lamps_E:
+                    faint[li] = bound / lamps_E
         kept_lights, no_direct = [], []
         used = np.zeros_like(plan.casters)
         for lp, per in zip(plan.lights, found):
+            if lp.index in faint:
+                continue
             lp_casters, effects = set(), []
             for o in lp.caster_objects:
                 name = scene.object_names[o]
@@ -573,9 +608,9 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
                     plan.notes.append(f"{name} skipped for {lp.name}: its direct caustic lands on nothing the "
                                       f"camera sees (0 of {pilots} pilot photons)")
                     continue
-                shares, recv_names, flux, met = per[o]
+                shares, recv_names, flux, met = per[o][:4]
                 if flux < PLAN_MIN_SHARE * total:
-                    plan.notes.append(f"{name} skipped for {lp.name}: its caustic is too faint to show "
+                    plan.notes.append(f"{name} skipped for {lp.name}: {FAINT} "
                                       f"({flux / total:.1e} of the light the camera sees)")
                     continue
                 effects.append((name, shares, recv_names, flux / total))
@@ -590,6 +625,8 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
             used[objs] = True
         ind_keep = []
         for li in plan.indirect_lights:
+            if li in faint:
+                continue
             # any landing keeps it: these pilots start at the first diffuse hit straight from the
             # light, so they undercount light that meets glass first (a pool's floor under water)
             if li in indirect:
@@ -600,14 +637,16 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
                     f"{scene.light_names[li]} -> diffuse -> {', '.join(scene.object_names[o] for o in met)} -> "
                     f"{', '.join(indirect[li][2])} (after a diffuse bounce)")
         plan.indirect_lights = ind_keep
+        for li, share in faint.items():
+            plan.skipped.append(("light", scene.light_names[li], f"{FAINT} (at most {share:.1%} of the lamps' "
+                                 "caustic)"))
         for lp in no_direct:
             if lp.index not in ind_keep:
                 plan.skipped.append(("light", lp.name, "its caustics land on nothing the camera sees"))
         for o in np.flatnonzero(plan.casters & ~used):  # out of every light's plan: one line for it
             name = scene.object_names[o]
             why = [n for n in plan.notes if n.startswith(name + " skipped for ")]
-            faint = any("too faint" in n for n in why)
-            plan.skipped.append(("caster", name, "its caustic is too faint to show" if faint else
+            plan.skipped.append(("caster", name, FAINT if any(FAINT in n for n in why) else
                                  "its caustic lands on nothing the camera sees"))
             plan.notes = [n for n in plan.notes if n not in why]
         plan.lights = kept_lights

@@ -67,7 +67,7 @@ class Handoff:
     elsewhere."""
 
     tau: dict  # chain type -> concentration threshold; 0: the whole chain type (a weak one)
-    directional: bool  # the light is a sun: the light end is the photon's direction
+    directional: bool  # a sun or the world (S.DISTANT): the light end is the photon's direction
     others: bool = False  # also every path the walks cannot take: a chain type they do not walk
     # (longer than max_chain, or mixing mirrors and glass), or one through a specular vertex that
     # is not a planned caster

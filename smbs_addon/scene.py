@@ -31,9 +31,11 @@ MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
 # internal reflection absorbs).
 FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY = 0, 1, 2
 
-# Light types (Scene.light_type), as Cycles defines them
-POINT, SPOT, AREA, SUN = 0, 1, 2, 3
-LIGHT_TYPES = ("POINT", "SPOT", "AREA", "SUN")
+# Light types (Scene.light_type), as Cycles defines them; WORLD is a world of constant colour
+# (a Background node): radiance light_color from every direction, at infinity
+POINT, SPOT, AREA, SUN, WORLD = 0, 1, 2, 3, 4
+LIGHT_TYPES = ("POINT", "SPOT", "AREA", "SUN", "WORLD")
+DISTANT = (SUN, WORLD)  # lights at infinity: a path's light end is a direction
 # Area light shapes (Scene.light_shape)
 SQUARE, RECTANGLE, DISK, ELLIPSE = 0, 1, 2, 3
 AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
@@ -127,9 +129,9 @@ class Scene:
     mat_fresnel: np.ndarray  # (M,) Fresnel model (FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY)
     # lights
     light_names: list
-    light_type: np.ndarray  # (L,) POINT, SPOT, AREA, SUN
+    light_type: np.ndarray  # (L,) POINT, SPOT, AREA, SUN, WORLD
     light_matrix: np.ndarray  # (L,4,4) world matrix (scale removed for AREA sizes)
-    light_color: np.ndarray  # (L,3) colour x power (W) or x strength (sun, W/m^2)
+    light_color: np.ndarray  # (L,3) colour x power (W), x strength (sun, W/m^2) or radiance (world)
     light_radius: np.ndarray  # (L,) point/spot radius (shadow_soft_size)
     light_soft_falloff: np.ndarray  # (L,) bool
     light_spot_size: np.ndarray  # (L,) full cone angle, radians
@@ -140,7 +142,7 @@ class Scene:
     light_angle: np.ndarray  # (L,) sun angular diameter, radians
     light_caustics: np.ndarray  # (L,) Cycles is_caustics_light
     camera: Camera = field(default_factory=Camera)
-    world_color: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    world_color: np.ndarray = field(default_factory=lambda: np.zeros(3))  # a constant world (its light: S.WORLD)
     name: str = "scene"
     # Cycles' Light Paths bounce limits (bounces.Limits): max, diffuse, glossy, transmission;
     # -1: none (a scene built in code, or saved before they were exported)
@@ -347,6 +349,9 @@ class Scene:
             raise SceneError(f"material '{self.mat_names[bad[0]]}': IOR must be positive")
         if np.shape(self.light_paths) != (4,):
             raise SceneError("scene array 'light_paths' must hold 4 bounce limits (max, diffuse, glossy, transmission)")
+        kinds = np.flatnonzero((self.light_type < 0) | (self.light_type >= len(LIGHT_TYPES)))
+        if kinds.size:
+            raise SceneError(f"light '{self.light_names[kinds[0]]}': unknown type {int(self.light_type[kinds[0]])}")
         if np.any(self.light_color < 0):
             i = int(np.flatnonzero((self.light_color < 0).any(axis=1))[0])
             raise SceneError(f"light '{self.light_names[i]}': negative power")

@@ -167,6 +167,37 @@ def wavy_mirror_scene(resolution=(64, 48), amplitude=0.04, wavelength=0.3, n=96,
     return b.build()
 
 
+def world_mirror_scene(resolution=(64, 48), world=0.5, width=40.0, height=1.0, x=1.0):
+    """A floor under a world of constant radiance `world` and no lamp, a mirror standing on it (the
+    plane x = `x`, `width` wide along y, `height` tall), a camera looking straight down from above
+    the floor before the mirror."""
+    b = SceneBuilder("world mirror")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    mirror = b.material("mirror", "conductor", color=(MIRROR_RHO,) * 3)
+    b.plane("Floor", (0, 0, 0), width, floor, receiver=True)
+    w = width / 2
+    b.mesh("Mirror", np.array([[x, -w, 0], [x, w, 0], [x, w, height], [x, -w, height]]), np.array([[0, 1, 2, 3]]),
+           mirror, caster=True)
+    b.world((world,) * 3)
+    b.set_camera((0, 0, 3), (0, 0, 0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
+
+
+def world_through_mirror(p, world=0.5, width=40.0, height=1.0, x=1.0):
+    """world_mirror_scene's caustic radiance at floor point p (before the mirror): the floor's
+    albedo / pi x the irradiance of the sky reflected in the mirror. A direction of azimuth phi
+    about the mirror's normal and angle theta from the zenith meets the mirror (distance d) below
+    its top where cot(theta) <= k cos(phi), k = height / d; over theta that holds the irradiance
+    rho L cos^2(theta_0) / 2 = rho L / 2 x k^2 cos^2 / (1 + k^2 cos^2), integrated over the phi that
+    meet the mirror's width (pi (1 - 1 / sqrt(1 + k^2)) for an endless mirror)."""
+    d = x - p[0]
+    k = height / d
+    phi = np.linspace(math.atan((-width / 2 - p[1]) / d), math.atan((width / 2 - p[1]) / d), 4001)
+    f = (k * np.cos(phi)) ** 2 / (1 + (k * np.cos(phi)) ** 2)
+    E = MIRROR_RHO * world / 2 * float(np.sum(0.5 * (f[1:] + f[:-1]) * np.diff(phi)))
+    return FLOOR_ALBEDO / math.pi * E
+
+
 def hammered_mirror_scene(resolution=(48, 36)):
     """The paper's Figure 12 kind of caster, closer than wavy_mirror_scene(normal_mapped=True):
     a flat metal sheet whose normal map is fine and gentle, like hammered metal (20 bumps

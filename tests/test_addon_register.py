@@ -643,29 +643,50 @@ def _sky(scene, value):
         background.inputs["Color"].default_value = (value, value, value, 1.0)
 
 
-def test_world_light_is_left_to_cycles(empty_bpy, addon, tmp_path):
-    """A world bright enough that its light through the mirror could show (its colour x the
-    floor's 0.8 against the layer's caustic) keeps Cycles' own caustics on."""
+def test_a_bright_world_is_a_light_of_the_layer(empty_bpy, addon, tmp_path):
+    """A world of constant colour bright enough that its light through the mirror shows is baked
+    as a light of its own (the layer then covers every light), so Cycles' caustics go off."""
     scene = _mirror_scene()
+    _sky(scene, 0.5)
+    s = _bake(scene, tmp_path)
+    stats = json.loads(s.last_stats)
+    assert list(stats["lights"]) == ["Sky", "Disk"], stats["lights"]  # the world first, as exported
+    assert any(w.startswith("Sky -> Mirror (reflection) -> Floor") for w in stats["plan"]["words"])
+    assert not scene.cycles.caustics_reflective and s.cycles_kept_out
+    assert "from 'Sky', 'Disk'." in s.cycles_note
+    assert "Too faint" not in s.cycles_note
+
+
+def test_a_faint_world_does_not_keep_cycles_caustics_on(empty_bpy, addon, tmp_path):
+    """A world of constant grey whose caustic can be at most 1% of the lamps' by the plan's pilots
+    is not baked (plan.WORLD_MIN_SHARE), it is said so, and Cycles' caustics go off as without it."""
+    scene = _mirror_scene()
+    _sky(scene, 0.0005)
+    s = _bake(scene, tmp_path)
+    stats = json.loads(s.last_stats)
+    assert list(stats["lights"]) == ["Disk"]
+    assert any(x["name"] == "Sky" and x["reason"].startswith("its caustic is too faint to show (")
+               for x in stats["skipped"]), stats["skipped"]
+    assert not scene.cycles.caustics_reflective and s.cycles_kept_out
+    assert "Too faint to see, rendered by neither: world 'Sky' through mirrors and glass (at most 0." in s.cycles_note
+
+
+def test_an_unflagged_world_beside_flagged_lights_is_left_to_cycles(empty_bpy, addon, tmp_path):
+    """Cycles' flags select the lights once one is flagged (AUTO): a bright world left unflagged
+    is not baked, and Cycles keeps its caustics to render it; the note says how to change that.
+    Under 1% of the layer's caustic at most (its colour x the floor's 0.8) it is dropped instead."""
+    scene = _mirror_scene()
+    scene.objects["Disk"].data.cycles.is_caustics_light = True
     _sky(scene, 0.5)
     s = _bake(scene, tmp_path)
     mean = json.loads(s.last_stats)["noise"]["mean"]
     assert 0.5 * 0.8 > addon.operators.policy.WORLD_NEGLIGIBLE * mean
     assert scene.cycles.caustics_reflective and not s.cycles_kept_out
-    assert "world lighting" in s.cycles_note
-
-
-def test_a_faint_world_does_not_keep_cycles_caustics_on(empty_bpy, addon, tmp_path):
-    """Blender's default world is a constant grey: its caustic can be no brighter than its colour
-    x the brightest diffuse colour (radiance is conserved through mirrors and glass). Under 1% of
-    the layer's caustic it is dropped, said so, and Cycles' caustics go off as without it."""
-    scene = _mirror_scene()
+    assert "world 'Sky' (not flagged Shadow Caustics)" in s.cycles_note
     _sky(scene, 0.0005)
     s = _bake(scene, tmp_path)
-    mean = json.loads(s.last_stats)["noise"]["mean"]
-    assert 0.0005 * 0.8 <= addon.operators.policy.WORLD_NEGLIGIBLE * mean
     assert not scene.cycles.caustics_reflective and s.cycles_kept_out
-    assert "Too faint to see, rendered by neither: world lighting through mirrors and glass (at most" in s.cycles_note
+    assert f"world '{scene.world.name}' through mirrors and glass (at most" in s.cycles_note  # 'Sky.001'
 
 
 def test_keep_out_of_cycles_off(empty_bpy, addon, tmp_path):

@@ -166,6 +166,9 @@ def test_out_of_range_values_a_fuzz_found_are_refused_with_their_name():
     assert _invalid(sc) == ("light 'Disk': power 1e+38 is beyond 1e+20, more than a float32 caustic layer "
                             "can hold")
     sc = fresh()
+    sc.light_type[0] = 7
+    assert _invalid(sc) == "light 'Disk': unknown type 7"
+    sc = fresh()
     sc.light_size[0] = (-0.5, 0.5)
     assert _invalid(sc) == "light 'Disk': negative size, radius, angle or spot size"
     sc = fresh()

@@ -56,6 +56,11 @@ CASES = [
     # a glass ball with a Volume Absorption (0.15/0.6/1.05 per metre): 1.63 of Cycles unabsorbed
     ("tinted_ball", "reference", 256),
     ("tinted_ball", "smbs", 4),
+    # a world of constant colour, the only light: left to Cycles (and its caustics kept on) before it
+    # was a light of the layer (S.WORLD)
+    ("world_ball", "reference", 64),
+    # a grey world beside a bulb, both through a mirror
+    ("world_mirror_bulb", "smbs", 4),
 ]
 
 

@@ -784,8 +784,22 @@ def test_world_background_colour_times_strength():
     bg = w.node_tree.nodes["Background"]
     bg.inputs["Color"].default_value = (0.5, 0.25, 1.0, 1.0)
     bg.inputs["Strength"].default_value = 2.0
+    w.cycles.is_caustics_light = True
     sc, warnings = export()
     assert np.allclose(sc.world_color, [1.0, 0.5, 2.0]) and warnings == []
+    # a light of the layer's: radiance from every direction, flagged as the world is
+    assert sc.light_names == ["Sky"] and sc.light_type.tolist() == [S.WORLD]
+    assert np.allclose(sc.light_color[0], [1.0, 0.5, 2.0]) and sc.light_caustics.tolist() == [True]
+    w.cycles_visibility.glossy = False  # World > Settings > Ray Visibility: what Cycles' own world does
+    sc, warnings = export()
+    assert sc.light_names == ["Sky"] and len(warnings) == 1 and "glossy rays off" in warnings[0]
+    w.cycles_visibility.transmission = False  # no caustic ray sees it: no light
+    sc, warnings = export()
+    assert sc.light_names == [] and warnings == [] and np.allclose(sc.world_color, [1.0, 0.5, 2.0])
+    w.cycles.is_caustics_light = False
+    bg.inputs["Strength"].default_value = 0.0  # black: no light
+    sc, _ = export()
+    assert sc.light_names == [] and np.allclose(sc.world_color, 0)
 
 
 def test_textured_world_is_black_with_a_warning():
@@ -795,7 +809,7 @@ def test_textured_world_is_black_with_a_warning():
     sky = w.node_tree.nodes.new("ShaderNodeTexSky")
     w.node_tree.links.new(sky.outputs[0], w.node_tree.nodes["Background"].inputs["Color"])
     sc, warnings = export()
-    assert np.allclose(sc.world_color, 0)
+    assert np.allclose(sc.world_color, 0) and sc.light_names == []
     assert len(warnings) == 1 and warnings[0].startswith("world 'Sky':")
 
 

@@ -43,7 +43,7 @@ EXAMPLES = 150  # 150 x 4096 = 614,400 walks
 MIN_WALKS = 100_000
 CASTERS = ("sphere", "plane", "sheet")
 CHAINS = {"sphere": ("R", "T", "TT", "RR"), "plane": ("R", "T"), "sheet": ("R", "T", "RR", "TT")}
-LIGHTS = ("point", "sphere", "spot", "area", "sun")
+LIGHTS = ("point", "sphere", "spot", "area", "sun", "world")
 
 
 @st.composite
@@ -128,6 +128,8 @@ def build(cfg):
                 spot_size=math.radians(60))
     elif kind == "area":
         b.light("Light", "AREA", matrix=look_at(pos, target), power=1000.0, size=size, shape="DISK")
+    elif kind == "world":  # a constant colour: directions over the whole sphere
+        b.world((0.5, 0.5, 0.5))
     else:
         z = math.radians(cfg["sun_zenith"])
         a = math.radians(cfg["azimuth"])

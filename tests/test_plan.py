@@ -28,12 +28,15 @@ from smbs_addon.tracer import Tracer
 ROOT = Path(__file__).resolve().parents[1]
 
 
-def lens_scene(extra: bool, resolution=(96, 72), far=(0, 0, -3)):
+def lens_scene(extra: bool, resolution=(96, 72), far=(0, 0, -3), world=0.0):
     """The glass ball of scenes.glass_sphere_scene; with extra, a spot aimed at the empty
     sky (first in the list of lights, so every light after it moves one place) and a glass
     ball at ``far``: under the floor (hidden from the light and the camera), or out of the
-    frame beyond the floor's edge."""
+    frame beyond the floor's edge. world: a world of that constant grey (first of the lights, as
+    the export puts it), if above 0."""
     b = SceneBuilder("lens")
+    if world > 0:
+        b.world((world,) * 3)
     floor = b.material("floor", "diffuse", color=(0.8,) * 3)
     glass = b.material("glass", "dielectric", color=(1, 1, 1), ior=1.5)
     if extra:
@@ -82,6 +85,30 @@ def test_a_far_caster_too_faint_to_show_is_skipped():
                                                   "FarGlass skipped: its caustic is too faint to show"])
     assert [lp.caster_names for lp in plan.lights] == [["Ball"]]
     assert plan.casters.sum() == 1 and plan.scale < 15  # tolerances from what takes part
+
+
+def test_a_faint_world_is_left_out_a_bright_one_baked():
+    """A world of constant colour is a light (S.WORLD). Where its caustic can be no brighter than
+    WORLD_MIN_SHARE of the lamps' by the pilots (its irradiance at most pi L, against
+    plan.caustic_irradiance of theirs: 4.8 W/m^2 here, where the layer's mean over its caustic
+    region says 4.2) it is skipped and said so, and the bake is the bake without it, bit for bit
+    (random streams keyed by the lights' names). A grey of 0.001 is; Blender's default grey (0.05)
+    is not beside this ball's 400 W area light (the caustic under the ball brightens by 3.6% of the
+    layer's mean), nor is 2.0, planned beside the lamp."""
+    faint, none = lens_scene(False, (48, 36), world=0.001), lens_scene(False, (48, 36))
+    settings = BakeSettings(method="smbs", spp=1, batches=2, seed=2)
+    a, b = bake(faint, settings), bake(none, settings)
+    assert a.stats["plan"]["words"][:len(BALL)] == b.stats["plan"]["words"]
+    skip = a.stats["plan"]["words"][len(BALL):]
+    assert len(skip) == 1 and re.fullmatch(r"World skipped: its caustic is too faint to show \(at most 0\.\d% of "
+                                           r"the lamps' caustic\)", skip[0]), skip
+    assert list(a.stats["lights"]) == ["Area"]
+    assert a.image.tobytes() == b.image.tobytes()
+    for grey in (0.05, 2.0):
+        plan = make_plan(sc := lens_scene(False, (48, 36), world=grey))
+        refine_plan(plan, sc, Tracer(sc), CameraModel(sc.camera), seed=3)
+        assert [lp.name for lp in plan.lights] == ["World", "Area"] and plan.indirect_lights == [0, 1]
+        assert plan.skipped == []
 
 
 def _skyward():
