@@ -62,6 +62,7 @@ SPP_BY_SCENE = {
     # a world's directions fill the sphere; the walks draw them uniformly, most find no path
     # through the ball from a given floor point (at 4 spp their 3 sigma was 35-42%)
     "world_ball": {"sms": 32, "smbs": 32},
+    "hdri_ball": {"reference": 1024, "sms": 32, "smbs": 32},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE

@@ -44,7 +44,8 @@ def _core():
                            apply_layer=composite.apply_layer, remove_layer=composite.remove_layer,
                            diffuse_color_switched_on=composite.diffuse_color_switched_on,
                            has_layer=composite.has_layer, write_exr=imageio.write_exr, write_json=imageio.write_json,
-                           make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels)
+                           make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels,
+                           world_unread=export.world_unread)
 
 
 def _plain(value):
@@ -150,6 +151,7 @@ class Prepared:
     warnings: list
     blender_lights: list  # (name, is_portal)
     started: float
+    world_unread: str | None = None  # the world's name if the export could not read its node setup
 
 
 def prepare(context, core, output=True) -> Prepared:
@@ -171,7 +173,7 @@ def prepare(context, core, output=True) -> Prepared:
     data = core.export_scene(scene, context.evaluated_depsgraph_get(), warn=warnings.append)
     lights = [(ob.name, bool(ob.data.type == 'AREA' and getattr(ob.data.cycles, "is_portal", False)))
               for ob in scene.objects if ob.type == 'LIGHT' and not ob.hide_render]
-    return Prepared(data, settings, path, stored_path, warnings, lights, started)
+    return Prepared(data, settings, path, stored_path, warnings, lights, started, core.world_unread(scene))
 
 
 def finish(scene, prep: Prepared, result, core, report) -> bool:
@@ -223,7 +225,8 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
             plan = core.make_plan(prep.data, prep.settings.use_cycles_flags)
             noise = (result.stats or {}).get("noise") or {}
             cov = policy.coverage(prep.data, plan, prep.settings.use_cycles_flags, prep.blender_lights,
-                                  layer_mean=noise.get("mean"), skipped=(result.stats or {}).get("skipped", ()))
+                                  layer_mean=noise.get("mean"), skipped=(result.stats or {}).get("skipped", ()),
+                                  world_unread=prep.world_unread)
         except Exception as e:
             traceback.print_exc()
             warnings.append(f"Could not tell which caustics the layer covers ({e}); "

@@ -36,6 +36,7 @@ class Coverage:
     lights: list = field(default_factory=list)
     left_to_cycles: list = field(default_factory=list)  # what only Cycles renders, with why
     dropped: list = field(default_factory=list)  # what neither renders once Cycles' are off, too faint to see
+    unread: list = field(default_factory=list)  # what neither renders once Cycles' are off: the layer cannot read it
 
 
 def _names(names, mask):
@@ -47,7 +48,8 @@ def _short(names, most=4):
     return ", ".join(quoted) if len(quoted) <= most else ", ".join(quoted[:most]) + f" and {len(quoted) - most} more"
 
 
-def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, skipped=()) -> Coverage:
+def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, skipped=(),
+             world_unread=None) -> Coverage:
     """What the layer covers, from the exported scene ``data`` and its ``plan``.
 
     blender_lights: (name, is_portal) of the scene's renderable light objects,
@@ -55,6 +57,9 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
     caustic region (stats["noise"]["mean"]), to judge a world the bake left out (_world).
     skipped: what the bake skipped (stats["skipped"], dicts of kind, name and reason), from its
     traced plan: a world its pilots found too faint is dropped, not a light of the layer.
+    world_unread: the name of a world whose node setup the export could not read (black to the
+    layer): its caustics are named as rendered by neither once Cycles' are off, as before the
+    layer had a world light (keeping Cycles' on for it would count every lamp's caustic twice).
     """
     from ..smbs_addon import scene as S
     from ..smbs_addon.plan import FAINT
@@ -100,14 +105,15 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
                     casters=_names(data.object_names, plan.casters),
                     receivers=_names(data.object_names, plan.receivers),
                     lights=[lp.name for lp in plan.lights if lp.name not in faint],
-                    left_to_cycles=left, dropped=dropped)
+                    left_to_cycles=left, dropped=dropped,
+                    unread=[] if world_unread is None else [f"world '{world_unread}' through mirrors and glass"])
 
 
 def _world(data, li, faint, layer_mean, left, dropped):
     """coverage's words for a world of constant colour (a light of the layer, S.WORLD) the bake
     left out: too faint by the plan's pilots (faint: the plan's reason), or not flagged. An
     unflagged world makes no caustic
-    brighter than its radiance L x the brightest diffuse colour (radiance is conserved along
+    brighter than its radiance L (a map's brightest pixel's) x the brightest diffuse colour (radiance is conserved along
     mirrors and glass, so a receiver lit by the whole sky through them sends at most that); where
     that is at most WORLD_NEGLIGIBLE of layer_mean (Blender's default grey world under a lamp), it
     is dropped rather than keeping Cycles' caustics on, which would count the layer's twice."""
@@ -120,7 +126,8 @@ def _world(data, li, faint, layer_mean, left, dropped):
         dropped.append(f"world '{name}' through mirrors and glass ({faint[len(FAINT):].strip(' ()')})")
         return
     diffuse = data.mat_color[data.mat_kind == S.DIFFUSE]
-    bound = float(data.light_color[li].max()) * float(np.max(diffuse, initial=0.0))
+    peak = float(data.light_color[li].max()) * (float(data.world_map.max()) if data.world_map.size else 1.0)
+    bound = peak * float(np.max(diffuse, initial=0.0))
     if layer_mean is not None and layer_mean > 0 and bound <= WORLD_NEGLIGIBLE * layer_mean:
         dropped.append(f"world '{name}' through mirrors and glass (at most {bound / layer_mean:.1%} of the "
                        "layer's caustic)")
@@ -175,6 +182,9 @@ def update_cycles(bpy_scene, props, cov: Coverage) -> tuple[bool, list[str]]:
                  "lights another diffuse surface (diffuse light through mirrors and glass)."]
         if cov.dropped:
             lines.append("Too faint to see, rendered by neither: " + "; ".join(cov.dropped) + ".")
+        if cov.unread:
+            lines.append("A node setup the layer cannot read (see the warnings), rendered by neither: "
+                         + "; ".join(cov.unread) + ".")
         kept_out = True
     else:
         restore_cycles(bpy_scene, props)

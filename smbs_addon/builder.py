@@ -43,6 +43,7 @@ class SceneBuilder:
         self.lights: list[dict] = []
         self.camera = S.Camera()
         self.world_color = np.zeros(3)
+        self.world_map, self.world_map_rotation = np.zeros((0, 0, 3), np.float32), np.eye(3)
         self.light_paths = np.full(4, -1, np.int64)  # Cycles' bounce limits (scene.Scene.light_paths)
 
     # ------------------------------------------------------------ materials
@@ -185,10 +186,15 @@ class SceneBuilder:
             caustics=bool(caustics)))
         return len(self.lights) - 1
 
-    def world(self, color, strength=1.0, name="World", caustics=True) -> int:
-        """A world of constant colour (Cycles' Background node): radiance color x strength from
-        every direction, kept as world_color and baked as a light of its own (S.WORLD)."""
+    def world(self, color, strength=1.0, name="World", caustics=True, image=None, rotation=None) -> int:
+        """A world (Cycles' Background node), baked as a light of its own (S.WORLD): radiance
+        color x strength from every direction, or with image, an equirectangular map (H, W, 3),
+        rows from the bottom up, scaled by color x strength, looked up at rotation @ d
+        (Scene.world_map)."""
         self.world_color = np.asarray(color, float)[:3] * float(strength)
+        if image is not None:
+            self.world_map = np.asarray(image, np.float32)
+            self.world_map_rotation = np.eye(3) if rotation is None else np.asarray(rotation, float)
         return self.light(name, "WORLD", matrix=np.eye(4), color=self.world_color, power=1.0, caustics=caustics)
 
     # --------------------------------------------------------------- camera
@@ -234,6 +240,7 @@ class SceneBuilder:
             light_angle=np.array([x["angle"] for x in lt], float),
             light_caustics=np.array([x["caustics"] for x in lt], bool),
             camera=self.camera, world_color=np.asarray(self.world_color, float), name=self.name,
+            world_map=self.world_map, world_map_rotation=self.world_map_rotation,
             light_paths=np.asarray(self.light_paths, np.int64),
             mat_bump_correction=np.array([x["bump_correction"] for x in m], bool)
             if any(x["bump_correction"] for x in m) else np.zeros(0, bool),

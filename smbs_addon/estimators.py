@@ -27,7 +27,7 @@ from . import scene as S
 from .constraints import LightEnd
 from .geometry import packed_floats
 from .kernels import chain_kinds, chain_solve
-from .lights import distant_cone, has_spread, soft_falloff_factor, spot_mask, spread_factor
+from .lights import distant_cone, env_map, has_spread, soft_falloff_factor, spot_mask, spread_factor
 from .optics import absorbing, arriving, bent, bump_correction, inside, specular_weights, transmittance
 from .vec import dot, frame, normalize
 
@@ -82,8 +82,11 @@ def light_end_at_solution(scene, li, light: LightEnd, xk):
     typ = scene.light_type[li]
     color = scene.light_color[li]
     n = len(xk)
-    if typ in S.DISTANT:  # L / p over the cone of directions: the strength
+    if typ in S.DISTANT:  # L / p over the cone of directions: the strength, or the map's L / p
         ys, yt = frame(light.y)
+        env = env_map(scene, li)
+        if env is not None:
+            return LightEnd(True, light.y, ys, yt), env.value(light.y)
         return LightEnd(True, light.y, ys, yt), np.broadcast_to(distant_cone(scene, li)[2], (n, 3)).copy()
     m = scene.light_matrix[li]
     if typ == S.AREA:

@@ -137,9 +137,19 @@ MAX_MEAN_PIXELS = 4096 * 4096  # an image's mean is read for its stand-in colour
 
 
 def _image_mean(img):
-    """The mean linear RGB of an image (Cycles reads an 8-bit sRGB image through the sRGB curve;
-    float images and the other colour spaces are taken as linear), or None: no image, none loaded
-    (a missing file), or one larger than MAX_MEAN_PIXELS (reading it would cost seconds and GBs)."""
+    """The mean linear RGB of an image (_image_linear), or None."""
+    rgb = _image_linear(img)
+    if rgb is None:
+        return None
+    mean = rgb.reshape(-1, 3).mean(axis=0, dtype=np.float64)
+    return mean if np.all(np.isfinite(mean)) else None
+
+
+def _image_linear(img, most=MAX_MEAN_PIXELS):
+    """An image's linear RGB (H, W, 3) float32, rows from the bottom up (Cycles reads an 8-bit sRGB
+    image through the sRGB curve; float images and the other colour spaces are taken as linear),
+    or None: no image, none loaded (a missing file), or one of more than `most` pixels (reading it
+    would cost seconds and GBs)."""
     if img is None:
         return None
     try:
@@ -147,15 +157,14 @@ def _image_mean(img):
         channels = int(img.channels)
     except (AttributeError, RuntimeError, ValueError):
         return None
-    if not 0 < w * h <= MAX_MEAN_PIXELS or channels < 3:
+    if not 0 < w * h <= most or channels < 3:
         return None
     px = np.empty(w * h * channels, np.float32)
     img.pixels.foreach_get(px)
-    rgb = px.reshape(-1, channels)[:, :3].astype(np.float64)
+    rgb = px.reshape(h, w, channels)[:, :, :3]
     if not img.is_float and img.colorspace_settings.name == "sRGB":
-        rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4)
-    mean = rgb.mean(axis=0)
-    return mean if np.all(np.isfinite(mean)) else None
+        rgb = np.where(rgb <= 0.04045, rgb / 12.92, ((rgb + 0.055) / 1.055) ** 2.4).astype(np.float32)
+    return np.ascontiguousarray(rgb)
 
 
 def _linked(node, name) -> bool:
@@ -529,22 +538,92 @@ def _export_camera(bpy_scene, depsgraph, warn) -> S.Camera:
 
 
 # ------------------------------------------------------------------------------- world
-def _world_color(bpy_scene, warn) -> np.ndarray:
+def _world(bpy_scene, warn):
+    """The world as the layer sees it: (colour x strength, map, rotation). A constant Background
+    gives its colour and no map; an Environment Texture (equirectangular) on its Color, fed the
+    view direction or that direction through a Mapping node that turns it, gives the strength
+    (as a colour), the image's linear pixels and the turn (Scene.world_map). Anything else is
+    black, warned."""
     w = bpy_scene.world
     if w is None:
-        return np.zeros(3)
+        return np.zeros(3), None, None
     if w.node_tree is None or not _uses_nodes(w):
-        return np.array(w.color[:3], float)
+        return np.array(w.color[:3], float), None, None
     try:
         node = _shader_node(w.node_tree, "OUTPUT_WORLD")
         if node is None:
-            return np.zeros(3)
+            return np.zeros(3), None, None
         if node.type != "BACKGROUND":
             raise _Unsupported(f"node '{node.name}' is not supported")
-        return _const(node, "Color") * _const(node, "Strength")
+        strength = _const(node, "Strength")
+        src = _follow(node.inputs["Color"])
+        if src is None or src[0].type != "TEX_ENVIRONMENT":
+            return _const(node, "Color") * strength, None, None
+        image, rotation = _environment(src[0])
+        return np.full(3, float(strength)), image, rotation
     except _Unsupported as e:
         warn(f"world '{w.name}': {e}; world lighting treated as black")
-        return np.zeros(3)
+        return np.zeros(3), None, None
+
+
+def world_unread(bpy_scene):
+    """The name of the scene's world when its node setup is one the layer cannot read (a Sky
+    Texture, a node trick: black to the layer, with a warning at export), else None."""
+    said = []
+    _world(bpy_scene, said.append)
+    return bpy_scene.world.name if said else None
+
+
+def _environment(tex):
+    """(linear pixels (H, W, 3) float32, rotation (3, 3)) of an Environment Texture node, its
+    Vector the view direction or that direction through a Mapping node. Cycles looks the map up
+    at R (S d) for a Mapping of type Point (no Location), Vector or Normal, at S^-1 R^-1 d for one
+    of type Texture, and the lookup does not depend on the length: a uniform S drops out."""
+    if tex.projection != "EQUIRECTANGULAR":
+        raise _Unsupported(f"node '{tex.name}': its {tex.projection.lower().replace('_', ' ')} projection is not "
+                           "supported")
+    rotation = np.eye(3)
+    src = _follow(tex.inputs["Vector"])
+    if src is not None:
+        mp = src[0]
+        if mp.type != "MAPPING":
+            raise _Unsupported(f"node '{mp.name}' on the Environment Texture's Vector is not supported")
+        for name in ("Location", "Rotation", "Scale"):
+            if name in mp.inputs and _linked(mp, name):
+                raise _Unsupported(f"node '{mp.name}': a linked {name} is not supported")
+        scale = np.array(mp.inputs["Scale"].default_value[:], float) if "Scale" in mp.inputs else np.ones(3)
+        loc = np.array(mp.inputs["Location"].default_value[:], float) if "Location" in mp.inputs else np.zeros(3)
+        if not (np.allclose(scale, scale[0]) and scale[0] > 0) or (mp.vector_type in ("POINT", "TEXTURE")
+                                                                   and np.any(loc != 0)):
+            raise _Unsupported(f"node '{mp.name}': only a turn (no Location, the same positive Scale on every "
+                               "axis) is supported")
+        inner = _follow(mp.inputs["Vector"])
+        if inner is not None and not (inner[0].type == "TEX_COORD" and inner[1].name == "Generated"):
+            raise _Unsupported(f"node '{inner[0].name}' on the Mapping's Vector is not supported")
+        if "Rotation" in mp.inputs:
+            rotation = np.array(mp.inputs["Rotation"].default_value.to_matrix(), float)  # Euler XYZ
+        if mp.vector_type == "TEXTURE":
+            rotation = rotation.T
+    image = _image_linear(tex.image, MAX_WORLD_PIXELS)
+    if image is None:
+        raise _Unsupported(f"node '{tex.name}': its image is missing or larger than {MAX_WORLD_PIXELS} pixels")
+    return _averaged_down(image, WORLD_MAP_WIDTH), rotation
+
+
+MAX_WORLD_PIXELS = 8192 * 4096  # an 8K HDRI: read once (0.5 GB for a moment), then averaged down
+WORLD_MAP_WIDTH = 2048  # the layer's map of the world is at most this wide (a sun of 0.5 deg: 3 pixels)
+
+
+def _averaged_down(image, width):
+    """An equirectangular map averaged over blocks to at most `width` pixels across (and the
+    height in proportion): the same light, in as many pixels as a caustic needs."""
+    h, w = image.shape[:2]
+    if w <= width:
+        return image
+    cols = np.linspace(0, w, width + 1).round().astype(np.int64)
+    rows = np.linspace(0, h, max(1, round(h * width / w)) + 1).round().astype(np.int64)
+    summed = np.add.reduceat(np.add.reduceat(image.astype(np.float64), rows[:-1], axis=0), cols[:-1], axis=1)
+    return (summed / np.outer(np.diff(rows), np.diff(cols))[..., None]).astype(np.float32)
 
 
 def _world_seen_by_caustics(w, warn) -> bool:
@@ -602,11 +681,14 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
 
     b = SceneBuilder(bpy_scene.name)
     b.camera = camera
-    b.world_color = world = _world_color(bpy_scene, _warn)
-    if world.max() > 0 and _world_seen_by_caustics(bpy_scene.world, _warn):
+    world, world_map, rotation = _world(bpy_scene, _warn)
+    b.world_color = world
+    lit = world.max() > 0 and (world_map is None or world_map.max() > 0)
+    if lit and _world_seen_by_caustics(bpy_scene.world, _warn):
         # a light of the layer's: its light through mirrors and glass is a caustic too
         w = bpy_scene.world
-        b.world(world, name=w.name, caustics=bool(getattr(w.cycles, "is_caustics_light", False)))
+        b.world(world, name=w.name, caustics=bool(getattr(w.cycles, "is_caustics_light", False)),
+                image=world_map, rotation=rotation)
     c = getattr(bpy_scene, "cycles", None)
     if c is not None:  # Light Paths > Max Bounces, as Cycles renders with them (bounces.py)
         b.light_paths = np.array([c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces],

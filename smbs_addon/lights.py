@@ -56,6 +56,70 @@ def light_axis(scene, li: int) -> np.ndarray:
     return -m[:3, 2] / np.linalg.norm(m[:3, 2])
 
 
+class EnvMap:
+    """A world's Environment Texture as a light (S.WORLD with Scene.world_map): radiance from an
+    equirectangular map in Cycles' convention, measured with Cycles (a map holding each pixel's own
+    coordinates, seen along 8 directions, with and without a Mapping node's turn): a ray of
+    direction d looks up m = R d (R: Scene.world_map_rotation) at u = 0.5 - atan2(m_y, m_x) / 2 pi,
+    v = 1 - acos(m_z) / pi, pixel row 0 at the bottom. Each pixel is constant (Cycles interpolates
+    linearly: a pixel's width of blur apart). Directions are drawn in proportion to a pixel's
+    luminance x solid angle, then uniformly within it in azimuth and cos(theta)."""
+
+    def __init__(self, image, rotation, scale):
+        img = np.asarray(image, np.float64) * np.asarray(scale, np.float64)
+        self.H, self.W = img.shape[:2]
+        self.image = img
+        self.R = np.asarray(rotation, np.float64)
+        self.z = np.cos(math.pi * (1.0 - np.arange(self.H + 1) / self.H))  # cos(theta) at the rows' edges
+        self.omega = (2.0 * math.pi / self.W) * np.diff(self.z)  # a pixel's solid angle, row by row
+        p = (img.mean(axis=2) * self.omega[:, None]).ravel()
+        self.power = float(p.sum())  # the luminance over the sphere: the most any plane receives
+        self.p = p / self.power if self.power > 0 else p
+        self.cdf = np.cumsum(self.p)
+
+    def _pixel(self, to_light):
+        """(rows, columns) of the pixels the unit directions to_light (N,3) look up."""
+        m = np.asarray(to_light, np.float64) @ self.R.T
+        u = np.mod(0.5 - np.arctan2(m[:, 1], m[:, 0]) / (2.0 * math.pi), 1.0)
+        v = 1.0 - np.arccos(np.clip(m[:, 2], -1.0, 1.0)) / math.pi
+        return (np.minimum((v * self.H).astype(np.int64), self.H - 1),
+                np.minimum((u * self.W).astype(np.int64), self.W - 1))
+
+    def _lookup(self, to_light):
+        j, i = self._pixel(to_light)
+        return self.image[j, i], self.p[j * self.W + i] / self.omega[j]
+
+    def radiance(self, to_light) -> np.ndarray:
+        """(N,3) radiance arriving from the unit directions to_light (N,3)."""
+        return self._lookup(to_light)[0]
+
+    def pdf(self, to_light) -> np.ndarray:
+        """(N,) the density of sample() per unit solid angle at the directions to_light."""
+        return self._lookup(to_light)[1]
+
+    def value(self, to_light) -> np.ndarray:
+        """(N,3) radiance over density of sampled directions (0 where a direction's pixel has none)."""
+        L, pdf = self._lookup(to_light)
+        return np.divide(L, pdf[:, None], out=np.zeros_like(L), where=pdf[:, None] > 0)
+
+    def sample(self, u1, u2, u3) -> np.ndarray:
+        """(N,3) unit directions towards the light, from three (N,) uniforms."""
+        k = np.minimum(np.searchsorted(self.cdf, u1 * self.cdf[-1], side="right"), self.cdf.size - 1)
+        j, i = np.divmod(k, self.W)
+        z = self.z[j] + u2 * (self.z[j + 1] - self.z[j])
+        phi = math.pi - 2.0 * math.pi * (i + u3) / self.W
+        r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
+        return np.stack([r * np.cos(phi), r * np.sin(phi), z], -1) @ self.R  # R^T m, row by row
+
+
+def env_map(scene, li: int):
+    """Light li's EnvMap: a world with an Environment Texture; None for any other light."""
+    if scene.light_type[li] != S.WORLD or not np.asarray(scene.world_map).size:
+        return None
+    return scene.derived(("env_map", li), lambda: EnvMap(scene.world_map, scene.world_map_rotation,
+                                                         scene.light_color[li]))
+
+
 def distant_cone(scene, li: int):
     """A light at infinity (S.DISTANT) as the cone of directions its light travels along:
     (unit axis, half-angle, strength S), S in a sun's units: radiance S / (2 pi (1 - cos half))
@@ -242,21 +306,41 @@ def _emit_sun(u, axis, half, color, targets, cdf, probs, far, o, d, w):
     ax = (axis[0], axis[1], axis[2])
     for i in range(n):
         di = _in_cone(u[i, 0], u[i, 1], math.cos(half), ax) if half > 0 else ax
-        j = _pick(cdf, u[i, 2])
-        s, t = _frame1(di)
-        a, b = _disk1(u[i, 3], u[i, 4])
-        rk = targets[j, 3]
-        p = (targets[j, 0] + rk * (a * s[0] + b * t[0]), targets[j, 1] + rk * (a * s[1] + b * t[1]),
-             targets[j, 2] + rk * (a * s[2] + b * t[2]))
-        pdf = 0.0
-        for m in range(targets.shape[0]):
-            rel = (p[0] - targets[m, 0], p[1] - targets[m, 1], p[2] - targets[m, 2])
-            along = rel[0] * di[0] + rel[1] * di[1] + rel[2] * di[2]
-            perp2 = rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2] - along * along
-            if perp2 <= targets[m, 3] ** 2 * (1 + 1e-12):
-                pdf += probs[m] / (math.pi * targets[m, 3] ** 2)
+        p, pdf = _across_targets(u[i, 2], u[i, 3], u[i, 4], di, targets, cdf, probs)
         for k in range(3):
             o[i, k], d[i, k], w[i, k] = p[k] - far * di[k], di[k], color[k] / (pdf * n)
+
+
+@njit(**JIT)
+def _emit_along(u, dirs, value, targets, cdf, probs, far, o, d, w):
+    """_emit_sun's photons along given directions dirs (N,3) (a world map's), each carrying value
+    (N,3) (radiance over the direction's density)."""
+    n = u.shape[0]
+    for i in range(n):
+        di = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
+        p, pdf = _across_targets(u[i, 2], u[i, 3], u[i, 4], di, targets, cdf, probs)
+        for k in range(3):
+            o[i, k], d[i, k], w[i, k] = p[k] - far * di[k], di[k], value[i, k] / (pdf * n)
+
+
+@njit(inline="always", **JIT)
+def _across_targets(u2, u3, u4, di, targets, cdf, probs):
+    """A point on a disc across one target sphere, facing di (picked by u2 in proportion to the
+    discs' areas), and its density per unit area, counting every disc that holds it."""
+    j = _pick(cdf, u2)
+    s, t = _frame1(di)
+    a, b = _disk1(u3, u4)
+    rk = targets[j, 3]
+    p = (targets[j, 0] + rk * (a * s[0] + b * t[0]), targets[j, 1] + rk * (a * s[1] + b * t[1]),
+         targets[j, 2] + rk * (a * s[2] + b * t[2]))
+    pdf = 0.0
+    for m in range(targets.shape[0]):
+        rel = (p[0] - targets[m, 0], p[1] - targets[m, 1], p[2] - targets[m, 2])
+        along = rel[0] * di[0] + rel[1] * di[1] + rel[2] * di[2]
+        perp2 = rel[0] * rel[0] + rel[1] * rel[1] + rel[2] * rel[2] - along * along
+        if perp2 <= targets[m, 3] ** 2 * (1 + 1e-12):
+            pdf += probs[m] / (math.pi * targets[m, 3] ** 2)
+    return p, pdf
 
 
 def _cone_probs(origin, targets, grow=0.0):
@@ -302,6 +386,13 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
         area_k = math.pi * targets[:, 3] ** 2
         probs = area_k / area_k.sum()
         far = 2.0 * (scene.scale + float(np.abs(targets[:, :3]).max()))
+        env = env_map(scene, li)
+        if env is not None:  # towards the light from the map, then along -that
+            to_light = env.sample(u[:, 0], u[:, 1], rng.random(n))
+            value = env.value(to_light)
+            _emit_along(u, np.ascontiguousarray(-to_light), np.ascontiguousarray(value), targets,
+                        np.cumsum(probs), probs, far, o, d, w)
+            return Photons(o, d, w)
         axis, half, strength = distant_cone(scene, li)
         _emit_sun(u, np.ascontiguousarray(axis, np.float64), half, strength, targets, np.cumsum(probs), probs,
                   far, o, d, w)
@@ -390,7 +481,10 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
         if has_spread(scene, li):
             L = L * spread_factor(scene, li, -den)[:, None]
         return L, t
-    if typ in S.DISTANT and escaped is not None:
+    if typ in S.DISTANT and escaped is not None and env_map(scene, li) is not None:
+        L = np.where(escaped[:, None], env_map(scene, li).radiance(d), 0.0)  # d: towards the sky
+        t = np.where(escaped, 1e30, np.inf)
+    elif typ in S.DISTANT and escaped is not None:
         axis, half, strength = distant_cone(scene, li)
         if half <= 0:
             return L, t

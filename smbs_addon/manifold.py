@@ -24,7 +24,7 @@ from .estimators import chain_throughput, concentration, geometric_term, light_e
 from .eye import direct_albedo, eye_receivers
 from .geometry import triangle_areas
 from .layer import coat_factor, has_layers
-from .lights import area_light_points, distant_cone
+from .lights import area_light_points, distant_cone, env_map
 from .optics import has_reflection
 from .trials import bernoulli_trials
 from .vec import channel_mean, dot, normalize, uniform_cone, frame, to_world
@@ -186,11 +186,13 @@ def sphere_cap(scene, li, lo, hi):
 def sample_light(scene, li, n, rng, cap=None) -> LightEnd:
     """One light sample per lane: a point on the light (uniform in area; on a sphere
     light, uniform over ``cap`` when given), or a sun's or the world's direction (uniform in
-    its cone; the world's is the whole sphere).
+    its cone; the world's is the whole sphere, or as bright as its map, lights.EnvMap).
     Tangents are set at the solution."""
     typ = scene.light_type[li]
     m = scene.light_matrix[li]
     z = np.zeros((n, 3))
+    if typ in S.DISTANT and env_map(scene, li) is not None:
+        return LightEnd(True, env_map(scene, li).sample(rng.random(n), rng.random(n), rng.random(n)), z, z.copy())
     if typ in S.DISTANT:
         axis, half, _ = distant_cone(scene, li)
         to_sun = np.broadcast_to(-axis, (n, 3)).copy()

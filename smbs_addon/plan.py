@@ -19,7 +19,7 @@ import numpy as np
 from . import lanes
 from . import scene as S
 from .errors import SceneError
-from .lights import light_axis, light_covers
+from .lights import env_map, light_axis, light_covers
 from .vec import dot
 
 
@@ -593,7 +593,8 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
         faint = {}  # worlds too faint to show: light index -> their brightest caustic / the lamps'
         for li in dict.fromkeys([lp.index for lp in plan.lights] + list(plan.indirect_lights)):
             if scene.light_type[li] == S.WORLD and lamps_E > 0:
-                bound = math.pi * float(np.mean(scene.light_color[li]))  # the irradiance of the whole sky
+                env = env_map(scene, li)  # the most a plane can receive: pi L, or a map's luminance over the sphere
+                bound = env.power if env is not None else math.pi * float(np.mean(scene.light_color[li]))
                 if bound < WORLD_MIN_SHARE * lamps_E:
                     faint[li] = bound / lamps_E
         kept_lights, no_direct = [], []

@@ -43,7 +43,8 @@ AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
-OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb")
+OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
+            "world_map_rotation")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -169,6 +170,12 @@ class Scene:
     # Density, as Cycles takes it): light crossing the glass over a length d keeps exp(-absorb d).
     # Empty: none (a scene built in code, or saved before it was exported)
     mat_absorb: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # (H, W, 3) float32: the world's Environment Texture (equirectangular, linear, pixel rows from
+    # the bottom up), whose radiance the WORLD light's colour (the Background's Strength) scales;
+    # world_map_rotation (3, 3): a direction d looks the map up at world_map_rotation @ d (the
+    # Mapping node's turn). Empty: the world is a constant colour (lights.EnvMap)
+    world_map: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
+    world_map_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
 
     # ------------------------------------------------------------------ derived
     def textured_materials(self) -> np.ndarray | None:
@@ -373,6 +380,14 @@ class Scene:
                                | (self.light_angle < 0) | (self.light_spot_size < 0)) if L else []
         if len(sizes):
             raise SceneError(f"light '{self.light_names[sizes[0]]}': negative size, radius, angle or spot size")
+        wm = np.asarray(self.world_map)
+        if wm.ndim != 3 or wm.shape[2] != 3 or (wm.size and min(wm.shape[:2]) < 1):
+            raise SceneError(f"scene array 'world_map' must be (H, W, 3), not {wm.shape}")
+        if wm.size and not (np.all(np.isfinite(wm)) and wm.min() >= 0 and wm.max() <= MAX_POWER):
+            raise SceneError(f"world map: its pixels must be finite, from 0 to {MAX_POWER:g}")
+        R = np.asarray(self.world_map_rotation, float)
+        if R.shape != (3, 3) or not (np.all(np.isfinite(R)) and np.allclose(R @ R.T, np.eye(3), atol=1e-6)):
+            raise SceneError("scene array 'world_map_rotation' must be a 3 x 3 rotation")
         lp = np.asarray(self.light_paths)
         if not np.all(lp <= MAX_BOUNCES):  # negative: no limit (bounces.Limits.of)
             raise SceneError(f"Light Paths bounces {tuple(lp.tolist())}: each at most {MAX_BOUNCES} "

@@ -167,10 +167,10 @@ def wavy_mirror_scene(resolution=(64, 48), amplitude=0.04, wavelength=0.3, n=96,
     return b.build()
 
 
-def world_mirror_scene(resolution=(64, 48), world=0.5, width=40.0, height=1.0, x=1.0):
-    """A floor under a world of constant radiance `world` and no lamp, a mirror standing on it (the
-    plane x = `x`, `width` wide along y, `height` tall), a camera looking straight down from above
-    the floor before the mirror."""
+def world_mirror_scene(resolution=(64, 48), world=0.5, width=40.0, height=1.0, x=1.0, image=None):
+    """A floor under a world of constant radiance `world` (or the map `image` (H, W, 3), as it is)
+    and no lamp, a mirror standing on it (the plane x = `x`, `width` wide along y, `height` tall)
+    facing -x, a camera looking straight down from above the floor before the mirror."""
     b = SceneBuilder("world mirror")
     floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
     mirror = b.material("mirror", "conductor", color=(MIRROR_RHO,) * 3)
@@ -178,7 +178,7 @@ def world_mirror_scene(resolution=(64, 48), world=0.5, width=40.0, height=1.0, x
     w = width / 2
     b.mesh("Mirror", np.array([[x, -w, 0], [x, w, 0], [x, w, height], [x, -w, height]]), np.array([[0, 1, 2, 3]]),
            mirror, caster=True)
-    b.world((world,) * 3)
+    b.world((1.0,) * 3 if image is not None else (world,) * 3, image=image)
     b.set_camera((0, 0, 3), (0, 0, 0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
     return b.build()
 

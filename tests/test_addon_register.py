@@ -689,6 +689,22 @@ def test_an_unflagged_world_beside_flagged_lights_is_left_to_cycles(empty_bpy, a
     assert f"world '{scene.world.name}' through mirrors and glass (at most" in s.cycles_note  # 'Sky.001'
 
 
+def test_a_world_the_layer_cannot_read_is_named(empty_bpy, addon, tmp_path):
+    """A Sky Texture world is black to the layer (warned at export): Cycles' caustics still go off
+    (keeping them on would count the lamp's caustic twice), and the note names what neither
+    renders then."""
+    scene = _mirror_scene()
+    _sky(scene, 0.5)
+    nt = scene.world.node_tree
+    sky = nt.nodes.new("ShaderNodeTexSky")
+    nt.links.new(sky.outputs[0], nt.nodes["Background"].inputs["Color"])
+    s = _bake(scene, tmp_path)
+    assert list(json.loads(s.last_stats)["lights"]) == ["Disk"]
+    assert not scene.cycles.caustics_reflective and s.cycles_kept_out
+    assert (f"A node setup the layer cannot read (see the warnings), rendered by neither: world '{scene.world.name}' "
+            "through mirrors and glass.") in s.cycles_note
+
+
 def test_keep_out_of_cycles_off(empty_bpy, addon, tmp_path):
     scene = _mirror_scene()
     s = _bake(scene, tmp_path, keep_out_of_cycles=False)

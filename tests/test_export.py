@@ -813,6 +813,74 @@ def test_textured_world_is_black_with_a_warning():
     assert len(warnings) == 1 and warnings[0].startswith("world 'Sky':")
 
 
+def _environment_world(projection="EQUIRECTANGULAR", rotation=None, location=(0, 0, 0), vector_type="POINT"):
+    w = bpy.data.worlds.new("Sky")
+    scene().world = w
+    img = bpy.data.images.new("hdr", 8, 4, float_buffer=True)
+    px = np.arange(8 * 4 * 4, dtype=np.float32).reshape(4, 8, 4) / 10.0
+    img.pixels.foreach_set(px.ravel())
+    nt = w.node_tree
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image, env.projection = img, projection
+    nt.links.new(env.outputs["Color"], nt.nodes["Background"].inputs["Color"])
+    nt.nodes["Background"].inputs["Strength"].default_value = 3.0
+    if rotation is not None:
+        mp, tc = nt.nodes.new("ShaderNodeMapping"), nt.nodes.new("ShaderNodeTexCoord")
+        mp.vector_type = vector_type
+        mp.inputs["Rotation"].default_value = [math.radians(a) for a in rotation]
+        mp.inputs["Location"].default_value = location
+        nt.links.new(tc.outputs["Generated"], mp.inputs["Vector"])
+        nt.links.new(mp.outputs["Vector"], env.inputs["Vector"])
+    return px[..., :3]
+
+
+def test_an_environment_texture_is_the_worlds_map():
+    """An equirectangular Environment Texture on the Background's Color is the world light's map
+    (Scene.world_map: the linear pixels, rows from the bottom up, as bpy holds them), its Strength
+    the light's colour, a Mapping node's turn the lookup's (Texture type: the inverse)."""
+    add_camera()
+    px = _environment_world(rotation=(10, 20, 30))
+    sc, warnings = export()
+    assert warnings == [] and sc.light_names == ["Sky"] and sc.light_type.tolist() == [S.WORLD]
+    assert np.array_equal(sc.world_map, px) and np.allclose(sc.light_color[0], 3.0)
+    from mathutils import Euler
+    R = np.array(Euler([math.radians(a) for a in (10, 20, 30)]).to_matrix())
+    assert np.allclose(sc.world_map_rotation, R)
+    _environment_world(rotation=(10, 20, 30), vector_type="TEXTURE")
+    assert np.allclose(export()[0].world_map_rotation, R.T)
+    _environment_world()
+    sc, warnings = export()
+    assert warnings == [] and np.allclose(sc.world_map_rotation, np.eye(3))
+
+
+def test_a_large_map_is_averaged_down():
+    """An HDRI wider than WORLD_MAP_WIDTH is averaged over blocks (uneven where the widths do not
+    divide): every block the mean of its pixels, the map's mean kept."""
+    from smbs_addon.export import _averaged_down
+
+    rng = np.random.default_rng(3)
+    img = rng.random((10, 20, 3)).astype(np.float32)
+    small = _averaged_down(img, 4)
+    assert small.shape == (2, 4, 3) and small.dtype == np.float32
+    assert np.allclose(small[0, 0], img[:5, :5].mean(axis=(0, 1)), atol=1e-6)
+    assert np.allclose(small.mean(axis=(0, 1)), img.mean(axis=(0, 1)), atol=1e-6)
+    odd = _averaged_down(img, 3)  # columns 0-7, 7-13, 13-20
+    assert odd.shape == (2, 3, 3) and np.allclose(odd[1, 1], img[5:, 7:13].mean(axis=(0, 1)), atol=1e-6)
+    assert _averaged_down(img, 20) is img
+
+
+@pytest.mark.parametrize("kw, why", [
+    (dict(projection="MIRROR_BALL"), "its mirror ball projection is not supported"),
+    (dict(rotation=(0, 0, 45), location=(0, 0, 1)), "only a turn (no Location"),
+])
+def test_an_environment_the_layer_cannot_read_is_black_with_a_warning(kw, why):
+    add_camera()
+    _environment_world(**kw)
+    sc, warnings = export()
+    assert sc.light_names == [] and sc.world_map.size == 0
+    assert len(warnings) == 1 and warnings[0].startswith("world 'Sky'") and why in warnings[0], warnings
+
+
 # -------------------------------------------------------------------- files and safety
 def test_mirror_sample_blend():
     bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "mirror.blend"))
