@@ -69,6 +69,51 @@ def black_world(scene):
     return w
 
 
+def hdri_image(width=256, height=128, sun=(0.0, -0.574, 0.819), sun_sigma=3.0, sun_peak=100.0, turn_deg=40.0):
+    """A float image for an Environment Texture: a pale sky (0.15/0.2/0.3, brighter towards the
+    horizon) and a warm sun, a Gaussian of sun_sigma pixels, at the pixel that shows the world
+    direction sun through a Mapping node turning the view direction turn_deg about Z (the lookup
+    Cycles makes, lights.EnvMap: u = 0.5 - atan2(m_y, m_x) / 2 pi, v = 1 - acos(m_z) / pi, rows from
+    the bottom); the image is packed into the file."""
+    import numpy as np
+
+    t = math.radians(turn_deg)
+    m = (math.cos(t) * sun[0] - math.sin(t) * sun[1], math.sin(t) * sun[0] + math.cos(t) * sun[1], sun[2])
+    su = (0.5 - math.atan2(m[1], m[0]) / (2 * math.pi)) % 1.0
+    sv = 1.0 - math.acos(max(-1.0, min(1.0, m[2]))) / math.pi
+    jj, ii = np.mgrid[0:height, 0:width]
+    v = (jj + 0.5) / height
+    du = (ii + 0.5) / width - su
+    du = (du + 0.5) % 1.0 - 0.5  # around the seam
+    r2 = (du * width) ** 2 + ((v - sv) * height) ** 2
+    sky = (0.15, 0.2, 0.3)
+    px = np.zeros((height, width, 4), np.float32)
+    glow = np.exp(-0.5 * r2 / sun_sigma ** 2)
+    for c, (base, tint) in enumerate(zip(sky, (1.0, 0.85, 0.6))):
+        px[..., c] = base * (1.0 + 0.5 * (1.0 - np.abs(v - 0.5) * 2)) + sun_peak * tint * glow
+    px[..., 3] = 1.0
+    img = bpy.data.images.new("Sky", width, height, float_buffer=True, alpha=False)
+    img.pixels.foreach_set(px.ravel())
+    img.pack()
+    return img
+
+
+def hdri_world(scene, image, turn_deg=0.0, strength=1.0):
+    """The scene's world an Environment Texture of image, the view direction turned turn_deg about
+    Z by a Mapping node first."""
+    nt = scene.world.node_tree
+    env = nt.nodes.new("ShaderNodeTexEnvironment")
+    env.image = image
+    mapping = nt.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(turn_deg))
+    coords = nt.nodes.new("ShaderNodeTexCoord")
+    nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    bg = nt.nodes["Background"]
+    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = strength
+
+
 def material(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45):
     """A node material with a single BSDF linked to the Material Output."""
     m = bpy.data.materials.new(name)
@@ -294,6 +339,17 @@ def build_pool(out):
     save(out / "pool.blend")
 
 
+def build_hdri_glass(out):
+    """The glass ball resting on the floor under an HDRI (a 512 x 256 float image packed into the file:
+    a pale sky and a warm sun of about 3 degrees, 40 degrees up, to the left) turned 120 degrees by a Mapping node:
+    no lamp, the world is the light."""
+    scene = _glass_ball_scene("HDRIGlass", 0.5)
+    hdri_world(scene, hdri_image(512, 256, sun=(-0.74, 0.2, 0.643), sun_sigma=4.0, sun_peak=60.0, turn_deg=120.0),
+               turn_deg=120.0)
+    add_camera(scene, (0.4, -3.6, 2.4), (0, 0.2, 0.2), lens=45)
+    save(out / "hdri_glass.blend")
+
+
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     out = Path(argv[0]).resolve() if argv else HERE
@@ -303,6 +359,7 @@ def main(argv=None):
     build_glass_spot(out)
     build_water(out)
     build_pool(out)
+    build_hdri_glass(out)
 
 
 if __name__ == "__main__":

@@ -536,35 +536,6 @@ def world_mirror_bulb():
     return scene
 
 
-def _hdri(width=256, height=128, sun=(0.0, -0.574, 0.819), sun_sigma=3.0, sun_peak=100.0, turn_deg=40.0):
-    """A float image for an Environment Texture: a pale sky (0.15/0.2/0.3, brighter towards the
-    horizon) and a warm sun, a Gaussian of sun_sigma pixels, at the pixel that shows the world
-    direction sun through a Mapping node turning the view direction turn_deg about Z (the lookup
-    Cycles makes, lights.EnvMap: u = 0.5 - atan2(m_y, m_x) / 2 pi, v = 1 - acos(m_z) / pi, rows from
-    the bottom); the image is packed into the file."""
-    import numpy as np
-
-    t = math.radians(turn_deg)
-    m = (math.cos(t) * sun[0] - math.sin(t) * sun[1], math.sin(t) * sun[0] + math.cos(t) * sun[1], sun[2])
-    su = (0.5 - math.atan2(m[1], m[0]) / (2 * math.pi)) % 1.0
-    sv = 1.0 - math.acos(max(-1.0, min(1.0, m[2]))) / math.pi
-    jj, ii = np.mgrid[0:height, 0:width]
-    v = (jj + 0.5) / height
-    du = (ii + 0.5) / width - su
-    du = (du + 0.5) % 1.0 - 0.5  # around the seam
-    r2 = (du * width) ** 2 + ((v - sv) * height) ** 2
-    sky = (0.15, 0.2, 0.3)
-    px = np.zeros((height, width, 4), np.float32)
-    glow = np.exp(-0.5 * r2 / sun_sigma ** 2)
-    for c, (base, tint) in enumerate(zip(sky, (1.0, 0.85, 0.6))):
-        px[..., c] = base * (1.0 + 0.5 * (1.0 - np.abs(v - 0.5) * 2)) + sun_peak * tint * glow
-    px[..., 3] = 1.0
-    img = bpy.data.images.new("Sky", width, height, float_buffer=True, alpha=False)
-    img.pixels.foreach_set(px.ravel())
-    img.pack()
-    return img
-
-
 def hdri_ball():
     """world_ball's ball and camera under an Environment Texture (a packed float image: a pale sky and
     a Gaussian sun of 3 pixels, 4 degrees, 55 degrees up behind the camera) turned 40 degrees about Z
@@ -573,17 +544,7 @@ def hdri_ball():
     _floor(scene)
     glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
-    nt = scene.world.node_tree
-    env = nt.nodes.new("ShaderNodeTexEnvironment")
-    env.image = _hdri()
-    mapping = nt.nodes.new("ShaderNodeMapping")
-    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(40.0))
-    coords = nt.nodes.new("ShaderNodeTexCoord")
-    nt.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
-    nt.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
-    bg = nt.nodes["Background"]
-    nt.links.new(env.outputs["Color"], bg.inputs["Color"])
-    bg.inputs["Strength"].default_value = 1.0
+    B.hdri_world(scene, B.hdri_image(), turn_deg=40.0)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 

@@ -145,11 +145,11 @@ def _image_mean(img):
     return mean if np.all(np.isfinite(mean)) else None
 
 
-def _image_linear(img, most=MAX_MEAN_PIXELS):
+def _image_linear(img, most=MAX_MEAN_PIXELS, read=True):
     """An image's linear RGB (H, W, 3) float32, rows from the bottom up (Cycles reads an 8-bit sRGB
     image through the sRGB curve; float images and the other colour spaces are taken as linear),
     or None: no image, none loaded (a missing file), or one of more than `most` pixels (reading it
-    would cost seconds and GBs)."""
+    would cost seconds and GBs). read False: an empty (0, 0, 3) array where it could be read."""
     if img is None:
         return None
     try:
@@ -159,6 +159,8 @@ def _image_linear(img, most=MAX_MEAN_PIXELS):
         return None
     if not 0 < w * h <= most or channels < 3:
         return None
+    if not read:
+        return np.zeros((0, 0, 3), np.float32)
     px = np.empty(w * h * channels, np.float32)
     img.pixels.foreach_get(px)
     rgb = px.reshape(h, w, channels)[:, :, :3]
@@ -538,12 +540,12 @@ def _export_camera(bpy_scene, depsgraph, warn) -> S.Camera:
 
 
 # ------------------------------------------------------------------------------- world
-def _world(bpy_scene, warn):
+def _world(bpy_scene, warn, pixels=True):
     """The world as the layer sees it: (colour x strength, map, rotation). A constant Background
     gives its colour and no map; an Environment Texture (equirectangular) on its Color, fed the
     view direction or that direction through a Mapping node that turns it, gives the strength
     (as a colour), the image's linear pixels and the turn (Scene.world_map). Anything else is
-    black, warned."""
+    black, warned. pixels False: the map is not read (None), only whether it can be."""
     w = bpy_scene.world
     if w is None:
         return np.zeros(3), None, None
@@ -559,7 +561,7 @@ def _world(bpy_scene, warn):
         src = _follow(node.inputs["Color"])
         if src is None or src[0].type != "TEX_ENVIRONMENT":
             return _const(node, "Color") * strength, None, None
-        image, rotation = _environment(src[0])
+        image, rotation = _environment(src[0], pixels)
         return np.full(3, float(strength)), image, rotation
     except _Unsupported as e:
         warn(f"world '{w.name}': {e}; world lighting treated as black")
@@ -570,11 +572,11 @@ def world_unread(bpy_scene):
     """The name of the scene's world when its node setup is one the layer cannot read (a Sky
     Texture, a node trick: black to the layer, with a warning at export), else None."""
     said = []
-    _world(bpy_scene, said.append)
+    _world(bpy_scene, said.append, pixels=False)
     return bpy_scene.world.name if said else None
 
 
-def _environment(tex):
+def _environment(tex, pixels=True):
     """(linear pixels (H, W, 3) float32, rotation (3, 3)) of an Environment Texture node, its
     Vector the view direction or that direction through a Mapping node. Cycles looks the map up
     at R (S d) for a Mapping of type Point (no Location), Vector or Normal, at S^-1 R^-1 d for one
@@ -604,10 +606,10 @@ def _environment(tex):
             rotation = np.array(mp.inputs["Rotation"].default_value.to_matrix(), float)  # Euler XYZ
         if mp.vector_type == "TEXTURE":
             rotation = rotation.T
-    image = _image_linear(tex.image, MAX_WORLD_PIXELS)
+    image = _image_linear(tex.image, MAX_WORLD_PIXELS, pixels)
     if image is None:
         raise _Unsupported(f"node '{tex.name}': its image is missing or larger than {MAX_WORLD_PIXELS} pixels")
-    return _averaged_down(image, WORLD_MAP_WIDTH), rotation
+    return (_averaged_down(image, WORLD_MAP_WIDTH) if pixels else None), rotation
 
 
 MAX_WORLD_PIXELS = 8192 * 4096  # an 8K HDRI: read once (0.5 GB for a moment), then averaged down

@@ -323,6 +323,13 @@ def test_participants_list_shows_cycles_flags(empty_bpy, addon):
         expected = (["is_caustics_light"] if ob.type == 'LIGHT'
                     else ["is_caustics_caster", "is_caustics_receiver"])
         assert [d for d in drawn if d.startswith("is_caustics")] == expected
+    # the world is a light of the layer too: its flag under the list, with its name
+    panel = bpy.types.SMBS_PT_caustics_participants
+    for world, rows in ((None, []), ("Sky", ["Sky", "is_caustics_light"])):
+        scene.world = world and bpy.data.worlds.new(world)
+        drawn = []
+        panel.draw(SimpleNamespace(layout=_Layout(drawn)), SimpleNamespace(scene=scene))
+        assert [d for d in drawn if d in ("Sky", "is_caustics_light")] == rows
 
 
 # ---------------------------------------------------------------------------- compositor

@@ -811,6 +811,11 @@ def test_textured_world_is_black_with_a_warning():
     sc, warnings = export()
     assert np.allclose(sc.world_color, 0) and sc.light_names == []
     assert len(warnings) == 1 and warnings[0].startswith("world 'Sky':")
+    from smbs_addon.export import world_unread
+
+    assert world_unread(scene()) == "Sky"  # the policy names it (rendered by neither)
+    _environment_world(rotation=(0, 0, 30))
+    assert world_unread(scene()) is None
 
 
 def _environment_world(projection="EQUIRECTANGULAR", rotation=None, location=(0, 0, 0), vector_type="POINT"):

@@ -217,6 +217,8 @@ def test_chain_words():
 SAMPLE_PLANS = {  # word for word: what each sample scene bakes, by which paths, onto what
     "glass_sphere.blend": ["Light -> Sphere (refraction, 2 vertices 94%; reflection 6%; rarer paths <1%) -> Floor",
                            "Light -> diffuse -> Sphere -> Floor (after a diffuse bounce)"],
+    "hdri_glass.blend": ["World -> Sphere (refraction, 2 vertices 91%; reflection 7%; rarer paths 2%) -> Floor",
+                         "World -> diffuse -> Sphere -> Floor (after a diffuse bounce)"],
     "glass_spot.blend": ["Spot -> Sphere (refraction, 2 vertices 96%; reflection 4%; rarer paths <1%) -> Floor",
                          "Spot -> diffuse -> Sphere -> Floor (after a diffuse bounce)"],
     "mirror.blend": ["Light -> Mirror (reflection) -> Floor"],

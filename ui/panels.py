@@ -376,6 +376,10 @@ class SMBS_PT_caustics_participants(_RenderPanel, bpy.types.Panel):
             return
         layout.template_list("SMBS_UL_participants", "", scene, "objects", settings,
                              "participant_index", rows=4)
+        if scene.world is not None:  # a constant colour or an HDRI lights caustics too (World > Settings)
+            row = layout.row(align=True)
+            row.label(text=scene.world.name, icon='WORLD')
+            row.prop(scene.world.cycles, "is_caustics_light", text="Light", toggle=True)
         mode = settings.use_cycles_flags
         if mode == "OFF":
             text = ("Cycles Flags is Off: the bake takes every specular object, diffuse object and "
