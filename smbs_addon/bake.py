@@ -365,7 +365,7 @@ def _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indi
         # a narrow spot's photons go into its cone, as many as its cone let through when they were
         # aimed at the whole scene: the same noise, without tracing the masked ones
         target, share = spot_target(scene, li, plan.scene_sphere)
-        per_batch = max(1, round(per_light * share) // settings.batches)
+        per_batch = max(1, round(per_light * share * plan.sample_share.get(li, 1.0)) // settings.batches)
 
         def run_chunk(c, film_c, st_c, li=li, target=target, per_batch=per_batch):
             n = min(CHUNK, per_batch - c * CHUNK)
@@ -382,9 +382,9 @@ def _reference_batch(b, scene, tracer, cam, film, plan, settings, per_light, lig
                      eye_cells=None):
     """The light tracer's batch: photons per light, then eye paths for what is seen through
     mirrors and glass, traced from the film cells of the mask eye_cells (None: all)."""
-    per_batch = max(1, per_light // settings.batches)
     for lp in plan.lights:
         st = light_stats[lp.name]
+        per_batch = max(1, round(per_light * plan.sample_share.get(lp.index, 1.0)) // settings.batches)
         st["time_s"] += _photon_pass(b, scene, tracer, cam, film, plan, settings, lp, per_batch, st, prog, 0)
     eye_per_batch = _eye_per_batch(cam, film, settings) if eye_stats["enabled"] else 0
     t_eye = time.perf_counter()
@@ -440,7 +440,8 @@ def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per
     if opts.handoff <= 0 or not types:
         return
     for lp in plan.lights:
-        per_batch = max(1, int(per_light * (factors or {}).get(lp.index, 1.0)) // settings.batches)
+        share = (factors or {}).get(lp.index, 1.0) * plan.sample_share.get(lp.index, 1.0)
+        per_batch = max(1, int(per_light * share) // settings.batches)
         st = light_stats[lp.name]
         hs = st.setdefault("handoff", dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats",
                                                      "handoff_paths", "truncated", "lost_shading_normal"), 0))

@@ -533,8 +533,16 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
                 t = time.perf_counter()
                 ctx = ctxs[lp.index].part()
                 o = opts if not opts_by_light else opts_by_light.get(lp.index, opts)
-                for types in types_list:
-                    total += estimate(ctx, o, lp.index, types, sub, prng, guide)
+                share = plan.sample_share.get(lp.index, 1.0)
+                if share < 1.0:  # a share of the receivers, at random (a stream of its own), weighed up
+                    keep = np.flatnonzero(np.random.default_rng([key, a, lp.key]).random(b - a) < share)
+                    thin = sub.take(keep)
+                    thin.weight = thin.weight / share
+                    for types in types_list:
+                        total[keep] += estimate(ctx, o, lp.index, types, thin, prng, guide) / share
+                else:
+                    for types in types_list:
+                        total += estimate(ctx, o, lp.index, types, sub, prng, guide)
                 stats[lp.name], secs[lp.name] = ctx.stats, time.perf_counter() - t
             return total, stats, secs
 
