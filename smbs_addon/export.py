@@ -561,7 +561,7 @@ def _world(bpy_scene, warn, pixels=True):
         src = _follow(node.inputs["Color"])
         if src is None or src[0].type != "TEX_ENVIRONMENT":
             return _const(node, "Color") * strength, None, None
-        image, rotation = _environment(src[0], pixels)
+        image, rotation = _environment(src[0], pixels, lambda message: warn(f"world '{w.name}': {message}"))
         return np.full(3, float(strength)), image, rotation
     except _Unsupported as e:
         warn(f"world '{w.name}': {e}; world lighting treated as black")
@@ -576,7 +576,7 @@ def world_unread(bpy_scene):
     return bpy_scene.world.name if said else None
 
 
-def _environment(tex, pixels=True):
+def _environment(tex, pixels=True, warn=lambda message: None):
     """(linear pixels (H, W, 3) float32, rotation (3, 3)) of an Environment Texture node, its
     Vector the view direction or that direction through a Mapping node. Cycles looks the map up
     at R (S d) for a Mapping of type Point (no Location), Vector or Normal, at S^-1 R^-1 d for one
@@ -609,7 +609,14 @@ def _environment(tex, pixels=True):
     image = _image_linear(tex.image, MAX_WORLD_PIXELS, pixels)
     if image is None:
         raise _Unsupported(f"node '{tex.name}': its image is missing or larger than {MAX_WORLD_PIXELS} pixels")
-    return (_averaged_down(image, WORLD_MAP_WIDTH) if pixels else None), rotation
+    if not pixels:
+        return None, rotation
+    bad = ~(np.isfinite(image) & (image >= 0))
+    if bad.any():  # an HDRI's processing can leave a few (a colour space's conversion)
+        image = np.where(bad, np.float32(0.0), image)
+        warn(f"image '{tex.image.name}': {int(bad.any(axis=2).sum())} pixels negative or not a number, taken as "
+             "black")
+    return _averaged_down(image, WORLD_MAP_WIDTH), rotation
 
 
 MAX_WORLD_PIXELS = 8192 * 4096  # an 8K HDRI: read once (0.5 GB for a moment), then averaged down

@@ -874,6 +874,23 @@ def test_a_large_map_is_averaged_down():
     assert _averaged_down(img, 20) is img
 
 
+def test_an_hdris_negative_or_nan_pixels_are_black_and_said():
+    """A few negative or NaN pixels (left by an HDRI's processing) would make the scene invalid:
+    they are taken as black, the rest kept, and the warning names the world and the image."""
+    add_camera()
+    px = _environment_world()
+    img = bpy.data.images["hdr"]
+    bad = px.copy()
+    bad[1, 2, 0], bad[3, 5, 1] = -0.5, float("nan")
+    img.pixels.foreach_set(np.concatenate([bad, np.ones((4, 8, 1), np.float32)], axis=2).ravel())
+    sc, warnings = export()
+    assert sc.world_map[1, 2, 0] == 0 and sc.world_map[3, 5, 1] == 0
+    keep = np.ones(px.shape, bool)
+    keep[1, 2, 0] = keep[3, 5, 1] = False
+    assert np.array_equal(sc.world_map[keep], px[keep])
+    assert warnings == ["world 'Sky': image 'hdr': 2 pixels negative or not a number, taken as black"], warnings
+
+
 @pytest.mark.parametrize("kw, why", [
     (dict(projection="MIRROR_BALL"), "its mirror ball projection is not supported"),
     (dict(rotation=(0, 0, 45), location=(0, 0, 1)), "only a turn (no Location"),
