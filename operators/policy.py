@@ -74,8 +74,7 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
     for name in _names(data.object_names, has_diff & ~plan.receivers):
         left.append(f"receiver '{name}' (not flagged Receive Shadow Caustics)")
 
-    faint = {x["name"]: x["reason"] for x in list(skipped) + [dict(kind=k, name=n, reason=r) for k, n, r in plan.skipped]
-             if x["kind"] == "light" and x["reason"].startswith(FAINT)}
+    faint = {x["name"]: x["reason"] for x in skipped if x["kind"] == "light" and x["reason"].startswith(FAINT)}
     planned = {lp.index for lp in plan.lights} | set(plan.indirect_lights)
     light_flags_used = flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.light_caustics)))
     dropped = []
@@ -110,19 +109,18 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
 
 
 def _world(data, li, faint, layer_mean, left, dropped):
-    """coverage's words for a world of constant colour (a light of the layer, S.WORLD) the bake
-    left out: too faint by the plan's pilots (faint: the plan's reason), or not flagged. An
-    unflagged world makes no caustic
-    brighter than its radiance L (a map's brightest pixel's) x the brightest diffuse colour (radiance is conserved along
-    mirrors and glass, so a receiver lit by the whole sky through them sends at most that); where
-    that is at most WORLD_NEGLIGIBLE of layer_mean (Blender's default grey world under a lamp), it
-    is dropped rather than keeping Cycles' caustics on, which would count the layer's twice."""
+    """coverage's words for a world (a light of the layer, S.WORLD) the bake left out: too faint
+    by the plan's pilots (faint: the plan's reason), or not flagged. An unflagged world makes no
+    caustic brighter than its radiance L (a map's brightest pixel's) x the brightest diffuse
+    colour (radiance is conserved along mirrors and glass, so a receiver lit by the whole sky
+    through them sends at most that); where that is at most WORLD_NEGLIGIBLE of layer_mean
+    (Blender's default grey world under a lamp), it is dropped rather than keeping Cycles'
+    caustics on, which would count the layer's twice."""
     from ..smbs_addon import scene as S
-
     from ..smbs_addon.plan import FAINT
 
     name = data.light_names[li]
-    if faint is not None:  # "... too faint to show (0.4% of the caustic light the camera sees)"
+    if faint is not None:  # "its caustic is too faint to show (at most 0.4% of the lamps' caustic)"
         dropped.append(f"world '{name}' through mirrors and glass ({faint[len(FAINT):].strip(' ()')})")
         return
     diffuse = data.mat_color[data.mat_kind == S.DIFFUSE]

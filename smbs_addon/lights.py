@@ -59,11 +59,12 @@ def light_axis(scene, li: int) -> np.ndarray:
 class EnvMap:
     """A world's Environment Texture as a light (S.WORLD with Scene.world_map): radiance from an
     equirectangular map in Cycles' convention, measured with Cycles (a map holding each pixel's own
-    coordinates, seen along 8 directions, with and without a Mapping node's turn): a ray of
-    direction d looks up m = R d (R: Scene.world_map_rotation) at u = 0.5 - atan2(m_y, m_x) / 2 pi,
-    v = 1 - acos(m_z) / pi, pixel row 0 at the bottom. Each pixel is constant (Cycles interpolates
-    linearly: a pixel's width of blur apart). Directions are drawn in proportion to a pixel's
-    luminance x solid angle, then uniformly within it in azimuth and cos(theta)."""
+    coordinates, seen along 6 directions, with and without a Mapping node's turn:
+    tests/test_world.py): a ray of direction d looks up m = R d (R: Scene.world_map_rotation) at
+    u = 0.5 - atan2(m_y, m_x) / 2 pi, v = 1 - acos(m_z) / pi, pixel row 0 at the bottom. Each pixel
+    is constant (Cycles interpolates linearly: a pixel's width of blur apart). Directions are drawn
+    in proportion to a pixel's luminance x solid angle, then uniformly within it in azimuth and
+    cos(theta)."""
 
     def __init__(self, image, rotation, scale):
         img = np.asarray(image, np.float64) * np.asarray(scale, np.float64)
@@ -481,8 +482,9 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
         if has_spread(scene, li):
             L = L * spread_factor(scene, li, -den)[:, None]
         return L, t
-    if typ in S.DISTANT and escaped is not None and env_map(scene, li) is not None:
-        L = np.where(escaped[:, None], env_map(scene, li).radiance(d), 0.0)  # d: towards the sky
+    env = env_map(scene, li)
+    if typ in S.DISTANT and escaped is not None and env is not None:
+        L = np.where(escaped[:, None], env.radiance(d), 0.0)  # d: towards the sky
         t = np.where(escaped, 1e30, np.inf)
     elif typ in S.DISTANT and escaped is not None:
         axis, half, strength = distant_cone(scene, li)

@@ -191,8 +191,9 @@ def sample_light(scene, li, n, rng, cap=None) -> LightEnd:
     typ = scene.light_type[li]
     m = scene.light_matrix[li]
     z = np.zeros((n, 3))
-    if typ in S.DISTANT and env_map(scene, li) is not None:
-        return LightEnd(True, env_map(scene, li).sample(rng.random(n), rng.random(n), rng.random(n)), z, z.copy())
+    env = env_map(scene, li)
+    if typ in S.DISTANT and env is not None:
+        return LightEnd(True, env.sample(rng.random(n), rng.random(n), rng.random(n)), z, z.copy())
     if typ in S.DISTANT:
         axis, half, _ = distant_cone(scene, li)
         to_sun = np.broadcast_to(-axis, (n, 3)).copy()

@@ -613,10 +613,11 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
             if scene.light_type[li] == S.WORLD and lamps_E > 0:
                 env = env_map(scene, li)  # the most a plane can receive: pi L, or a map's luminance over the sphere
                 bound = env.power if env is not None else math.pi * float(np.mean(scene.light_color[li]))
+                share = sample_share(bound / lamps_E)
                 if bound < WORLD_MIN_SHARE * lamps_E:
                     faint[li] = bound / lamps_E
-                elif sample_share(bound / lamps_E) < 1.0:
-                    plan.sample_share[li] = sample_share(bound / lamps_E)
+                elif share < 1.0:
+                    plan.sample_share[li] = share
         kept_lights, no_direct = [], []
         used = np.zeros_like(plan.casters)
         for lp, per in zip(plan.lights, found):
