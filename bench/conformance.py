@@ -63,6 +63,10 @@ SPP_BY_SCENE = {
     # through the ball from a given floor point (at 4 spp their 3 sigma was 35-42%)
     "world_ball": {"sms": 32, "smbs": 32},
     "hdri_ball": {"reference": 1024, "sms": 32, "smbs": 32},
+    "mix_frosted_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
+    "mix_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
+    "fresnel_glass_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
+    "fresnel_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE

@@ -8,7 +8,8 @@ lit by a world of constant colour) and Cycles set
 up for comparing caustics (no clamping, no Filter Glossy, no denoising, enough
 bounces). ``SCENES`` says what each one covers; together they cover the
 materials (Glass BSDF, Principled glass white and tinted, Refraction BSDF,
-Glossy BSDF, Principled metallic; IOR 1.33 and 1.5), the lights (point with and
+Glossy BSDF, Principled metallic, Mix Shaders by a constant and by a Fresnel node; IOR 1.33 and
+1.5), the lights (point with and
 without soft falloff, spot, square and disk area lights, one of spread 30 degrees, suns of angle 0, 2 and
 4 degrees, a world of constant colour and an HDRI turned by a Mapping node), the geometry (flat, wavy, spheres, a lens, bevelled cubes with
 internal reflection, a prism, open and closed glass) and how a receiver is seen
@@ -233,10 +234,16 @@ def cube_grey_reflect():
 def sphere_point_soft():
     """Principled white glass sphere (IOR 1.5) under a point light of radius 0.25 with
     soft falloff (Blender's default)."""
-    scene = _scene("sphere_point_soft")
+    return _ball_under_bulb("sphere_point_soft", lambda: principled("WhiteGlass", base=(1.0, 1.0, 1.0),
+                                                                    transmission=1.0, ior=1.5))
+
+
+def _ball_under_bulb(name, ball):
+    """A ball of material ball() (made once the scene is new) 0.9 m over the floor, under a point light
+    of radius 0.25 with soft falloff, seen from above at a slant."""
+    scene = _scene(name)
     _floor(scene)
-    glass = principled("WhiteGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
-    _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
+    _sphere(scene, "Ball", ball(), 0.5, (0, 0, 0.9))
     B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
                 use_soft_falloff=True)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
@@ -504,6 +511,71 @@ def checker_floor():
     return _slanted_ball("checker_floor", _checker)
 
 
+def _mix(name, first, second, factor):
+    """A material whose Surface is Mix Shader(first, second) at Factor factor (first and second:
+    (bl_idname, {input: value}))."""
+    m = bpy.data.materials.new(name)
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Factor"].default_value = factor
+    for sock, (idname, inputs) in zip(mix.inputs[1:], (first, second)):
+        node = nt.nodes.new(idname)
+        for k, v in inputs.items():
+            node.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
+        if hasattr(node, "distribution") and idname != "ShaderNodeBsdfDiffuse":
+            node.distribution = "GGX"
+        nt.links.new(node.outputs[0], sock)
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def mix_frosted_ball():
+    """sphere_point_soft's ball and bulb with a Mix Shader of a dark Diffuse BSDF (0.2) and a Glass BSDF
+    (IOR 1.5) at Factor 0.75: Cycles weighs the glass closure by 0.75 at each vertex (0.56 of the clear
+    ball's T T caustic). The diffuse part is dark because it is not ours: light it scatters inside the
+    ball and out through its glass adds to Cycles' caustic (2.9% of it with a diffuse of 0.8)."""
+    return _ball_under_bulb("mix_frosted_ball", lambda: _mix(
+        "Frosted", ("ShaderNodeBsdfDiffuse", {"Color": (0.2, 0.2, 0.2)}),
+        ("ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0), "IOR": 1.5, "Roughness": 0.0}), 0.75))
+
+
+def mix_floor():
+    """The slanted glass ball over a floor of Mix Shader(Diffuse BSDF 0.8, Glossy BSDF white of
+    Roughness 0.3) at Factor 0.25, the old way to make a glossy floor: its diffuse weighs 0.75, and
+    Cycles samples the glossy closure beside it."""
+    return _slanted_ball("mix_floor", lambda: _mix(
+        "MixFloor", ("ShaderNodeBsdfDiffuse", {"Color": (0.8, 0.8, 0.8)}),
+        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.3}), 0.25))
+
+
+def _by_fresnel(m, ior):
+    """m's Mix Shader's Factor from a Fresnel node of index ior (the classic node setups before the
+    Principled BSDF)."""
+    nt = m.node_tree
+    fr = nt.nodes.new("ShaderNodeFresnel")
+    fr.inputs["IOR"].default_value = ior
+    nt.links.new(fr.outputs[0], nt.nodes["Mix Shader"].inputs["Factor"])
+    return m
+
+
+def fresnel_glass_ball():
+    """sphere_point_soft's ball and bulb with the old glass: a Mix Shader of a Refraction BSDF (pale green,
+    IOR 1.5) and a white Glossy BSDF (Roughness 0) by a Fresnel node of IOR 1.5."""
+    return _ball_under_bulb("fresnel_glass_ball", lambda: _by_fresnel(_mix(
+        "OldGlass", ("ShaderNodeBsdfRefraction", {"Color": (0.85, 1.0, 0.85), "IOR": 1.5, "Roughness": 0.0}),
+        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.0}), 0.5), 1.5))
+
+
+def fresnel_floor():
+    """The slanted glass ball over the old coated floor: a Mix Shader of a Diffuse BSDF (0.8) and a white
+    Glossy BSDF (Roughness 0.2) by a Fresnel node of IOR 1.5 (the diffuse keeps 1 - F towards the eye)."""
+    return _slanted_ball("fresnel_floor", lambda: _by_fresnel(_mix(
+        "OldFloor", ("ShaderNodeBsdfDiffuse", {"Color": (0.8, 0.8, 0.8)}),
+        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.2}), 0.5), 1.5))
+
+
 def _sky(scene, color, strength):
     """The scene's world a constant colour (its Background node's Color and Strength)."""
     w = scene.world
@@ -592,6 +664,14 @@ SCENES = {
                    "ball"),
     "world_mirror_bulb": (world_mirror_bulb, "mirror_point_hard with a grey world (0.4): the sky's reflection "
                           "and the bulb's together"),
+    "mix_frosted_ball": (mix_frosted_ball, "a Mix Shader of Diffuse and Glass BSDF (Factor 0.75) on a ball: the "
+                         "glass casts with its weight"),
+    "mix_floor": (mix_floor, "a Mix Shader of Diffuse and Glossy BSDF (Factor 0.25) on the floor, seen at a "
+                  "slant under a glass ball"),
+    "fresnel_glass_ball": (fresnel_glass_ball, "the old glass: Refraction and Glossy BSDF mixed by a Fresnel "
+                           "node, on a ball"),
+    "fresnel_floor": (fresnel_floor, "the old coated floor: Diffuse and Glossy BSDF mixed by a Fresnel node, "
+                      "seen at a slant under a glass ball"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

@@ -259,113 +259,281 @@ def _surface_material(mat, warn) -> dict:
     if tree is None or not _uses_nodes(mat):
         return diffuse("material has no shader nodes", np.array(mat.diffuse_color[:3], float))
     try:
-        node = _shader_node(tree, "OUTPUT_MATERIAL")
-        if node is None:
+        out = _output(tree, "OUTPUT_MATERIAL")
+        if out is None:
+            raise _Unsupported("node tree has no output node")
+        src = _follow(out.inputs["Surface"])
+        if src is None:
             warn(f"material '{mat.name}': nothing is linked to the Material Output's Surface "
                  "(renders black in Cycles); treated as black diffuse")
             return dict(kind=S.DIFFUSE, color=np.zeros(3))
-        t = node.type
-        if t == "BSDF_PRINCIPLED":
-            base, textured = _colour(node, "Base Color")
-            metallic = _const(node, "Metallic")
-            rough = _const(node, "Roughness")
-            trans = _const(node, "Transmission Weight")
-            ior = _const(node, "IOR")
-            ignored = []
-
-            def active(sock_name, nonzero=lambda v: float(v) > 0):
-                sock = node.inputs.get(sock_name)
-                return sock is not None and (_follow(sock) is not None or nonzero(sock.default_value))
-
-            if active("Emission Strength") and active("Emission Color", lambda c: max(c[:3]) > 0):
-                ignored.append("emission")
-            receiver = metallic < 0.5 and trans < 0.5
-            coat_w = 0.0
-            if active("Coat Weight"):
-                # over a diffuse receiver the clear coat takes its share towards the eye (layer.py);
-                # its tint's absorption, its own normal, and a coat over metal or glass are not ours
-                tint_c = _input(node, "Coat Tint", np.ones(3))
-                if receiver and np.allclose(tint_c, 1.0) and not _linked(node, "Coat Normal"):
-                    coat_w = float(min(_const(node, "Coat Weight"), 1.0))
-                else:
-                    ignored.append("coat")
-            for sock_name, label in (("Sheen Weight", "sheen"), ("Subsurface Weight", "subsurface")):
-                if active(sock_name):
-                    ignored.append(label)
-            a = node.inputs.get("Alpha")
-            if a is not None and (_follow(a) is not None or float(a.default_value) < 1.0):
-                ignored.append("alpha")
-            if _linked(node, "Normal"):
-                ignored.append("normal map")
-            if ignored:
-                warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
-            if textured and (metallic >= 0.5 or trans >= 0.5):
-                raise _Unsupported("a textured Base Color is supported on diffuse surfaces only")
-            if textured:
-                _say_textured(mat, base, warn)
-            # Cycles weighs the metal lobe by Metallic and the glass by (1 - Metallic) x Transmission;
-            # a material is the lobe that weighs most, the rest of it is left out (and said so)
-            if metallic >= 0.5:
-                # the rest is a dielectric coat (a mirror at Roughness 0: it casts) over a diffuse
-                level = _input(node, "Specular IOR Level", 0.5)
-                eta, _ = principled_layer(ior, level, np.ones(3))
-                if metallic < 1.0:
-                    warn(f"material '{mat.name}': Principled BSDF Metallic {metallic:g}: the diffuse under "
-                         f"its coat ({1 - metallic:.0%} of it) receives no caustics")
-                return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
-                            reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0)
-            if trans >= 0.5:
-                w_glass = float((1.0 - metallic) * trans)
-                if w_glass < 1.0:
-                    warn(f"material '{mat.name}': Principled BSDF glass of weight {w_glass:.2f} ((1 - Metallic) x "
-                         f"Transmission); the rest neither casts nor receives caustics")
-                # Cycles' Principled glass tints transmission by sqrt(base colour) at every
-                # refraction and leaves reflection white (its Specular Tint scales f0 instead)
-                tint = _input(node, "Specular Tint", np.ones(3))
-                if not np.allclose(tint, 1.0):
-                    warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
-                return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
-                            reflect_color=np.full(3, w_glass), ior=ior, roughness=rough)
-            # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
-            # dielectric glossy layer that takes its share towards the eye (layer.py)
-            level = _input(node, "Specular IOR Level", 0.5)
-            tint = _input(node, "Specular Tint", np.ones(3))
-            eta, tint_max = principled_layer(ior, level, tint)
-            # Cycles' Oren-Nayar from a Diffuse Roughness of 1e-5 (CLOSURE_WEIGHT_CUTOFF)
-            sigma = _input(node, "Diffuse Roughness", 0.0)
-            sigma = float(min(sigma, 1.0)) if sigma >= 1e-5 else 0.0
-            coat_ior = float(_input(node, "Coat IOR", 1.5))
-            coat_rough = float(_input(node, "Coat Roughness", 0.03))
-            return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
-                        layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
-                               coat_ior, coat_rough), textured=textured)
-        if t == "BSDF_GLASS":
-            c = _const(node, "Color")
-            return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
-                        ior=_const(node, "IOR"), roughness=_const(node, "Roughness"))
-        if t == "BSDF_REFRACTION":  # Cycles: transmits Color, no Fresnel term, no reflection
-            return dict(kind=S.DIELECTRIC, color=_const(node, "Color"), reflect_color=np.zeros(3),
-                        ior=_const(node, "IOR"), roughness=_const(node, "Roughness"),
-                        fresnel=S.REFRACTION_ONLY)
-        if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
-            if node.inputs.get("Anisotropy") is not None and (
-                    _linked(node, "Anisotropy") or float(node.inputs["Anisotropy"].default_value) != 0):
-                warn(f"material '{mat.name}': Glossy BSDF anisotropy ignored")
-            return dict(kind=S.CONDUCTOR, color=_const(node, "Color"),
-                        roughness=_const(node, "Roughness"), fresnel=S.FRESNEL_NONE)
-        if t == "BSDF_DIFFUSE":  # Cycles' Oren-Nayar from a Roughness of 1e-5
-            sigma = float(_const(node, "Roughness"))
-            color, textured = _colour(node, "Color")
-            if textured:
-                _say_textured(mat, color, warn)
-            return dict(kind=S.DIFFUSE, color=color, roughness=sigma, textured=textured,
-                        layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0, 0.0, 0.0, 0.0))
-        if t == "EMISSION":
-            return dict(kind=S.EMITTER, color=_const(node, "Color"),
-                        strength=_const(node, "Strength"))
-        raise _Unsupported(f"node '{node.name}' is not supported")
+        if src[0].type not in _MIXES:
+            return _bsdf(src[0], mat, warn)
+        parts, left = _parts(src[0], mat, warn, 0)
+        if not parts and not left:
+            warn(f"material '{mat.name}': its shader mix has no closures (renders black in Cycles); "
+                 "treated as black diffuse")
+            return dict(kind=S.DIFFUSE, color=np.zeros(3))
+        return _mixed(parts, left, mat, warn)
     except _Unsupported as e:
         return diffuse(str(e))
+
+
+_MIXES = ("MIX_SHADER", "ADD_SHADER")
+MAX_MIX_DEPTH = 16
+# which of a shader mix's groups of parts a material takes when they weigh the same
+_RANK = {S.DIELECTRIC: 0, S.CONDUCTOR: 1, S.DIFFUSE: 2, S.EMITTER: 3}
+_PART_WORDS = {S.DIELECTRIC: "glass", S.CONDUCTOR: "glossy", S.DIFFUSE: "diffuse", S.EMITTER: "emission"}
+
+
+def _parts(node, mat, warn, depth):
+    """A Mix or Add Shader's closures as Cycles weighs them: ([(weight, material keywords, node
+    name)], [(weight, node name, why it is not ours)]), nested mixes flattened (a Mix Shader's factor,
+    clamped to 0..1 as Cycles does, weighs its second input and 1 - factor its first; an Add Shader
+    weighs both by 1; an empty input adds nothing)."""
+    if node.mute:
+        raise _Unsupported(f"node '{node.name}' is muted")
+    if node.type not in _MIXES:
+        return [(1.0, _bsdf(node, mat, warn), node.name)], []
+    if depth >= MAX_MIX_DEPTH:
+        raise _Unsupported("node tree is too deep")
+    ior = _fresnel_index(node) if node.type == "MIX_SHADER" else None
+    if ior is not None:
+        return [(1.0, _fresnel_mix(node, ior, mat, warn), node.name)], []
+    if node.type == "ADD_SHADER":
+        inputs = [(1.0, node.inputs[0]), (1.0, node.inputs[1])]
+    else:
+        try:
+            fac = min(max(float(_const(node, node.inputs[0].name)), 0.0), 1.0)
+        except _Unsupported as e:
+            raise _Unsupported(f"{e}: a Mix Shader's Factor must be a constant") from None
+        inputs = [(1.0 - fac, node.inputs[1]), (fac, node.inputs[2])]
+    parts, left = [], []
+    for w, sock in inputs:
+        src = _follow(sock)
+        if not w > 0.0 or src is None:
+            continue
+        try:
+            p, lf = _parts(src[0], mat, warn, depth + 1)
+        except _Unsupported as e:
+            left.append((w, src[0].name, str(e)))
+            continue
+        parts += [(w * pw, kw, name) for pw, kw, name in p]
+        left += [(w * lw, name, why) for lw, name, why in lf]
+    return parts, left
+
+
+def _fresnel_index(mix):
+    """The index of the Fresnel node (or Layer Weight's Fresnel output) driving a Mix Shader's Factor,
+    or None: Cycles' dielectric Fresnel of the incoming direction at the shading normal, for that
+    index (Layer Weight: 1 / (1 - Blend)) and its inverse from the back."""
+    src = _follow(mix.inputs[0])
+    if src is None or src[0].mute:
+        return None
+    node, out = src
+    if node.type == "FRESNEL" or (node.type == "LAYER_WEIGHT" and out.name == "Fresnel"):
+        if _linked(node, "Normal"):
+            raise _Unsupported(f"the Normal of node '{node.name}' driving the Factor of '{mix.name}' is linked")
+        if node.type == "FRESNEL":
+            return max(float(_const(node, "IOR")), 1.0 + 1e-5)
+        return 1.0 / max(1.0 - float(_const(node, "Blend")), 1e-5)
+    return None
+
+
+def _fresnel_mix(mix, ior, mat, warn) -> dict:
+    """A Mix Shader weighed by a Fresnel node: Cycles' old glass (Refraction and Glossy) is a Glass
+    BSDF whose reflection and refraction keep their own colours, and Blender's old coated floor
+    (Diffuse and Glossy) is a diffuse under a smooth coat of that index (layer.py's weight 1 - F(mu)
+    towards the eye: its table at Roughness 0 is exactly that)."""
+    sides = []
+    for sock in mix.inputs[1:3]:
+        src = _follow(sock)
+        sides.append(None if src is None else (_bsdf(src[0], mat, warn), src[0].name))
+    (a, a_name), (g, g_name) = [s if s is not None else (None, None) for s in sides]
+    glossy = g is not None and g["kind"] == S.CONDUCTOR and g.get("fresnel", S.FRESNEL_NONE) == S.FRESNEL_NONE
+    if glossy and a is not None and a["kind"] == S.DIELECTRIC and a.get("fresnel") == S.REFRACTION_ONLY \
+            and abs(float(a["roughness"]) - float(g["roughness"])) < 1e-6:
+        if abs(float(a["ior"]) - ior) > 1e-4:
+            warn(f"material '{mat.name}': the Fresnel of Mix Shader '{mix.name}' is of index {ior:.4g}, its "
+                 f"refraction of {float(a['ior']):.4g}: taken as one glass of index {float(a['ior']):.4g}")
+        return dict(kind=S.DIELECTRIC, color=np.asarray(a["color"], float).copy(),
+                    reflect_color=np.asarray(g["color"], float).copy(), ior=float(a["ior"]),
+                    roughness=float(a["roughness"]))
+    if glossy and a is not None and a["kind"] == S.DIFFUSE and not np.any(_layer_of(a)[[0, 5]] > 0):
+        lay = _layer_of(a)
+        warn(f"material '{mat.name}': its Glossy part '{g_name}' (weighed by the Fresnel of index {ior:.4g}) "
+             f"neither casts nor receives caustics; the diffuse under it keeps 1 - Fresnel towards the eye")
+        return dict(a, layer=(ior, 0.0, 1.0, lay[3], lay[4], 0.0, 0.0, 0.0))
+    raise _Unsupported(f"the Factor of Mix Shader '{mix.name}' is a Fresnel: read for a Refraction BSDF and a "
+                       f"Glossy BSDF of one roughness (a glass) or a Diffuse BSDF and a Glossy BSDF (a coated "
+                       f"diffuse), in that order, only")
+
+
+def _group_key(kw):
+    """Parts of a mix that add up exactly into one material: the same kind and, for glass and
+    mirrors, the same index, roughness and Fresnel."""
+    k = kw["kind"]
+    if k in (S.DIELECTRIC, S.CONDUCTOR):
+        return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), int(kw.get("fresnel", S.FRESNEL_NONE)))
+    return (k,)
+
+
+def _layer_of(kw):
+    lay = np.asarray(kw.get("layer", (0.0,) * 8), float).copy()
+    if not lay[3] > 0:
+        lay[3] = 1.0  # a diffuse without Cycles' layering: all of its colour is the diffuse's
+    return lay
+
+
+def _mixed(parts, left, mat, warn) -> dict:
+    """One material from a shader mix's parts: the group of parts (_group_key) that weighs most (a
+    glass or mirror first where they weigh the same), its colours summed by weight, which is what
+    Cycles' mix does to each closure; the rest is left out, and said so. A lone part of weight 1 is
+    that part unchanged."""
+    if len(parts) == 1 and not left and parts[0][0] == 1.0:
+        return parts[0][1]
+    if not parts:
+        why = "; ".join(f"'{name}': {reason}" for _, name, reason in left)
+        raise _Unsupported(f"no part of its shader mix is supported ({why})")
+    groups: dict = {}
+    for w, kw, name in parts:
+        groups.setdefault(_group_key(kw), []).append((w, kw, name))
+    mass = {k: sum(w for w, _, _ in g) for k, g in groups.items()}
+    key = min(groups, key=lambda k: (-round(mass[k], 9), _RANK[k[0]]))
+    chosen = groups[key]
+    first = chosen[0][1]
+    kw = dict(first)
+    kind = key[0]
+    if kind == S.EMITTER:
+        kw["color"] = sum(w * np.asarray(p["color"], float) * float(p.get("strength", 1.0)) for w, p, _ in chosen)
+        kw["strength"] = 1.0
+    else:
+        kw["color"] = sum(w * np.asarray(p["color"], float) for w, p, _ in chosen)
+    if "reflect_color" in first:
+        kw["reflect_color"] = sum(w * np.asarray(p.get("reflect_color", p["color"]), float) for w, p, _ in chosen)
+    if kind == S.DIFFUSE:
+        lays = [_layer_of(p) for _, p, _ in chosen]
+        heaviest = max(range(len(chosen)), key=lambda i: chosen[i][0])
+        lay = lays[heaviest].copy()
+        lay[3] = sum(w * la[3] for (w, _, _), la in zip(chosen, lays))
+        kw["layer"] = tuple(lay)
+        kw["textured"] = any(p.get("textured", False) for _, p, _ in chosen)
+        if any(not np.allclose(np.delete(la, 3), np.delete(lays[heaviest], 3)) for la in lays):
+            warn(f"material '{mat.name}': the diffuse parts of its shader mix are layered differently; "
+                 f"the caustic on it is shaded as '{chosen[heaviest][2]}' is")
+    dropped = [(w, name, f"{_PART_WORDS[p['kind']]}") for w, p, name in parts if _group_key(p) != key]
+    dropped += [(w, name, why) for w, name, why in left]
+    if dropped:
+        said = ", ".join(f"'{name}' (weight {w:.2f}, {why})" for w, name, why in dropped)
+        warn(f"material '{mat.name}': its shader mix is taken as its {_PART_WORDS[kind]} part "
+             f"(weight {mass[key]:.2f}); left out, neither casting nor receiving caustics: {said}")
+    return kw
+
+
+def _bsdf(node, mat, warn) -> dict:
+    """Material keywords for one BSDF node (raises _Unsupported for a node we cannot represent)."""
+    if node.mute:
+        raise _Unsupported(f"node '{node.name}' is muted")
+    t = node.type
+    if t == "BSDF_PRINCIPLED":
+        base, textured = _colour(node, "Base Color")
+        metallic = _const(node, "Metallic")
+        rough = _const(node, "Roughness")
+        trans = _const(node, "Transmission Weight")
+        ior = _const(node, "IOR")
+        ignored = []
+
+        def active(sock_name, nonzero=lambda v: float(v) > 0):
+            sock = node.inputs.get(sock_name)
+            return sock is not None and (_follow(sock) is not None or nonzero(sock.default_value))
+
+        if active("Emission Strength") and active("Emission Color", lambda c: max(c[:3]) > 0):
+            ignored.append("emission")
+        receiver = metallic < 0.5 and trans < 0.5
+        coat_w = 0.0
+        if active("Coat Weight"):
+            # over a diffuse receiver the clear coat takes its share towards the eye (layer.py);
+            # its tint's absorption, its own normal, and a coat over metal or glass are not ours
+            tint_c = _input(node, "Coat Tint", np.ones(3))
+            if receiver and np.allclose(tint_c, 1.0) and not _linked(node, "Coat Normal"):
+                coat_w = float(min(_const(node, "Coat Weight"), 1.0))
+            else:
+                ignored.append("coat")
+        for sock_name, label in (("Sheen Weight", "sheen"), ("Subsurface Weight", "subsurface")):
+            if active(sock_name):
+                ignored.append(label)
+        a = node.inputs.get("Alpha")
+        if a is not None and (_follow(a) is not None or float(a.default_value) < 1.0):
+            ignored.append("alpha")
+        if _linked(node, "Normal"):
+            ignored.append("normal map")
+        if ignored:
+            warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
+        if textured and (metallic >= 0.5 or trans >= 0.5):
+            raise _Unsupported("a textured Base Color is supported on diffuse surfaces only")
+        if textured:
+            _say_textured(mat, base, warn)
+        # Cycles weighs the metal lobe by Metallic and the glass by (1 - Metallic) x Transmission;
+        # a material is the lobe that weighs most, the rest of it is left out (and said so)
+        if metallic >= 0.5:
+            # the rest is a dielectric coat (a mirror at Roughness 0: it casts) over a diffuse
+            level = _input(node, "Specular IOR Level", 0.5)
+            eta, _ = principled_layer(ior, level, np.ones(3))
+            if metallic < 1.0:
+                warn(f"material '{mat.name}': Principled BSDF Metallic {metallic:g}: the diffuse under "
+                     f"its coat ({1 - metallic:.0%} of it) receives no caustics")
+            return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
+                        reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0)
+        if trans >= 0.5:
+            w_glass = float((1.0 - metallic) * trans)
+            if w_glass < 1.0:
+                warn(f"material '{mat.name}': Principled BSDF glass of weight {w_glass:.2f} ((1 - Metallic) x "
+                     f"Transmission); the rest neither casts nor receives caustics")
+            # Cycles' Principled glass tints transmission by sqrt(base colour) at every
+            # refraction and leaves reflection white (its Specular Tint scales f0 instead)
+            tint = _input(node, "Specular Tint", np.ones(3))
+            if not np.allclose(tint, 1.0):
+                warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
+            return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
+                        reflect_color=np.full(3, w_glass), ior=ior, roughness=rough)
+        # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
+        # dielectric glossy layer that takes its share towards the eye (layer.py)
+        level = _input(node, "Specular IOR Level", 0.5)
+        tint = _input(node, "Specular Tint", np.ones(3))
+        eta, tint_max = principled_layer(ior, level, tint)
+        # Cycles' Oren-Nayar from a Diffuse Roughness of 1e-5 (CLOSURE_WEIGHT_CUTOFF)
+        sigma = _input(node, "Diffuse Roughness", 0.0)
+        sigma = float(min(sigma, 1.0)) if sigma >= 1e-5 else 0.0
+        coat_ior = float(_input(node, "Coat IOR", 1.5))
+        coat_rough = float(_input(node, "Coat Roughness", 0.03))
+        return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
+                    layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
+                           coat_ior, coat_rough), textured=textured)
+    if t == "BSDF_GLASS":
+        c = _const(node, "Color")
+        return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
+                    ior=_const(node, "IOR"), roughness=_const(node, "Roughness"))
+    if t == "BSDF_REFRACTION":  # Cycles: transmits Color, no Fresnel term, no reflection
+        return dict(kind=S.DIELECTRIC, color=_const(node, "Color"), reflect_color=np.zeros(3),
+                    ior=_const(node, "IOR"), roughness=_const(node, "Roughness"),
+                    fresnel=S.REFRACTION_ONLY)
+    if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
+        if node.inputs.get("Anisotropy") is not None and (
+                _linked(node, "Anisotropy") or float(node.inputs["Anisotropy"].default_value) != 0):
+            warn(f"material '{mat.name}': Glossy BSDF anisotropy ignored")
+        return dict(kind=S.CONDUCTOR, color=_const(node, "Color"),
+                    roughness=_const(node, "Roughness"), fresnel=S.FRESNEL_NONE)
+    if t == "BSDF_DIFFUSE":  # Cycles' Oren-Nayar from a Roughness of 1e-5
+        sigma = float(_const(node, "Roughness"))
+        color, textured = _colour(node, "Color")
+        if textured:
+            _say_textured(mat, color, warn)
+        return dict(kind=S.DIFFUSE, color=color, roughness=sigma, textured=textured,
+                    layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0, 0.0, 0.0, 0.0))
+    if t == "EMISSION":
+        return dict(kind=S.EMITTER, color=_const(node, "Color"),
+                    strength=_const(node, "Strength"))
+    raise _Unsupported(f"node '{node.name}' is not supported")
 
 
 # ------------------------------------------------------------------------------ meshes

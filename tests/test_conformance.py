@@ -63,6 +63,15 @@ CASES = [
     ("world_mirror_bulb", "smbs", 4),
     # an HDRI (a sky and a 4-degree sun) turned 40 degrees by a Mapping node
     ("hdri_ball", "reference", 512),
+    # Mix Shaders: a ball of glass at 0.75 over a dark diffuse cast nothing (a mix was a diffuse stand-in),
+    # a floor of Diffuse and Glossy at 0.25 read 1.33 of Cycles
+    ("mix_frosted_ball", "reference", 256),
+    ("mix_frosted_ball", "smbs", 4),
+    ("mix_floor", "reference", 256),
+    # a Mix Shader by a Fresnel node: the old glass (Refraction and Glossy) cast nothing, the old coated
+    # floor (Diffuse and Glossy) read 1.19 of Cycles
+    ("fresnel_glass_ball", "reference", 256),
+    ("fresnel_floor", "reference", 256),
 ]
 
 

@@ -451,27 +451,167 @@ def test_emission():
 
 
 def test_unsupported_node_warns_naming_the_material():
-    m = material("Foo", "ShaderNodeMixShader", Factor=0.5)
+    m = material("Foo", "ShaderNodeBsdfTransparent")
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8)
-    assert warnings == ["material 'Foo': node 'Mix Shader' is not supported; "
+    assert warnings == ["material 'Foo': node 'Transparent BSDF' is not supported; "
                         "treated as diffuse (albedo 0.8)"]
 
 
-def test_mix_shader_with_constant_factor_one_is_followed():
-    m = bpy.data.materials.new("Mixed")
+def test_an_empty_mix_shader_renders_black():
+    sc, warnings = one_material(material("Foo", "ShaderNodeMixShader", Factor=0.5))
+    assert sc.mat_kind[0] == S.DIFFUSE and np.all(sc.mat_color[0] == 0)
+    assert warnings == ["material 'Foo': its shader mix has no closures (renders black in Cycles); "
+                        "treated as black diffuse"]
+
+
+def mixed(name, first, second, factor=0.5, add=False):
+    """A material whose Surface is a Mix Shader (Factor factor) or an Add Shader of two shader nodes,
+    each given as (bl_idname, {input: value}) or None (left empty)."""
+    m = bpy.data.materials.new(name)
     nt = m.node_tree
     nt.nodes.clear()
     out = nt.nodes.new("ShaderNodeOutputMaterial")
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Factor"].default_value = 1.0
-    d = nt.nodes.new("ShaderNodeBsdfDiffuse")
-    g = nt.nodes.new("ShaderNodeBsdfGlass")
-    nt.links.new(d.outputs[0], mix.inputs[1])
-    nt.links.new(g.outputs[0], mix.inputs[2])
+    mix = nt.nodes.new("ShaderNodeAddShader" if add else "ShaderNodeMixShader")
+    if not add:
+        mix.inputs["Factor"].default_value = factor
+    for sock, spec in zip(mix.inputs[-2:], (first, second)):
+        if spec is None:
+            continue
+        node = nt.nodes.new(spec[0])
+        for k, v in spec[1].items():
+            node.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) and len(v) == 3 else v
+        nt.links.new(node.outputs[0], sock)
     nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def test_mix_shader_with_constant_factor_one_is_followed():
+    m = mixed("Mixed", ("ShaderNodeBsdfDiffuse", {}), ("ShaderNodeBsdfGlass", {}), factor=1.0)
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] == S.DIELECTRIC and warnings == []
+    assert np.all(sc.mat_color[0] == 1.0) and np.all(sc.mat_reflect_color[0] == 1.0)
+
+
+def test_a_glass_mixed_with_a_diffuse_casts_with_its_weight():
+    """Mix(Diffuse, Glass) at Factor 0.7: Cycles weighs the glass closure by 0.7 at every vertex, so
+    the material is that glass with both colours x 0.7; the diffuse part is left out, said so."""
+    m = mixed("Frosted", ("ShaderNodeBsdfDiffuse", {"Color": (0.5, 0.5, 0.5)}),
+              ("ShaderNodeBsdfGlass", {"Color": (1.0, 0.9, 0.8), "IOR": 1.45}), factor=0.7)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.45)
+    assert np.allclose(sc.mat_color[0], [0.7, 0.63, 0.56]) and np.allclose(sc.mat_reflect_color[0], [0.7, 0.63, 0.56])
+    assert warnings == ["material 'Frosted': its shader mix is taken as its glass part (weight 0.70); left out, "
+                        "neither casting nor receiving caustics: 'Diffuse BSDF' (weight 0.30, diffuse)"]
+
+
+def test_a_diffuse_mixed_with_a_glossy_receives_with_its_weight():
+    """Blender's old floor, Mix(Diffuse, Glossy) at 0.25: the receiver is the diffuse at 0.75 (its
+    colour, and the layer's diffuse weight, so that the albedo under it stays the Diffuse's)."""
+    m = mixed("Floor", ("ShaderNodeBsdfDiffuse", {"Color": (0.8, 0.6, 0.4)}),
+              ("ShaderNodeBsdfGlossy", {"Roughness": 0.3}), factor=0.25)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], [0.6, 0.45, 0.3])
+    assert len(warnings) == 1 and "its diffuse part (weight 0.75)" in warnings[0]
+    assert "'Glossy BSDF' (weight 0.25, glossy)" in warnings[0]
+    bpy.data.objects.remove(bpy.data.objects["Thing"])
+    m = mixed("Default", ("ShaderNodeBsdfPrincipled", {"Base Color": (0.8, 0.6, 0.4)}),
+              ("ShaderNodeBsdfGlossy", {"Roughness": 0.3}), factor=0.25)
+    sc, _ = one_material(m)
+    assert np.allclose(sc.mat_color[0], [0.6, 0.45, 0.3]) and np.isclose(sc.mat_layer[0][3], 0.75)
+    assert sc.mat_layer[0][0] > 1.0  # Principled's coat kept, over the albedo 0.8 / 0.6 / 0.4
+
+
+def test_parts_of_one_kind_add_up_exactly():
+    """Two glasses of one index and roughness mixed: one glass of the weighted colours, nothing left
+    out; two diffuse under an Add Shader: their colours summed; nested mixes multiply their factors."""
+    m = mixed("TwoGlass", ("ShaderNodeBsdfGlass", {"Color": (1.0, 0.0, 0.0)}),
+              ("ShaderNodeBsdfGlass", {"Color": (0.0, 0.0, 1.0)}), factor=0.25)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.allclose(sc.mat_color[0], [0.75, 0.0, 0.25]) and warnings == []
+    bpy.data.objects.remove(bpy.data.objects["Thing"])
+    m = mixed("Sum", ("ShaderNodeBsdfDiffuse", {"Color": (0.1, 0.2, 0.3)}),
+              ("ShaderNodeBsdfDiffuse", {"Color": (0.3, 0.2, 0.1)}), add=True)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.4) and warnings == []
+    bpy.data.objects.remove(bpy.data.objects["Thing"])
+    m = mixed("Nested", ("ShaderNodeBsdfTransparent", {}), None, factor=0.5)
+    nt = m.node_tree
+    mix2 = nt.nodes.new("ShaderNodeMixShader")
+    mix2.inputs["Factor"].default_value = 0.8
+    g1, g2 = nt.nodes.new("ShaderNodeBsdfGlossy"), nt.nodes.new("ShaderNodeBsdfGlass")
+    nt.links.new(g1.outputs[0], mix2.inputs[1])
+    nt.links.new(g2.outputs[0], mix2.inputs[2])
+    nt.links.new(mix2.outputs[0], nt.nodes["Mix Shader"].inputs[2])
+    sc, warnings = one_material(m)
+    # Mix(Transparent, Mix(Glossy, Glass, 0.8), 0.5): the glass weighs 0.4, the glossy 0.1
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.allclose(sc.mat_color[0], 0.4)
+    assert len(warnings) == 1 and "its glass part (weight 0.40)" in warnings[0]
+    assert "(weight 0.10, glossy)" in warnings[0] and "'Transparent BSDF' (weight 0.50, node " in warnings[0]
+
+
+def _by_fresnel(m, ior=1.45, layer_weight=False):
+    nt = m.node_tree
+    fr = nt.nodes.new("ShaderNodeLayerWeight" if layer_weight else "ShaderNodeFresnel")
+    if layer_weight:
+        fr.inputs["Blend"].default_value = 1.0 - 1.0 / ior
+    else:
+        fr.inputs["IOR"].default_value = ior
+    nt.links.new(fr.outputs[0], nt.nodes["Mix Shader"].inputs["Factor"])
+    return m
+
+
+@pytest.mark.parametrize("layer_weight", [False, True])
+def test_the_old_glass_of_refraction_and_glossy_by_fresnel_is_a_glass(layer_weight):
+    """Mix(Refraction, Glossy) by a Fresnel node of the same index: Cycles weighs the refraction by 1 - F
+    and the reflection by F, as a Glass BSDF does, each lobe with its own colour."""
+    m = _by_fresnel(mixed("OldGlass", ("ShaderNodeBsdfRefraction", {"Color": (0.9, 1.0, 0.9), "IOR": 1.45}),
+                          ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.0})),
+                    layer_weight=layer_weight)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and sc.mat_fresnel[0] == S.FRESNEL_NONE and warnings == []
+    assert np.isclose(sc.mat_ior[0], 1.45) and np.allclose(sc.mat_color[0], [0.9, 1.0, 0.9])
+    assert np.allclose(sc.mat_reflect_color[0], 1.0)
+
+
+def test_the_old_glass_with_another_fresnel_index_warns():
+    m = _by_fresnel(mixed("OldGlass", ("ShaderNodeBsdfRefraction", {"IOR": 1.5, "Roughness": 0.0}),
+                          ("ShaderNodeBsdfGlossy", {"Roughness": 0.0})), ior=1.33)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.5)
+    assert len(warnings) == 1 and "of index 1.33, its refraction of 1.5" in warnings[0]
+
+
+def test_a_diffuse_under_a_glossy_by_fresnel_keeps_one_minus_fresnel():
+    """Mix(Diffuse, Glossy) by a Fresnel node: the diffuse's weight towards the eye is 1 - F(mu), which
+    is layer.py's table for a coat of that index at Roughness 0."""
+    from smbs_addon import layer
+    from smbs_addon.optics import fresnel_dielectric
+    m = _by_fresnel(mixed("OldFloor", ("ShaderNodeBsdfDiffuse", {"Color": (0.5, 0.6, 0.7)}),
+                          ("ShaderNodeBsdfGlossy", {"Roughness": 0.2})), ior=1.5)
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], [0.5, 0.6, 0.7])
+    assert np.allclose(sc.mat_layer[0], [1.5, 0.0, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0])
+    mu = np.linspace(0.0, 1.0, layer.MU_STEPS + 1)[1:]
+    assert np.allclose(layer.table(sc)[0, 1:], 1.0 - fresnel_dielectric(mu, 1.5), atol=1e-4)
+    assert len(warnings) == 1 and "Glossy part 'Glossy BSDF'" in warnings[0]
+
+
+def test_a_fresnel_mix_of_other_shaders_is_named():
+    m = _by_fresnel(mixed("Odd", ("ShaderNodeBsdfGlossy", {}), ("ShaderNodeBsdfRefraction", {})))
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8)
+    assert len(warnings) == 1 and "the Factor of Mix Shader 'Mix Shader' is a Fresnel" in warnings[0]
+
+
+def test_a_mix_factor_driven_by_a_node_is_named():
+    m = mixed("Fresnel", ("ShaderNodeBsdfDiffuse", {}), ("ShaderNodeBsdfGlossy", {}))
+    fr = m.node_tree.nodes.new("ShaderNodeLayerWeight")
+    m.node_tree.links.new(fr.outputs["Facing"], m.node_tree.nodes["Mix Shader"].inputs["Factor"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8)
+    assert len(warnings) == 1 and "driven by node 'Layer Weight'" in warnings[0]
+    assert "a Mix Shader's Factor must be a constant" in warnings[0]
 
 
 def test_linked_input_where_a_constant_is_needed_warns():
