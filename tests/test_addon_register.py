@@ -476,7 +476,7 @@ def _mirror_scene(width=24, height=16):
     from blend_helpers import material, plane
 
     plane(scene, "Floor", 10, material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0), (0, 0, 0))
-    plane(scene, "Mirror", 1.5, material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3),
+    plane(scene, "Mirror", 1.5, material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0),
           (0, 0, 1.5), (0, math.radians(-135), 0))
     light = bpy.data.lights.new("Disk", 'AREA')
     light.shape, light.size, light.energy = 'DISK', 0.5, 100.0

@@ -401,7 +401,7 @@ def blender_mirror_scene(light=True, camera=True, width=24, height=16):
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
     _plane(scene, "Floor", 10, _material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0))
-    _plane(scene, "Mirror", 1.5, _material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3), (0, 0, 1.5),
+    _plane(scene, "Mirror", 1.5, _material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0), (0, 0, 1.5),
            (0, math.radians(-135), 0))
     if light:
         data = bpy.data.lights.new("Disk", 'AREA')

@@ -698,9 +698,58 @@ def test_a_glass_volume_absorption_is_its_absorption():
     ("ShaderNodeBsdfGlass", "ShaderNodeVolumeScatter", "only Volume Absorption is supported"),
     ("ShaderNodeBsdfGlossy", "ShaderNodeVolumeAbsorption", "only a glass's volume is ours")])
 def test_other_volumes_are_said_to_be_ignored(surface, volume, why):
-    sc, warnings = one_material(_with_volume(material("Smoke", surface), volume))
+    sc, warnings = one_material(_with_volume(material("Smoke", surface, Roughness=0.0), volume))
     assert not np.any(sc.mat_absorb)
     assert len(warnings) == 1 and warnings[0].startswith("material 'Smoke': its Volume (") and why in warnings[0]
+
+
+@pytest.mark.parametrize("node,rough,warned", [("ShaderNodeBsdfGlass", 0.0, False), ("ShaderNodeBsdfGlass", 0.017, False),
+                                                ("ShaderNodeBsdfGlass", 0.2, True), ("ShaderNodeBsdfGlossy", 0.5, True)])
+def test_a_rough_caster_is_said_to_be_baked_smooth(node, rough, warned):
+    """Cycles makes a glass or mirror of alpha^2 = Roughness^4 up to 1e-7 a perfect one; a rougher one
+    it blurs, which the layer does not yet: said, naming the material and its roughness."""
+    sc, warnings = one_material(material("Frosted", node, Roughness=rough))
+    assert sc.mat_kind[0] in (S.DIELECTRIC, S.CONDUCTOR)
+    if warned:
+        assert len(warnings) == 1 and warnings[0].startswith(f"material 'Frosted': Roughness {rough:g}: its caustic "
+                                                             "is baked as a smooth")
+    else:
+        assert warnings == []
+
+
+def test_a_bumped_caster_is_said_to_be_baked_unbumped():
+    """A Bump node on a Glass BSDF's Normal (procedural waves on water), or a linked Displacement: the
+    layer cannot evaluate them, so the caustic is the unbumped surface's; said, once each."""
+    m = material("Waves", "ShaderNodeBsdfGlass", Roughness=0.0)
+    nt = m.node_tree
+    bump, noise = nt.nodes.new("ShaderNodeBump"), nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs[0], bump.inputs["Height"])
+    nt.links.new(bump.outputs[0], nt.nodes["Glass BSDF"].inputs["Normal"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC
+    assert warnings == ["material 'Waves': the Normal of 'Glass BSDF' is driven by a node (a bump or normal map): "
+                        "its caustic is baked from the unbumped surface, where Cycles' follows the bumps"]
+    bpy.data.objects.remove(bpy.data.objects["Thing"])
+    m = material("Displaced", "ShaderNodeBsdfGlass", Roughness=0.0)
+    nt = m.node_tree
+    disp = nt.nodes.new("ShaderNodeDisplacement")
+    nt.links.new(disp.outputs[0], nt.nodes["Material Output"].inputs["Displacement"])
+    sc, warnings = one_material(m)
+    assert len(warnings) == 1 and warnings[0].startswith("material 'Displaced': its Displacement is linked")
+
+
+def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():
+    ob = mesh_with(material("D", "ShaderNodeBsdfDiffuse"))
+    ob.visible_camera = False
+    ob.visible_shadow = False
+    ob.is_shadow_catcher = True
+    add_camera()
+    _, warnings = export()
+    assert warnings == ["object 'Thing': its Ray Visibility is off for camera, shadow rays; the layer's rays of every "
+                        "kind meet it",
+                        "object 'Thing': a shadow catcher; the caustic on it is composited like any receiver's, not "
+                        "into Cycles' shadow catcher pass"]
+    assert ob.visible_camera is False and ob.is_shadow_catcher  # the user's scene is only read
 
 
 def test_a_textured_metal_is_still_a_diffuse_stand_in():
