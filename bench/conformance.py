@@ -68,6 +68,7 @@ SPP_BY_SCENE = {
     "fresnel_glass_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
     "fresnel_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "rough_glass_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
+    "fake_shadow_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE

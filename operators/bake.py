@@ -220,6 +220,7 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
         report({'INFO'}, f"Switched on the Diffuse Color pass of view layer '{view_layer}': the caustic on "
                          "textured surfaces is multiplied by their colour in the compositor")
 
+    note_line = -1
     if hasattr(scene, "cycles"):
         try:
             plan = core.make_plan(prep.data, prep.settings.use_cycles_flags)
@@ -237,12 +238,14 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
                 print("SMBS Caustics: " + " ".join(lines), flush=True)
             else:
                 warnings.append(" ".join(lines[1:]))
+                note_line = len(warnings) - 1  # the panel shows it in the Cycles note already
     if not scene.render.use_compositing:
         warnings.append("Compositing is off (Output Properties > Post Processing); "
                         "renders will not show the caustic layer")
 
     for message in warnings:
         report({'WARNING'}, message)
+    props.bake_warnings = "\n".join(" ".join(m.split()) for i, m in enumerate(warnings) if i != note_line)
     seconds = time.perf_counter() - prep.started
     nothing = result.stats.get("nothing_to_bake")
     if nothing:  # not a failure: the layer is all zero, and the panel's plan says the same
@@ -543,6 +546,7 @@ class SMBS_OT_remove_caustic_layer(bpy.types.Operator):
         remove_layer(scene, name=LAYER_NAME)
         restored = hasattr(scene, "cycles") and policy.restore_cycles(scene, props)
         props.cycles_note = ""
+        props.bake_warnings = ""
         self.report({'INFO'}, "Caustic layer removed" + (
             "; Cycles' own caustics are back as they were" if restored else ""))
         return {'FINISHED'}

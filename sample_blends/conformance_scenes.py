@@ -594,6 +594,18 @@ def rough_glass_ball():
     return _ball_under_bulb("rough_glass_ball", frosted)
 
 
+def fake_shadow_ball():
+    """sphere_point_soft's ball with the fake-shadow trick: a Mix Shader of a Glass BSDF (IOR 1.5) and a
+    Transparent BSDF by Light Path's Is Shadow Ray (shadow rays pass, every other ray meets the glass)."""
+    def trick():
+        m = _mix("FakeShadows", ("ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0), "IOR": 1.5, "Roughness": 0.0}),
+                 ("ShaderNodeBsdfTransparent", {"Color": (1.0, 1.0, 1.0)}), 0.0)
+        lp = m.node_tree.nodes.new("ShaderNodeLightPath")
+        m.node_tree.links.new(lp.outputs["Is Shadow Ray"], m.node_tree.nodes["Mix Shader"].inputs["Factor"])
+        return m
+    return _ball_under_bulb("fake_shadow_ball", trick)
+
+
 def fresnel_floor():
     """The slanted glass ball over the old coated floor: a Mix Shader of a Diffuse BSDF (0.8) and a white
     Glossy BSDF (Roughness 0.2) by a Fresnel node of IOR 1.5 (the diffuse keeps 1 - F towards the eye)."""
@@ -698,6 +710,8 @@ SCENES = {
                            "node, on a ball"),
     "fresnel_floor": (fresnel_floor, "the old coated floor: Diffuse and Glossy BSDF mixed by a Fresnel node, "
                       "seen at a slant under a glass ball"),
+    "fake_shadow_ball": (fake_shadow_ball, "the fake-shadow trick: Glass and Transparent BSDF mixed by Light "
+                         "Path's Is Shadow Ray, on a ball"),
     "rough_glass_ball": (rough_glass_ball, "a ball of Principled glass at the default Roughness 0.5 (a blurred "
                          "caustic; known: the layer bakes it smooth)"),
     "rough_mirror": (rough_mirror, "mirror_point_hard's mirror as Principled metal at the default Roughness 0.5 "

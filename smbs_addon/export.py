@@ -310,6 +310,12 @@ def _parts(node, mat, warn, depth):
         return [(1.0, _fresnel_mix(node, ior, mat, warn), node.name)], []
     if node.type == "ADD_SHADER":
         inputs = [(1.0, node.inputs[0]), (1.0, node.inputs[1])]
+    elif _shadow_ray_factor(node):
+        # the fake-shadow trick: shadow rays see the second input (a Transparent BSDF), every other ray
+        # the first. No segment of a caustic path is a shadow ray in Cycles (the walks' visibility tests
+        # stand for its BSDF-sampled rays), and the direct light its shadow rays let through is in
+        # both its renders: the layer takes the first input, exactly
+        inputs = [(1.0, node.inputs[1])]
     else:
         try:
             fac = min(max(float(_const(node, node.inputs[0].name)), 0.0), 1.0)
@@ -329,6 +335,12 @@ def _parts(node, mat, warn, depth):
         parts += [(w * pw, kw, name) for pw, kw, name in p]
         left += [(w * lw, name, why) for lw, name, why in lf]
     return parts, left
+
+
+def _shadow_ray_factor(mix) -> bool:
+    """Is a Mix Shader's Factor Light Path's Is Shadow Ray?"""
+    src = _follow(mix.inputs[0])
+    return src is not None and not src[0].mute and src[0].type == "LIGHT_PATH" and src[1].name == "Is Shadow Ray"
 
 
 def _fresnel_index(mix):

@@ -605,6 +605,35 @@ def test_covered_scene_keeps_caustics_out_of_cycles(empty_bpy, addon, tmp_path):
     assert _flags(scene) == flags
 
 
+def test_the_last_bakes_warnings_stay_in_the_panel(empty_bpy, addon, tmp_path):
+    """A bake's warnings (here: a rough mirror baked smooth) are kept for the panel after the reports
+    scroll away, the first few listed; a clean re-bake and Remove Caustic Layer clear them."""
+    from types import SimpleNamespace
+
+    scene = _mirror_scene()
+    mirror = bpy.data.materials["Mirror"].node_tree.nodes["Glossy BSDF"]
+    mirror.inputs["Roughness"].default_value = 0.3
+    s = _bake(scene, tmp_path)
+    assert s.bake_warnings.splitlines() == [
+        "material 'Mirror': Roughness 0.3: its caustic is baked as a smooth mirror's, sharp where Cycles blurs "
+        "it (the layer has no rough casters yet)"]
+    drawn = []
+    _draw_all(addon, scene, drawn)
+    assert "Last bake: 1 warning" in drawn and any("Roughness 0.3" in str(d) for d in drawn)
+    panels = addon.ui.panels
+    many = "\n".join(f"warning {i}" for i in range(panels.WARNINGS_SHOWN + 3))
+    drawn = []
+    panels._draw_warnings(_Layout(drawn), SimpleNamespace(region=None), many)
+    assert f"Last bake: {panels.WARNINGS_SHOWN + 3} warnings" in drawn and "and 3 more (Info editor)" in drawn
+    assert f"warning {panels.WARNINGS_SHOWN}" not in drawn
+    mirror.inputs["Roughness"].default_value = 0.0
+    _bake(scene, tmp_path)
+    assert s.bake_warnings == ""
+    s.bake_warnings = "something"
+    assert bpy.ops.smbs.remove_caustic_layer() == {'FINISHED'}
+    assert s.bake_warnings == ""
+
+
 def test_users_switches_come_back_as_they_were(empty_bpy, addon, tmp_path):
     scene = _mirror_scene()
     scene.cycles.caustics_reflective, scene.cycles.caustics_refractive = True, False
@@ -631,6 +660,7 @@ def test_partial_plan_leaves_cycles_alone_and_says_why(empty_bpy, addon, tmp_pat
     assert not s.cycles_kept_out
     assert "caster 'Mirror2' (not flagged Cast Shadow Caustics)" in s.cycles_note
     assert "counted twice" in s.cycles_note
+    assert "Mirror2" not in s.bake_warnings  # the panel says it once, in the Cycles note
     assert _flags(scene) == flags
 
     # Covering everything (flags Off) turns Cycles' caustics off; going back restores them.

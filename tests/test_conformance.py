@@ -72,6 +72,8 @@ CASES = [
     # floor (Diffuse and Glossy) read 1.19 of Cycles
     ("fresnel_glass_ball", "reference", 256),
     ("fresnel_floor", "reference", 256),
+    # the fake-shadow trick (Glass and Transparent by Light Path's Is Shadow Ray) cast nothing
+    ("fake_shadow_ball", "smbs", 4),
 ]
 
 

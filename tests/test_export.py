@@ -604,6 +604,18 @@ def test_a_fresnel_mix_of_other_shaders_is_named():
     assert len(warnings) == 1 and "the Factor of Mix Shader 'Mix Shader' is a Fresnel" in warnings[0]
 
 
+def test_the_fake_shadow_trick_is_the_glass():
+    """Mix(Glass, Transparent) by Light Path's Is Shadow Ray: every ray of a caustic path is a non-shadow
+    ray in Cycles, so the material is the glass, exactly, and nothing is said."""
+    m = mixed("FakeShadows", ("ShaderNodeBsdfGlass", {"Roughness": 0.0, "IOR": 1.45}),
+              ("ShaderNodeBsdfTransparent", {}))
+    lp = m.node_tree.nodes.new("ShaderNodeLightPath")
+    m.node_tree.links.new(lp.outputs["Is Shadow Ray"], m.node_tree.nodes["Mix Shader"].inputs["Factor"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.45) and np.all(sc.mat_color[0] == 1.0)
+    assert warnings == []
+
+
 def test_a_mix_factor_driven_by_a_node_is_named():
     m = mixed("Fresnel", ("ShaderNodeBsdfDiffuse", {}), ("ShaderNodeBsdfGlossy", {}))
     fr = m.node_tree.nodes.new("ShaderNodeLayerWeight")

@@ -324,6 +324,7 @@ class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
             for line in plan_text.splitlines():
                 _draw_text(box, context, line)
 
+        _draw_warnings(layout, context, getattr(settings, "bake_warnings", ""))
         if settings.cycles_note:
             box = layout.box()
             for i, line in enumerate(settings.cycles_note.splitlines()):
@@ -331,6 +332,23 @@ class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
         elif settings.keep_out_of_cycles:
             _draw_text(layout, context, "After a bake that covers every caster, receiver and light, "
                        "Cycles' own caustics are turned off so that nothing is counted twice.", icon='INFO')
+
+
+WARNINGS_SHOWN = 6  # the panel lists this many of the last bake's warnings; the Info editor has them all
+
+
+def _draw_warnings(layout, context, text):
+    """The last bake's warnings (what it could not read or approximated), kept after the bake's reports
+    scroll away: the first WARNINGS_SHOWN, then how many more."""
+    lines = [line for line in text.splitlines() if line.strip()]
+    if not lines:
+        return
+    box = layout.box()
+    box.label(text=f"Last bake: {len(lines)} warning{'s' if len(lines) > 1 else ''}", icon='ERROR')
+    for line in lines[:WARNINGS_SHOWN]:
+        _draw_text(box, context, line)
+    if len(lines) > WARNINGS_SHOWN:
+        box.label(text=f"and {len(lines) - WARNINGS_SHOWN} more (Info editor)")
 
 
 class SMBS_UL_participants(bpy.types.UIList):

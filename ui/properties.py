@@ -276,6 +276,10 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         name="Cycles Note", default="", options={'HIDDEN'},
         description="What the last bake left to Cycles and what it turned off, one line each",
     )
+    bake_warnings: StringProperty(
+        name="Bake Warnings", default="", options={'HIDDEN'},
+        description="The last bake's warnings (what it could not read or had to approximate), one per line",
+    )
     # Cycles' own caustic switches as they were before a bake turned them off.
     cycles_kept_out: BoolProperty(name="Cycles Caustics Turned Off", default=False, options={'HIDDEN'})
     saved_caustics_reflective: BoolProperty(default=True, options={'HIDDEN'})
