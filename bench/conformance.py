@@ -74,12 +74,9 @@ SPP_BY_SCENE = {
 NOT_APPLICABLE = conf.NOT_APPLICABLE
 
 # scenes whose cells show what the layer does not do yet (not counted as failures, not in the tests)
-KNOWN = {
-    "rough_glass_ball": "rough casters: a glass or mirror of Roughness above ~0.02 is baked as a smooth one (its "
-                        "caustic sharp, where Cycles blurs it; the export warns)",
-    "rough_mirror": "rough casters: a glass or mirror of Roughness above ~0.02 is baked as a smooth one (its "
-                    "caustic sharp, where Cycles blurs it; the export warns)",
-}
+ROUGH = ("rough casters: a glass or mirror of Roughness above ~0.02 is baked as a smooth one (its caustic sharp, "
+         "where Cycles blurs it; the export warns)")
+KNOWN = {"rough_glass_ball": ROUGH, "rough_mirror": ROUGH}
 
 
 def spp_for(scene: str, method: str) -> int:

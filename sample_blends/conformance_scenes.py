@@ -50,13 +50,13 @@ def _floor(scene, size=10.0, albedo=0.8, z=0.0):
     return B.mesh_object(scene, "Floor", v, f, mat, location=(0, 0, z), receiver=True)
 
 
-def principled(name, base=(1.0, 1.0, 1.0), metallic=0.0, transmission=0.0, ior=1.5):
+def principled(name, base=(1.0, 1.0, 1.0), metallic=0.0, transmission=0.0, ior=1.5, roughness=0.0):
     m = bpy.data.materials.new(name)
     p = m.node_tree.nodes["Principled BSDF"]
     p.inputs["Base Color"].default_value = (*base, 1.0)
     p.inputs["Metallic"].default_value = metallic
     p.inputs["Transmission Weight"].default_value = transmission
-    p.inputs["Roughness"].default_value = 0.0
+    p.inputs["Roughness"].default_value = roughness
     p.inputs["IOR"].default_value = ior
     return m
 
@@ -299,7 +299,13 @@ def mirror_point_hard():
     """Flat Glossy BSDF mirror standing on the floor, a point light of radius 0.2 without
     soft falloff; the camera sees the reflected light on the floor directly and in the
     mirror."""
-    scene = _standing_mirror("mirror_point_hard")
+    return _mirror_under_bulb("mirror_point_hard")
+
+
+def _mirror_under_bulb(name, mirror=None):
+    """_standing_mirror under a point light of radius 0.2 without soft falloff, the camera seeing the
+    reflected light on the floor directly and in the mirror."""
+    scene = _standing_mirror(name, mirror)
     B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
                 use_soft_falloff=False)
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
@@ -309,26 +315,15 @@ def mirror_point_hard():
 def mirror_alloy():
     """mirror_point_hard with a Principled mirror of Metallic 0.7 (Base Color 0.9, Roughness 0): Cycles
     weighs its metal lobe by 0.7; the dielectric rest (a 4% coat over a diffuse) is left out."""
-    scene = _standing_mirror("mirror_alloy", lambda: principled("Alloy", base=(0.9, 0.9, 0.9), metallic=0.7))
-    B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
-                use_soft_falloff=False)
-    B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
-    return scene
+    return _mirror_under_bulb("mirror_alloy", lambda: principled("Alloy", base=(0.9, 0.9, 0.9), metallic=0.7))
 
 
 def rough_mirror():
     """mirror_point_hard's mirror as Blender's default metal: a Principled BSDF of Metallic 1 (Base Color
     0.9) at its default Roughness 0.5; Cycles spreads the reflected light into a soft glow. The layer has
     no rough casters yet: bench/conformance.py marks it known."""
-    def metal():
-        m = principled("DefaultMetal", base=(0.9, 0.9, 0.9), metallic=1.0)
-        m.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.5
-        return m
-    scene = _standing_mirror("rough_mirror", metal)
-    B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
-                use_soft_falloff=False)
-    B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
-    return scene
+    return _mirror_under_bulb("rough_mirror", lambda: principled("DefaultMetal", base=(0.9, 0.9, 0.9),
+                                                                 metallic=1.0, roughness=0.5))
 
 
 def mirror_spread30():
@@ -587,11 +582,8 @@ def rough_glass_ball():
     """sphere_point_soft's ball as the glass one makes of Blender's default material: a Principled BSDF of
     Transmission Weight 1 (IOR 1.5) at its default Roughness 0.5; Cycles blurs its caustic into a glow.
     The layer has no rough casters yet: bench/conformance.py marks it known."""
-    def frosted():
-        m = principled("DefaultGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
-        m.node_tree.nodes["Principled BSDF"].inputs["Roughness"].default_value = 0.5
-        return m
-    return _ball_under_bulb("rough_glass_ball", frosted)
+    return _ball_under_bulb("rough_glass_ball", lambda: principled("DefaultGlass", base=(1.0, 1.0, 1.0),
+                                                                   transmission=1.0, ior=1.5, roughness=0.5))
 
 
 def fake_shadow_ball():

@@ -272,19 +272,21 @@ def _surface_material(mat, warn) -> dict:
             raise _Unsupported("node tree has no output node")
         src = _follow(out.inputs["Surface"])
         if src is None:
-            warn(f"material '{mat.name}': nothing is linked to the Material Output's Surface "
-                 "(renders black in Cycles); treated as black diffuse")
-            return dict(kind=S.DIFFUSE, color=np.zeros(3))
+            return _black(mat, warn, "nothing is linked to the Material Output's Surface")
         if src[0].type not in _MIXES:
             return _bsdf(src[0], mat, warn)
         parts, left = _parts(src[0], mat, warn, 0)
         if not parts and not left:
-            warn(f"material '{mat.name}': its shader mix has no closures (renders black in Cycles); "
-                 "treated as black diffuse")
-            return dict(kind=S.DIFFUSE, color=np.zeros(3))
+            return _black(mat, warn, "its shader mix has no closures")
         return _mixed(parts, left, mat, warn)
     except _Unsupported as e:
         return diffuse(str(e))
+
+
+def _black(mat, warn, why) -> dict:
+    """A material that renders black in Cycles (why: its surface has no closure)."""
+    warn(f"material '{mat.name}': {why} (renders black in Cycles); treated as black diffuse")
+    return dict(kind=S.DIFFUSE, color=np.zeros(3))
 
 
 _MIXES = ("MIX_SHADER", "ADD_SHADER")
@@ -299,10 +301,10 @@ def _parts(node, mat, warn, depth):
     name)], [(weight, node name, why it is not ours)]), nested mixes flattened (a Mix Shader's factor,
     clamped to 0..1 as Cycles does, weighs its second input and 1 - factor its first; an Add Shader
     weighs both by 1; an empty input adds nothing)."""
-    if node.mute:
-        raise _Unsupported(f"node '{node.name}' is muted")
     if node.type not in _MIXES:
         return [(1.0, _bsdf(node, mat, warn), node.name)], []
+    if node.mute:
+        raise _Unsupported(f"node '{node.name}' is muted")
     if depth >= MAX_MIX_DEPTH:
         raise _Unsupported("node tree is too deep")
     ior = _fresnel_index(node) if node.type == "MIX_SHADER" else None
@@ -379,8 +381,8 @@ def _fresnel_mix(mix, ior, mat, warn) -> dict:
         return dict(kind=S.DIELECTRIC, color=np.asarray(a["color"], float).copy(),
                     reflect_color=np.asarray(g["color"], float).copy(), ior=float(a["ior"]),
                     roughness=float(a["roughness"]))
-    if glossy and a is not None and a["kind"] == S.DIFFUSE and not np.any(_layer_of(a)[[0, 5]] > 0):
-        lay = _layer_of(a)
+    lay = _layer_of(a) if a is not None and a["kind"] == S.DIFFUSE else None
+    if glossy and lay is not None and not np.any(lay[[0, 5]] > 0):
         warn(f"material '{mat.name}': its Glossy part '{g_name}' (weighed by the Fresnel of index {ior:.4g}) "
              f"neither casts nor receives caustics; the diffuse under it keeps 1 - Fresnel towards the eye")
         return dict(a, layer=(ior, 0.0, 1.0, lay[3], lay[4], 0.0, 0.0, 0.0))
