@@ -320,8 +320,8 @@ def mirror_alloy():
 
 def rough_mirror():
     """mirror_point_hard's mirror as Blender's default metal: a Principled BSDF of Metallic 1 (Base Color
-    0.9) at its default Roughness 0.5; Cycles spreads the reflected light into a soft glow. The layer has
-    no rough casters yet: bench/conformance.py marks it known."""
+    0.9) at its default Roughness 0.5; Cycles spreads the reflected light into a soft glow (1.14 of Cycles
+    when the layer baked it smooth)."""
     return _mirror_under_bulb("rough_mirror", lambda: principled("DefaultMetal", base=(0.9, 0.9, 0.9),
                                                                  metallic=1.0, roughness=0.5))
 
@@ -580,10 +580,27 @@ def fresnel_glass_ball():
 
 def rough_glass_ball():
     """sphere_point_soft's ball as the glass one makes of Blender's default material: a Principled BSDF of
-    Transmission Weight 1 (IOR 1.5) at its default Roughness 0.5; Cycles blurs its caustic into a glow.
-    The layer has no rough casters yet: bench/conformance.py marks it known."""
+    Transmission Weight 1 (IOR 1.5) at its default Roughness 0.5; Cycles blurs its caustic into a glow
+    (1.26 of Cycles when the layer baked it smooth)."""
     return _ball_under_bulb("rough_glass_ball", lambda: principled("DefaultGlass", base=(1.0, 1.0, 1.0),
                                                                    transmission=1.0, ior=1.5, roughness=0.5))
+
+
+def rough_glass_ggx():
+    """sphere_point_soft's ball as a Glass BSDF (IOR 1.5) of Roughness 0.3 with the single-scattering GGX
+    distribution: the microfacet sampling and shadowing alone, without Cycles' energy compensation."""
+    return _ball_under_bulb("rough_glass_ggx", lambda: B.material("GgxGlass", "glass", (1.0, 1.0, 1.0),
+                                                                  roughness=0.3, ior=1.5))
+
+
+def rough_tinted_mirror():
+    """mirror_point_hard's mirror as a Glossy BSDF of colour (0.9, 0.6, 0.3), Roughness 0.3, Multiscatter
+    GGX: Cycles' energy compensation brightens and saturates a coloured metal's reflection."""
+    def glossy():
+        m = B.material("TintedGlossy", "glossy", (0.9, 0.6, 0.3), roughness=0.3)
+        next(n for n in m.node_tree.nodes if n.type == "BSDF_GLOSSY").distribution = "MULTI_GGX"
+        return m
+    return _mirror_under_bulb("rough_tinted_mirror", glossy)
 
 
 def fake_shadow_ball():
@@ -704,10 +721,14 @@ SCENES = {
                       "seen at a slant under a glass ball"),
     "fake_shadow_ball": (fake_shadow_ball, "the fake-shadow trick: Glass and Transparent BSDF mixed by Light "
                          "Path's Is Shadow Ray, on a ball"),
-    "rough_glass_ball": (rough_glass_ball, "a ball of Principled glass at the default Roughness 0.5 (a blurred "
-                         "caustic; known: the layer bakes it smooth)"),
+    "rough_glass_ball": (rough_glass_ball, "a ball of Principled glass at the default Roughness 0.5 (Multiscatter "
+                         "GGX: a blurred caustic), part of it seen through the ball"),
     "rough_mirror": (rough_mirror, "mirror_point_hard's mirror as Principled metal at the default Roughness 0.5 "
-                     "(known: the layer bakes it smooth)"),
+                     "(Multiscatter GGX)"),
+    "rough_glass_ggx": (rough_glass_ggx, "a Glass BSDF ball of Roughness 0.3, GGX (single scattering) under a "
+                        "point light, part of its blurred caustic seen through it"),
+    "rough_tinted_mirror": (rough_tinted_mirror, "mirror_point_hard's mirror as a coloured Glossy BSDF of "
+                            "Roughness 0.3, Multiscatter GGX"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

@@ -23,6 +23,7 @@ from .errors import BakeCancelled, SceneError
 from .film import Film
 from .lights import emit
 from .plan import _rng, light_key, make_plan, refine_plan, spot_target
+from .rough import rough_objects
 from .tracer import Tracer
 from .vec import channel_mean
 
@@ -437,15 +438,18 @@ def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per
     """The photons' share of a manifold bake: the paths focusing more than opts.handoff,
     and every path of a chain type the guide found too weak to be worth walks; factors:
     {light index: photons per walk sample} (auto's share of the time, default 1)."""
-    if opts.handoff <= 0 or not types:
+    # paths through a rough mirror or glass are the photons' whatever opts.handoff (no walk takes them)
+    rough = bool(np.any(rough_objects(scene) & plan.casters))
+    if not rough and (opts.handoff <= 0 or not types):
         return
+    tau0 = opts.handoff if opts.handoff > 0 else math.inf
     for lp in plan.lights:
         share = (factors or {}).get(lp.index, 1.0) * plan.sample_share.get(lp.index, 1.0)
         per_batch = max(1, int(per_light * share) // settings.batches)
         st = light_stats[lp.name]
         hs = st.setdefault("handoff", dict.fromkeys(("photons", "rays_photon", "rays_camera", "splats",
                                                      "handoff_paths", "truncated", "lost_shading_normal"), 0))
-        tau = {t: 0.0 if guide is not None and guide.is_weak(lp.index, t) else opts.handoff for t in types}
+        tau = {t: 0.0 if guide is not None and guide.is_weak(lp.index, t) else tau0 for t in types}
         # the photons also take every path the walks cannot (a chain type they do not walk), so
         # that nothing the camera sees directly is dropped
         handoff = reference.Handoff(tau, bool(scene.light_type[lp.index] in S.DISTANT), others=True)
@@ -773,6 +777,10 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
         opts = settings.manifold_options()
         opts_by_light = {li: settings.manifold_options(c.walk) for li, c in choices.items()}
         types = chain_types(scene, plan, opts)
+        rough = [scene.object_names[o] for o in np.flatnonzero(rough_objects(scene) & plan.casters)]
+        if rough:
+            plan.notes.append(f"{', '.join(rough)}: rough, so {'its' if len(rough) == 1 else 'their'} caustic comes "
+                              f"from the photons (a walk solves for a perfect mirror's or glass's paths)")
         cut = [t for t in chain_types(scene, plan, opts, light_paths=False) if t not in types]
         if cut:
             from .bounces import Limits

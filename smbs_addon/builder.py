@@ -49,7 +49,8 @@ class SceneBuilder:
     # ------------------------------------------------------------ materials
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
-                 bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0)) -> int:
+                 bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0),
+                 distribution=1) -> int:
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -59,7 +60,8 @@ class SceneBuilder:
                                    roughness=float(roughness), strength=float(strength),
                                    fresnel=int(fresnel), bump_correction=bool(bump_correction),
                                    layer=np.asarray(layer, float), textured=bool(textured),
-                                   absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy()))
+                                   absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy(),
+                                   distribution=int(distribution)))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
@@ -250,6 +252,8 @@ class SceneBuilder:
             else np.zeros(0, bool),
             mat_absorb=np.array([x["absorb"] for x in m], float).reshape(-1, 3) if any(x["absorb"].max() > 0 for x in m)
             else np.zeros((0, 3)),
+            mat_distribution=np.array([x["distribution"] for x in m], np.int64)
+            if any(x["distribution"] != 1 for x in m) else np.zeros(0, np.int64),
         )
         sc.validate()
         return sc

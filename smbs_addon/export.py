@@ -23,6 +23,7 @@ from . import scene as S
 from .builder import SceneBuilder
 from .errors import SceneError
 from .layer import SINGULAR_ALPHA2, principled_layer
+from .rough import GGX, MULTI_GGX
 
 log = logging.getLogger(__name__)
 
@@ -229,11 +230,6 @@ def classify_material(mat, warn) -> dict:
     if kw["kind"] in (S.DIELECTRIC, S.CONDUCTOR) and out is not None and _linked(out, "Displacement"):
         warn(f"material '{mat.name}': its Displacement is linked: its caustic is baked from the undisplaced "
              f"surface, where Cycles' follows the bumps (the mesh's own shape, modifiers included, is used)")
-    rough = float(kw.get("roughness", 0.0))
-    if kw["kind"] in (S.DIELECTRIC, S.CONDUCTOR) and rough ** 4 > SINGULAR_ALPHA2:
-        warn(f"material '{mat.name}': Roughness {rough:.3g}: its caustic is baked as a smooth "
-             f"{'glass' if kw['kind'] == S.DIELECTRIC else 'mirror'}'s, sharp where Cycles blurs it "
-             f"(the layer has no rough casters yet)")
     vol = _follow(out.inputs["Volume"]) if out is not None and out.inputs.get("Volume") is not None else None
     if vol is None or vol[0].mute:
         return kw
@@ -281,6 +277,18 @@ def _surface_material(mat, warn) -> dict:
         return _mixed(parts, left, mat, warn)
     except _Unsupported as e:
         return diffuse(str(e))
+
+
+def _distribution(node, mat, warn, roughness) -> int:
+    """A rough mirror's or glass's microfacet distribution (rough.py): Multiscatter GGX or GGX; a
+    Beckmann or Ashikhmin-Shirley one is baked as GGX, and said so where the surface is rough."""
+    d = getattr(node, "distribution", "MULTI_GGX")
+    if d == "MULTI_GGX":
+        return MULTI_GGX
+    if d != "GGX" and float(roughness) ** 4 > SINGULAR_ALPHA2:
+        warn(f"material '{mat.name}': the {d.replace('_', '-').title()} distribution of '{node.name}' is baked "
+             f"as GGX (its blur of the caustic a little different from Cycles')")
+    return GGX
 
 
 def _black(mat, warn, why) -> dict:
@@ -380,7 +388,7 @@ def _fresnel_mix(mix, ior, mat, warn) -> dict:
                  f"refraction of {float(a['ior']):.4g}: taken as one glass of index {float(a['ior']):.4g}")
         return dict(kind=S.DIELECTRIC, color=np.asarray(a["color"], float).copy(),
                     reflect_color=np.asarray(g["color"], float).copy(), ior=float(a["ior"]),
-                    roughness=float(a["roughness"]))
+                    roughness=float(a["roughness"]), distribution=int(a.get("distribution", MULTI_GGX)))
     lay = _layer_of(a) if a is not None and a["kind"] == S.DIFFUSE else None
     if glossy and lay is not None and not np.any(lay[[0, 5]] > 0):
         warn(f"material '{mat.name}': its Glossy part '{g_name}' (weighed by the Fresnel of index {ior:.4g}) "
@@ -393,10 +401,11 @@ def _fresnel_mix(mix, ior, mat, warn) -> dict:
 
 def _group_key(kw):
     """Parts of a mix that add up exactly into one material: the same kind and, for glass and
-    mirrors, the same index, roughness and Fresnel."""
+    mirrors, the same index, roughness, Fresnel and microfacet distribution."""
     k = kw["kind"]
     if k in (S.DIELECTRIC, S.CONDUCTOR):
-        return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), int(kw.get("fresnel", S.FRESNEL_NONE)))
+        return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), int(kw.get("fresnel", S.FRESNEL_NONE)),
+                int(kw.get("distribution", MULTI_GGX)))
     return (k,)
 
 
@@ -505,7 +514,8 @@ def _bsdf(node, mat, warn) -> dict:
                 warn(f"material '{mat.name}': Principled BSDF Metallic {metallic:g}: the diffuse under "
                      f"its coat ({1 - metallic:.0%} of it) receives no caustics")
             return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
-                        reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0)
+                        reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0,
+                        distribution=_distribution(node, mat, warn, rough))
         if trans >= 0.5:
             w_glass = float((1.0 - metallic) * trans)
             if w_glass < 1.0:
@@ -517,7 +527,8 @@ def _bsdf(node, mat, warn) -> dict:
             if not np.allclose(tint, 1.0):
                 warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
             return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
-                        reflect_color=np.full(3, w_glass), ior=ior, roughness=rough)
+                        reflect_color=np.full(3, w_glass), ior=ior, roughness=rough,
+                        distribution=_distribution(node, mat, warn, rough))
         # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
         # dielectric glossy layer that takes its share towards the eye (layer.py)
         level = _input(node, "Specular IOR Level", 0.5)
@@ -536,18 +547,21 @@ def _bsdf(node, mat, warn) -> dict:
              f"its caustic is baked from the unbumped surface, where Cycles' follows the bumps")
     if t == "BSDF_GLASS":
         c = _const(node, "Color")
-        return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(),
-                    ior=_const(node, "IOR"), roughness=_const(node, "Roughness"))
+        r = _const(node, "Roughness")
+        return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(), ior=_const(node, "IOR"), roughness=r,
+                    distribution=_distribution(node, mat, warn, r))
     if t == "BSDF_REFRACTION":  # Cycles: transmits Color, no Fresnel term, no reflection
+        r = _const(node, "Roughness")
         return dict(kind=S.DIELECTRIC, color=_const(node, "Color"), reflect_color=np.zeros(3),
-                    ior=_const(node, "IOR"), roughness=_const(node, "Roughness"),
-                    fresnel=S.REFRACTION_ONLY)
+                    ior=_const(node, "IOR"), roughness=r, fresnel=S.REFRACTION_ONLY,
+                    distribution=_distribution(node, mat, warn, r))
     if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
         if node.inputs.get("Anisotropy") is not None and (
                 _linked(node, "Anisotropy") or float(node.inputs["Anisotropy"].default_value) != 0):
             warn(f"material '{mat.name}': Glossy BSDF anisotropy ignored")
-        return dict(kind=S.CONDUCTOR, color=_const(node, "Color"),
-                    roughness=_const(node, "Roughness"), fresnel=S.FRESNEL_NONE)
+        r = _const(node, "Roughness")
+        return dict(kind=S.CONDUCTOR, color=_const(node, "Color"), roughness=r, fresnel=S.FRESNEL_NONE,
+                    distribution=_distribution(node, mat, warn, r))
     if t == "BSDF_DIFFUSE":  # Cycles' Oren-Nayar from a Roughness of 1e-5
         sigma = float(_const(node, "Roughness"))
         color, textured = _colour(node, "Color")

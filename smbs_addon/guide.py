@@ -23,6 +23,7 @@ from .convergence import box
 from .lights import emit
 from .optics import absorbing, arriving, inside, transmittance
 from .reference import scatter_specular
+from .rough import rough_objects
 
 TILE = 4  # pixels per tile side
 Q = 0.125  # walk probability in tiles no photon reached
@@ -163,6 +164,8 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
     other = np.zeros(2)  # flux in frame of chains not in types_list: [all of them, those longer than max_chain]
     rays = 0
     medium = np.full(len(o), -1)  # inside a glass (its material) or not: its Volume Absorption
+    rough = rough_objects(scene)
+    via_rough = np.zeros(len(o), bool)  # through a rough mirror or glass: no walk's (the photons')
     absorbs = absorbing(scene)
     for bounce in range(max_bounces + 1):
         if check is not None:
@@ -172,7 +175,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         h = tracer.intersect(o, d)
         rays += len(o)
         idx = np.flatnonzero(h.hit)
-        o, d, beta, sig, length = o[idx], d[idx], beta[idx], sig[idx], length[idx]
+        o, d, beta, sig, length, via_rough = o[idx], d[idx], beta[idx], sig[idx], length[idx], via_rough[idx]
         cnt = cnt[idx]
         prim = h.prim[idx]
         mat = scene.tri_material[prim]
@@ -197,11 +200,12 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
             known = np.zeros(diff.size, bool)
             for t in types_list:
                 known |= sig[diff] == _code(t[::-1])
+            known &= ~via_rough[diff]
             lum = beta[diff].mean(axis=1)
             other[0] += float(lum[ok & ~known].sum())
             other[1] += float(lum[ok & ~known & (length[diff] > max_chain)].sum())
             for t in types_list:
-                sel = ok & (sig[diff] == _code(t[::-1]))  # photons list vertices from the light
+                sel = ok & known & (sig[diff] == _code(t[::-1]))  # photons list vertices from the light
                 if sel.any():
                     np.add.at(flux[t], (ty[sel], tx[sel]), beta[diff][sel].mean(axis=1))
                     m = marks[t]
@@ -217,6 +221,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         letter = specular_kind(d[si][keep], d_new, ng[keep])  # 1 R (glossy), 2 T (transmission)
         sig = sig[si][keep] * 3 + letter
         length = length[si][keep]
+        via_rough = via_rough[si][keep] | rough[obj[si][keep]]
         cnt = cnt[si][keep]
         if absorbs:
             medium = inside(scene, mat[si][keep], kind[si][keep] == S.DIELECTRIC, d_new, ng[keep])

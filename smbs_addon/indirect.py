@@ -430,7 +430,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     kernels.handoff_lanes' random numbers); found: light index -> paths taken.
     The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
     segments and the paths taken are found here, per number of specular vertices."""
-    from .reference import _handoff_select, other_paths
+    from .reference import _handoff_select, other_paths, walked_casters
 
     n = len(rc.p)
     K = _handoff_depth(handoffs)
@@ -480,7 +480,8 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
             # _handoff_select reads the history light side first: reverse the bounces
             rev = np.arange(bounce)[::-1]
             hr = hist[r][:, rev]
-            kb, refl, caster = np.full(seen.size, bounce), hr[:, :, 5].astype(np.int64), hr[:, :, 6] > 0
+            kb, refl = np.full(seen.size, bounce), hr[:, :, 5].astype(np.int64)
+            caster = walked_casters(scene, h_prim[r][:, rev], hr[:, :, 6] > 0)
             take = _handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev], hr[:, :, 0:3],
                                    hr[:, :, 3:5], refl, caster, y)
             t = seen[take]

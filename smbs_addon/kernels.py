@@ -1227,6 +1227,22 @@ def keyed_uniform(key, a, b, dim):
     return np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
+_SALT = np.uint64(0xD1B54A32D192ED03)
+
+
+@njit(inline="always", **_JIT)
+def keyed_uniform3(key, a, b, dim):
+    """keyed_uniform(key, a, b, dim) and two more uniform numbers (32 bits each, from one hash of a
+    salted key) for a specular vertex: the lobe, then a rough surface's microfacet normal
+    (optics.scatter1). The first is the number a smooth vertex always drew, so its paths stay."""
+    z = _mix64(np.uint64(key) + _SALT + _GOLD * np.uint64(a + 1))
+    z = _mix64(z + _GOLD * np.uint64(b + 1))
+    z = _mix64(z + _GOLD * np.uint64(dim + 1))
+    lo = np.float64(z & np.uint64(0xFFFFFFFF)) * (1.0 / 4294967296.0)
+    hi = np.float64(z >> np.uint64(32)) * (1.0 / 4294967296.0)
+    return keyed_uniform(key, a, b, dim), lo, hi
+
+
 @njit(**_JIT)
 def _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first, tally, d, want):
     """bernoulli_lanes' loop over its samples, on borrowed arrays (its caller holds them)."""
@@ -1526,7 +1542,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
             else:
                 b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
             n = _shading_normal(tns, pr, b1, b2, gg)
-            ok, dd, bb, bent = scatter1(keyed_uniform(key, r, s, 3 + bounce), _neg(d), n, gg, m, kind, mats, b,
+            ok, dd, bb, bent = scatter1(keyed_uniform3(key, r, s, 3 + bounce), _neg(d), n, gg, m, kind, mats, b,
                                         physical, False)
             if not ok or (targeted and bounce == 0 and not bent):  # bent_gather: bent first vertices only
                 break
@@ -1676,7 +1692,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
                     break
                 if not spec:
                     break
-                ok, dd, bb, _ = scatter1(keyed_uniform(key, lane, it, 0), _neg(d), n, g, m, kind, mats, b,
+                ok, dd, bb, _ = scatter1(keyed_uniform3(key, lane, it, 0), _neg(d), n, g, m, kind, mats, b,
                                          not physical, True)
                 if not ok:
                     tally[PH_LOST] += 1
@@ -1908,7 +1924,7 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
                 break
             if depth >= max_bounces or not (kind == _CONDUCTOR or kind == _DIELECTRIC):
                 break
-            ok, dd, bb, _ = scatter1(keyed_uniform(key, sample[lane], depth, 0), _neg(d), n, g, m, kind, mats, b,
+            ok, dd, bb, _ = scatter1(keyed_uniform3(key, sample[lane], depth, 0), _neg(d), n, g, m, kind, mats, b,
                                      scale_eta, False)
             if not ok:
                 break
@@ -2028,7 +2044,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                     break
                 if not (kind == _CONDUCTOR or kind == _DIELECTRIC) or bounce == max_specular:
                     break
-                ok, dd, bb, _ = scatter1(keyed_uniform(key, lane, ev, 0), _neg(d), hn, hg, hm, kind, mats, b,
+                ok, dd, bb, _ = scatter1(keyed_uniform3(key, lane, ev, 0), _neg(d), hn, hg, hm, kind, mats, b,
                                          physical, False)
                 ev += 1
                 if not ok:

@@ -35,23 +35,28 @@ import math
 import numpy as np
 
 from .optics import fresnel_dielectric
+from .rough import SINGULAR_ALPHA2  # noqa: F401  (a smoother coat is a perfect mirror)
 
 MU_STEPS = 64  # the table's cosines: 0, 1/64, ..., 1
 _GRID = 64  # stratified visible-normal samples per axis
 _cache: dict = {}  # (ior, roughness, tint) -> (weights, gains), each (MU_STEPS + 1,)
 
 
-def _lambda_ggx(cos, a2):
+def lambda_ggx(cos, a2):
     """Smith's Lambda of GGX (alpha^2 = a2) for directions of cosine cos (> 0)."""
     c2 = np.maximum(cos * cos, 1e-12)
     return 0.5 * (np.sqrt(1.0 + a2 * np.maximum(1.0 / c2 - 1.0, 0.0)) - 1.0)
 
 
-def _albedos(mu: np.ndarray, alpha: float, eta: float) -> tuple[np.ndarray, np.ndarray]:
-    """(E_F, E) at each cosine mu: the single-scattering GGX albedo with and without the
-    dielectric Fresnel, by stratified visible-normal samples (the same samples for every mu)."""
-    u = (np.arange(_GRID) + 0.5) / _GRID
+def visible_normals(mu: np.ndarray, alpha: float, grid: int = _GRID, jitter=None):
+    """Stratified samples (grid^2, the same for every mu) of GGX's visible normals (Heitz 2018) for
+    directions w of cosines mu in the x-z plane: (hx, hz) of the normals (K, S) and (wx, wz) of the
+    directions (K, 1); the normals' y parts are not needed by the albedos. jitter: (2, grid^2)
+    offsets in [0, 1) within the strata (None: their midpoints)."""
+    u = (np.arange(grid) + 0.5) / grid
     u1, u2 = (x.ravel() for x in np.meshgrid(u, u, indexing="ij"))
+    if jitter is not None:
+        u1, u2 = u1 + (jitter[0] - 0.5) / grid, u2 + (jitter[1] - 0.5) / grid
     # concentric mapping of the unit square onto the disk (Shirley and Chiu)
     a, b = 2.0 * u1 - 1.0, 2.0 * u2 - 1.0
     big = np.abs(a) > np.abs(b)
@@ -61,7 +66,6 @@ def _albedos(mu: np.ndarray, alpha: float, eta: float) -> tuple[np.ndarray, np.n
                        math.pi / 2 - (math.pi / 4) * a / np.where(b == 0, 1, b))
     t1, t2 = r * np.cos(phi), r * np.sin(phi)
     alpha = max(float(alpha), 1e-4)
-    a2 = alpha * alpha
     m = np.clip(np.asarray(mu, float), 1e-4, 1.0)[:, None]  # (K, 1) against the samples (1, S)
     wo_x = np.sqrt(np.maximum(1.0 - m * m, 0.0))
     # the view stretched to the hemisphere configuration (in the x-z plane: T1 is the y axis)
@@ -74,15 +78,36 @@ def _albedos(mu: np.ndarray, alpha: float, eta: float) -> tuple[np.ndarray, np.n
     nx, ny, nz = -tt2 * vz + tz * vx, t1 + 0.0 * m, tt2 * vx + tz * vz
     hx, hy, hz = alpha * nx, alpha * ny, np.maximum(nz, 0.0)
     hl = np.maximum(np.sqrt(hx * hx + hy * hy + hz * hz), 1e-300)
-    hx, hz = hx / hl, hz / hl
+    return hx / hl, hz / hl, wo_x, m
+
+
+def _albedos(mu: np.ndarray, alpha: float, eta: float) -> tuple[np.ndarray, np.ndarray]:
+    """(E_F, E) at each cosine mu: the single-scattering GGX albedo with and without the
+    dielectric Fresnel, by stratified visible-normal samples (the same samples for every mu)."""
+    hx, hz, wo_x, m = visible_normals(mu, alpha)
+    a2 = max(float(alpha), 1e-4) ** 2
     d = hx * wo_x + hz * m
     wi_z = 2.0 * d * hz - m
     up = wi_z > 0
-    lo = _lambda_ggx(m, a2)
-    g2_over_g1 = np.where(up, (1.0 + lo) / (1.0 + lo + _lambda_ggx(np.where(up, wi_z, 1.0), a2)), 0.0)
+    lo = lambda_ggx(m, a2)
+    g2_over_g1 = np.where(up, (1.0 + lo) / (1.0 + lo + lambda_ggx(np.where(up, wi_z, 1.0), a2)), 0.0)
     ef = (fresnel_dielectric(np.abs(d), eta) * g2_over_g1).mean(axis=1)
     e = g2_over_g1.mean(axis=1)
     return ef, e
+
+
+def visible_albedo(mu: np.ndarray, alpha: float) -> np.ndarray:
+    """E(mu): the single-scattering albedo of a GGX mirror without Fresnel (Cycles' ggx_E), to
+    ~1e-4 (rough.fine_mean's samples)."""
+    from .rough import fine_mean
+
+    def g2_over_g1(hx, hz, wo_x, m):
+        a2 = max(float(alpha), 1e-4) ** 2
+        wi_z = 2.0 * (hx * wo_x + hz * m) * hz - m
+        up = wi_z > 0
+        lo = lambda_ggx(m, a2)
+        return np.where(up, (1.0 + lo) / (1.0 + lo + lambda_ggx(np.where(up, wi_z, 1.0), a2)), 0.0)
+    return fine_mean(mu, alpha, g2_over_g1)
 
 
 def _tables(ior: float, roughness: float, tint: float) -> tuple[np.ndarray, np.ndarray]:
@@ -193,7 +218,6 @@ def principled_layer(ior: float, level: float, tint) -> tuple[float, float]:
     return ior_from_f0(f0), float(max(np.asarray(tint, float)[:3].max(), 0.0))
 
 
-SINGULAR_ALPHA2 = 1e-7  # Cycles' BSDF_ROUGHNESS_SQ_THRESH: a smoother coat is a perfect mirror
 
 
 def oren_nayar_g(c):
@@ -266,8 +290,8 @@ def coat_factor(scene, mat, color, n, w_view, w_light, share=True) -> np.ndarray
     h /= np.maximum(np.linalg.norm(h, axis=1), 1e-300)[:, None]
     c_nh = (h * nn).sum(1)
     d = a2 / (np.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
-    lam_o = _lambda_ggx(mu_o, a2)
-    g2 = 1.0 / (1.0 + lam_o + _lambda_ggx(np.maximum(mu_i, 1e-9), a2))
+    lam_o = lambda_ggx(mu_o, a2)
+    g2 = 1.0 / (1.0 + lam_o + lambda_ggx(np.maximum(mu_i, 1e-9), a2))
     fres = fresnel_dielectric((h * wv).sum(1), np.where(coated, lay[:, 0], 1.5))
     one_minus_a = weight(spec_table(scene), m, mu_o)  # a clear coat scales both closures alike
     gain = weight(gain_table(scene), m, mu_o)

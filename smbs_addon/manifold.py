@@ -26,6 +26,7 @@ from .geometry import triangle_areas
 from .layer import coat_factor, has_layers
 from .lights import area_light_points, distant_cone, env_map
 from .optics import has_reflection
+from .rough import rough_objects, walk_casters
 from .trials import bernoulli_trials
 from .vec import channel_mean, dot, normalize, uniform_cone, frame, to_world
 from .walk import OUTCOMES, TRIGGERS, WalkConfig, newton_walk, propagate
@@ -64,10 +65,11 @@ class Ctx:
     """What the walk needs: scene, tracer, caster mask, object boxes, counters."""
 
     def __init__(self, scene, tracer, plan, stats):
-        self.scene, self.tracer, self.casters, self.stats = scene, tracer, plan.casters, stats
+        # the walks' casters: the planned ones but rough mirrors and glass (their paths: photons)
+        self.scene, self.tracer, self.casters, self.stats = scene, tracer, walk_casters(scene, plan.casters), stats
         self.scale = plan.scale  # a length for tolerances, over what takes part
         self.obj_lo, self.obj_hi = tracer.obj_lo, tracer.obj_hi  # built once per bake
-        cast = np.flatnonzero(plan.casters & tracer.obj_has_tris)
+        cast = np.flatnonzero(self.casters & tracer.obj_has_tris)
         self.caster_lo = self.obj_lo[cast].min(axis=0) if cast.size else np.zeros(3)
         self.caster_hi = self.obj_hi[cast].max(axis=0) if cast.size else np.zeros(3)
         self.physical = False
@@ -131,9 +133,10 @@ def chain_types(scene, plan, opts: ManifoldOptions, light_paths: bool = True) ->
     for o in np.flatnonzero(plan.receivers):
         lo, hi = scene.object_bounds(o)
         rec_lo, rec_hi = np.minimum(rec_lo, lo), np.maximum(rec_hi, hi)
-    conductors = [o for o in np.flatnonzero(plan.casters)
-                   if np.any(kinds[scene.tri_object == o] == S.CONDUCTOR)]
-    for o in np.flatnonzero(plan.casters):
+    casters = walk_casters(scene, plan.casters)  # a rough caster's paths go to the photons
+    conductors = [o for o in np.flatnonzero(casters)
+                  if np.any(kinds[scene.tri_object == o] == S.CONDUCTOR)]
+    for o in np.flatnonzero(casters):
         k = kinds[scene.tri_object == o]
         if any(has_reflection(scene, m) for m in np.unique(scene.tri_material[scene.tri_object == o])):
             types.append("R")  # not for Cycles' Refraction BSDF, which never reflects
@@ -582,15 +585,19 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     # the frame or more (every light without the guide). They used to be lost wherever the camera
     # looks through glass: on a bevelled cube's floor seen through the cube, chains of 5 and more
     # vertices carry 8% of the light reaching the frame.
+    # Paths through a rough mirror or glass (no walk takes them) are such paths too, whatever
+    # opts.handoff says (MNEE's, or the user's 0).
     handoffs, focus = {}, set()
-    if opts.handoff > 0 and types_list:
+    rough = bool(np.any(rough_objects(scene) & plan.casters))
+    if (opts.handoff > 0 and types_list) or rough:
         from .reference import Handoff
 
         for lp in plan.lights:
             if not light_can_be_hit(scene, lp.index):
                 continue
-            seen_focus = _hand_off_seen(scene, lp, ctxs[lp.index].stats)
-            others = guide is None or guide.stats.get("other_share", {}).get(lp.name, 1.0) >= OTHERS_MIN_SHARE
+            seen_focus = opts.handoff > 0 and bool(types_list) and _hand_off_seen(scene, lp, ctxs[lp.index].stats)
+            others = rough or guide is None or \
+                guide.stats.get("other_share", {}).get(lp.name, 1.0) >= OTHERS_MIN_SHARE
             if seen_focus or others:
                 tau = max(opts.handoff, SEEN_HANDOFF_MIN) if seen_focus else math.inf
                 handoffs[lp.index] = Handoff({t: tau for t in types_list}, bool(scene.light_type[lp.index] in S.DISTANT),

@@ -17,6 +17,7 @@ from numba import njit
 
 from . import scene as S
 from .jit import JIT
+from .rough import alphas, distributions, energy_gain1, energy_tables, lambda1, visible_normal1
 
 _CONDUCTOR, _DIELECTRIC = S.CONDUCTOR, S.DIELECTRIC
 _SCHLICK, _REFRACTION_ONLY = S.FRESNEL_SCHLICK, S.REFRACTION_ONLY
@@ -187,9 +188,14 @@ def _material(mats, m):
 
 @njit(inline="always", **JIT)
 def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
-    """One perfect-specular interaction, as Cycles makes it (reference.scatter_specular):
-    returns (ok, the new direction (unit), the new weight, bent). u: the uniform number that picks
-    the lobe; kind_m: the kind the caller found (material m's).
+    """One specular interaction, as Cycles makes it (reference.scatter_specular): returns (ok, the
+    new direction (unit), the new weight, bent). u: three uniform numbers, the first picks the
+    lobe, the other two a rough surface's microfacet normal; kind_m: the kind the caller found
+    (material m's).
+
+    A rough mirror or glass (mats[11]: alpha, rough.py) scatters about a microfacet normal drawn
+    from the normals visible from w_in (rough.visible_normal1), the lobe's weight times
+    G2 / G1(w_in) and, for Multiscatter GGX, the energy factor at the eye's direction (mats[12]).
 
     Bump Map Correction (the material's flag in mats): along an eye path (not adjoint) the
     shading normal is bent as Cycles bends it (valid_reflection1; bent: it was); a photon (adjoint)
@@ -207,13 +213,20 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
         ns, bent = bend1(w_in, ns, ng)
     cs = _dot(w_in, ns)
     front = cs * sgn > 0  # Cycles: N.wi <= 0 after the flip -> no scattering
-    R, T = specular_weights1(kind, fres, color, rcolor, eta, cs)
+    alpha = mats[11][m]
+    nf, cf = ns, cs  # the normal the lobes scatter about: ns, or a microfacet normal about it
+    if alpha > 0.0 and front:
+        h = visible_normal1(w_in, (sgn * ns[0], sgn * ns[1], sgn * ns[2]), alpha, u[1], u[2])
+        nf = (sgn * h[0], sgn * h[1], sgn * h[2])  # on ng's side, as ns
+        cf = _dot(w_in, nf)
+        front = cf * sgn > 0
+    R, T = specular_weights1(kind, fres, color, rcolor, eta, cf)
     r_lum, t_lum = R[0] + R[1] + R[2], T[0] + T[1] + T[2]
     tot = r_lum + t_lum
     p_r = r_lum / tot if tot > 0 else 0.0
-    choose_r = u < p_r
-    t_dir, t_ok = refract1(w_in, ns, eta)
-    n_out = reflect1(w_in, ns) if choose_r else t_dir
+    choose_r = u[0] < p_r
+    t_dir, t_ok = refract1(w_in, nf, eta)
+    n_out = reflect1(w_in, nf) if choose_r else t_dir
     p_sel = p_r if choose_r else 1.0 - p_r
     W = R if choose_r else T
     den = p_sel if p_sel > 0 else 1.0
@@ -229,12 +242,22 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
         corr = num / dn if dn > 0 else 0.0
         b = (b[0] * corr, b[1] * corr, b[2] * corr)
     side = (cin * cout > 0) if choose_r else ((cin * cout < 0) and t_ok)
-    finite = b[0] == b[0] and b[1] == b[1] and b[2] == b[2]  # numpy's max of a row with a NaN is NaN
-    if not (front and side and p_sel > 0 and finite and (b[0] > 0 or b[1] > 0 or b[2] > 0)):
-        return False, zero, zero, bent
     ln = math.sqrt(_dot(n_out, n_out))
     inv = 1.0 / ln if ln > 0 else 0.0
     d = (n_out[0] * inv, n_out[1] * inv, n_out[2] * inv)
+    if alpha > 0.0:
+        co = _dot(d, ns)
+        # Cycles: a photon's eye-side direction d in front of its shading normal
+        side = side and (co * cout > 0 or not adjoint)
+        a2 = alpha * alpha
+        li = lambda1(cs, a2)
+        g = (1.0 + li) / (1.0 + li + lambda1(co, a2))
+        eye, ce = (d, co) if adjoint else (w_in, cs)
+        k = energy_gain1(mats[12], m, _dot(eye, ng) > 0, abs(ce))
+        b = (b[0] * g * k[0], b[1] * g * k[1], b[2] * g * k[2])
+    finite = b[0] == b[0] and b[1] == b[1] and b[2] == b[2]  # numpy's max of a row with a NaN is NaN
+    if not (front and side and p_sel > 0 and finite and (b[0] > 0 or b[1] > 0 or b[2] > 0)):
+        return False, zero, zero, bent
     if correct and adjoint and bend1(d, ns, ng)[1]:  # would Cycles bend the normal for the eye's direction d?
         return False, zero, zero, True
     return True, d, b, bent
@@ -243,14 +266,14 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
 # ------------------------------------------------------------------ over arrays
 @njit(**JIT)
 def scatter_rows(u, w_in, ns, ng, mat, kind, mats, beta, scale_eta, adjoint):
-    """scatter1 per lane: (new directions, new weights, kept lanes)."""
+    """scatter1 per lane (u: (N, 3) uniform numbers): (new directions, new weights, kept lanes)."""
     n = u.shape[0]
     d_out = np.zeros((n, 3))
     b_out = np.zeros((n, 3))
     keep = np.zeros(n, np.int64)
     cnt = 0
     for i in range(n):
-        ok, d, b, _ = scatter1(u[i], _row3(w_in, i), _row3(ns, i), _row3(ng, i), mat[i], kind[i], mats,
+        ok, d, b, _ = scatter1(_row3(u, i), _row3(w_in, i), _row3(ns, i), _row3(ng, i), mat[i], kind[i], mats,
                                _row3(beta, i), scale_eta, adjoint)
         if ok:
             keep[cnt] = i
@@ -321,14 +344,24 @@ def materials(scene) -> tuple:
     """The scene's material tables as scatter1 takes them; then a Principled coat's (layer.py):
     the diffuse's weight and the coat's multiple-scattering gain by the eye's cosine, and the
     coats (Scene.mat_layer), the diffuse's weight under its glossy coat alone (kernels._tab_weight,
-    kernels._coat_factor)."""
+    kernels._coat_factor), each glass's absorption; then the rough mirrors' and glass's GGX alpha (0:
+    a perfect one) and Multiscatter GGX's factors (rough.py)."""
     from .layer import coat, gain_table, spec_table, table
 
     spec = spec_table(scene)
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
             np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64),
-            table(scene, spec), gain_table(scene), coat(scene), spec, absorption(scene))
+            table(scene, spec), gain_table(scene), coat(scene), spec, absorption(scene), alphas(scene),
+            _energy(scene))
+
+
+def _energy(scene) -> np.ndarray:
+    """rough.energy_tables, kept by the scene while its materials stay the same."""
+    key = ("energy_tables",) + tuple(np.asarray(getattr(scene, f)).tobytes() for f in (
+        "mat_kind", "mat_fresnel", "mat_roughness", "mat_ior", "mat_color", "mat_reflect_color")) + (
+        distributions(scene).tobytes(),)
+    return scene.derived(key, lambda: energy_tables(scene))
 
 
 def absorption(scene) -> np.ndarray:
@@ -418,8 +451,10 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
 
 def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
     """specular_weights1 per lane: (R, T), each (N,3), of materials mat at incidence cos_i."""
-    return _weights_rows(np.ascontiguousarray(mat, np.int64), materials(scene),
-                         np.ascontiguousarray(cos_i, np.float64))
+    mats = (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
+            np.ascontiguousarray(scene.mat_color, np.float64),
+            np.ascontiguousarray(scene.mat_reflect_color, np.float64), np.ascontiguousarray(scene.mat_ior, np.float64))
+    return _weights_rows(np.ascontiguousarray(mat, np.int64), mats, np.ascontiguousarray(cos_i, np.float64))
 
 
 def has_reflection(scene, mat) -> bool:

@@ -19,6 +19,7 @@ import numpy as np
 
 from . import embree, kernels, lanes
 from .optics import materials, scatter_rows
+from .rough import rough_materials, rough_objects
 from .estimators import concentration
 from .bounces import Limits
 from .geometry import vertex_from_hits
@@ -47,7 +48,11 @@ def scatter_specular(scene, rng, w_in, ns, ng, mat, kind, beta, scale_eta=False,
     agrees with the radiance view (Cycles, the walks) on bumpy or normal-mapped casters.
 
     Returns (new unit directions, new weights, kept lane indices)."""
-    u = rng.random(len(w_in))
+    n = len(w_in)
+    u = np.zeros((n, 3))
+    u[:, 0] = rng.random(n)  # the lobe; a rough surface's microfacet normal from two more (a smooth scene draws none)
+    if rough_materials(scene).any():
+        u[:, 1:] = rng.random((n, 2))
     d, beta, keep = scatter_rows(u, *(np.ascontiguousarray(a, np.float64) for a in (w_in, ns, ng)),
                                  np.ascontiguousarray(mat, np.int64), np.ascontiguousarray(kind, np.int64),
                                  materials(scene), np.ascontiguousarray(beta, np.float64), bool(scale_eta),
@@ -78,7 +83,17 @@ class Handoff:
 
     @property
     def max_chain(self):
-        return max(len(t) for t in self.types)
+        return max((len(t) for t in self.types), default=0)
+
+
+def walked_casters(scene, prim, caster):
+    """The hand-off's record of which vertices lie on a planned caster (prim: their triangles,
+    caster: the photon kernel's flags), less the rough ones: no walk takes a path through a rough
+    mirror or glass (rough.walk_casters), so other_paths gives it to the photons."""
+    rough = rough_objects(scene)
+    if not rough.any():
+        return caster
+    return caster & ~rough[scene.tri_object[np.maximum(prim, 0)]]
 
 
 def _chain_codes(refl, lanes, k):
@@ -240,7 +255,8 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         y_end = -photons.d[ln] if handoff.directional else photons.o[ln]
         h = hist[ln]
         take = _handoff_select(scene, tracer, handoff, rec[:, 0:3], ids[:, 1], h_prim[ln], h[:, :, 0:3],
-                               h[:, :, 3:5], h[:, :, 5].astype(np.int64), h[:, :, 6] > 0, y_end)
+                               h[:, :, 3:5], h[:, :, 5].astype(np.int64),
+                               walked_casters(scene, h_prim[ln], h[:, :, 6] > 0), y_end)
         rec, ids = rec[take], ids[take]
         stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(take.sum())
     splat_records(scene, tracer, cam, film, rec, ids, stats)

@@ -44,7 +44,7 @@ PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
-            "world_map_rotation")
+            "world_map_rotation", "mat_distribution")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -170,6 +170,10 @@ class Scene:
     # Density, as Cycles takes it): light crossing the glass over a length d keeps exp(-absorb d).
     # Empty: none (a scene built in code, or saved before it was exported)
     mat_absorb: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # (M,) int: a rough mirror's or glass's microfacet distribution (rough.py): 0 GGX, 1 Multiscatter
+    # GGX (Cycles' energy compensation). Empty: Multiscatter GGX, Blender's default (a scene built in
+    # code, or saved before it was exported)
+    mat_distribution: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     # (H, W, 3) float32: the world's Environment Texture (equirectangular, linear, pixel rows from
     # the bottom up), whose radiance the WORLD light's colour (the Background's Strength) scales;
     # world_map_rotation (3, 3): a direction d looks the map up at world_map_rotation @ d (the
@@ -283,6 +287,9 @@ class Scene:
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
         if self.mat_bump_correction.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
+        if self.mat_distribution.shape not in ((0,), (M,)) or not np.isin(self.mat_distribution, (0, 1)).all():
+            raise SceneError(f"scene array 'mat_distribution' must have one entry, 0 (GGX) or 1 (Multiscatter GGX), "
+                             f"per material ({M}) or none")
         if self.mat_textured.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_textured' must have one entry per material ({M}) or none")
         wrong = np.flatnonzero(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE)) if self.mat_textured.size \

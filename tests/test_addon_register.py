@@ -606,20 +606,21 @@ def test_covered_scene_keeps_caustics_out_of_cycles(empty_bpy, addon, tmp_path):
 
 
 def test_the_last_bakes_warnings_stay_in_the_panel(empty_bpy, addon, tmp_path):
-    """A bake's warnings (here: a rough mirror baked smooth) are kept for the panel after the reports
+    """A bake's warnings (here: a rough mirror's Beckmann baked as GGX) are kept for the panel after the reports
     scroll away, the first few listed; a clean re-bake and Remove Caustic Layer clear them."""
     from types import SimpleNamespace
 
     scene = _mirror_scene()
     mirror = bpy.data.materials["Mirror"].node_tree.nodes["Glossy BSDF"]
     mirror.inputs["Roughness"].default_value = 0.3
+    mirror.distribution = "BECKMANN"
     s = _bake(scene, tmp_path)
     assert s.bake_warnings.splitlines() == [
-        "material 'Mirror': Roughness 0.3: its caustic is baked as a smooth mirror's, sharp where Cycles blurs "
-        "it (the layer has no rough casters yet)"]
+        "material 'Mirror': the Beckmann distribution of 'Glossy BSDF' is baked as GGX (its blur of the caustic a "
+        "little different from Cycles')"]
     drawn = []
     _draw_all(addon, scene, drawn)
-    assert "Last bake: 1 warning" in drawn and any("Roughness 0.3" in str(d) for d in drawn)
+    assert "Last bake: 1 warning" in drawn and any("Beckmann" in str(d) for d in drawn)
     panels = addon.ui.panels
     many = "\n".join(f"warning {i}" for i in range(panels.WARNINGS_SHOWN + 3))
     drawn = []

@@ -94,7 +94,7 @@ def test_scatter_bends_the_eye_and_drops_the_photon():
     beta = (1.0, 1.0, 1.0)
     for correct in (True, False):
         mats = optics.materials(_mirror_tables(correct))
-        ok, d, b, bent = optics.scatter1(0.5, wi, ns, ng, 0, S.CONDUCTOR, mats, beta, False, False)
+        ok, d, b, bent = optics.scatter1((0.5, 0.5, 0.5), wi, ns, ng, 0, S.CONDUCTOR, mats, beta, False, False)
         if correct:
             assert ok and bent and abs(d[2] - 0.01) < 1e-12 and b == (0.9, 0.9, 0.9)
         else:
@@ -104,7 +104,7 @@ def test_scatter_bends_the_eye_and_drops_the_photon():
     w_light = (-math.cos(g), 0.0, math.sin(g))
     for correct in (True, False):
         mats = optics.materials(_mirror_tables(correct))
-        ok, d, _, bent = optics.scatter1(0.5, w_light, ns2, ng, 0, S.CONDUCTOR, mats, beta, False, True)
+        ok, d, _, bent = optics.scatter1((0.5, 0.5, 0.5), w_light, ns2, ng, 0, S.CONDUCTOR, mats, beta, False, True)
         assert d[2] > 0.0111 or not ok
         assert ok != correct and bent == correct
 

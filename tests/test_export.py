@@ -13,6 +13,7 @@ bmesh = pytest.importorskip("bmesh")
 from smbs_addon import scene as S  # noqa: E402
 from smbs_addon.errors import SceneError  # noqa: E402
 from smbs_addon.export import export_scene  # noqa: E402
+from smbs_addon.rough import distributions  # noqa: E402
 
 pytestmark = pytest.mark.bpy
 SAMPLES = Path(__file__).resolve().parent.parent / "sample_blends"
@@ -715,16 +716,24 @@ def test_other_volumes_are_said_to_be_ignored(surface, volume, why):
     assert len(warnings) == 1 and warnings[0].startswith("material 'Smoke': its Volume (") and why in warnings[0]
 
 
-@pytest.mark.parametrize("node,rough,warned", [("ShaderNodeBsdfGlass", 0.0, False), ("ShaderNodeBsdfGlass", 0.017, False),
-                                                ("ShaderNodeBsdfGlass", 0.2, True), ("ShaderNodeBsdfGlossy", 0.5, True)])
-def test_a_rough_caster_is_said_to_be_baked_smooth(node, rough, warned):
-    """Cycles makes a glass or mirror of alpha^2 = Roughness^4 up to 1e-7 a perfect one; a rougher one
-    it blurs, which the layer does not yet: said, naming the material and its roughness."""
-    sc, warnings = one_material(material("Frosted", node, Roughness=rough))
-    assert sc.mat_kind[0] in (S.DIELECTRIC, S.CONDUCTOR)
+@pytest.mark.parametrize("node,dist,rough,expect,warned", [
+    ("ShaderNodeBsdfGlass", "MULTI_GGX", 0.2, 1, False), ("ShaderNodeBsdfGlass", "GGX", 0.2, 0, False),
+    ("ShaderNodeBsdfGlossy", "MULTI_GGX", 0.5, 1, False), ("ShaderNodeBsdfGlossy", "BECKMANN", 0.5, 0, True),
+    ("ShaderNodeBsdfGlossy", "ASHIKHMIN_SHIRLEY", 0.0, 0, False), ("ShaderNodeBsdfRefraction", "BECKMANN", 0.3, 0, True),
+    ("ShaderNodeBsdfPrincipled", "GGX", 0.5, 0, False), ("ShaderNodeBsdfPrincipled", "MULTI_GGX", 0.5, 1, False)])
+def test_a_rough_caster_keeps_its_roughness_and_distribution(node, dist, rough, expect, warned):
+    """A rough glass or mirror is baked rough (rough.py): its Roughness and its distribution are read,
+    Multiscatter GGX (Blender's default) or GGX; Beckmann and Ashikhmin-Shirley are baked as GGX, said
+    where the surface is rough (alpha^2 = Roughness^4 above Cycles' 1e-7)."""
+    kw = {"Metallic": 1.0} if node == "ShaderNodeBsdfPrincipled" else {}
+    m = material("Frosted", node, Roughness=rough, **kw)
+    next(n for n in m.node_tree.nodes if n.type != "OUTPUT_MATERIAL").distribution = dist
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] in (S.DIELECTRIC, S.CONDUCTOR) and np.isclose(sc.mat_roughness[0], rough)
+    assert distributions(sc)[0] == expect
     if warned:
-        assert len(warnings) == 1 and warnings[0].startswith(f"material 'Frosted': Roughness {rough:g}: its caustic "
-                                                             "is baked as a smooth")
+        assert len(warnings) == 1 and warnings[0].startswith("material 'Frosted': the ") \
+            and "is baked as GGX" in warnings[0], warnings
     else:
         assert warnings == []
 

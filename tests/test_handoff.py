@@ -235,7 +235,9 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     h = tracer.intersect(tracer.spawn(x0[i], ng[i], d), d)
     kind = np.where(h.hit, scene.mat_kind[scene.tri_material[np.maximum(h.prim, 0)]], -1)
     spec = np.flatnonzero(live & ((kind == 1) | (kind == 2)))
-    d1, b1, keep = optics.scatter_rows(u[spec, 3], -d[spec], h.ns[spec], h.ng[spec],
+    u3 = np.zeros((spec.size, 3))
+    u3[:, 0] = u[spec, 3]
+    d1, b1, keep = optics.scatter_rows(u3, -d[spec], h.ns[spec], h.ng[spec],
                                        scene.tri_material[h.prim[spec]], kind[spec], optics.materials(scene),
                                        beta[spec], False, False)
     lanes_1 = spec[keep]
