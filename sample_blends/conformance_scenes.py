@@ -326,6 +326,16 @@ def rough_mirror():
                                                                  metallic=1.0, roughness=0.5))
 
 
+def rough_mirror_ggx():
+    """rough_mirror with the Principled BSDF's distribution set to GGX: the same metal without Cycles'
+    energy compensation (Multiscatter GGX's), the microfacet reflection alone."""
+    def metal():
+        m = principled("GgxMetal", base=(0.9, 0.9, 0.9), metallic=1.0, roughness=0.5)
+        m.node_tree.nodes["Principled BSDF"].distribution = "GGX"
+        return m
+    return _mirror_under_bulb("rough_mirror_ggx", metal)
+
+
 def mirror_spread30():
     """mirror_point_hard's mirror lit by a square area light of spread 30 degrees aimed past
     its middle: the soft-box falloff (Cycles' area_light_spread_attenuation) shapes the
@@ -725,6 +735,8 @@ SCENES = {
                          "GGX: a blurred caustic), part of it seen through the ball"),
     "rough_mirror": (rough_mirror, "mirror_point_hard's mirror as Principled metal at the default Roughness 0.5 "
                      "(Multiscatter GGX)"),
+    "rough_mirror_ggx": (rough_mirror_ggx, "rough_mirror's metal with the GGX distribution (single "
+                         "scattering, no energy compensation)"),
     "rough_glass_ggx": (rough_glass_ggx, "a Glass BSDF ball of Roughness 0.3, GGX (single scattering) under a "
                         "point light, part of its blurred caustic seen through it"),
     "rough_tinted_mirror": (rough_tinted_mirror, "mirror_point_hard's mirror as a coloured Glossy BSDF of "
