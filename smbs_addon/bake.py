@@ -23,7 +23,7 @@ from .errors import BakeCancelled, SceneError
 from .film import Film
 from .lights import emit
 from .plan import _rng, light_key, make_plan, refine_plan, spot_target
-from .rough import rough_objects
+from .rough import rough_casters
 from .tracer import Tracer
 from .vec import channel_mean
 
@@ -439,7 +439,7 @@ def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per
     and every path of a chain type the guide found too weak to be worth walks; factors:
     {light index: photons per walk sample} (auto's share of the time, default 1)."""
     # paths through a rough mirror or glass are the photons' whatever opts.handoff (no walk takes them)
-    rough = bool(np.any(rough_objects(scene) & plan.casters))
+    rough = bool(rough_casters(scene, plan.casters).any())
     if not rough and (opts.handoff <= 0 or not types):
         return
     tau0 = opts.handoff if opts.handoff > 0 else math.inf
@@ -777,7 +777,7 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
         opts = settings.manifold_options()
         opts_by_light = {li: settings.manifold_options(c.walk) for li, c in choices.items()}
         types = chain_types(scene, plan, opts)
-        rough = [scene.object_names[o] for o in np.flatnonzero(rough_objects(scene) & plan.casters)]
+        rough = [scene.object_names[o] for o in np.flatnonzero(rough_casters(scene, plan.casters))]
         if rough:
             plan.notes.append(f"{', '.join(rough)}: rough, so {'its' if len(rough) == 1 else 'their'} caustic comes "
                               f"from the photons (a walk solves for a perfect mirror's or glass's paths)")

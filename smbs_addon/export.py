@@ -22,8 +22,8 @@ import numpy as np
 from . import scene as S
 from .builder import SceneBuilder
 from .errors import SceneError
-from .layer import SINGULAR_ALPHA2, principled_layer
-from .rough import GGX, MULTI_GGX
+from .layer import principled_layer
+from .rough import GGX, MULTI_GGX, SINGULAR_ALPHA2
 
 log = logging.getLogger(__name__)
 

@@ -31,8 +31,9 @@ from numba.extending import intrinsic
 
 from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
-from .layer import MU_STEPS, SINGULAR_ALPHA2
+from .layer import MU_STEPS
 from .optics import bend1, fresnel_dielectric1, scatter1
+from .rough import SINGULAR_ALPHA2
 
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
@@ -1218,13 +1219,18 @@ def _mix64(z):
 
 
 @njit(inline="always", **_JIT)
+def _keyed_bits(key, a, b, dim):
+    """64 random bits that depend only on (key, a, b, dim)."""
+    z = _mix64(np.uint64(key) + _GOLD * np.uint64(a + 1))
+    z = _mix64(z + _GOLD * np.uint64(b + 1))
+    return _mix64(z + _GOLD * np.uint64(dim + 1))
+
+
+@njit(inline="always", **_JIT)
 def keyed_uniform(key, a, b, dim):
     """A uniform number in [0, 1) that depends only on (key, a, b, dim): counter-based, so a
     trial's random numbers do not depend on when or on which thread it runs."""
-    z = _mix64(np.uint64(key) + _GOLD * np.uint64(a + 1))
-    z = _mix64(z + _GOLD * np.uint64(b + 1))
-    z = _mix64(z + _GOLD * np.uint64(dim + 1))
-    return np.float64(z >> np.uint64(11)) * (1.0 / 9007199254740992.0)
+    return np.float64(_keyed_bits(key, a, b, dim) >> np.uint64(11)) * (1.0 / 9007199254740992.0)
 
 
 _SALT = np.uint64(0xD1B54A32D192ED03)
@@ -1232,12 +1238,10 @@ _SALT = np.uint64(0xD1B54A32D192ED03)
 
 @njit(inline="always", **_JIT)
 def keyed_uniform3(key, a, b, dim):
-    """keyed_uniform(key, a, b, dim) and two more uniform numbers (32 bits each, from one hash of a
+    """keyed_uniform(key, a, b, dim) and two more uniform numbers (32 bits each, from the bits of a
     salted key) for a specular vertex: the lobe, then a rough surface's microfacet normal
     (optics.scatter1). The first is the number a smooth vertex always drew, so its paths stay."""
-    z = _mix64(np.uint64(key) + _SALT + _GOLD * np.uint64(a + 1))
-    z = _mix64(z + _GOLD * np.uint64(b + 1))
-    z = _mix64(z + _GOLD * np.uint64(dim + 1))
+    z = _keyed_bits(np.uint64(key) + _SALT, a, b, dim)
     lo = np.float64(z & np.uint64(0xFFFFFFFF)) * (1.0 / 4294967296.0)
     hi = np.float64(z >> np.uint64(32)) * (1.0 / 4294967296.0)
     return keyed_uniform(key, a, b, dim), lo, hi

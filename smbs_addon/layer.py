@@ -35,7 +35,7 @@ import math
 import numpy as np
 
 from .optics import fresnel_dielectric
-from .rough import SINGULAR_ALPHA2  # noqa: F401  (a smoother coat is a perfect mirror)
+from .rough import SINGULAR_ALPHA2
 
 MU_STEPS = 64  # the table's cosines: 0, 1/64, ..., 1
 _GRID = 64  # stratified visible-normal samples per axis
@@ -46,6 +46,13 @@ def lambda_ggx(cos, a2):
     """Smith's Lambda of GGX (alpha^2 = a2) for directions of cosine cos (> 0)."""
     c2 = np.maximum(cos * cos, 1e-12)
     return 0.5 * (np.sqrt(1.0 + a2 * np.maximum(1.0 / c2 - 1.0, 0.0)) - 1.0)
+
+
+def shadowing(lam_in, cos_out, ok, a2):
+    """Smith's height-correlated G2 over the masking G1 of the sampling direction, (1 + L_in) /
+    (1 + L_in + L_out), where ok (a lobe leaving on its side), else 0: what a visible-normal sample
+    keeps (lam_in: lambda_ggx of the sampling direction; cos_out: the new direction's cosine)."""
+    return np.where(ok, (1.0 + lam_in) / (1.0 + lam_in + lambda_ggx(np.where(ok, cos_out, 1.0), a2)), 0.0)
 
 
 def visible_normals(mu: np.ndarray, alpha: float, grid: int = _GRID, jitter=None):
@@ -89,25 +96,10 @@ def _albedos(mu: np.ndarray, alpha: float, eta: float) -> tuple[np.ndarray, np.n
     d = hx * wo_x + hz * m
     wi_z = 2.0 * d * hz - m
     up = wi_z > 0
-    lo = lambda_ggx(m, a2)
-    g2_over_g1 = np.where(up, (1.0 + lo) / (1.0 + lo + lambda_ggx(np.where(up, wi_z, 1.0), a2)), 0.0)
+    g2_over_g1 = shadowing(lambda_ggx(m, a2), wi_z, up, a2)
     ef = (fresnel_dielectric(np.abs(d), eta) * g2_over_g1).mean(axis=1)
     e = g2_over_g1.mean(axis=1)
     return ef, e
-
-
-def visible_albedo(mu: np.ndarray, alpha: float) -> np.ndarray:
-    """E(mu): the single-scattering albedo of a GGX mirror without Fresnel (Cycles' ggx_E), to
-    ~1e-4 (rough.fine_mean's samples)."""
-    from .rough import fine_mean
-
-    def g2_over_g1(hx, hz, wo_x, m):
-        a2 = max(float(alpha), 1e-4) ** 2
-        wi_z = 2.0 * (hx * wo_x + hz * m) * hz - m
-        up = wi_z > 0
-        lo = lambda_ggx(m, a2)
-        return np.where(up, (1.0 + lo) / (1.0 + lo + lambda_ggx(np.where(up, wi_z, 1.0), a2)), 0.0)
-    return fine_mean(mu, alpha, g2_over_g1)
 
 
 def _tables(ior: float, roughness: float, tint: float) -> tuple[np.ndarray, np.ndarray]:
@@ -216,8 +208,6 @@ def principled_layer(ior: float, level: float, tint) -> tuple[float, float]:
     if f0 <= 0:
         return 0.0, 0.0
     return ior_from_f0(f0), float(max(np.asarray(tint, float)[:3].max(), 0.0))
-
-
 
 
 def oren_nayar_g(c):

@@ -26,7 +26,7 @@ from .geometry import triangle_areas
 from .layer import coat_factor, has_layers
 from .lights import area_light_points, distant_cone, env_map
 from .optics import has_reflection
-from .rough import rough_objects, walk_casters
+from .rough import rough_casters, walk_casters
 from .trials import bernoulli_trials
 from .vec import channel_mean, dot, normalize, uniform_cone, frame, to_world
 from .walk import OUTCOMES, TRIGGERS, WalkConfig, newton_walk, propagate
@@ -588,7 +588,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     # Paths through a rough mirror or glass (no walk takes them) are such paths too, whatever
     # opts.handoff says (MNEE's, or the user's 0).
     handoffs, focus = {}, set()
-    rough = bool(np.any(rough_objects(scene) & plan.casters))
+    rough = bool(rough_casters(scene, plan.casters).any())
     if (opts.handoff > 0 and types_list) or rough:
         from .reference import Handoff
 

@@ -159,11 +159,23 @@ def fine_mean(mu: np.ndarray, alpha: float, f) -> np.ndarray:
     return out
 
 
+def visible_albedo(mu: np.ndarray, alpha: float) -> np.ndarray:
+    """E(mu): the single-scattering albedo of a GGX mirror without Fresnel (Cycles' ggx_E)."""
+    from .layer import lambda_ggx, shadowing
+
+    a2 = max(float(alpha), 1e-4) ** 2
+
+    def reflected(hx, hz, wx, wz):
+        rz = 2.0 * (hx * wx + hz * wz) * hz - wz
+        return shadowing(lambda_ggx(wz, a2), rz, rz > 0, a2)
+    return fine_mean(mu, alpha, reflected)
+
+
 def glass_albedo(mu: np.ndarray, alpha: float, eta: float) -> np.ndarray:
     """The single-scattering albedo of a GGX glass (reflection and refraction, the dielectric
     Fresnel at the microfacet included; no eta^2 radiance factor, as Cycles) for directions of
     cosine mu on the side from which the other side's index is eta times this one's."""
-    from .layer import lambda_ggx
+    from .layer import lambda_ggx, shadowing
     from .optics import fresnel_dielectric
 
     a2 = max(float(alpha), 1e-4) ** 2
@@ -173,15 +185,10 @@ def glass_albedo(mu: np.ndarray, alpha: float, eta: float) -> np.ndarray:
         F = fresnel_dielectric(np.abs(c), eta)
         li = lambda_ggx(wz, a2)
         rz = 2.0 * c * hz - wz
-        up = rz > 0
-        refl = np.where(up, F * (1.0 + li) / (1.0 + li + lambda_ggx(np.where(up, rz, 1.0), a2)), 0.0)
         er = 1.0 / eta
         s2 = er * er * (1.0 - c * c)
-        ct = np.sqrt(np.maximum(1.0 - s2, 0.0))
-        tz = -er * wz + (er * c - ct) * hz
-        down = (s2 < 1.0) & (tz < 0)
-        refr = np.where(down, (1.0 - F) * (1.0 + li) / (1.0 + li + lambda_ggx(np.where(down, tz, 1.0), a2)), 0.0)
-        return refl + refr
+        tz = -er * wz + (er * c - np.sqrt(np.maximum(1.0 - s2, 0.0))) * hz
+        return F * shadowing(li, rz, rz > 0, a2) + (1.0 - F) * shadowing(li, tz, (s2 < 1.0) & (tz < 0), a2)
     return fine_mean(mu, alpha, lobes)
 
 
@@ -207,7 +214,7 @@ def energy_tables(scene) -> np.ndarray:
     """(M, 2, MU_STEPS + 1, 3): Multiscatter GGX's factor per material, eye outside (0) or inside
     a glass (1), at mu = 0, 1/MU_STEPS, ..., 1 (energy_gain1); ones for the rest (smooth, GGX, a
     Refraction BSDF: Cycles compensates none of these)."""
-    from .layer import MU_STEPS, visible_albedo
+    from .layer import MU_STEPS
     from .optics import specular_weights
 
     M = len(scene.mat_kind)
@@ -220,31 +227,38 @@ def energy_tables(scene) -> np.ndarray:
         if kind == S.DIELECTRIC and fres == S.REFRACTION_ONLY:
             continue
         if kind == S.DIELECTRIC:
-            # F_ss = 1: the factor is 1 / E (a tinted glass's extra saturation is left out)
-            key = ("glass", float(a[m]), eta)
-            if key not in _cache:
-                _cache[key] = np.stack([1.0 / np.maximum(glass_albedo(mu, a[m], e), 1e-4) for e in (eta, 1.0 / eta)])
-            out[m] = _cache[key][:, :, None]
-            continue
-        R, _ = specular_weights(scene, np.full(len(mu), m), mu)
-        fss = _hemisphere_mean(R, mu)
-        key = ("mirror", float(a[m]), tuple(np.round(fss, 12)))
+            # F_ss = 1, so the factor is 1 / E, E on the eye's side (a tinted glass's extra saturation
+            # is left out)
+            fss, key = np.ones(3), ("glass", float(a[m]), eta)
+            albedos = lambda m=m, eta=eta: [glass_albedo(mu, a[m], e) for e in (eta, 1.0 / eta)]  # noqa: E731
+        else:
+            R, _ = specular_weights(scene, np.full(len(mu), m), mu)
+            fss = _hemisphere_mean(R, mu)
+            key = ("mirror", float(a[m]), tuple(np.round(fss, 12)))
+            albedos = lambda m=m: [visible_albedo(mu, a[m])]  # noqa: E731  (both sides alike)
         if key not in _cache:
-            _cache[key] = _gain(visible_albedo(mu, a[m]), fss, mu)
-        out[m] = _cache[key][None]
+            _cache[key] = np.stack([_gain(E, fss, mu) for E in albedos()])
+        out[m] = _cache[key]
     return np.ascontiguousarray(out)
 
 
 # ------------------------------------------------------------------ who takes a rough surface's paths
 def rough_objects(scene) -> np.ndarray:
-    """(O,) bool: the objects with a rough mirror or glass on some face. The manifold walks leave
-    them out (walk_casters): a walk solves for a perfect mirror's or glass's path, which a rough
-    surface does not have; every path through one goes to the photons (reference.walked_casters)."""
-    O = len(scene.object_names)
+    """(O,) bool: the objects with a rough mirror or glass on some face, kept by the scene while its
+    materials stay the same. The manifold walks leave them out (walk_casters): a walk solves for a
+    perfect mirror's or glass's path, which a rough surface does not have; every path through one
+    goes to the photons (reference.walked_casters)."""
     rm = rough_materials(scene)
+    O = len(scene.object_names)
     if not rm.any() or scene.n_tris == 0:
         return np.zeros(O, bool)
-    return np.bincount(scene.tri_object[rm[scene.tri_material]], minlength=O) > 0
+    return scene.derived(("rough_objects", rm.tobytes()),
+                         lambda: np.bincount(scene.tri_object[rm[scene.tri_material]], minlength=O) > 0)
+
+
+def rough_casters(scene, casters: np.ndarray) -> np.ndarray:
+    """(O,) bool: the planned casters that are rough (their paths: the photons')."""
+    return np.asarray(casters, bool) & rough_objects(scene)
 
 
 def walk_casters(scene, casters: np.ndarray) -> np.ndarray:
