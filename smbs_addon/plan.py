@@ -20,6 +20,7 @@ from . import lanes
 from . import scene as S
 from .errors import SceneError
 from .lights import env_map, light_axis, light_covers
+from .rough import rough_materials
 from .vec import dot
 
 
@@ -285,7 +286,8 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
     n = len(o)
 
     def part(a, b):
-        return _sees_part(scene, tracer, plan, o[a:b], d[a:b], max_bounces, 4 * CAMERA_RAYS * (b - a) // max(n, 1))
+        return _sees_part(scene, tracer, plan, o[a:b], d[a:b], max_bounces, 4 * CAMERA_RAYS * (b - a) // max(n, 1),
+                          _rng(0, 10, a))
 
     rays, specular = 0, False
     for p_direct, p_through, p_sides, p_rays, p_specular in lanes.blocks(part, n, SEES_PART, tracer.threads):
@@ -313,10 +315,10 @@ def _nothing_seen(n_objects: int):
     return np.zeros(n_objects, bool), through, np.zeros(n_objects, np.int64)
 
 
-def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
+def _sees_part(scene, tracer, plan, o, d, max_bounces, cap, rng):
     """camera_sees for the rays o, d: (direct, through (unpadded), sides, rays cast, whether a
     mirror or glass is the first hit of one of them); past cap rays at a bounce, a regular subset
-    of them goes on."""
+    of them goes on. rng: the rough surfaces' directions (drawn only where the rays meet one)."""
     from .optics import reflect, refract
 
     direct, through, sides = _nothing_seen(len(scene.object_names))
@@ -341,6 +343,11 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
         j = i[spec]
         p, ng, ns, w_in = hit.p[j], hit.ng[j], hit.ns[j], -d[j]
         m = mat[spec]
+        rough = _rough_lanes(scene, m)
+        if rough is not None:  # what the eye sees in a rough mirror or glass: the perfect one's and one sampled
+            jr = j[rough]
+            _, rd, _, _, kept = _rough_scatter(scene, tracer, rng, hit.p[jr], hit.ng[jr], hit.ns[jr], -d[jr],
+                                                m[rough], adjoint=False)
         refl = scene.mat_fresnel[m] != S.REFRACTION_ONLY
         glass = scene.mat_kind[m] == S.DIELECTRIC
         d_r = reflect(w_in[refl], ns[refl])
@@ -348,6 +355,9 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap):
         no = np.concatenate([p[refl], p[glass][ok]])
         nd = np.concatenate([d_r, d_t[ok]])
         nn = np.concatenate([ng[refl], ng[glass][ok]])
+        if rough is not None:
+            no, nd, nn = (np.concatenate([no, hit.p[jr[kept]]]), np.concatenate([nd, rd]),
+                          np.concatenate([nn, hit.ng[jr[kept]]]))
         if len(nd) > max(cap, 1):  # a maze of glass: keep a regular subset
             keep = np.arange(0, len(nd), math.ceil(len(nd) / max(cap, 1)))
             no, nd, nn = no[keep], nd[keep], nn[keep]
@@ -366,10 +376,31 @@ def _sees_point(scene, tracer, cam, p, ng, w_in):
     return valid, int(idx.size)
 
 
+def _rough_lanes(scene, m):
+    """(N,) bool: the lanes of materials m on a rough mirror or glass, or None where there is none."""
+    rough = rough_materials(scene)[m]
+    return rough if rough.any() else None
+
+
+def _rough_scatter(scene, tracer, rng, p, ng, ns, w_in, m, adjoint):
+    """A rough mirror's or glass's scattering for the plan's rays (w_in pointing away from the
+    surface): one lobe and one microfacet normal drawn per lane, as the bake draws them
+    (reference.scatter_specular), where a smooth surface's two lobes are followed both. A rough
+    reflection reaches where the perfect one cannot: a floor lit by a bulb sends light up into a
+    rough standing mirror, which sends some of it down onto the floor again. Returns the new
+    lanes' (origins, directions, weights (luminance-like mean), letters 1 R / 2 T, the lanes kept)."""
+    from .reference import scatter_specular
+
+    beta = np.ones((len(w_in), 3))
+    d, b, keep = scatter_specular(scene, rng, w_in, ns, ng, m, scene.mat_kind[m], beta, adjoint=adjoint)
+    letter = np.where(dot(d, ng[keep]) * dot(w_in[keep], ng[keep]) > 0, 1, 2).astype(np.int8)
+    return tracer.spawn(p[keep], ng[keep], d), d, b.mean(axis=1), letter, keep
+
+
 def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounces, target):
     """Follow pilot photons from caster ``target`` (the photons whose first hit is on it)
     through mirrors and glass (glass: both ways while the lanes
-    stay few, else one way at random) to their first diffuse surface. Returns, per photon
+    stay few, else one way at random; a rough one: one sampled way, _rough_scatter) to their first diffuse surface. Returns, per photon
     path that lands where the camera sees it: the casters it met (K, max_bounces) object
     ids (-1 past its end), its chain letters, the receiver, the flux it carries
     (luminance, through the Fresnel weights) and where it lands; and the rays cast. target None: photons
@@ -411,6 +442,16 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
             break
         j = i[sp]
         p, ng, ns, w_in, m = h.p[j], h.ng[j], h.ns[j], -d[j], mat[sp]
+        hist[j, depth] = np.where(plan.flag_casters[obj[sp]], obj[sp], -1)
+        rough = _rough_lanes(scene, m)
+        if rough is not None:  # rough mirrors and glass: one sampled microfacet scattering each
+            jr, j = j[rough], j[~rough]
+            ro, rd, rw, letter, kept = _rough_scatter(scene, tracer, rng, h.p[jr], h.ng[jr], h.ns[jr], -d[jr],
+                                                      m[rough], adjoint=True)
+            p, ng, ns, w_in, m = p[~rough], ng[~rough], ns[~rough], w_in[~rough], m[~rough]
+            rw *= w[jr[kept]]
+            rh, rlet = hist[jr[kept]], letters[jr[kept]].copy()
+            rlet[:, depth] = letter
         wr, wt = specular_weights(scene, m, dot(w_in, ns))
         wr, wt = wr.mean(axis=1), wt.mean(axis=1)
         d_t, ok = refract(w_in, ns, np.where(scene.mat_kind[m] == S.DIELECTRIC, scene.mat_ior[m], 1.0))
@@ -424,7 +465,6 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
             wr, wt = np.where(both, 2 * wr, wr), np.where(both, 2 * wt, wt)
         wj = w[j]
         hj = hist[j]
-        hj[:, depth] = np.where(plan.flag_casters[obj[sp]], obj[sp], -1)
         lr, lt = letters[j].copy(), letters[j].copy()
         lr[:, depth], lt[:, depth] = 1, 2
         d = np.concatenate([reflect(w_in[refl], ns[refl]), d_t[ok]])
@@ -432,6 +472,9 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
         w = np.concatenate([(wj * wr)[refl], (wj * wt)[ok]])
         hist = np.concatenate([hj[refl], hj[ok]])
         letters = np.concatenate([lr[refl], lt[ok]])
+        if rough is not None:
+            o, d, w = np.concatenate([o, ro]), np.concatenate([d, rd]), np.concatenate([w, rw])
+            hist, letters = np.concatenate([hist, rh]), np.concatenate([letters, rlet])
     if out:
         return tuple(np.concatenate(x) for x in zip(*out)) + (rays,)
     return (np.zeros((0, max_bounces), np.int64), np.zeros((0, max_bounces), np.int8), np.zeros(0, np.int64),

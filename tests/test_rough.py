@@ -274,3 +274,52 @@ def test_rough_and_smooth_casters_split_the_paths():
     assert st["walks"] > 0 and st["successes"] > 0 and st["handoff"]["handoff_paths"] > 100
     (e_ref, s_ref), (e, s) = _energy(ref), _energy(res)
     assert abs(e - e_ref) < 4 * math.hypot(s, s_ref), (e, e_ref, s, s_ref)
+
+
+def _standing_mirror(roughness):
+    b = SceneBuilder("standing")
+    floor = b.material("floor", "diffuse", color=(0.8,) * 3)
+    mirror = b.material("mirror", "conductor", color=(0.9,) * 3, roughness=roughness)
+    b.plane("Floor", (0, 0, 0), 10, floor, receiver=True)
+    b.plane("Mirror", (1.2, 0, 0.55), (1.0, 1.6), mirror, normal=(-1, 0, 0), caster=True)
+    b.light("Bulb", "POINT", location=(0.5, 0, 1.4), power=400.0, radius=0.2)
+    b.set_camera((-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35, resolution_x=32, resolution_y=24)
+    return b.build()
+
+
+@pytest.mark.parametrize("roughness", [0.0, 0.5])
+def test_a_rough_standing_mirror_throws_the_lit_floor_back_down(roughness):
+    """A mirror standing on a floor lit by a bulb: a perfect one sends the floor's light up (a vertical
+    mirror keeps a ray's rise), a rough one sends part of it down onto the floor again, light Cycles
+    counts in its caustics (camera -> floor -> mirror -> floor -> bulb). The plan's pilots reflected
+    rough mirrors as perfect ones and never planned that pass: rough_mirror read 0.973 of Cycles (light
+    tracer, 1024 spp), 1.001 with it. Now the plan keeps the pass for the rough mirror alone, and its
+    photons land."""
+    res = bake(_standing_mirror(roughness), BakeSettings(method="reference", spp=64, seed=1))
+    after_bounce = "Bulb -> diffuse -> Mirror -> Floor (after a diffuse bounce)"
+    assert (after_bounce in res.stats["plan"]["words"]) == (roughness > 0), res.stats["plan"]["words"]
+    assert ("indirect" in res.stats) == (roughness > 0)
+    if roughness > 0:
+        assert res.stats["indirect"]["Bulb"]["splats"] > 20, res.stats["indirect"]
+
+
+def test_the_eye_sees_more_of_the_floor_in_a_rough_mirror():
+    """The plan's look from the camera (plan.camera_sees) follows a rough mirror's blur: each camera
+    ray goes on in the perfect reflection and in one sampled direction, so the box of floor it finds
+    seen in the mirror holds the perfect mirror's and reaches further (the pilots test landings
+    against that box where a receiver is not seen directly)."""
+    from smbs_addon.camera import CameraModel
+    from smbs_addon.plan import camera_sees, make_plan
+    from smbs_addon.tracer import Tracer
+
+    boxes = []
+    for roughness in (0.0, 0.5):
+        sc = _standing_mirror(roughness)
+        sc.validate()
+        direct, through, _, _, _ = camera_sees(sc, Tracer(sc), CameraModel(sc.camera), make_plan(sc))
+        assert direct.tolist() == [True, False]
+        boxes.append(through[0])
+    smooth, blurred = boxes
+    assert (blurred[0] <= smooth[0]).all() and (blurred[1] >= smooth[1]).all()
+    size = lambda b: float(np.prod((b[1] - b[0])[:2]))  # noqa: E731  (the floor's box in x and y)
+    assert size(blurred) > 1.25 * size(smooth), (smooth, blurred)  # 65.0 against 46.2 m^2
