@@ -73,6 +73,7 @@ SPP_BY_SCENE = {
     "rough_mirror": {"reference": 1024, "sms": 1024, "smbs": 1024, "mnee": 1024},
     "rough_mirror_ggx": {"reference": 1024, "sms": 1024, "smbs": 1024, "mnee": 1024},
     "rough_tinted_mirror": {"reference": 1024, "sms": 1024, "smbs": 1024, "mnee": 1024},
+    "rough_tinted_glass": {"reference": 1024, "sms": 1024, "smbs": 1024, "mnee": 1024},
     "fake_shadow_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
 }
 

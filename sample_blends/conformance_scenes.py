@@ -613,6 +613,17 @@ def rough_tinted_mirror():
     return _mirror_under_bulb("rough_tinted_mirror", glossy)
 
 
+def rough_tinted_glass():
+    """sphere_point_soft's ball as a coloured Glass BSDF (0.9, 0.6, 0.3; IOR 1.5) of Roughness 0.5, Multiscatter
+    GGX: Cycles' energy compensation takes the glass's colour for F_ss, so it restores less of the blue that
+    the microfacets lose than of the red."""
+    def glass():
+        m = B.material("TintedRoughGlass", "glass", (0.9, 0.6, 0.3), roughness=0.5, ior=1.5)
+        next(n for n in m.node_tree.nodes if n.type == "BSDF_GLASS").distribution = "MULTI_GGX"
+        return m
+    return _ball_under_bulb("rough_tinted_glass", glass)
+
+
 def fake_shadow_ball():
     """sphere_point_soft's ball with the fake-shadow trick: a Mix Shader of a Glass BSDF (IOR 1.5) and a
     Transparent BSDF by Light Path's Is Shadow Ray (shadow rays pass, every other ray meets the glass)."""
@@ -739,6 +750,8 @@ SCENES = {
                          "scattering, no energy compensation)"),
     "rough_glass_ggx": (rough_glass_ggx, "a Glass BSDF ball of Roughness 0.3, GGX (single scattering) under a "
                         "point light, part of its blurred caustic seen through it"),
+    "rough_tinted_glass": (rough_tinted_glass, "a coloured Glass BSDF ball of Roughness 0.5, Multiscatter GGX "
+                           "(Cycles' energy compensation by the glass's colour), part of its glow seen through it"),
     "rough_tinted_mirror": (rough_tinted_mirror, "mirror_point_hard's mirror as a coloured Glossy BSDF of "
                             "Roughness 0.3, Multiscatter GGX"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "

@@ -33,7 +33,10 @@ from numba import njit
 from . import scene as S
 from .jit import JIT
 
-SINGULAR_ALPHA2 = 1e-7  # Cycles' BSDF_ROUGHNESS_SQ_THRESH: a smoother mirror or glass is a perfect one
+# a smoother mirror or glass (alpha^2 = Roughness^4 at most this: Roughness 0.0178) is baked as a perfect one, so
+# the walks take it. Cycles' own threshold (BSDF_ROUGHNESS_SQ_THRESH) is 2e-10, Roughness 0.0038; between the two
+# its lobe is under alpha = 3.2e-4 rad wide (1.6 mm at 5 m) and a mirror's GGX albedo over 0.99999 down to mu 0.05
+SINGULAR_ALPHA2 = 1e-7
 GGX, MULTI_GGX = 0, 1  # Scene.mat_distribution (a scene without it: Multiscatter GGX, Blender's default)
 _TAU = 2.0 * math.pi
 
@@ -121,8 +124,8 @@ def energy_gain1(table, m, outside, mu):
 
 # ------------------------------------------------------------------ tables
 def alphas(scene) -> np.ndarray:
-    """(M,) each material's GGX alpha where it is a rough mirror or glass (alpha^2 above Cycles'
-    1e-7), else 0 (a perfect one; a diffuse's Scene.mat_roughness is its own)."""
+    """(M,) each material's GGX alpha where it is a rough mirror or glass (alpha^2 above
+    SINGULAR_ALPHA2), else 0 (a perfect one; a diffuse's Scene.mat_roughness is its own)."""
     kind = np.asarray(scene.mat_kind)
     a = np.clip(np.asarray(scene.mat_roughness, np.float64), 0.0, 1.0) ** 2
     spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
@@ -215,7 +218,7 @@ def energy_tables(scene) -> np.ndarray:
     a glass (1), at mu = 0, 1/MU_STEPS, ..., 1 (energy_gain1); ones for the rest (smooth, GGX, a
     Refraction BSDF: Cycles compensates none of these)."""
     from .layer import MU_STEPS
-    from .optics import specular_weights
+    from .optics import fresnel_dielectric, specular_weights
 
     M = len(scene.mat_kind)
     out = np.ones((M, 2, MU_STEPS + 1, 3))
@@ -227,9 +230,12 @@ def energy_tables(scene) -> np.ndarray:
         if kind == S.DIELECTRIC and fres == S.REFRACTION_ONLY:
             continue
         if kind == S.DIELECTRIC:
-            # F_ss = 1, so the factor is 1 / E, E on the eye's side (a tinted glass's extra saturation
-            # is left out)
-            fss, key = np.ones(3), ("glass", float(a[m]), eta)
+            # Cycles' F_ss for a glass: its transmission tint (white: the factor is 1 / E, E on the eye's
+            # side), or where that is black its reflection tint times the mean Fresnel reflectance
+            fss = np.asarray(scene.mat_color[m], np.float64)
+            if not fss.any():
+                fss = _hemisphere_mean(fresnel_dielectric(mu, eta), mu) * scene.mat_reflect_color[m]
+            key = ("glass", float(a[m]), eta, tuple(np.round(fss, 12)))
             albedos = lambda m=m, eta=eta: [glass_albedo(mu, a[m], e) for e in (eta, 1.0 / eta)]  # noqa: E731
         else:
             R, _ = specular_weights(scene, np.full(len(mu), m), mu)

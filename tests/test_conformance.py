@@ -81,6 +81,7 @@ CASES = [
     ("rough_glass_ggx", "smbs", 256),
     ("rough_mirror", "mnee", 256),
     ("rough_tinted_mirror", "reference", 256),
+    ("rough_tinted_glass", "reference", 256),
 ]
 
 
