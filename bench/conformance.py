@@ -74,6 +74,8 @@ SPP_BY_SCENE = {
     "rough_mirror_ggx": {"reference": 1024, "sms": 1024, "smbs": 1024, "mnee": 1024},
     "rough_tinted_mirror": {"reference": 1024, "sms": 1024, "smbs": 1024, "mnee": 1024},
     "rough_tinted_glass": {"reference": 1024, "sms": 1024, "smbs": 1024, "mnee": 1024},
+    # seen through rough water only: every receiver gathers the sun (4 deg) by cosine sampling, heavy-tailed
+    "rough_pool_sun": {"reference": 256, "sms": 256, "smbs": 256, "mnee": 256},
     "fake_shadow_ball": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 32},
 }
 

@@ -189,15 +189,29 @@ def gold_cylinder():
 def pool_sun4():
     """Wavy water (Glass BSDF, IOR 1.33, smooth 120 x 120 grid of 6 x 6 m) 1 m above the
     floor, sun of strength 3 and angle 4 deg; the camera looks down through the water."""
-    scene = _scene("pool_sun4")
+    return _pool("pool_sun4", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33))
+
+
+def _pool(name, water):
+    """pool_sun4 with the water's material water() (made once the scene is new)."""
+    scene = _scene(name)
     _floor(scene, size=8.0)
-    water = B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33)
     v, f = B.grid(6, 6, 120, 120, _water_wave)
-    B.mesh_object(scene, "Water", v, f, water, smooth=True, location=(0, 0, 1.0), caster=True)
+    B.mesh_object(scene, "Water", v, f, water(), smooth=True, location=(0, 0, 1.0), caster=True)
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(20), math.radians(10), 0), energy=3.0,
                 angle=math.radians(4.0))
     B.add_camera(scene, (0, 0, 6), (0, 0, 0), lens=80)
     return scene
+
+
+def rough_pool_sun():
+    """pool_sun4's water as a rough Glass BSDF (Roughness 0.15, Multiscatter GGX): the camera sees the floor
+    through rough water, where a photon cannot reach it and the caustic at each floor point is gathered."""
+    def water():
+        m = B.material("RoughWater", "glass", (1.0, 1.0, 1.0), roughness=0.15, ior=1.33)
+        next(n for n in m.node_tree.nodes if n.type == "BSDF_GLASS").distribution = "MULTI_GGX"
+        return m
+    return _pool("rough_pool_sun", water)
 
 
 def cube_grey():
@@ -314,7 +328,9 @@ def _mirror_under_bulb(name, mirror=None):
 
 def mirror_alloy():
     """mirror_point_hard with a Principled mirror of Metallic 0.7 (Base Color 0.9, Roughness 0): Cycles
-    weighs its metal lobe by 0.7; the dielectric rest (a 4% coat over a diffuse) is left out."""
+    weighs its metal lobe by 0.7 and the dielectric rest, a coat (in our mirror's reflection) over a diffuse
+    (which receives no caustic here: the camera sees the floor's caustic light on it in the mirror's
+    pixels, where the layer reads 0.80 of Cycles, 1.014 on the floor seen directly; MNEE, 256 spp)."""
     return _mirror_under_bulb("mirror_alloy", lambda: principled("Alloy", base=(0.9, 0.9, 0.9), metallic=0.7))
 
 
@@ -752,6 +768,8 @@ SCENES = {
                         "point light, part of its blurred caustic seen through it"),
     "rough_tinted_glass": (rough_tinted_glass, "a coloured Glass BSDF ball of Roughness 0.5, Multiscatter GGX "
                            "(Cycles' energy compensation by the glass's colour), part of its glow seen through it"),
+    "rough_pool_sun": (rough_pool_sun, "pool_sun4's wavy water as a Glass BSDF of Roughness 0.15 (Multiscatter "
+                       "GGX), the floor seen through it"),
     "rough_tinted_mirror": (rough_tinted_mirror, "mirror_point_hard's mirror as a coloured Glossy BSDF of "
                             "Roughness 0.3, Multiscatter GGX"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "

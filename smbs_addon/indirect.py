@@ -128,7 +128,7 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
 
 
 def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
-           lights_hit=(), count_first=False, compiled=True):
+           lights_hit=(), count_first=False, compiled=True, others=None):
     """Path tracing from receivers x0 (seen through mirrors or glass) for the layer's paths
     with more diffuse vertices; splats the radiance found at the eye samples' film positions.
 
@@ -139,7 +139,12 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     - connect(receivers) -> (M,3), the caller's estimate of the caustic at planned
       receivers (x_i -> specular+ -> light, throughput included: the manifold walks), counts
       always; without connect, lights_hit seen right after a specular vertex on a caster
-      count instead (the light tracer's way), x0's own caustic only when count_first.
+      count instead (the light tracer's way), x0's own caustic only when count_first;
+    - with connect, others (light index -> reference.Handoff, those of others=True) adds the
+      paths x_i -> specular+ -> light (i >= 1) no walk takes (reference.other_paths: a chain
+      type not walked, longer than the longest walked, or through a specular vertex that is no
+      walked caster, such as a rough one), the lights hit on them, as handoff_gather adds them
+      at x0: the walks' estimate at x_i leaves exactly those out.
     Every path keeps to the scene's Light Paths limits as Cycles counts them (bounces.py:
     the events before the last one, from the camera, rc.prior before x0).
 
@@ -154,6 +159,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         return _splat_gathered(scene, film, rc, radiance, stats)
     lim = Limits.of(scene)
     radiance = np.zeros((n, 3))
+    others = {li: ho for li, ho in (others or {}).items() if ho is not None and ho.others} if connect else {}
+    walked = walked_objects(scene, plan) if others else None
     # the frontier: diffuse vertices to bounce from, with the events before them
     f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
     f_beta, f_mat, f_cnt = rc.beta, rc.mat, rc.prior
@@ -174,12 +181,18 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         o = tracer.spawn(f_p[sel], f_ng[sel], d)
         last_caster = np.zeros(len(lane), bool)
         medium = np.full(len(lane), -1)  # inside a glass (its material) or not
+        # the chain since the latest diffuse vertex: its letters (bit 1: R, the first vertex the
+        # highest, as reference._chain_codes) and whether every vertex is on a walked caster
+        code, on = np.zeros(len(lane), np.int64), np.ones(len(lane), bool)
         nxt = []
         for bounce in range(MAX_SPECULAR + 1):
             if len(lane) == 0:
                 break
             h = tracer.intersect(o, d)
             stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
+            if others and bounce > 0:
+                _count_others(scene, others, o, d, h, lane, beta, code, on, bounce, (depth >= 1) & lim.fits(before),
+                              radiance, stats)
             if connect is None and bounce > 0 and len(lights_hit):
                 # Cycles' lights are transparent (shade_light adds the emission and the path
                 # goes on): every light in front of the next surface counts, not the nearest
@@ -227,6 +240,9 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                                             beta[spec], scale_eta=physical)
             sk = spec[keep]
             last_caster = plan.casters[scene.tri_object[prim[sk]]]
+            if others:
+                code = code[sk] * 2 + (specular_kind(d_in[keep], dd, h.ng[sk]) == 1)
+                on = on[sk] & walked[scene.tri_object[prim[sk]]]
             if absorbing:
                 medium = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
             lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
@@ -238,6 +254,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             if alive.size < len(lane):
                 lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
                 last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
+                if others:
+                    code, on = code[alive], on[alive]
                 if absorbing:
                     medium = medium[alive]
             o = tracer.spawn(h.p[sk], h.ng[sk], d)
@@ -247,6 +265,28 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
         f_beta, f_mat, f_has_s, f_depth, f_cnt = cat["beta"], cat["mat"], cat["has_s"], cat["depth"], cat["cnt"]
     _splat_gathered(scene, film, rc, radiance, stats)
+
+
+def walked_objects(scene, plan) -> np.ndarray:
+    """(O,) bool: the objects whose specular vertices a walk can take (planned casters, not rough)."""
+    from .rough import walk_casters
+
+    return walk_casters(scene, plan.casters)
+
+
+def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats):
+    """gather's paths no walk takes: the lights of others (light index -> Handoff) seen on the
+    segments (o, d; hits h) after k specular vertices, where ok, added to radiance per lane."""
+    surf_t = np.where(h.hit, h.t, np.inf)
+    for li, ho in others.items():
+        walked = [int("".join("1" if c == "R" else "0" for c in t), 2) for t in ho.types if len(t) == k]
+        other = ok & (~on | ~np.isin(code, walked))
+        if not other.any():
+            continue
+        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
+        seen = np.flatnonzero(other & (tl < surf_t) & (L.max(axis=1) > 0))
+        np.add.at(radiance, lane[seen], beta[seen] * L[seen])
+        stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
 
 
 def _splat_gathered(scene, film, rc: Receivers, radiance, stats):

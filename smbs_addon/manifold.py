@@ -638,7 +638,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         from .indirect import gather
 
         gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, lights_direct,
-               physical=opts.physical, connect=caustic)
+               physical=opts.physical, connect=caustic, others=handoffs)
 
 
 def _hand_off_seen(scene, lp, st) -> bool:

@@ -82,6 +82,7 @@ CASES = [
     ("rough_mirror", "mnee", 256),
     ("rough_tinted_mirror", "reference", 256),
     ("rough_tinted_glass", "reference", 256),
+    ("rough_pool_sun", "reference", 256),
 ]
 
 
