@@ -626,11 +626,11 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         return
     rc_seen = rc.take(seen)
     if handoffs:
-        from .indirect import handoff_gather
+        from .indirect import HANDOFF_SAMPLES, UNWALKED_SAMPLES, handoff_gather
 
         found = {}
         handoff_gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, handoffs, physical=opts.physical,
-                       found=found)
+                       found=found, samples=HANDOFF_SAMPLES if types_list else UNWALKED_SAMPLES)
         for li in handoffs:
             st = ctxs[li].stats
             st["seen_handoff_paths"] = st.get("seen_handoff_paths", 0) + found.get(li, 0)
