@@ -38,6 +38,7 @@ from .eye import Receivers, direct_albedo, surface_at
 from .geometry import triangle_areas
 from .lights import light_radiance, area_light_shape
 from .reference import run_photons, scatter_specular, splat_records
+from .rough import walk_casters
 from .vec import dot, normalize
 
 MAX_SPECULAR = 32
@@ -166,7 +167,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     lim = Limits.of(scene)
     radiance = np.zeros((n, 3))
     others = {li: ho for li, ho in (others or {}).items() if ho is not None and ho.others} if connect else {}
-    walked = walked_objects(scene, plan) if others else None
+    walked = walk_casters(scene, plan.casters) if others else None  # objects whose vertices a walk takes
     # the frontier: diffuse vertices to bounce from, with the events before them
     f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
     f_beta, f_mat, f_cnt = rc.beta, rc.mat, rc.prior
@@ -271,13 +272,6 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
         f_beta, f_mat, f_has_s, f_depth, f_cnt = cat["beta"], cat["mat"], cat["has_s"], cat["depth"], cat["cnt"]
     _splat_gathered(scene, film, rc, radiance, stats)
-
-
-def walked_objects(scene, plan) -> np.ndarray:
-    """(O,) bool: the objects whose specular vertices a walk can take (planned casters, not rough)."""
-    from .rough import walk_casters
-
-    return walk_casters(scene, plan.casters)
 
 
 def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats):

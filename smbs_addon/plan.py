@@ -399,9 +399,9 @@ def _rough_scatter(scene, tracer, rng, p, ng, ns, w_in, m, adjoint):
 
 def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounces, target):
     """Follow pilot photons from caster ``target`` (the photons whose first hit is on it)
-    through mirrors and glass (glass: both ways while the lanes
-    stay few, else one way at random; a rough one: one sampled way, _rough_scatter) to their first diffuse surface. Returns, per photon
-    path that lands where the camera sees it: the casters it met (K, max_bounces) object
+    through mirrors and glass (glass: both ways while the lanes stay few, else one way at
+    random; a rough one: one sampled way, _rough_scatter) to their first diffuse surface.
+    Returns, per photon path that lands where the camera sees it: the casters it met (K, max_bounces) object
     ids (-1 past its end), its chain letters, the receiver, the flux it carries
     (luminance, through the Fresnel weights) and where it lands; and the rays cast. target None: photons
     leaving a diffuse surface (ph.o is on it), the first specular hit on any caster."""
