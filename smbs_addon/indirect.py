@@ -37,7 +37,7 @@ from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .eye import Receivers, direct_albedo, surface_at
 from .geometry import triangle_areas
 from .lights import light_radiance, area_light_shape
-from .reference import run_photons, scatter_specular, splat_records
+from .reference import _letters, run_photons, scatter_specular, splat_records
 from .rough import walk_casters
 from .vec import dot, normalize
 
@@ -166,7 +166,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         return _splat_gathered(scene, film, rc, radiance, stats)
     lim = Limits.of(scene)
     radiance = np.zeros((n, 3))
-    others = {li: ho for li, ho in (others or {}).items() if ho is not None and ho.others} if connect else {}
+    others = {li: ho for li, ho in (others or {}).items() if ho.others} if connect else {}
     walked = walk_casters(scene, plan.casters) if others else None  # objects whose vertices a walk takes
     # the frontier: diffuse vertices to bounce from, with the events before them
     f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
@@ -279,7 +279,7 @@ def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance,
     segments (o, d; hits h) after k specular vertices, where ok, added to radiance per lane."""
     surf_t = np.where(h.hit, h.t, np.inf)
     for li, ho in others.items():
-        walked = [int("".join("1" if c == "R" else "0" for c in t), 2) for t in ho.types if len(t) == k]
+        walked = [c for c in np.unique(code) if _letters(c, k) in ho.types]  # as reference.other_paths
         other = ok & (~on | ~np.isin(code, walked))
         if not other.any():
             continue

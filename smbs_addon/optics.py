@@ -349,11 +349,16 @@ def materials(scene) -> tuple:
     from .layer import coat, gain_table, spec_table, table
 
     spec = spec_table(scene)
+    return _surface_tables(scene) + (bump_correction(scene).astype(np.int64), table(scene, spec), gain_table(scene),
+                                     coat(scene), spec, absorption(scene), alphas(scene), _energy(scene))
+
+
+def _surface_tables(scene) -> tuple:
+    """materials()' first five tables, what specular_weights1 reads: kind, Fresnel model, colour,
+    reflection tint, IOR (alone for specular_weights, which rough.energy_tables calls)."""
     return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
-            np.ascontiguousarray(scene.mat_ior, np.float64), bump_correction(scene).astype(np.int64),
-            table(scene, spec), gain_table(scene), coat(scene), spec, absorption(scene), alphas(scene),
-            _energy(scene))
+            np.ascontiguousarray(scene.mat_ior, np.float64))
 
 
 def _energy(scene) -> np.ndarray:
@@ -451,10 +456,8 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
 
 def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
     """specular_weights1 per lane: (R, T), each (N,3), of materials mat at incidence cos_i."""
-    mats = (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
-            np.ascontiguousarray(scene.mat_color, np.float64),
-            np.ascontiguousarray(scene.mat_reflect_color, np.float64), np.ascontiguousarray(scene.mat_ior, np.float64))
-    return _weights_rows(np.ascontiguousarray(mat, np.int64), mats, np.ascontiguousarray(cos_i, np.float64))
+    return _weights_rows(np.ascontiguousarray(mat, np.int64), _surface_tables(scene),
+                         np.ascontiguousarray(cos_i, np.float64))
 
 
 def has_reflection(scene, mat) -> bool:
