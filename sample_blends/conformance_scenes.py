@@ -192,11 +192,12 @@ def pool_sun4():
     return _pool("pool_sun4", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33))
 
 
-def _pool(name, water):
-    """pool_sun4 with the water's material water() (made once the scene is new)."""
+def _pool(name, water, wave=_water_wave, cells=120):
+    """pool_sun4 with the water's material water() (made once the scene is new), its surface
+    wave(x, y) on a grid of cells x cells."""
     scene = _scene(name)
     _floor(scene, size=8.0)
-    v, f = B.grid(6, 6, 120, 120, _water_wave)
+    v, f = B.grid(6, 6, cells, cells, wave)
     B.mesh_object(scene, "Water", v, f, water(), smooth=True, location=(0, 0, 1.0), caster=True)
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(20), math.radians(10), 0), energy=3.0,
                 angle=math.radians(4.0))
@@ -212,6 +213,24 @@ def rough_pool_sun():
         next(n for n in m.node_tree.nodes if n.type == "BSDF_GLASS").distribution = "MULTI_GGX"
         return m
     return _pool("rough_pool_sun", water)
+
+
+def bumped_pool_sun():
+    """pool_sun4's water flat (one quad), its waves a Bump node (Distance 0.3) on the Glass BSDF's Normal,
+    the Height a Noise Texture (Scale 5, Detail 2, the quad's Generated coordinates): the pattern of the
+    caustic is the bump's alone."""
+    def water():
+        m = B.material("BumpedWater", "glass", (1.0, 1.0, 1.0), ior=1.33)
+        nt = m.node_tree
+        glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
+        noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
+        noise.inputs["Scale"].default_value = 5.0
+        noise.inputs["Detail"].default_value = 2.0
+        bump.inputs["Distance"].default_value = 0.3
+        nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+        nt.links.new(bump.outputs["Normal"], glass.inputs["Normal"])
+        return m
+    return _pool("bumped_pool_sun", water, wave=None, cells=1)
 
 
 def cube_grey():
@@ -710,6 +729,8 @@ SCENES = {
     "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
     "gold_cylinder": (gold_cylinder, "Principled metallic, disk area, curved mirror (R, R R), open"),
     "pool_sun4": (pool_sun4, "Glass BSDF 1.33, sun 4 deg, wavy open water, seen through water"),
+    "bumped_pool_sun": (bumped_pool_sun, "pool_sun4's water flat with a Bump node (Noise Texture Height) on the "
+                        "Glass BSDF's Normal"),
     "cube_grey": (cube_grey, "Principled glass Base Color 0.8, bevelled cube, internal reflection"),
     "cube_grey_diffuse1": (cube_grey_diffuse1, "cube_grey with Diffuse bounces 1 (no floor -> glass "
                            "-> floor light)"),

@@ -19,6 +19,7 @@ import math
 import bpy
 import numpy as np
 
+from . import bump
 from . import scene as S
 from .builder import SceneBuilder
 from .errors import SceneError
@@ -270,7 +271,7 @@ def _surface_material(mat, warn) -> dict:
         if src is None:
             return _black(mat, warn, "nothing is linked to the Material Output's Surface")
         if src[0].type not in _MIXES:
-            return _bsdf(src[0], mat, warn)
+            return _bsdf(src[0], mat, warn, direct=True)
         parts, left = _parts(src[0], mat, warn, 0)
         if not parts and not left:
             return _black(mat, warn, "its shader mix has no closures")
@@ -461,8 +462,45 @@ def _mixed(parts, left, mat, warn) -> dict:
     return kw
 
 
-def _bsdf(node, mat, warn) -> dict:
-    """Material keywords for one BSDF node (raises _Unsupported for a node we cannot represent)."""
+# mirrors and glass whose Normal may take a Bump node (bump.py)
+_BUMPABLE = ("BSDF_GLASS", "BSDF_REFRACTION", "BSDF_GLOSSY", "BSDF_ANISOTROPIC")
+
+
+def _bump_node(node):
+    """The Bump node on a BSDF's Normal that the export bakes (bump.py): one Bump node whose Height
+    is linked and whose Normal, Strength and Distance are not; None otherwise."""
+    sock = node.inputs.get("Normal")
+    src = _follow(sock) if sock is not None else None
+    if src is None:
+        return None
+    b = src[0]
+    if b.type != "BUMP" or b.mute or not _linked(b, "Height"):
+        return None
+    if any(_linked(b, name) for name in ("Normal", "Strength", "Distance")):
+        return None
+    return b
+
+
+def _bump_of(mat):
+    """(Bump node name, Distance, Strength) of a material whose surface is one mirror or glass BSDF
+    with a Bump node on its Normal (Distance negated where the node inverts), or None."""
+    tree = mat.node_tree
+    if tree is None or not _uses_nodes(mat):
+        return None
+    out = _output(tree, "OUTPUT_MATERIAL")
+    src = _follow(out.inputs["Surface"]) if out is not None else None
+    if src is None or src[0].mute or src[0].type not in _BUMPABLE + ("BSDF_PRINCIPLED",):
+        return None
+    b = _bump_node(src[0])
+    if b is None:
+        return None
+    dist = float(b.inputs["Distance"].default_value)
+    return b.name, -dist if b.invert else dist, float(b.inputs["Strength"].default_value)
+
+
+def _bsdf(node, mat, warn, direct=False) -> dict:
+    """Material keywords for one BSDF node (raises _Unsupported for a node we cannot represent);
+    direct: the node is the material's surface (no mix), where a Bump node on its Normal is ours."""
     if node.mute:
         raise _Unsupported(f"node '{node.name}' is muted")
     t = node.type
@@ -496,7 +534,8 @@ def _bsdf(node, mat, warn) -> dict:
         a = node.inputs.get("Alpha")
         if a is not None and (_follow(a) is not None or float(a.default_value) < 1.0):
             ignored.append("alpha")
-        if _linked(node, "Normal"):
+        if _linked(node, "Normal") and not (direct and (metallic >= 0.5 or trans >= 0.5)
+                                            and _bump_node(node) is not None):
             ignored.append("normal map")
         if ignored:
             warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
@@ -542,9 +581,10 @@ def _bsdf(node, mat, warn) -> dict:
         return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
                     layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
                            coat_ior, coat_rough), textured=textured)
-    if t in ("BSDF_GLASS", "BSDF_REFRACTION", "BSDF_GLOSSY", "BSDF_ANISOTROPIC") and _linked(node, "Normal"):
-        warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by a node (a bump or normal map): "
-             f"its caustic is baked from the unbumped surface, where Cycles' follows the bumps")
+    if t in _BUMPABLE and _linked(node, "Normal") and not (direct and _bump_node(node) is not None):
+        warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by a node other than one Bump node "
+             f"(a normal map, nested bumps, a bump inside a shader mix): its caustic is baked from the unbumped "
+             f"surface, where Cycles' follows the bumps")
     if t == "BSDF_GLASS":
         c = _const(node, "Color")
         r = _const(node, "Roughness")
@@ -629,10 +669,11 @@ def _mesh_arrays(ob_eval):
         mats = list(me.materials)
     finally:
         ob_eval.to_mesh_clear()
+    co = co.reshape(-1, 3).astype(float)
     return dict(
-        verts=co.reshape(-1, 3).astype(float)[tv].reshape(T, 3, 3),
+        verts=co[tv].reshape(T, 3, 3), co=co, tv=tv.reshape(T, 3),
         normals=cn.reshape(-1, 3).astype(float)[tl].reshape(T, 3, 3),
-        uvs=uv, mat_index=mi, smooth=sm, mesh_materials=mats)
+        uvs=uv, uv_name=None if layer is None else layer.name, mat_index=mi, smooth=sm, mesh_materials=mats)
 
 
 def _to_world(local, M):
@@ -659,7 +700,125 @@ def _to_world(local, M):
     n = np.divide(n, nl, out=np.zeros_like(n), where=nl > 0)
     if bad.any():  # degenerate normals: fall back to the face normal
         n[bad] = np.broadcast_to(fn[:, None, :], n.shape)[bad]
+    b = local.get("bump")
+    if b is not None:  # Cycles' Bump node, in world space (bump.py)
+        tv = local["tv"] if np.linalg.det(A) >= 0 else local["tv"][:, [0, 2, 1]]
+        n = bump.bend(v, n, tv, b["heights"], b["distance"], b["strength"])
     return v, n, uv
+
+
+# ------------------------------------------------------------------------------ bumps
+def _area(verts, M) -> float:
+    """The world surface area of local triangles (T, 3, 3) under matrix M."""
+    v = verts @ np.asarray(M, float)[:3, :3].T
+    return float(0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1).sum())
+
+
+def _bumped(local, specs, source, target, warn):
+    """A mesh's arrays with its bumped mirrors and glass (specs: builder material id -> (Bump node
+    name, Distance, Strength, Material)) cut into about `target` triangles and their Bump node's
+    Height baked at every vertex (bump.py); the arrays unchanged, and said so, where Cycles cannot
+    bake it."""
+    tri_mat = local["tri_material"]
+    ids = np.array(sorted(specs), np.int64)
+    dist = np.zeros(len(ids) + 1)
+    strength = np.zeros(len(ids) + 1)
+    for k, m in enumerate(ids):
+        dist[k], strength[k] = specs[m][1], specs[m][2]
+    which = np.searchsorted(ids, tri_mat)
+    which = np.where((which < len(ids)) & (ids[np.minimum(which, len(ids) - 1)] == tri_mat), which, len(ids))
+    n = bump.segments(len(tri_mat), target)
+    co, tv, normals, uvs, parent = bump.subdivide(local["tv"], local["co"], local["normals"], local["uvs"], n)
+    slot = local["mat_index"][parent]
+    try:
+        heights = _bake_heights(source, co, tv, slot, uvs, local["uv_name"])
+    except Exception as e:  # Cycles could not bake: the surface as it is, and said so
+        warn(f"object '{source['name']}': the Height of its Bump node could not be baked ({e}); its caustic is "
+             f"baked from the unbumped surface")
+        return local
+    if not np.all(np.isfinite(heights)):
+        warn(f"object '{source['name']}': its Bump node's Height is not finite everywhere; taken as 0 there")
+        heights = np.nan_to_num(heights, nan=0.0, posinf=0.0, neginf=0.0)
+    out = dict(local, co=co, tv=tv, verts=co[tv], normals=normals, uvs=uvs, mat_index=slot,
+               smooth=np.ones(len(tv), bool), tri_material=tri_mat[parent],
+               bump=dict(heights=heights, distance=dist[which][parent], strength=strength[which][parent]))
+    return out
+
+
+def _emission_bake():
+    """Cycles' Emission bake of the context's active object to its active colour attribute."""
+    return bpy.ops.object.bake(type="EMIT", target="VERTEX_COLORS")
+
+
+def _bake_heights(source, co, tv, slot, uvs, uv_name) -> np.ndarray:
+    """Cycles' value of each bumped material's Bump Height at every vertex of a mesh (co, tv in
+    the object's space, slot: material slot per triangle): a copy of the mesh in a scene of its
+    own, each bumped material copied with its Height wired to an Emission, an Emission bake to a
+    float colour per vertex. Everything made is removed again; the user's scene is not touched."""
+    made = []
+    try:
+        me = bpy.data.meshes.new("smbs_bump")
+        made.append((bpy.data.meshes, me))
+        me.vertices.add(len(co))
+        me.vertices.foreach_set("co", co.astype(np.float32).ravel())
+        me.loops.add(tv.size)
+        me.loops.foreach_set("vertex_index", tv.astype(np.int32).ravel())
+        me.polygons.add(len(tv))
+        me.polygons.foreach_set("loop_start", np.arange(0, tv.size, 3, dtype=np.int32))
+        me.polygons.foreach_set("material_index", slot.astype(np.int32))
+        if uvs is not None:
+            layer = me.uv_layers.new(name=uv_name or "UVMap")
+            layer.uv.foreach_set("vector", uvs.astype(np.float32).ravel())
+        me.update()
+        loc, size = source["texspace"]
+        me.use_auto_texspace = False
+        me.texspace_location, me.texspace_size = loc, size
+        for entry in source["slots"]:
+            if entry is None:
+                me.materials.append(None)
+                continue
+            mat, node_name = entry
+            copy = mat.copy()
+            made.append((bpy.data.materials, copy))
+            tree = copy.node_tree
+            height = _follow(tree.nodes[node_name].inputs["Height"])[1]
+            for nd in [nd for nd in tree.nodes if nd.type == "OUTPUT_MATERIAL"]:
+                tree.nodes.remove(nd)
+            em = tree.nodes.new("ShaderNodeEmission")
+            em.inputs["Strength"].default_value = 1.0
+            out = tree.nodes.new("ShaderNodeOutputMaterial")
+            tree.links.new(height, em.inputs["Color"])
+            tree.links.new(em.outputs["Emission"], out.inputs["Surface"])
+            out.is_active_output = True
+            me.materials.append(copy)
+        attr = me.color_attributes.new("smbs_height", "FLOAT_COLOR", "POINT")
+        me.color_attributes.active_color = attr
+        ob = bpy.data.objects.new("smbs_bump", me)
+        made.insert(0, (bpy.data.objects, ob))
+        ob.matrix_world = source["matrix"].T.tolist()
+        sc = bpy.data.scenes.new("smbs_bump")
+        made.insert(0, (bpy.data.scenes, sc))
+        sc.render.engine = "CYCLES"
+        sc.cycles.device = "CPU"
+        sc.cycles.samples = 1
+        sc.collection.objects.link(ob)
+        vl = sc.view_layers[0]
+        ob.select_set(True, view_layer=vl)
+        vl.objects.active = ob
+        with bpy.context.temp_override(scene=sc, view_layer=vl, active_object=ob, object=ob,
+                                       selected_objects=[ob], selected_editable_objects=[ob]):
+            res = _emission_bake()
+        if "FINISHED" not in res:
+            raise RuntimeError(f"Cycles' bake returned {sorted(res)}")
+        h = np.empty(len(co) * 4, np.float32)
+        me.color_attributes["smbs_height"].data.foreach_get("color", h)
+        return h.reshape(-1, 4)[:, 0].astype(float)
+    finally:
+        for coll, block in made:
+            try:
+                coll.remove(block)
+            except (ReferenceError, RuntimeError):
+                pass
 
 
 # ------------------------------------------------------------------------------ lights
@@ -942,10 +1101,18 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             # Cycles' Bump Map Correction (on by default) also bends smooth-shaded mirrors' and
             # glass's shading normals at grazing angles (optics.valid_reflection1)
             corr = bool(getattr(getattr(mat, "cycles", None), "use_bump_map_correction", True))
-            mat_index[key] = b.material(key, **classify_material(mat, _warn), bump_correction=corr)
+            kw = classify_material(mat, _warn)
+            mat_index[key] = b.material(key, **kw, bump_correction=corr)
+            spec = _bump_of(mat) if kw["kind"] in (S.DIELECTRIC, S.CONDUCTOR) else None
+            if spec is not None:
+                orig_mat = mat.original if getattr(mat, "original", None) is not None else mat
+                bump_specs[mat_index[key]] = spec + (orig_mat,)
         return mat_index[key]
 
+    bump_specs = {}  # builder material id -> (Bump node name, Distance, Strength, bpy Material)
+
     mesh_cache = {}
+    meshes = []  # (name, mesh_cache key, matrix, caster, receiver) in the depsgraph's order
     names_used = {}
     viewport = getattr(depsgraph, "mode", "VIEWPORT") == "VIEWPORT"
     for inst in depsgraph.object_instances:
@@ -989,15 +1156,31 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
                 ids = np.array([material_id(m) for m in slots] or [material_id(None)], np.int32)
                 tri_mat = ids[np.clip(local["mat_index"], 0, len(ids) - 1)]
                 local["tri_material"] = tri_mat.astype(np.int32)
+                local["mat_index"] = np.clip(local["mat_index"], 0, len(ids) - 1)
+                if any(int(m) in bump_specs for m in np.unique(tri_mat)):
+                    local["bump_source"] = dict(
+                        name=orig.name, matrix=M, texspace=(tuple(ob.data.texspace_location),
+                                                            tuple(ob.data.texspace_size)),
+                        slots=[(bump_specs[int(m)][3], bump_specs[int(m)][0]) if int(m) in bump_specs else None
+                               for m in ids])
             mesh_cache[key] = local
         local = mesh_cache[key]
         if local is None:
             continue
         if k == 0 and not inst.is_instance:
             _say_visibility(orig, _warn)
+        meshes.append((name, key, M, bool(orig.cycles.is_caustics_caster), bool(orig.cycles.is_caustics_receiver)))
+    # bumps are baked once the depsgraph's instances are read (the bake adds a scene of its own)
+    bumped = [key for key, local in mesh_cache.items() if local is not None and "bump_source" in local]
+    areas = [_area(mesh_cache[key]["verts"], mesh_cache[key]["bump_source"]["matrix"]) for key in bumped]
+    for key, target in zip(bumped, bump.targets(areas)):
+        local = mesh_cache[key]
+        source = local.pop("bump_source")
+        specs = {int(m): bump_specs[int(m)] for m in np.unique(local["tri_material"]) if int(m) in bump_specs}
+        mesh_cache[key] = _bumped(local, specs, source, int(target), _warn)
+    for name, key, M, caster, receiver in meshes:
+        local = mesh_cache[key]
         v, n, uv = _to_world(local, M)
-        b.mesh_corners(name, v, n, uv, local["tri_material"],
-                       caster=bool(orig.cycles.is_caustics_caster),
-                       receiver=bool(orig.cycles.is_caustics_receiver),
+        b.mesh_corners(name, v, n, uv, local["tri_material"], caster=caster, receiver=receiver,
                        smooth=bool(local["smooth"].any()))
     return b.build()

@@ -10,8 +10,10 @@ import pytest
 bpy = pytest.importorskip("bpy")
 bmesh = pytest.importorskip("bmesh")
 
+from smbs_addon import bump  # noqa: E402
 from smbs_addon import scene as S  # noqa: E402
 from smbs_addon.errors import SceneError  # noqa: E402
+from smbs_addon import export as export_module  # noqa: E402
 from smbs_addon.export import export_scene  # noqa: E402
 from smbs_addon.rough import distributions  # noqa: E402
 
@@ -738,25 +740,130 @@ def test_a_rough_caster_keeps_its_roughness_and_distribution(node, dist, rough, 
         assert warnings == []
 
 
-def test_a_bumped_caster_is_said_to_be_baked_unbumped():
-    """A Bump node on a Glass BSDF's Normal (procedural waves on water), or a linked Displacement: the
-    layer cannot evaluate them, so the caustic is the unbumped surface's; said, once each."""
-    m = material("Waves", "ShaderNodeBsdfGlass", Roughness=0.0)
+def _height_glass(name, node_type="ShaderNodeBsdfGlass", coords="Object", **inputs):
+    """A mirror or glass whose Normal is a Bump node (Distance 0.5, Strength 0.8) of the Height
+    0.3 x - 0.2 y^2 in the Texture Coordinate node's coords."""
+    m = material(name, node_type, **inputs)
     nt = m.node_tree
-    bump, noise = nt.nodes.new("ShaderNodeBump"), nt.nodes.new("ShaderNodeTexNoise")
-    nt.links.new(noise.outputs[0], bump.inputs["Height"])
-    nt.links.new(bump.outputs[0], nt.nodes["Glass BSDF"].inputs["Normal"])
-    sc, warnings = one_material(m)
-    assert sc.mat_kind[0] == S.DIELECTRIC
-    assert warnings == ["material 'Waves': the Normal of 'Glass BSDF' is driven by a node (a bump or normal map): "
-                        "its caustic is baked from the unbumped surface, where Cycles' follows the bumps"]
-    bpy.data.objects.remove(bpy.data.objects["Thing"])
-    m = material("Displaced", "ShaderNodeBsdfGlass", Roughness=0.0)
+    bsdf = next(n for n in nt.nodes if n.type != "OUTPUT_MATERIAL")
+    bump, tc, sep = (nt.nodes.new(t) for t in ("ShaderNodeBump", "ShaderNodeTexCoord", "ShaderNodeSeparateXYZ"))
+    sq, fma = nt.nodes.new("ShaderNodeMath"), nt.nodes.new("ShaderNodeMath")
+    sq.operation, fma.operation = "MULTIPLY", "MULTIPLY_ADD"
+    nt.links.new(tc.outputs[coords], sep.inputs[0])
+    nt.links.new(sep.outputs["Y"], sq.inputs[0])
+    nt.links.new(sep.outputs["Y"], sq.inputs[1])
+    nt.links.new(sq.outputs[0], fma.inputs[0])
+    fma.inputs[1].default_value = -0.2
+    lin = nt.nodes.new("ShaderNodeMath")
+    lin.operation = "MULTIPLY"
+    lin.inputs[1].default_value = 0.3
+    nt.links.new(sep.outputs["X"], lin.inputs[0])
+    nt.links.new(lin.outputs[0], fma.inputs[2])
+    nt.links.new(fma.outputs[0], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], bsdf.inputs["Normal"])
+    bump.inputs["Distance"].default_value = 0.5
+    bump.inputs["Strength"].default_value = 0.8
+    return m
+
+
+def _blend_data():
+    return {k: sorted(x.name for x in getattr(bpy.data, k)) for k in ("scenes", "objects", "meshes", "materials")}
+
+
+@pytest.mark.parametrize("node_type,inputs,coords", [("ShaderNodeBsdfGlass", {}, "Object"),
+                                                     ("ShaderNodeBsdfPrincipled", {"Metallic": 1.0}, "Object"),
+                                                     ("ShaderNodeBsdfGlass", {}, "Generated")])
+def test_a_bump_node_on_a_caster_bends_its_normals_as_cycles_does(node_type, inputs, coords):
+    """A Bump node on a glass's or a mirror's Normal (bump.py): Cycles bakes its Height at the
+    vertices of a finer copy of the mesh, in a scene of its own; the exported corner normals are
+    Cycles' normalize(N - Distance grad H), mixed by Strength, the gradient in world space (the
+    object is stretched 2x along X, so H's slope along world X is halved; Generated coordinates
+    run 0 to 1 over the mesh's box, halving both slopes again). The user's scene and material are
+    as they were."""
+    m = _height_glass("Bumped", node_type, coords, **inputs)
+    me = bpy.data.meshes.new("Quad")
+    me.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    me.materials.append(m)
+    ob = link(bpy.data.objects.new("Water", me))
+    ob.location, ob.scale = (0, 0, 1), (2, 1, 1)
+    add_camera()
+    before = _blend_data()
+    nodes, links = len(m.node_tree.nodes), len(m.node_tree.links)
+    sc, warnings = export()
+    assert warnings == []
+    assert _blend_data() == before and (len(m.node_tree.nodes), len(m.node_tree.links)) == (nodes, links)
+    v, n = obj_tris(sc, "Water")
+    assert len(v) == bump.TARGET_TRIANGLES
+    p = v.reshape(-1, 3)
+    if coords == "Object":
+        grad = np.stack([np.full(len(p), 0.3 / 2), -0.4 * p[:, 1], np.zeros(len(p))], 1)
+    else:  # x_gen = (x_obj + 1) / 2
+        grad = np.stack([np.full(len(p), 0.3 / 4), -0.4 * (p[:, 1] + 1) / 2 / 2, np.zeros(len(p))], 1)
+    Z = np.array([0.0, 0.0, 1.0])
+    want = Z - 0.5 * grad
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    want = 0.8 * want + 0.2 * Z
+    want /= np.linalg.norm(want, axis=1, keepdims=True)
+    err = np.linalg.norm(n.reshape(-1, 3) - want, axis=1)
+    inner = (np.abs(p[:, 0]) < 1.99) & (np.abs(p[:, 1]) < 0.99)
+    # float32 heights and positions inside; at the border the vertex gradient is one-sided
+    assert err[inner].max() < 1e-3 and err.max() < 5e-3, (err[inner].max(), err.max())
+    assert np.degrees(np.arccos(n[..., 2].min())) > (8.0 if coords == "Object" else 4.0)  # the bump's tilt
+    assert sc.object_smooth[sc.object_names.index("Water")]
+
+
+def test_a_bump_cycles_cannot_bake_leaves_the_surface_unbumped_and_the_scene_as_it_was(monkeypatch):
+    """Where Cycles' bake fails, the caustic is the unbumped surface's, said once, and everything the
+    bake had made (a scene, an object, a mesh, a copied material) is removed again."""
+    m = _height_glass("Bumped")
+    me = bpy.data.meshes.new("Quad")
+    me.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    me.materials.append(m)
+    link(bpy.data.objects.new("Water", me))
+    add_camera()
+    before = _blend_data()
+
+    def fails():
+        assert set(_blend_data()["scenes"]) - set(before["scenes"])  # it fails with its scene made
+        raise RuntimeError("no Cycles here")
+
+    monkeypatch.setattr(export_module, "_emission_bake", fails)
+    sc, warnings = export()
+    assert warnings == ["object 'Water': the Height of its Bump node could not be baked (no Cycles here); its "
+                        "caustic is baked from the unbumped surface"]
+    assert _blend_data() == before
+    v, n = obj_tris(sc, "Water")
+    assert len(v) == 2 and np.allclose(n, [0.0, 0.0, 1.0])
+
+
+def test_a_bump_inside_a_mix_is_said():
+    """A Bump node inside a shader mix (or a Normal Map node, or a linked Displacement, below): the
+    layer cannot evaluate them, so the caustic is the unbumped surface's; said, once."""
+    m = _height_glass("Mixed")
     nt = m.node_tree
-    disp = nt.nodes.new("ShaderNodeDisplacement")
-    nt.links.new(disp.outputs[0], nt.nodes["Material Output"].inputs["Displacement"])
+    out, glass = nt.nodes["Material Output"], nt.nodes["Glass BSDF"]
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.0
+    nt.links.new(glass.outputs[0], mix.inputs[1])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
     sc, warnings = one_material(m)
-    assert len(warnings) == 1 and warnings[0].startswith("material 'Displaced': its Displacement is linked")
+    assert sc.mat_kind[0] == S.DIELECTRIC and len(sc.tri_vertices) == 12
+    assert warnings == ["material 'Mixed': the Normal of 'Glass BSDF' is driven by a node other than one Bump node "
+                        "(a normal map, nested bumps, a bump inside a shader mix): its caustic is baked from the "
+                        "unbumped surface, where Cycles' follows the bumps"]
+
+
+@pytest.mark.parametrize("name,node_type,driver,socket,said", [
+    ("Mapped", "ShaderNodeBsdfGlossy", "ShaderNodeNormalMap", "Glossy BSDF", "driven by a node other than one Bump node"),
+    ("Displaced", "ShaderNodeBsdfGlass", "ShaderNodeDisplacement", "Material Output", "its Displacement is linked")])
+def test_a_normal_map_or_a_displacement_is_said(name, node_type, driver, socket, said):
+    m = material(name, node_type, Roughness=0.0)
+    nt = m.node_tree
+    node = nt.nodes[socket]
+    nt.links.new(nt.nodes.new(driver).outputs[0], node.inputs["Displacement" if node.type == "OUTPUT_MATERIAL"
+                                                              else "Normal"])
+    _, warnings = one_material(m)
+    assert len(warnings) == 1 and warnings[0].startswith(f"material '{name}': ") and said in warnings[0], warnings
 
 
 def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():

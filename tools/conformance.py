@@ -76,7 +76,8 @@ def scene_arrays(name: str):
     from smbs_addon.scene import Scene
 
     src = (ROOT / "sample_blends" / "conformance_scenes.py").read_bytes() + \
-        (ROOT / "sample_blends" / "build.py").read_bytes() + (ROOT / "smbs_addon" / "export.py").read_bytes()
+        (ROOT / "sample_blends" / "build.py").read_bytes() + (ROOT / "smbs_addon" / "export.py").read_bytes() + \
+        (ROOT / "smbs_addon" / "bump.py").read_bytes()
     if name in SAMPLES:
         src += (ROOT / "sample_blends" / f"{SAMPLES[name]}.blend").read_bytes()
     key = hashlib.sha1(src).hexdigest()[:12]
@@ -155,6 +156,24 @@ def relative_rmse(lum: np.ndarray, ref: dict, region: np.ndarray | None = None) 
     truth, region, ref_var = _truth(ref, region)
     mse = float(((lum - truth)[region] ** 2).mean() - ref_var)
     return math.sqrt(max(mse, 0.0)) / float(truth[region].mean())
+
+
+def pattern(lum: np.ndarray, ref: dict, block: int = 6) -> dict:
+    """How our image's (H,W luminance) pattern follows the reference's, where a mean over the
+    caustic region cannot tell (a caustic network under bumped water holds the flat water's light,
+    redistributed): over block x block pixel means, our relative RMS error (the reference's own
+    block noise taken out), the correlation, and the reference's own contrast (its blocks' relative
+    standard deviation: what an image without the pattern would score)."""
+    def blocks(x):
+        H, W = x.shape
+        return x[:H // block * block, :W // block * block].reshape(H // block, block, W // block, block).mean((1, 3))
+
+    A, Bh = blocks(ref["a"].mean(axis=2)), blocks(ref["b"].mean(axis=2))
+    truth, ours = 0.5 * (A + Bh), blocks(lum)
+    mse = float(((ours - truth) ** 2).mean() - ((A - Bh) ** 2 / 4.0).mean())
+    return {"block_rmse": math.sqrt(max(mse, 0.0)) / float(truth.mean()),
+            "correlation": float(np.corrcoef(ours.ravel(), truth.ravel())[0, 1]),
+            "contrast": float(truth.std() / truth.mean())}
 
 
 def judge(batch_luminance: np.ndarray, ref: dict, mask: np.ndarray | None = None) -> dict:
