@@ -233,6 +233,53 @@ def bumped_pool_sun():
     return _pool("bumped_pool_sun", water, wave=None, cells=1)
 
 
+def _normal_map_image(size=256):
+    """A tangent-space normal map (a packed float image, Non-Color) of three sine waves over a 6 m square:
+    h = sum A sin(2 pi (k_u u + k_v v) + phase) with u, v in 0..1 along +X, +Y, the normal (-dh/dx,
+    -dh/dy, 1), each wave's slope up to 0.1-0.2 rad and wavelength 0.4-0.6 m."""
+    import numpy as np
+
+    waves = ((10.0, 4.0, 0.012, 0.0), (-3.0, 12.0, 0.010, 1.3), (7.0, -9.0, 0.008, 2.1))
+    jj, ii = np.mgrid[0:size, 0:size]
+    u, v = (ii + 0.5) / size, (jj + 0.5) / size  # rows from the bottom, as Blender keeps them
+    dx = np.zeros((size, size))
+    dy = np.zeros((size, size))
+    for ku, kv, a, ph in waves:
+        c = a * 2 * math.pi * np.cos(2 * math.pi * (ku * u + kv * v) + ph) / 6.0
+        dx += c * ku
+        dy += c * kv
+    n = np.stack([-dx, -dy, np.ones_like(dx)], -1)
+    n /= np.linalg.norm(n, axis=-1, keepdims=True)
+    px = np.ones((size, size, 4), np.float32)
+    px[..., :3] = 0.5 * n + 0.5
+    img = bpy.data.images.new("WaterNormals", size, size, float_buffer=True, alpha=False)
+    img.colorspace_settings.name = "Non-Color"  # first: set after the pixels, it clears them
+    img.pixels.foreach_set(px.ravel())
+    img.pack()
+    return img
+
+
+def normal_mapped_pool_sun():
+    """bumped_pool_sun's flat water with its waves a Normal Map node (tangent space, the quad's UV map
+    running 0 to 1 over it) of a packed image of three sine waves (_normal_map_image) instead of a Bump."""
+    def water():
+        m = B.material("MappedWater", "glass", (1.0, 1.0, 1.0), ior=1.33)
+        nt = m.node_tree
+        glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
+        tex, nm = nt.nodes.new("ShaderNodeTexImage"), nt.nodes.new("ShaderNodeNormalMap")
+        tex.image = _normal_map_image()
+        nt.links.new(tex.outputs["Color"], nm.inputs["Color"])
+        nt.links.new(nm.outputs["Normal"], glass.inputs["Normal"])
+        return m
+    scene = _pool("normal_mapped_pool_sun", water, wave=None, cells=1)
+    me = bpy.data.objects["Water"].data
+    uv = me.uv_layers.new(name="UVMap")
+    for loop in me.loops:
+        x, y, _ = me.vertices[loop.vertex_index].co
+        uv.uv[loop.index].vector = (x / 6.0 + 0.5, y / 6.0 + 0.5)
+    return scene
+
+
 def cube_grey():
     """Bevelled (6 segments), smooth-shaded cube of Principled glass (Transmission 1, Base
     Color 0.8, IOR 1.5), tilted 35/20 deg just above the floor, 0.5 m area light."""
@@ -731,6 +778,8 @@ SCENES = {
     "pool_sun4": (pool_sun4, "Glass BSDF 1.33, sun 4 deg, wavy open water, seen through water"),
     "bumped_pool_sun": (bumped_pool_sun, "pool_sun4's water flat with a Bump node (Noise Texture Height) on the "
                         "Glass BSDF's Normal"),
+    "normal_mapped_pool_sun": (normal_mapped_pool_sun, "pool_sun4's water flat with a Normal Map node (a packed "
+                               "image of sine waves) on the Glass BSDF's Normal"),
     "cube_grey": (cube_grey, "Principled glass Base Color 0.8, bevelled cube, internal reflection"),
     "cube_grey_diffuse1": (cube_grey_diffuse1, "cube_grey with Diffuse bounces 1 (no floor -> glass "
                            "-> floor light)"),

@@ -12,6 +12,11 @@ interpolant, per vertex the area-weighted mean over its bumped triangles, per co
 formula. Between vertices the normal is then linear, where Cycles' follows the texture: the finer
 the mesh (``segments``: about TARGET_TRIANGLES triangles per object), the closer.
 
+A Normal driven by other nodes (a Normal Map node of an image, say) needs no gradient: the export
+bakes the node's output, a world-space normal, at every corner of the finer mesh and takes it as
+the corner normal. A Bump node cannot be baked that way: a bake's shading points have no ray
+differentials, and Cycles' Bump then leaves the normal unbent (hence its Height, and ``bend``).
+
 Seen from behind, Cycles' bump does not flip with the surface (N is the flipped normal, the
 gradient term keeps its sign): light crossing a bumped surface from its back meets the opposite
 bumps. Corner normals have one side; the front's bumps are the ones kept here.

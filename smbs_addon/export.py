@@ -481,9 +481,42 @@ def _bump_node(node):
     return b
 
 
+def _upstream(socket, limit=256):
+    """The nodes feeding an input socket, through every link upstream (None past `limit` nodes)."""
+    seen, todo = {}, [socket]
+    while todo:
+        src = _follow(todo.pop())
+        if src is None or src[0].name in seen:
+            continue
+        seen[src[0].name] = src[0]
+        if len(seen) > limit:
+            return None
+        todo.extend(src[0].inputs)
+    return list(seen.values())
+
+
+def _normal_source(node):
+    """How the export bakes a mirror's or glass's driven Normal (bump.py): ("height", the Bump node)
+    where it is one Bump node (its Height baked, the gradient taken by us: a bake's shading points have
+    no ray differentials, so Cycles' own Bump would leave the normal unbent there); ("vector", None)
+    where no Bump node and no node group lies upstream (a Normal Map, say: its output baked as it is);
+    None otherwise (or where the Normal is not driven)."""
+    b = _bump_node(node)
+    if b is not None:
+        return "height", b
+    sock = node.inputs.get("Normal")
+    if sock is None or _follow(sock) is None:
+        return None
+    nodes = _upstream(sock)
+    if nodes is None or any(n.type in ("BUMP", "GROUP") or n.mute for n in nodes):
+        return None
+    return "vector", None
+
+
 def _bump_of(mat):
-    """(Bump node name, Distance, Strength) of a material whose surface is one mirror or glass BSDF
-    with a Bump node on its Normal (Distance negated where the node inverts), or None."""
+    """How a material whose surface is one mirror or glass BSDF with a driven Normal is baked:
+    ("height", Bump node name, Distance (negated where the node inverts), Strength) or ("vector",
+    BSDF node name, 0, 0); None where the export cannot bake it (see _normal_source)."""
     tree = mat.node_tree
     if tree is None or not _uses_nodes(mat):
         return None
@@ -491,11 +524,14 @@ def _bump_of(mat):
     src = _follow(out.inputs["Surface"]) if out is not None else None
     if src is None or src[0].mute or src[0].type not in _BUMPABLE + ("BSDF_PRINCIPLED",):
         return None
-    b = _bump_node(src[0])
-    if b is None:
+    how = _normal_source(src[0])
+    if how is None:
         return None
+    if how[0] == "vector":
+        return "vector", src[0].name, 0.0, 0.0
+    b = how[1]
     dist = float(b.inputs["Distance"].default_value)
-    return b.name, -dist if b.invert else dist, float(b.inputs["Strength"].default_value)
+    return "height", b.name, -dist if b.invert else dist, float(b.inputs["Strength"].default_value)
 
 
 def _bsdf(node, mat, warn, direct=False) -> dict:
@@ -535,7 +571,7 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         if a is not None and (_follow(a) is not None or float(a.default_value) < 1.0):
             ignored.append("alpha")
         if _linked(node, "Normal") and not (direct and (metallic >= 0.5 or trans >= 0.5)
-                                            and _bump_node(node) is not None):
+                                            and _normal_source(node) is not None):
             ignored.append("normal map")
         if ignored:
             warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
@@ -581,10 +617,10 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
                     layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
                            coat_ior, coat_rough), textured=textured)
-    if t in _BUMPABLE and _linked(node, "Normal") and not (direct and _bump_node(node) is not None):
-        warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by a node other than one Bump node "
-             f"(a normal map, nested bumps, a bump inside a shader mix): its caustic is baked from the unbumped "
-             f"surface, where Cycles' follows the bumps")
+    if t in _BUMPABLE and _linked(node, "Normal") and not (direct and _normal_source(node) is not None):
+        warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by nodes the export cannot bake "
+             f"(a Bump node below another node, a node group, a bump inside a shader mix): its caustic is baked "
+             f"from the unbumped surface, where Cycles' follows the bumps")
     if t == "BSDF_GLASS":
         c = _const(node, "Color")
         r = _const(node, "Roughness")
@@ -715,33 +751,42 @@ def _area(verts, M) -> float:
 
 
 def _bumped(local, specs, source, target, warn):
-    """A mesh's arrays with its bumped mirrors and glass (specs: builder material id -> (Bump node
-    name, Distance, Strength, Material)) cut into about `target` triangles and their Bump node's
-    Height baked at every vertex (bump.py); the arrays unchanged, and said so, where Cycles cannot
-    bake it."""
+    """A mesh's arrays with its bumped mirrors and glass (specs: builder material id -> _bump_of's
+    (kind, node name, Distance, Strength) and the Material) cut into about `target` triangles, Cycles'
+    values baked at every vertex (bump.py): a Bump node's Height (the normals bent in _to_world, in
+    world space), any other driven Normal as it is (the corner normals replaced). The arrays
+    unchanged, and said so, where Cycles cannot bake them."""
     tri_mat = local["tri_material"]
-    ids = np.array(sorted(specs), np.int64)
-    dist = np.zeros(len(ids) + 1)
-    strength = np.zeros(len(ids) + 1)
-    for k, m in enumerate(ids):
-        dist[k], strength[k] = specs[m][1], specs[m][2]
-    which = np.searchsorted(ids, tri_mat)
-    which = np.where((which < len(ids)) & (ids[np.minimum(which, len(ids) - 1)] == tri_mat), which, len(ids))
+    kind = np.zeros(len(tri_mat), np.int64)  # 0: as it is, 1: a Bump's Height, 2: a Normal's vector
+    dist, strength = np.zeros(len(tri_mat)), np.zeros(len(tri_mat))
+    for m, spec in specs.items():
+        on = tri_mat == m
+        kind[on] = 1 if spec[0] == "height" else 2
+        dist[on], strength[on] = spec[2], spec[3]
     n = bump.segments(len(tri_mat), target)
     co, tv, normals, uvs, parent = bump.subdivide(local["tv"], local["co"], local["normals"], local["uvs"], n)
-    slot = local["mat_index"][parent]
+    slot, kind = local["mat_index"][parent], kind[parent]
+    out = dict(local, co=co, tv=tv, verts=co[tv], normals=normals, uvs=uvs, mat_index=slot,
+               smooth=np.ones(len(tv), bool), tri_material=tri_mat[parent])
     try:
-        heights = _bake_heights(source, co, tv, slot, uvs, local["uv_name"])
+        if (kind == 1).any():
+            heights = _bake_normals(source, co, tv, slot, uvs, local["uv_name"], "height")
+            if not np.all(np.isfinite(heights)):
+                warn(f"object '{source['name']}': its Bump node's Height is not finite everywhere; taken as 0 there")
+                heights = np.nan_to_num(heights, nan=0.0, posinf=0.0, neginf=0.0)
+            out["bump"] = dict(heights=heights, distance=dist[parent], strength=np.where(kind == 1, strength[parent], 0.0))
+        if (kind == 2).any():
+            world = _bake_normals(source, co, tv, slot, uvs, local["uv_name"], "vector")
+            # to the object's space, where _to_world takes every instance's normals from
+            A = np.asarray(source["matrix"], float)[:3, :3]
+            nl = world @ A
+            ln = np.linalg.norm(nl, axis=-1, keepdims=True)
+            good = (kind == 2)[:, None] & np.isfinite(ln[..., 0]) & (ln[..., 0] > 1e-12)
+            out["normals"] = np.where(good[..., None], nl / np.where(good[..., None], ln, 1.0), normals)
     except Exception as e:  # Cycles could not bake: the surface as it is, and said so
-        warn(f"object '{source['name']}': the Height of its Bump node could not be baked ({e}); its caustic is "
+        warn(f"object '{source['name']}': the bumps of its Normal could not be baked ({e}); its caustic is "
              f"baked from the unbumped surface")
         return local
-    if not np.all(np.isfinite(heights)):
-        warn(f"object '{source['name']}': its Bump node's Height is not finite everywhere; taken as 0 there")
-        heights = np.nan_to_num(heights, nan=0.0, posinf=0.0, neginf=0.0)
-    out = dict(local, co=co, tv=tv, verts=co[tv], normals=normals, uvs=uvs, mat_index=slot,
-               smooth=np.ones(len(tv), bool), tri_material=tri_mat[parent],
-               bump=dict(heights=heights, distance=dist[which][parent], strength=strength[which][parent]))
     return out
 
 
@@ -750,11 +795,13 @@ def _emission_bake():
     return bpy.ops.object.bake(type="EMIT", target="VERTEX_COLORS")
 
 
-def _bake_heights(source, co, tv, slot, uvs, uv_name) -> np.ndarray:
-    """Cycles' value of each bumped material's Bump Height at every vertex of a mesh (co, tv in
-    the object's space, slot: material slot per triangle): a copy of the mesh in a scene of its
-    own, each bumped material copied with its Height wired to an Emission, an Emission bake to a
-    float colour per vertex. Everything made is removed again; the user's scene is not touched."""
+def _bake_normals(source, co, tv, slot, uvs, uv_name, kind) -> np.ndarray:
+    """Cycles' values at every vertex of a mesh (co, tv in the object's space, slot: material slot per
+    triangle) of what drives its bumped materials' Normals: kind "height", a Bump node's Height per
+    vertex (V,); kind "vector", the BSDF's Normal input per corner (T, 3, 3), in world space. A copy
+    of the mesh in a scene of its own, each such material copied with that socket wired to an
+    Emission, an Emission bake to a float colour attribute. Everything made is removed again; the
+    user's scene is not touched."""
     made = []
     try:
         me = bpy.data.meshes.new("smbs_bump")
@@ -774,24 +821,24 @@ def _bake_heights(source, co, tv, slot, uvs, uv_name) -> np.ndarray:
         me.use_auto_texspace = False
         me.texspace_location, me.texspace_size = loc, size
         for entry in source["slots"]:
-            if entry is None:
+            if entry is None or entry[0] != kind:
                 me.materials.append(None)
                 continue
-            mat, node_name = entry
+            node_name, mat = entry[1], entry[4]
             copy = mat.copy()
             made.append((bpy.data.materials, copy))
             tree = copy.node_tree
-            height = _follow(tree.nodes[node_name].inputs["Height"])[1]
+            driver = _follow(tree.nodes[node_name].inputs["Height" if kind == "height" else "Normal"])[1]
             for nd in [nd for nd in tree.nodes if nd.type == "OUTPUT_MATERIAL"]:
                 tree.nodes.remove(nd)
             em = tree.nodes.new("ShaderNodeEmission")
             em.inputs["Strength"].default_value = 1.0
             out = tree.nodes.new("ShaderNodeOutputMaterial")
-            tree.links.new(height, em.inputs["Color"])
+            tree.links.new(driver, em.inputs["Color"])
             tree.links.new(em.outputs["Emission"], out.inputs["Surface"])
             out.is_active_output = True
             me.materials.append(copy)
-        attr = me.color_attributes.new("smbs_height", "FLOAT_COLOR", "POINT")
+        attr = me.color_attributes.new("smbs_height", "FLOAT_COLOR", "POINT" if kind == "height" else "CORNER")
         me.color_attributes.active_color = attr
         ob = bpy.data.objects.new("smbs_bump", me)
         made.insert(0, (bpy.data.objects, ob))
@@ -810,9 +857,10 @@ def _bake_heights(source, co, tv, slot, uvs, uv_name) -> np.ndarray:
             res = _emission_bake()
         if "FINISHED" not in res:
             raise RuntimeError(f"Cycles' bake returned {sorted(res)}")
-        h = np.empty(len(co) * 4, np.float32)
-        me.color_attributes["smbs_height"].data.foreach_get("color", h)
-        return h.reshape(-1, 4)[:, 0].astype(float)
+        values = np.empty((len(co) if kind == "height" else tv.size) * 4, np.float32)
+        me.color_attributes["smbs_height"].data.foreach_get("color", values)
+        values = values.reshape(-1, 4).astype(float)
+        return values[:, 0] if kind == "height" else values[:, :3].reshape(-1, 3, 3)
     finally:
         for coll, block in made:
             try:
@@ -1109,7 +1157,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
                 bump_specs[mat_index[key]] = spec + (orig_mat,)
         return mat_index[key]
 
-    bump_specs = {}  # builder material id -> (Bump node name, Distance, Strength, bpy Material)
+    bump_specs = {}  # builder material id -> (kind, node name, Distance, Strength, bpy Material) (_bump_of)
 
     mesh_cache = {}
     meshes = []  # (name, mesh_cache key, matrix, caster, receiver) in the depsgraph's order
@@ -1161,8 +1209,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
                     local["bump_source"] = dict(
                         name=orig.name, matrix=M, texspace=(tuple(ob.data.texspace_location),
                                                             tuple(ob.data.texspace_size)),
-                        slots=[(bump_specs[int(m)][3], bump_specs[int(m)][0]) if int(m) in bump_specs else None
-                               for m in ids])
+                        slots=[bump_specs.get(int(m)) for m in ids])
             mesh_cache[key] = local
         local = mesh_cache[key]
         if local is None:

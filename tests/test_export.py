@@ -829,7 +829,7 @@ def test_a_bump_cycles_cannot_bake_leaves_the_surface_unbumped_and_the_scene_as_
 
     monkeypatch.setattr(export_module, "_emission_bake", fails)
     sc, warnings = export()
-    assert warnings == ["object 'Water': the Height of its Bump node could not be baked (no Cycles here); its "
+    assert warnings == ["object 'Water': the bumps of its Normal could not be baked (no Cycles here); its "
                         "caustic is baked from the unbumped surface"]
     assert _blend_data() == before
     v, n = obj_tris(sc, "Water")
@@ -848,22 +848,55 @@ def test_a_bump_inside_a_mix_is_said():
     nt.links.new(mix.outputs[0], out.inputs["Surface"])
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] == S.DIELECTRIC and len(sc.tri_vertices) == 12
-    assert warnings == ["material 'Mixed': the Normal of 'Glass BSDF' is driven by a node other than one Bump node "
-                        "(a normal map, nested bumps, a bump inside a shader mix): its caustic is baked from the "
-                        "unbumped surface, where Cycles' follows the bumps"]
+    assert warnings == ["material 'Mixed': the Normal of 'Glass BSDF' is driven by nodes the export cannot bake (a "
+                        "Bump node below another node, a node group, a bump inside a shader mix): its caustic is baked "
+                        "from the unbumped surface, where Cycles' follows the bumps"]
 
 
 @pytest.mark.parametrize("name,node_type,driver,socket,said", [
-    ("Mapped", "ShaderNodeBsdfGlossy", "ShaderNodeNormalMap", "Glossy BSDF", "driven by a node other than one Bump node"),
+    ("Nested", "ShaderNodeBsdfGlossy", "ShaderNodeBump", "Bump", "driven by nodes the export cannot bake"),
     ("Displaced", "ShaderNodeBsdfGlass", "ShaderNodeDisplacement", "Material Output", "its Displacement is linked")])
-def test_a_normal_map_or_a_displacement_is_said(name, node_type, driver, socket, said):
+def test_nested_bumps_or_a_displacement_are_said(name, node_type, driver, socket, said):
     m = material(name, node_type, Roughness=0.0)
     nt = m.node_tree
-    node = nt.nodes[socket]
+    if socket == "Bump":  # a Bump node whose Normal is another Bump's (Cycles' bake has no differentials)
+        outer = nt.nodes.new("ShaderNodeBump")
+        nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], outer.inputs["Height"])
+        nt.links.new(outer.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
+    node = outer if socket == "Bump" else nt.nodes[socket]
     nt.links.new(nt.nodes.new(driver).outputs[0], node.inputs["Displacement" if node.type == "OUTPUT_MATERIAL"
                                                               else "Normal"])
     _, warnings = one_material(m)
     assert len(warnings) == 1 and warnings[0].startswith(f"material '{name}': ") and said in warnings[0], warnings
+
+
+def test_a_normal_map_on_a_mirror_is_baked_as_cycles_evaluates_it():
+    """A Normal Map node (tangent space, from the UV map) on a mirror's Normal: Cycles bakes the node's
+    output, a world-space normal, at every corner of the finer mesh; the exported corner normals are it.
+    A constant colour (0.8, 0.5, 1) tilts the normal towards the tangent (+U, here the object's +X) by
+    atan(0.6); the object is turned, and so is the normal."""
+    m = material("Hammered", "ShaderNodeBsdfGlossy", Roughness=0.0)
+    nt = m.node_tree
+    nm, rgb = nt.nodes.new("ShaderNodeNormalMap"), nt.nodes.new("ShaderNodeRGB")
+    rgb.outputs[0].default_value = (0.8, 0.5, 1.0, 1.0)
+    nt.links.new(rgb.outputs[0], nm.inputs["Color"])
+    nt.links.new(nm.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
+    me = bpy.data.meshes.new("Quad")
+    me.from_pydata([(-1, -1, 0), (1, -1, 0), (1, 1, 0), (-1, 1, 0)], [], [(0, 1, 2, 3)])
+    uv = me.uv_layers.new(name="UVMap")
+    uv.uv.foreach_set("vector", [0, 0, 1, 0, 1, 1, 0, 1])
+    me.materials.append(m)
+    ob = link(bpy.data.objects.new("Sheet", me))
+    ob.rotation_euler = (0.3, 0.0, 0.5)
+    add_camera()
+    before = _blend_data()
+    sc, warnings = export()
+    assert warnings == [] and _blend_data() == before
+    v, n = obj_tris(sc, "Sheet")
+    assert len(v) == bump.TARGET_TRIANGLES
+    R = np.array(ob.matrix_world)[:3, :3]
+    want = R @ (np.array([0.6, 0.0, 1.0]) / np.hypot(0.6, 1.0))
+    assert np.abs(n - want).max() < 1e-5, np.abs(n - want).max()
 
 
 def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():
