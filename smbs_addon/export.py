@@ -643,6 +643,9 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         color, textured = _colour(node, "Color")
         if textured:
             _say_textured(mat, color, warn)
+        if _linked(node, "Normal"):
+            warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by a node (a bump or normal map): "
+                 f"the caustic on it is shaded with the unbumped normal, where Cycles' follows the bumps")
         return dict(kind=S.DIFFUSE, color=color, roughness=sigma, textured=textured,
                     layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0, 0.0, 0.0, 0.0))
     if t == "EMISSION":

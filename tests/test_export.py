@@ -836,6 +836,20 @@ def test_a_bump_cycles_cannot_bake_leaves_the_surface_unbumped_and_the_scene_as_
     assert len(v) == 2 and np.allclose(n, [0.0, 0.0, 1.0])
 
 
+def test_a_bumped_diffuse_receiver_is_said():
+    """A Bump node on a Diffuse BSDF's Normal: the caustic on it is shaded with the unbumped normal
+    (bump.py bakes mirrors' and glass's bumps only); said, where it was silent."""
+    m = material("Stone", "ShaderNodeBsdfDiffuse")
+    nt = m.node_tree
+    b = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], b.inputs["Height"])
+    nt.links.new(b.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and len(sc.tri_vertices) == 12
+    assert warnings == ["material 'Stone': the Normal of 'Diffuse BSDF' is driven by a node (a bump or normal map): "
+                        "the caustic on it is shaded with the unbumped normal, where Cycles' follows the bumps"]
+
+
 def test_a_bump_inside_a_mix_is_said():
     """A Bump node inside a shader mix (or a Normal Map node, or a linked Displacement, below): the
     layer cannot evaluate them, so the caustic is the unbumped surface's; said, once."""
