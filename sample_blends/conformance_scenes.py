@@ -219,18 +219,40 @@ def bumped_pool_sun():
     """pool_sun4's water flat (one quad), its waves a Bump node (Distance 0.3) on the Glass BSDF's Normal,
     the Height a Noise Texture (Scale 5, Detail 2, the quad's Generated coordinates): the pattern of the
     caustic is the bump's alone."""
-    def water():
-        m = B.material("BumpedWater", "glass", (1.0, 1.0, 1.0), ior=1.33)
-        nt = m.node_tree
-        glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
-        noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
-        noise.inputs["Scale"].default_value = 5.0
-        noise.inputs["Detail"].default_value = 2.0
-        bump.inputs["Distance"].default_value = 0.3
-        nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
-        nt.links.new(bump.outputs["Normal"], glass.inputs["Normal"])
-        return m
-    return _pool("bumped_pool_sun", water, wave=None, cells=1)
+    return _pool("bumped_pool_sun", lambda: _bumped_water("BumpedWater", 0.3), wave=None, cells=1)
+
+
+def _bumped_water(name, distance, scale=5.0, coords=None):
+    """A Glass BSDF 1.33 whose Normal is a Bump node (Distance `distance`) of a Noise Texture (Scale
+    `scale`, Detail 2, Generated coordinates, or the Texture Coordinate node's `coords`)."""
+    m = B.material(name, "glass", (1.0, 1.0, 1.0), ior=1.33)
+    nt = m.node_tree
+    glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
+    noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
+    if coords is not None:
+        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs[coords], noise.inputs["Vector"])
+    noise.inputs["Scale"].default_value = scale
+    noise.inputs["Detail"].default_value = 2.0
+    bump.inputs["Distance"].default_value = distance
+    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], glass.inputs["Normal"])
+    return m
+
+
+def bumped_slab_sun():
+    """A closed slab of bumped glass (a Noise Texture of Scale 2 in Object coordinates under a Bump of
+    Distance 0.1; 1.2 x 1.2 x 0.2 m, 2.5 m up) under a sun of 2 degrees, 30 degrees from the zenith: its
+    caustic lands beside the slab, where the camera looks down at it. The light leaves the slab through
+    its underside, from behind, and Cycles' eye paths meet its top from behind, where Cycles' Bump node
+    bends the normal the other way (bump.py)."""
+    scene = _scene("bumped_slab_sun")
+    _floor(scene, size=10.0)
+    v, f = _box(0.6, 0.6, 0.1)
+    B.mesh_object(scene, "Slab", v, f, _bumped_water("BumpedGlass", 0.1, 2.0, "Object"), smooth=False,
+                  location=(0, 0, 2.5), caster=True)
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0))
+    B.add_camera(scene, (-2.4, 0, 4.5), (-1.44, 0, 0), lens=35)
+    return scene
 
 
 def _normal_map_image(size=256):
@@ -780,6 +802,8 @@ SCENES = {
                         "Glass BSDF's Normal"),
     "normal_mapped_pool_sun": (normal_mapped_pool_sun, "pool_sun4's water flat with a Normal Map node (a packed "
                                "image of sine waves) on the Glass BSDF's Normal"),
+    "bumped_slab_sun": (bumped_slab_sun, "a closed glass slab with a Bump node on its Normal, the light leaving it "
+                        "through its back (Cycles' bump does not flip there)"),
     "cube_grey": (cube_grey, "Principled glass Base Color 0.8, bevelled cube, internal reflection"),
     "cube_grey_diffuse1": (cube_grey_diffuse1, "cube_grey with Diffuse bounces 1 (no floor -> glass "
                            "-> floor light)"),

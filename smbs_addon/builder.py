@@ -38,6 +38,7 @@ class SceneBuilder:
     def __init__(self, name: str = "scene"):
         self.name = name
         self._tris, self._normals, self._uvs, self._obj, self._mat = [], [], [], [], []
+        self._back = []  # per object: its tri_normals_back, or None (its tri_normals)
         self.objects: list[dict] = []
         self.materials: list[dict] = []
         self.lights: list[dict] = []
@@ -100,6 +101,7 @@ class SceneBuilder:
                                  smooth=bool(normals is not None if smooth is None else smooth)))
         self._tris.append(tv)
         self._normals.append(tn)
+        self._back.append(None)
         self._uvs.append(np.array(tu))
         self._obj.append(np.full(len(F), oid, np.int32))
         fm = (np.full(len(F), material, np.int32) if face_materials is None
@@ -108,12 +110,14 @@ class SceneBuilder:
         return oid
 
     def mesh_corners(self, name, tri_vertices, tri_normals, tri_uvs, tri_material,
-                     caster=False, receiver=False, smooth=False) -> int:
+                     caster=False, receiver=False, smooth=False, tri_normals_back=None) -> int:
         """Add an object from per-triangle arrays (the Blender export's entry point).
 
         tri_vertices, tri_normals: (T,3,3) world positions and unit shading normals per
         corner; tri_uvs: (T,3,2) or None; tri_material: (T,) material indices (already
-        defined with ``material``); smooth: whether any face is smooth shaded.
+        defined with ``material``); smooth: whether any face is smooth shaded;
+        tri_normals_back: (T,3,3) the normals a ray meets from behind (Scene.tri_normals_back),
+        None: tri_normals.
         """
         tv = np.asarray(tri_vertices, float).reshape(-1, 3, 3)
         T = len(tv)
@@ -129,11 +133,15 @@ class SceneBuilder:
         fm = np.broadcast_to(np.asarray(tri_material, np.int32), (T,))
         if T and (fm.min() < 0 or fm.max() >= len(self.materials)):
             raise SceneError(f"object '{name}': material index out of range")
+        tb = None if tri_normals_back is None else np.asarray(tri_normals_back, float).reshape(-1, 3, 3)
+        if tb is not None and tb.shape != tv.shape:
+            raise SceneError(f"object '{name}': {len(tb)} back normal triples for {T} triangles")
         oid = len(self.objects)
         self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
                                  smooth=bool(smooth)))
         self._tris.append(tv)
         self._normals.append(tn)
+        self._back.append(tb)
         self._uvs.append(np.array(tu))
         self._obj.append(np.full(T, oid, np.int32))
         self._mat.append(np.array(fm, np.int32))
@@ -216,6 +224,8 @@ class SceneBuilder:
             tri_vertices=cat(self._tris, (0, 3, 3)), tri_normals=cat(self._normals, (0, 3, 3)),
             tri_uvs=cat(self._uvs, (0, 3, 2)), tri_object=cat(self._obj, (0,), np.int32),
             tri_material=cat(self._mat, (0,), np.int32),
+            tri_normals_back=(cat([n if b is None else b for n, b in zip(self._normals, self._back)], (0, 3, 3))
+                              if any(b is not None for b in self._back) else np.zeros((0, 3, 3))),
             object_names=[o["name"] for o in ob],
             object_caster=np.array([o["caster"] for o in ob], bool),
             object_receiver=np.array([o["receiver"] for o in ob], bool),

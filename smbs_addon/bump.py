@@ -18,8 +18,11 @@ the corner normal. A Bump node cannot be baked that way: a bake's shading points
 differentials, and Cycles' Bump then leaves the normal unbent (hence its Height, and ``bend``).
 
 Seen from behind, Cycles' bump does not flip with the surface (N is the flipped normal, the
-gradient term keeps its sign): light crossing a bumped surface from its back meets the opposite
-bumps. Corner normals have one side; the front's bumps are the ones kept here.
+gradient term keeps its sign) where the Height reads the position (Object coordinates: a sheet met
+from below refracts as from above); where it reads an attribute (Generated, UV) the offsets turn with
+the surface and it flips (export._bump_flips); a Normal Map flips. ``bend`` gives both sides' normals
+(Scene.tri_normals_back, kept where the bump does not flip: the kernels take them where a ray's
+direction runs along the geometric normal).
 """
 from __future__ import annotations
 
@@ -124,12 +127,15 @@ def subdivide(tv: np.ndarray, co: np.ndarray, normals: np.ndarray, uvs, n: int):
 
 
 def bend(v: np.ndarray, n: np.ndarray, tv: np.ndarray, heights: np.ndarray, distance: np.ndarray,
-         strength: np.ndarray) -> np.ndarray:
+         strength: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Cycles' Bump node on corner normals.
 
     v: (T, 3, 3) world corners; n: (T, 3, 3) unit shading normals; tv: (T, 3) vertex ids into
     heights (V,); distance, strength: (T,) the Bump node's Distance (negated where Invert) and
-    Strength per triangle (strength 0: not bumped). Returns the bent unit corner normals.
+    Strength per triangle (strength 0: not bumped). Returns the bent unit corner normals seen from
+    the front, and those a ray meets from behind: Cycles bends the flipped N by the same gradient
+    term there, normalize(-N - Distance grad H) = -normalize(N + Distance grad H), the front's
+    bend mirrored about N (as an outward normal, 2 (N'.N) N - N', Strength's mix included).
     """
     tv = np.asarray(tv, np.int64)
     h = np.asarray(heights, float)[tv]  # (T, 3)
@@ -157,7 +163,9 @@ def bend(v: np.ndarray, n: np.ndarray, tv: np.ndarray, heights: np.ndarray, dist
     nb = n - d * gc
     nb = _unit(nb, n)
     nb = _unit(s * nb + (1.0 - s) * n, n)
-    return np.where(bumped[:, None, None], nb, n)
+    front = np.where(bumped[:, None, None], nb, n)
+    back = _unit(2.0 * (front * n).sum(-1, keepdims=True) * n - front, n)
+    return front, np.where(bumped[:, None, None], back, n)
 
 
 def _unit(x: np.ndarray, fallback: np.ndarray) -> np.ndarray:

@@ -513,10 +513,34 @@ def _normal_source(node):
     return "vector", None
 
 
+# where a Bump node's Height is read (Cycles, checked by renders of a sheet met from above and
+# below): a texture coordinate of the position (Object, Camera, Window, Reflection, Normal, the
+# Geometry node's Position) is offset in the frame of the flipped normal, so seen from behind the
+# bump bends the other way; an attribute (Generated, UV, a UV Map or Attribute node, a texture's
+# own default Vector) is offset with the surface, and the bump flips with it
+_POSITION_COORDS = {("TEX_COORD", "Object"), ("TEX_COORD", "Camera"), ("TEX_COORD", "Window"),
+                    ("TEX_COORD", "Reflection"), ("TEX_COORD", "Normal"), ("NEW_GEOMETRY", "Position"),
+                    ("NEW_GEOMETRY", "Normal"), ("NEW_GEOMETRY", "True Normal"), ("NEW_GEOMETRY", "Incoming")}
+
+
+def _bump_flips(tree, bump_node) -> bool:
+    """Does Cycles' Bump node bend the normal with the surface when met from behind (the Height
+    read through attributes only), or the other way (through the position: bump.bend's normals
+    from behind)? Where both feed the Height, the position's way."""
+    nodes = _upstream(bump_node.inputs["Height"]) or []
+    names = {n.name for n in nodes}
+    for lk in tree.links:
+        if lk.is_valid and not lk.is_muted and lk.to_node.name in names | {bump_node.name} \
+                and (lk.from_node.type, lk.from_socket.name) in _POSITION_COORDS:
+            return False
+    return True
+
+
 def _bump_of(mat):
     """How a material whose surface is one mirror or glass BSDF with a driven Normal is baked:
-    ("height", Bump node name, Distance (negated where the node inverts), Strength) or ("vector",
-    BSDF node name, 0, 0); None where the export cannot bake it (see _normal_source)."""
+    ("height", Bump node name, Distance (negated where the node inverts), Strength, whether the bump
+    flips with the surface seen from behind: _bump_flips) or ("vector", BSDF node name, 0, 0, True);
+    None where the export cannot bake it (see _normal_source)."""
     tree = mat.node_tree
     if tree is None or not _uses_nodes(mat):
         return None
@@ -528,10 +552,11 @@ def _bump_of(mat):
     if how is None:
         return None
     if how[0] == "vector":
-        return "vector", src[0].name, 0.0, 0.0
+        return "vector", src[0].name, 0.0, 0.0, True
     b = how[1]
     dist = float(b.inputs["Distance"].default_value)
-    return "height", b.name, -dist if b.invert else dist, float(b.inputs["Strength"].default_value)
+    return ("height", b.name, -dist if b.invert else dist, float(b.inputs["Strength"].default_value),
+            _bump_flips(tree, b))
 
 
 def _bsdf(node, mat, warn, direct=False) -> dict:
@@ -716,7 +741,8 @@ def _mesh_arrays(ob_eval):
 
 
 def _to_world(local, M):
-    """World-space (verts, normals, uvs) for one instance, fixing winding for negative scale."""
+    """World-space (verts, normals, uvs, normals from behind or None: bump.bend) for one instance,
+    fixing winding for negative scale."""
     A, t = M[:3, :3], M[:3, 3]
     v = local["verts"] @ A.T + t
     try:
@@ -740,10 +766,14 @@ def _to_world(local, M):
     if bad.any():  # degenerate normals: fall back to the face normal
         n[bad] = np.broadcast_to(fn[:, None, :], n.shape)[bad]
     b = local.get("bump")
-    if b is not None:  # Cycles' Bump node, in world space (bump.py)
-        tv = local["tv"] if np.linalg.det(A) >= 0 else local["tv"][:, [0, 2, 1]]
-        n = bump.bend(v, n, tv, b["heights"], b["distance"], b["strength"])
-    return v, n, uv
+    if b is None:
+        return v, n, uv, None
+    # Cycles' Bump node, in world space, from the front and from behind (bump.py)
+    tv = local["tv"] if np.linalg.det(A) >= 0 else local["tv"][:, [0, 2, 1]]
+    n, back = bump.bend(v, n, tv, b["heights"], b["distance"], b["strength"])
+    if b["flips"].all():
+        return v, n, uv, None
+    return v, n, uv, np.where(b["flips"][:, None, None], n, back)
 
 
 # ------------------------------------------------------------------------------ bumps
@@ -762,10 +792,11 @@ def _bumped(local, specs, source, target, warn):
     tri_mat = local["tri_material"]
     kind = np.zeros(len(tri_mat), np.int64)  # 0: as it is, 1: a Bump's Height, 2: a Normal's vector
     dist, strength = np.zeros(len(tri_mat)), np.zeros(len(tri_mat))
+    flips = np.ones(len(tri_mat), bool)
     for m, spec in specs.items():
         on = tri_mat == m
         kind[on] = 1 if spec[0] == "height" else 2
-        dist[on], strength[on] = spec[2], spec[3]
+        dist[on], strength[on], flips[on] = spec[2], spec[3], spec[4]
     n = bump.segments(len(tri_mat), target)
     co, tv, normals, uvs, parent = bump.subdivide(local["tv"], local["co"], local["normals"], local["uvs"], n)
     slot, kind = local["mat_index"][parent], kind[parent]
@@ -777,7 +808,8 @@ def _bumped(local, specs, source, target, warn):
             if not np.all(np.isfinite(heights)):
                 warn(f"object '{source['name']}': its Bump node's Height is not finite everywhere; taken as 0 there")
                 heights = np.nan_to_num(heights, nan=0.0, posinf=0.0, neginf=0.0)
-            out["bump"] = dict(heights=heights, distance=dist[parent], strength=np.where(kind == 1, strength[parent], 0.0))
+            out["bump"] = dict(heights=heights, distance=dist[parent], flips=flips[parent],
+                               strength=np.where(kind == 1, strength[parent], 0.0))
         if (kind == 2).any():
             world = _bake_normals(source, co, tv, slot, uvs, local["uv_name"], "vector")
             # to the object's space, where _to_world takes every instance's normals from
@@ -827,7 +859,7 @@ def _bake_normals(source, co, tv, slot, uvs, uv_name, kind) -> np.ndarray:
             if entry is None or entry[0] != kind:
                 me.materials.append(None)
                 continue
-            node_name, mat = entry[1], entry[4]
+            node_name, mat = entry[1], entry[5]
             copy = mat.copy()
             made.append((bpy.data.materials, copy))
             tree = copy.node_tree
@@ -1160,7 +1192,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
                 bump_specs[mat_index[key]] = spec + (orig_mat,)
         return mat_index[key]
 
-    bump_specs = {}  # builder material id -> (kind, node name, Distance, Strength, bpy Material) (_bump_of)
+    bump_specs = {}  # builder material id -> (kind, node name, Distance, Strength, flips, bpy Material) (_bump_of)
 
     mesh_cache = {}
     meshes = []  # (name, mesh_cache key, matrix, caster, receiver) in the depsgraph's order
@@ -1230,7 +1262,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         mesh_cache[key] = _bumped(local, specs, source, int(target), _warn)
     for name, key, M, caster, receiver in meshes:
         local = mesh_cache[key]
-        v, n, uv = _to_world(local, M)
+        v, n, uv, back = _to_world(local, M)
         b.mesh_corners(name, v, n, uv, local["tri_material"], caster=caster, receiver=receiver,
-                       smooth=bool(local["smooth"].any()))
+                       smooth=bool(local["smooth"].any()), tri_normals_back=back)
     return b.build()

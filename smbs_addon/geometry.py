@@ -40,13 +40,19 @@ def triangle_areas(v: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
 
 
-def vertex_from_hits(scene, tracer, prim: np.ndarray, p: np.ndarray, b: np.ndarray) -> Vertex:
+def vertex_from_hits(scene, tracer, prim: np.ndarray, p: np.ndarray, b: np.ndarray, d=None) -> Vertex:
+    """The walk's vertex (kernels._lane_vertex's record) at points p (barycentrics b) of triangles
+    prim, met by rays of direction d (None: from the front; a bumped surface met from behind has
+    other corner normals, Tracer.ns_corner)."""
     v = tracer.v[prim]
     e1, e2 = v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]
     ng = tracer.ng[prim]
     s = normalize(e1)
     t = cross(ng, s)
     c = tracer.ns_corner[prim]
+    if c.shape[1] == 6:  # kernels._corner_side
+        back = np.zeros(len(prim), bool) if d is None else dot(d, ng) > 0
+        c = np.where(back[:, None, None], c[:, 3:], c[:, :3])
     b0 = 1.0 - b[:, 0] - b[:, 1]
     nraw = b0[:, None] * c[:, 0] + b[:, 0:1] * c[:, 1] + b[:, 1:2] * c[:, 2]
     ln = np.sqrt(dot(nraw, nraw))

@@ -676,13 +676,23 @@ def _barycentric(e1, e2, q):
 
 
 @njit(inline="always", **_JIT)
-def _shading_normal(tns, pr, b1, b2, g):
+def _corner_side(tns, d, g):
+    """Where a ray of direction d meets a triangle of geometric normal g, the first of its corner
+    normals in tns: 3 where it comes from behind and tns holds the normals met from there
+    (Tracer.ns_corner (T, 6, 3): Scene.tri_normals_back, bump.py), else 0."""
+    return 3 if tns.shape[1] == 6 and d[0] * g[0] + d[1] * g[1] + d[2] * g[2] > 0 else 0
+
+
+@njit(inline="always", **_JIT)
+def _shading_normal(tns, pr, b1, b2, g, d):
     """tracer.shading_normal: the corner normals interpolated and normalised (not flipped towards
-    the geometric normal g, as Cycles' triangle_smooth_normal), g where they give none."""
+    the geometric normal g, as Cycles' triangle_smooth_normal), g where they give none; those a ray
+    of direction d meets (_corner_side)."""
     b0 = 1.0 - b1 - b2
-    c0 = (tns[pr, 0, 0], tns[pr, 0, 1], tns[pr, 0, 2])
-    c1 = (tns[pr, 1, 0], tns[pr, 1, 1], tns[pr, 1, 2])
-    c2 = (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2])
+    k = _corner_side(tns, d, g)
+    c0 = (tns[pr, k, 0], tns[pr, k, 1], tns[pr, k, 2])
+    c1 = (tns[pr, k + 1, 0], tns[pr, k + 1, 1], tns[pr, k + 1, 2])
+    c2 = (tns[pr, k + 2, 0], tns[pr, k + 2, 1], tns[pr, k + 2, 2])
     n = _normalize(_add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2)))
     return g if _dot(n, n) < 0.5 else n
 
@@ -702,7 +712,7 @@ def _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, n
             continue
         ti, pi, g, v0, e1, e2 = _hit_point(oi, di, _v(xo, i, 0) if exact else oi, exact, t32, pr, tv, tng, eps)
         b1, b2, _, _, _ = _barycentric(e1, e2, _sub(pi, v0))
-        n = _shading_normal(tns, pr, b1, b2, g)
+        n = _shading_normal(tns, pr, b1, b2, g, di)
         t[i] = ti
         b[i, 0], b[i, 1] = b1, b2
         for c in range(3):
@@ -735,10 +745,11 @@ def barycentric_rows(tv, prim, p):
 
 @njit(**_JIT)
 def shading_normal_rows(tns, tng, prim, b):
-    """tracer.shading_normal at barycentrics b on triangles prim."""
+    """tracer.shading_normal at barycentrics b on triangles prim (the normals met from the front)."""
     out = np.zeros((prim.shape[0], 3))
+    front = (0.0, 0.0, 0.0)
     for i in range(prim.shape[0]):
-        n = _shading_normal(tns, prim[i], b[i, 0], b[i, 1], _v(tng, prim[i], 0))
+        n = _shading_normal(tns, prim[i], b[i, 0], b[i, 1], _v(tng, prim[i], 0), front)
         out[i, 0], out[i, 1], out[i, 2] = n
     return out
 
@@ -761,9 +772,10 @@ def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tn
     # geometry.vertex_from_hits
     s = _normalize(e1)
     t = _cross(g, s)
-    c0 = (tns[pr, 0, 0], tns[pr, 0, 1], tns[pr, 0, 2])
-    c1 = (tns[pr, 1, 0], tns[pr, 1, 1], tns[pr, 1, 2])
-    c2 = (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2])
+    k = _corner_side(tns, d, g)
+    c0 = (tns[pr, k, 0], tns[pr, k, 1], tns[pr, k, 2])
+    c1 = (tns[pr, k + 1, 0], tns[pr, k + 1, 1], tns[pr, k + 1, 2])
+    c2 = (tns[pr, k + 2, 0], tns[pr, k + 2, 1], tns[pr, k + 2, 2])
     b0 = 1.0 - b1 - b2
     nraw = _add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2))
     ln = math.sqrt(_dot(nraw, nraw))
@@ -1490,7 +1502,7 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
     if not (cos0 > 0 and side * _dot(d, g) > 0 and _dot(w, nn) > 0 and cos_p > 0):
         return False, zero, zero, -1, zero, 0.0, 0.0
     gp = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
-    if not bend1(_neg(d), _shading_normal(tns, pr, b1, b2, gp), gp)[1]:  # -d: the eye's direction there
+    if not bend1(_neg(d), _shading_normal(tns, pr, b1, b2, gp, d), gp)[1]:  # -d: the eye's direction there
         return False, zero, zero, -1, zero, 0.0, 0.0
     f = cos0 * cos_p * total / (math.pi * dist2)  # (a / pi) cos0 / pdf, pdf = dist^2 / (total cos_p)
     return True, d, (beta[0] * a[0] * f, beta[1] * a[1] * f, beta[2] * a[2] * f), pr, _add(x, q), b1, b2
@@ -1545,7 +1557,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
                 p, b1, b2 = p_first, f1, f2
             else:
                 b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
-            n = _shading_normal(tns, pr, b1, b2, gg)
+            n = _shading_normal(tns, pr, b1, b2, gg, d)
             ok, dd, bb, bent = scatter1(keyed_uniform3(key, r, s, 3 + bounce), _neg(d), n, gg, m, kind, mats, b,
                                         physical, False)
             if not ok or (targeted and bounce == 0 and not bent):  # bent_gather: bent first vertices only
@@ -1616,7 +1628,7 @@ def _next_surface(ray, o, d, tv, tng, tns, eps):
     if pr < 0:
         return pr, t, p, g, g, 0.0, 0.0
     b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
-    return pr, t, p, g, _shading_normal(tns, pr, b1, b2, g), b1, b2
+    return pr, t, p, g, _shading_normal(tns, pr, b1, b2, g, d), b1, b2
 
 
 @njit(**_JIT)
@@ -1696,6 +1708,11 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
                     break
                 if not spec:
                     break
+                if kind == _DIELECTRIC and tns.shape[1] == 6:
+                    # a bumped glass's normals as Cycles' eye path meets them: through the glass it
+                    # comes from the side the photon goes to (bump.py; a Fresnel reflection or a total
+                    # internal one off such a surface takes them from the wrong side)
+                    n = _shading_normal(tns, pr, b1, b2, g, _neg(d))
                 ok, dd, bb, _ = scatter1(keyed_uniform3(key, lane, it, 0), _neg(d), n, g, m, kind, mats, b,
                                          not physical, True)
                 if not ok:

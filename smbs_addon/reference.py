@@ -147,8 +147,12 @@ def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caste
             if tau <= 0:
                 take[g] = True
                 continue
-            verts = [vertex_from_hits(scene, tracer, prim[g, k - 1 - j], pts[g, k - 1 - j], bary[g, k - 1 - j])
-                     for j in range(k)]
+            # vertex m of the photon's path (light side first) is met coming from m - 1, or the light
+            # (y: its point, or the direction towards a sun)
+            first = -y[g] if handoff.directional else pts[g, 0] - y[g]
+            verts = [vertex_from_hits(scene, tracer, prim[g, m], pts[g, m], bary[g, m],
+                                      pts[g, m] - pts[g, m - 1] if m > 0 else first)
+                     for m in range(k - 1, -1, -1)]
             etas = [scene.mat_ior[v.mat] for v in verts]
             c = concentration(types, x0[g], verts, etas, y[g], handoff.directional)
             take[g[c > tau]] = True

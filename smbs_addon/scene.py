@@ -44,7 +44,7 @@ PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
-            "world_map_rotation", "mat_distribution")
+            "world_map_rotation", "mat_distribution", "tri_normals_back")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -180,6 +180,11 @@ class Scene:
     # Mapping node's turn). Empty: the world is a constant colour (lights.EnvMap)
     world_map: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
     world_map_rotation: np.ndarray = field(default_factory=lambda: np.eye(3))
+    # (T,3,3): the shading normals per corner a ray meets from behind (its direction along the
+    # geometric normal), where they are not tri_normals: Cycles' Bump node does not flip with the
+    # surface, so a bumped surface seen from behind bends the other way (bump.py). Empty: tri_normals
+    # from both sides (a scene without bumps, built in code, or saved before they were exported)
+    tri_normals_back: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
     # ------------------------------------------------------------------ derived
     def textured_materials(self) -> np.ndarray | None:
@@ -279,6 +284,9 @@ class Scene:
             if a.shape != shape:
                 raise SceneError(f"scene array '{name}' has shape {a.shape}, expected {shape}")
         O, M, L = len(self.object_names), len(self.mat_names), self.n_lights
+        if self.tri_normals_back.shape not in ((0, 3, 3), (T, 3, 3)):
+            raise SceneError(f"scene array 'tri_normals_back' has shape {self.tri_normals_back.shape}, expected "
+                             f"{(T, 3, 3)} or none")
         for name in ("object_caster", "object_receiver", "object_smooth"):
             if getattr(self, name).shape != (O,):
                 raise SceneError(f"scene array '{name}' must have one entry per object ({O})")
@@ -328,7 +336,7 @@ class Scene:
         if self.light_matrix.shape != (L, 4, 4) or self.light_color.shape != (L, 3) \
                 or self.light_size.shape != (L, 2):
             raise SceneError("light matrix/colour/size arrays do not match the light count")
-        for name in ("tri_vertices", "tri_normals", "tri_uvs", "mat_color", "mat_reflect_color",
+        for name in ("tri_vertices", "tri_normals", "tri_normals_back", "tri_uvs", "mat_color", "mat_reflect_color",
                      "mat_ior", "mat_roughness", "mat_strength", "light_matrix", "light_color",
                      "light_radius", "light_spot_size", "light_spot_blend", "light_size",
                      "light_spread", "light_angle", "world_color"):

@@ -54,7 +54,10 @@ class Tracer:
         n_raw = cross(e1, e2)
         self.area2 = np.sqrt(dot(n_raw, n_raw))  # twice the triangle area
         self.ng = normalize(n_raw)
-        self.ns_corner = scene.tri_normals.astype(np.float64)
+        # (T, 3, 3) corner normals, or (T, 6, 3) with those a ray meets from behind after them
+        # (Scene.tri_normals_back: a bumped surface's, bump.py; kernels._corner_side)
+        self.ns_corner = scene.tri_normals.astype(np.float64) if not scene.tri_normals_back.size else \
+            np.ascontiguousarray(np.concatenate([scene.tri_normals, scene.tri_normals_back], axis=1), np.float64)
         # every object's bounding box (zeros for an object without triangles; kept with a validated
         # scene): SMBS's GetRatio and the sphere-light cap read them for every chunk and light
         self.obj_lo, self.obj_hi, self.obj_has_tris = (x.copy() for x in scene.object_boxes())

@@ -748,3 +748,35 @@ def test_keep_out_of_cycles_off(empty_bpy, addon, tmp_path):
     s = _bake(scene, tmp_path, keep_out_of_cycles=False)
     assert scene.cycles.caustics_reflective and not s.cycles_kept_out
     assert "Keep Out of Cycles is off" in s.cycles_note
+
+
+def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
+    """The button on a mirror whose Normal is a Bump node of a Noise Texture: the export's own Cycles
+    bake of the Height (bump.py) runs inside the operator, synchronous here and from the modal
+    operator's start, and leaves no scene, object, mesh or material of its own behind."""
+    scene = _mirror_scene()
+    nt = bpy.data.materials["Mirror"].node_tree
+    bump = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], bump.inputs["Height"])
+    nt.links.new(bump.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
+    bump.inputs["Distance"].default_value = 0.05
+    settings = scene.smbs_caustics
+    settings.method, settings.spp, settings.seed = "reference", 1, 3
+    settings.output_path = str(tmp_path / "layer.exr")
+
+    def data():
+        return [sorted(x.name for x in coll) for coll in (bpy.data.scenes, bpy.data.objects, bpy.data.meshes,
+                                                          bpy.data.materials)]
+
+    before = data()
+    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
+    assert "Bump" not in settings.bake_warnings and "could not be baked" not in settings.bake_warnings
+    assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
+    bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
+    bake = bake_op.ModalBake(lambda level, message: None)
+    assert bake.start(bpy.context)
+    normals = bake.prep.data.tri_normals[bake.prep.data.tri_object == bake.prep.data.object_names.index("Mirror")]
+    assert len(normals) > 10_000 and np.ptp(normals.reshape(-1, 3), axis=0).max() > 0.01  # cut finer, bent
+    bake.cancel()
+    assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
+    assert data() == before

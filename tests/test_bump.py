@@ -67,9 +67,12 @@ def test_bend_is_cycles_bump_for_a_linear_height(distance, strength):
     g = np.array([0.7, -0.4, 0.0])
     h = co @ g + 0.25
     T = len(tv)
-    out = bump.bend(co[tv], normals, tv, h, np.full(T, distance), np.full(T, strength))
+    out, back = bump.bend(co[tv], normals, tv, h, np.full(T, distance), np.full(T, strength))
     want = _cycles(np.array([0.0, 0.0, 1.0]), g, distance, strength)
     np.testing.assert_allclose(out, np.broadcast_to(want, out.shape), atol=1e-12)
+    # from behind Cycles bends the flipped normal by the same term: -normalize(-N - d g) as an outward normal
+    want_back = -_cycles(np.array([0.0, 0.0, -1.0]), g, distance, strength)
+    np.testing.assert_allclose(back, np.broadcast_to(want_back, back.shape), atol=1e-12)
 
 
 def test_bend_takes_the_gradient_along_a_tilted_surface_and_leaves_unbumped_triangles():
@@ -81,11 +84,12 @@ def test_bend_takes_the_gradient_along_a_tilted_surface_and_leaves_unbumped_tria
     h = 0.3 * co[:, 0] - 0.5 * co[:, 1]  # linear on the surface: its gradient lies in it
     T = len(tv)
     strength = np.where(np.arange(T) % 2 == 0, 1.0, 0.0)
-    out = bump.bend(co_w[tv], n_w, tv, h, np.full(T, 0.4), strength)
+    out, back = bump.bend(co_w[tv], n_w, tv, h, np.full(T, 0.4), strength)
     grad = np.array([0.3, -0.5, 0.0]) @ R.T
     np.testing.assert_allclose(out[0::2], np.broadcast_to(_cycles(N, grad, 0.4, 1.0), out[0::2].shape),
                                atol=1e-12)
     np.testing.assert_array_equal(out[1::2], n_w[1::2])
+    np.testing.assert_array_equal(back[1::2], n_w[1::2])
 
 
 def test_bend_of_a_curved_height_converges_with_the_mesh():
@@ -96,7 +100,7 @@ def test_bend_of_a_curved_height_converges_with_the_mesh():
         co, tv, normals = _plane(n)
         h = co[:, 0] ** 2 + np.sin(3 * co[:, 1])
         T = len(tv)
-        out = bump.bend(co[tv], normals, tv, h, np.full(T, 0.3), np.ones(T))
+        out, _ = bump.bend(co[tv], normals, tv, h, np.full(T, 0.3), np.ones(T))
         p = co[tv]
         grad = np.stack([2 * p[..., 0], 3 * np.cos(3 * p[..., 1]), 0 * p[..., 0]], -1)
         want = _cycles(normals, grad, 0.3, 1.0)
@@ -117,3 +121,68 @@ def test_targets_share_the_budget_by_area():
     assert np.all(t == bump.BUDGET_TRIANGLES // 20) and t.sum() <= bump.BUDGET_TRIANGLES
     t = bump.targets([3.0, 1.0, 0.0], budget=4000)
     assert list(t) == [3000, 1000, 0]
+
+
+# ------------------------------------------------------------------ the normals met from behind
+def _sheet(back=True):
+    """A bumped unit sheet (two triangles, +Z up, corner normals tilted towards -X) whose normals met
+    from behind tilt towards +X (Cycles' bump, bump.bend)."""
+    from smbs_addon.builder import SceneBuilder
+
+    b = SceneBuilder("sheet")
+    m = b.material("glass", "dielectric", ior=1.5)
+    V = np.array([[[-1.0, -1, 0], [1, -1, 0], [1, 1, 0]], [[-1.0, -1, 0], [1, 1, 0], [-1, 1, 0]]])
+    front = np.broadcast_to(np.array([-0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0), (2, 3, 3))
+    behind = np.broadcast_to(np.array([0.3, 0.0, 1.0]) / np.hypot(0.3, 1.0), (2, 3, 3))
+    b.mesh_corners("Sheet", V, front, None, [m, m], caster=True, smooth=True,
+                   tri_normals_back=behind if back else None)
+    return b.build(), front[0, 0], behind[0, 0]
+
+
+def test_a_ray_from_behind_meets_the_normals_met_from_behind():
+    """Tracer.intersect (kernels._shading_normal): a ray running along the geometric normal takes
+    Scene.tri_normals_back, one against it tri_normals; without them, tri_normals either way."""
+    from smbs_addon.tracer import Tracer
+
+    sc, front, behind = _sheet()
+    tr = Tracer(sc, threads=1)
+    o = np.array([[0.1, 0.2, 1.0], [0.1, 0.2, -1.0]])
+    d = np.array([[0.0, 0.0, -1.0], [0.0, 0.0, 1.0]])
+    h = tr.intersect(o, d)
+    np.testing.assert_allclose(h.ns, [front, behind], atol=1e-14)
+    sc1, _, _ = _sheet(back=False)
+    h1 = Tracer(sc1, threads=1).intersect(o, d)
+    np.testing.assert_allclose(h1.ns, [front, front], atol=1e-14)
+    assert sc1.tri_normals_back.shape == (0, 3, 3)
+
+
+def test_normals_from_behind_keep_through_save_and_load_and_are_checked(tmp_path):
+    from smbs_addon.errors import SceneError
+    from smbs_addon.scene import Scene
+
+    sc, _, behind = _sheet()
+    sc.save(tmp_path / "s.npz")
+    again = Scene.load(tmp_path / "s.npz")
+    np.testing.assert_array_equal(again.tri_normals_back, sc.tri_normals_back)
+    sc.tri_normals_back = sc.tri_normals_back[:1]
+    with pytest.raises(SceneError, match="tri_normals_back"):
+        sc.validate()
+
+
+def test_a_walk_through_a_bumped_sheet_takes_each_sides_normals():
+    """A refraction (T) through the sheet, walked from below (the receiver's side, as Cycles' eye path
+    goes) meets it from behind and refracts about the normals met from behind; from above, about the
+    front's. The walk's vertex records the normal it used (kernels._lane_vertex)."""
+    from types import SimpleNamespace
+
+    from smbs_addon import walk
+    from smbs_addon.tracer import Tracer
+
+    sc, front, behind = _sheet()
+    ctx = SimpleNamespace(tracer=Tracer(sc, threads=1), casters=np.ones(1, bool), count=lambda key, n: None)
+    for z, want in ((-1.0, behind), (1.0, front)):
+        x0 = np.array([[0.1, 0.2, z]])
+        d = np.array([[0.0, 0.0, -np.sign(z)]])
+        chain = walk.propagate(ctx, x0, np.array([[0.0, 0.0, np.sign(z)]]), d, "T")
+        assert chain.status[0] == 0, chain.status
+        np.testing.assert_allclose(chain.verts[0].n[0], want, atol=1e-12)

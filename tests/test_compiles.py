@@ -103,7 +103,7 @@ def test_a_time_budget_is_spent_baking_not_compiling():
     bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4))  # the bake's own kernels
     res = bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4, time_budget=1.0), progress=progress)
     st = res.stats
-    assert st["stopped_by"] == "time" and st["kernels_compiled"] == 1 and st["compile_s"] > 0.1
+    assert st["stopped_by"] == "time" and st["kernels_compiled"] == 1 and st["compile_s"] > 0.0
     assert st["time_s"] - st["compile_s"] >= 0.9, (st["time_s"], st["compile_s"])
 
 
@@ -121,7 +121,8 @@ def test_compare_gives_a_method_that_compiles_its_seconds_and_says_so():
         bake(sc, dataclasses.replace(settings, method=m))  # the bakes' own kernels
     rep = compare(sc, ["reference", "smbs"], 0.5, dataclasses.replace(settings, spp=2), bake_progress=bake_progress)
     first, second = rep["rows"]
-    assert first["compile_s"] > 0.1 and second["compile_s"] == 0.0
+    # (how long the compiling took is the machine's: 0.09 s once on a fresh clone's CI)
+    assert first["compile_s"] > 0.0 and second["compile_s"] == 0.0
     st = rep["results"]["reference"].stats
     assert first["time_s"] == st["time_s"] - st["compile_s"]
     assert first["time_s"] >= 0.5 * 0.9  # the budget went to baking

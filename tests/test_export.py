@@ -810,6 +810,16 @@ def test_a_bump_node_on_a_caster_bends_its_normals_as_cycles_does(node_type, inp
     assert err[inner].max() < 1e-3 and err.max() < 5e-3, (err[inner].max(), err.max())
     assert np.degrees(np.arccos(n[..., 2].min())) > (8.0 if coords == "Object" else 4.0)  # the bump's tilt
     assert sc.object_smooth[sc.object_names.index("Water")]
+    if coords == "Generated":  # an attribute: Cycles' bump flips with the surface (export._bump_flips)
+        assert sc.tri_normals_back.shape == (0, 3, 3)
+        return
+    # the position: met from behind, Cycles bends the flipped normal -Z by the same term (bump.bend)
+    behind = -Z - 0.5 * grad
+    behind /= np.linalg.norm(behind, axis=1, keepdims=True)
+    behind = 0.8 * behind - 0.2 * Z
+    behind /= -np.linalg.norm(behind, axis=1, keepdims=True)  # as an outward normal
+    back = sc.tri_normals_back[sc.tri_object == sc.object_names.index("Water")].reshape(-1, 3)
+    assert np.linalg.norm(back - behind, axis=1)[inner].max() < 1e-3
 
 
 def test_a_bump_cycles_cannot_bake_leaves_the_surface_unbumped_and_the_scene_as_it_was(monkeypatch):
@@ -911,6 +921,7 @@ def test_a_normal_map_on_a_mirror_is_baked_as_cycles_evaluates_it():
     R = np.array(ob.matrix_world)[:3, :3]
     want = R @ (np.array([0.6, 0.0, 1.0]) / np.hypot(0.6, 1.0))
     assert np.abs(n - want).max() < 1e-5, np.abs(n - want).max()
+    assert sc.tri_normals_back.shape == (0, 3, 3)  # a Normal Map flips with the surface
 
 
 def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():
