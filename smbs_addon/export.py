@@ -499,18 +499,24 @@ def _normal_source(node):
     """How the export bakes a mirror's or glass's driven Normal (bump.py): ("height", the Bump node)
     where it is one Bump node (its Height baked, the gradient taken by us: a bake's shading points have
     no ray differentials, so Cycles' own Bump would leave the normal unbent there); ("vector", None)
-    where no Bump node and no node group lies upstream (a Normal Map, say: its output baked as it is);
-    None otherwise (or where the Normal is not driven)."""
+    where no Bump node lies upstream (a Normal Map, say: its output baked as it is); None otherwise
+    (or where the Normal is not driven, or reads a node group or the mesh's attributes: _UNBAKED)."""
     b = _bump_node(node)
     if b is not None:
-        return "height", b
+        nodes = _upstream(b.inputs["Height"])
+        return None if nodes is None or any(n.type in _UNBAKED for n in nodes) else ("height", b)
     sock = node.inputs.get("Normal")
     if sock is None or _follow(sock) is None:
         return None
     nodes = _upstream(sock)
-    if nodes is None or any(n.type in ("BUMP", "GROUP") or n.mute for n in nodes):
+    if nodes is None or any(n.type in _UNBAKED + ("BUMP",) or n.mute for n in nodes):
         return None
     return "vector", None
+
+
+# nodes whose value the copy of the mesh the export bakes on cannot give: a node group (what it
+# holds is not read), the mesh's own attributes (the copy has only positions and the UV map)
+_UNBAKED = ("GROUP", "ATTRIBUTE", "VERTEX_COLOR")
 
 
 # where a Bump node's Height is read (Cycles, checked by renders of a sheet met from above and
@@ -644,8 +650,8 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
                            coat_ior, coat_rough), textured=textured)
     if t in _BUMPABLE and _linked(node, "Normal") and not (direct and _normal_source(node) is not None):
         warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by nodes the export cannot bake "
-             f"(a Bump node below another node, a node group, a bump inside a shader mix): its caustic is baked "
-             f"from the unbumped surface, where Cycles' follows the bumps")
+             f"(a Bump node below another node, a node group, a mesh attribute, a bump inside a shader mix): its "
+             f"caustic is baked from the unbumped surface, where Cycles' follows the bumps")
     if t == "BSDF_GLASS":
         c = _const(node, "Color")
         r = _const(node, "Roughness")

@@ -873,20 +873,26 @@ def test_a_bump_inside_a_mix_is_said():
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] == S.DIELECTRIC and len(sc.tri_vertices) == 12
     assert warnings == ["material 'Mixed': the Normal of 'Glass BSDF' is driven by nodes the export cannot bake (a "
-                        "Bump node below another node, a node group, a bump inside a shader mix): its caustic is baked "
-                        "from the unbumped surface, where Cycles' follows the bumps"]
+                        "Bump node below another node, a node group, a mesh attribute, a bump inside a shader mix): its "
+                        "caustic is baked from the unbumped surface, where Cycles' follows the bumps"]
 
 
 @pytest.mark.parametrize("name,node_type,driver,socket,said", [
     ("Nested", "ShaderNodeBsdfGlossy", "ShaderNodeBump", "Bump", "driven by nodes the export cannot bake"),
+    ("Painted", "ShaderNodeBsdfGlossy", "ShaderNodeAttribute", "Bump", "driven by nodes the export cannot bake"),
     ("Displaced", "ShaderNodeBsdfGlass", "ShaderNodeDisplacement", "Material Output", "its Displacement is linked")])
 def test_nested_bumps_or_a_displacement_are_said(name, node_type, driver, socket, said):
     m = material(name, node_type, Roughness=0.0)
     nt = m.node_tree
-    if socket == "Bump":  # a Bump node whose Normal is another Bump's (Cycles' bake has no differentials)
-        outer = nt.nodes.new("ShaderNodeBump")
-        nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], outer.inputs["Height"])
+    if socket == "Bump":  # a Bump node whose Normal is another Bump's (Cycles' bake has no differentials),
+        outer = nt.nodes.new("ShaderNodeBump")  # or whose Height reads the mesh's own attribute
         nt.links.new(outer.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
+        if driver == "ShaderNodeAttribute":
+            nt.links.new(nt.nodes.new(driver).outputs["Fac"], outer.inputs["Height"])
+            _, warnings = one_material(m)
+            assert len(warnings) == 1 and said in warnings[0], warnings
+            return
+        nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], outer.inputs["Height"])
     node = outer if socket == "Bump" else nt.nodes[socket]
     nt.links.new(nt.nodes.new(driver).outputs[0], node.inputs["Displacement" if node.type == "OUTPUT_MATERIAL"
                                                               else "Normal"])
