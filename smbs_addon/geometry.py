@@ -50,7 +50,7 @@ def vertex_from_hits(scene, tracer, prim: np.ndarray, p: np.ndarray, b: np.ndarr
     s = normalize(e1)
     t = cross(ng, s)
     c = tracer.ns_corner[prim]
-    if c.shape[1] == 6:  # kernels._corner_side
+    if c.shape[1] == 6:  # kernels._corners
         back = np.zeros(len(prim), bool) if d is None else dot(d, ng) > 0
         c = np.where(back[:, None, None], c[:, 3:], c[:, :3])
     b0 = 1.0 - b[:, 0] - b[:, 1]

@@ -676,23 +676,24 @@ def _barycentric(e1, e2, q):
 
 
 @njit(inline="always", **_JIT)
-def _corner_side(tns, d, g):
-    """Where a ray of direction d meets a triangle of geometric normal g, the first of its corner
-    normals in tns: 3 where it comes from behind and tns holds the normals met from there
-    (Tracer.ns_corner (T, 6, 3): Scene.tri_normals_back, bump.py), else 0."""
-    return 3 if tns.shape[1] == 6 and d[0] * g[0] + d[1] * g[1] + d[2] * g[2] > 0 else 0
+def _corners(tns, pr, d, g):
+    """The corner normals of triangle pr a ray of direction d meets (g: its geometric normal): in
+    tns[pr, 3:] where it comes from behind and tns holds the normals met from there (Tracer.ns_corner
+    (T, 6, 3): Scene.tri_normals_back, bump.py), else tns[pr, :3] (constant indices, the common case)."""
+    if tns.shape[1] == 6 and d[0] * g[0] + d[1] * g[1] + d[2] * g[2] > 0:
+        return ((tns[pr, 3, 0], tns[pr, 3, 1], tns[pr, 3, 2]), (tns[pr, 4, 0], tns[pr, 4, 1], tns[pr, 4, 2]),
+                (tns[pr, 5, 0], tns[pr, 5, 1], tns[pr, 5, 2]))
+    return ((tns[pr, 0, 0], tns[pr, 0, 1], tns[pr, 0, 2]), (tns[pr, 1, 0], tns[pr, 1, 1], tns[pr, 1, 2]),
+            (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2]))
 
 
 @njit(inline="always", **_JIT)
 def _shading_normal(tns, pr, b1, b2, g, d):
     """tracer.shading_normal: the corner normals interpolated and normalised (not flipped towards
     the geometric normal g, as Cycles' triangle_smooth_normal), g where they give none; those a ray
-    of direction d meets (_corner_side)."""
+    of direction d meets (_corners)."""
     b0 = 1.0 - b1 - b2
-    k = _corner_side(tns, d, g)
-    c0 = (tns[pr, k, 0], tns[pr, k, 1], tns[pr, k, 2])
-    c1 = (tns[pr, k + 1, 0], tns[pr, k + 1, 1], tns[pr, k + 1, 2])
-    c2 = (tns[pr, k + 2, 0], tns[pr, k + 2, 1], tns[pr, k + 2, 2])
+    c0, c1, c2 = _corners(tns, pr, d, g)
     n = _normalize(_add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2)))
     return g if _dot(n, n) < 0.5 else n
 
@@ -772,10 +773,7 @@ def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tn
     # geometry.vertex_from_hits
     s = _normalize(e1)
     t = _cross(g, s)
-    k = _corner_side(tns, d, g)
-    c0 = (tns[pr, k, 0], tns[pr, k, 1], tns[pr, k, 2])
-    c1 = (tns[pr, k + 1, 0], tns[pr, k + 1, 1], tns[pr, k + 1, 2])
-    c2 = (tns[pr, k + 2, 0], tns[pr, k + 2, 1], tns[pr, k + 2, 2])
+    c0, c1, c2 = _corners(tns, pr, d, g)
     b0 = 1.0 - b1 - b2
     nraw = _add(_add(_mul(b0, c0), _mul(b1, c1)), _mul(b2, c2))
     ln = math.sqrt(_dot(nraw, nraw))

@@ -55,7 +55,7 @@ class Tracer:
         self.area2 = np.sqrt(dot(n_raw, n_raw))  # twice the triangle area
         self.ng = normalize(n_raw)
         # (T, 3, 3) corner normals, or (T, 6, 3) with those a ray meets from behind after them
-        # (Scene.tri_normals_back: a bumped surface's, bump.py; kernels._corner_side)
+        # (Scene.tri_normals_back: a bumped surface's, bump.py; kernels._corners)
         self.ns_corner = scene.tri_normals.astype(np.float64) if not scene.tri_normals_back.size else \
             np.ascontiguousarray(np.concatenate([scene.tri_normals, scene.tri_normals_back], axis=1), np.float64)
         # every object's bounding box (zeros for an object without triangles; kept with a validated
