@@ -147,11 +147,10 @@ def _handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caste
             if tau <= 0:
                 take[g] = True
                 continue
-            # vertex m of the photon's path (light side first) is met coming from m - 1, or the light
-            # (y: its point, or the direction towards a sun)
-            first = -y[g] if handoff.directional else pts[g, 0] - y[g]
+            # vertex m of the photon's path (light side first) as the walks meet it, from the eye's
+            # side: coming from m + 1, or from x0 (the same normals, so the same concentration)
             verts = [vertex_from_hits(scene, tracer, prim[g, m], pts[g, m], bary[g, m],
-                                      pts[g, m] - pts[g, m - 1] if m > 0 else first)
+                                      pts[g, m] - (pts[g, m + 1] if m < k - 1 else x0[g]))
                      for m in range(k - 1, -1, -1)]
             etas = [scene.mat_ior[v.mat] for v in verts]
             c = concentration(types, x0[g], verts, etas, y[g], handoff.directional)
