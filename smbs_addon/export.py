@@ -791,10 +791,12 @@ def _area(verts, M) -> float:
 
 def _bumped(local, specs, source, target, warn):
     """A mesh's arrays with its bumped mirrors and glass (specs: builder material id -> _bump_of's
-    (kind, node name, Distance, Strength) and the Material) cut into about `target` triangles, Cycles'
-    values baked at every vertex (bump.py): a Bump node's Height (the normals bent in _to_world, in
-    world space), any other driven Normal as it is (the corner normals replaced). The arrays
-    unchanged, and said so, where Cycles cannot bake them."""
+    (kind, node name, Distance, Strength, flips) and the Material) cut into about `target` triangles,
+    Cycles' values baked at every vertex (bump.py): a Bump node's Height (the normals bent in _to_world,
+    in world space, from the front and, where the bump does not flip, from behind), any other driven
+    Normal as it is (the corner normals replaced). The arrays unchanged, and said so, where Cycles
+    cannot bake them. (A vertex between a bumped material and another takes Cycles' Height there as
+    its point-domain bake gives it.)"""
     tri_mat = local["tri_material"]
     kind = np.zeros(len(tri_mat), np.int64)  # 0: as it is, 1: a Bump's Height, 2: a Normal's vector
     dist, strength = np.zeros(len(tri_mat)), np.zeros(len(tri_mat))
