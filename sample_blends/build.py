@@ -114,8 +114,9 @@ def hdri_world(scene, image, turn_deg=0.0, strength=1.0):
     bg.inputs["Strength"].default_value = strength
 
 
-def material(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45):
-    """A node material with a single BSDF linked to the Material Output."""
+def material(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45, distribution="GGX"):
+    """A node material with a single BSDF linked to the Material Output (a glossy's or glass's
+    microfacet distribution: distribution)."""
     m = bpy.data.materials.new(name)
     nt = m.node_tree
     for n in list(nt.nodes):
@@ -129,7 +130,7 @@ def material(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45):
     if kind == "glass":
         node.inputs["IOR"].default_value = ior
     if kind != "diffuse":
-        node.distribution = "GGX"
+        node.distribution = distribution
     nt.links.new(node.outputs[0], out.inputs["Surface"])
     m.diffuse_color = (*color, 1.0)
     return m

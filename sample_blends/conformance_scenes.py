@@ -208,11 +208,8 @@ def _pool(name, water, wave=_water_wave, cells=120):
 def rough_pool_sun():
     """pool_sun4's water as a rough Glass BSDF (Roughness 0.15, Multiscatter GGX): the camera sees the floor
     through rough water, where a photon cannot reach it and the caustic at each floor point is gathered."""
-    def water():
-        m = B.material("RoughWater", "glass", (1.0, 1.0, 1.0), roughness=0.15, ior=1.33)
-        next(n for n in m.node_tree.nodes if n.type == "BSDF_GLASS").distribution = "MULTI_GGX"
-        return m
-    return _pool("rough_pool_sun", water)
+    return _pool("rough_pool_sun", lambda: B.material("RoughWater", "glass", (1.0, 1.0, 1.0), roughness=0.15,
+                                                      ior=1.33, distribution="MULTI_GGX"))
 
 
 def bumped_pool_sun():
@@ -710,22 +707,16 @@ def rough_glass_ggx():
 def rough_tinted_mirror():
     """mirror_point_hard's mirror as a Glossy BSDF of colour (0.9, 0.6, 0.3), Roughness 0.3, Multiscatter
     GGX: Cycles' energy compensation brightens and saturates a coloured metal's reflection."""
-    def glossy():
-        m = B.material("TintedGlossy", "glossy", (0.9, 0.6, 0.3), roughness=0.3)
-        next(n for n in m.node_tree.nodes if n.type == "BSDF_GLOSSY").distribution = "MULTI_GGX"
-        return m
-    return _mirror_under_bulb("rough_tinted_mirror", glossy)
+    return _mirror_under_bulb("rough_tinted_mirror", lambda: B.material(
+        "TintedGlossy", "glossy", (0.9, 0.6, 0.3), roughness=0.3, distribution="MULTI_GGX"))
 
 
 def rough_tinted_glass():
     """sphere_point_soft's ball as a coloured Glass BSDF (0.9, 0.6, 0.3; IOR 1.5) of Roughness 0.5, Multiscatter
     GGX: Cycles' energy compensation takes the glass's colour for F_ss, so it restores less of the blue that
     the microfacets lose than of the red."""
-    def glass():
-        m = B.material("TintedRoughGlass", "glass", (0.9, 0.6, 0.3), roughness=0.5, ior=1.5)
-        next(n for n in m.node_tree.nodes if n.type == "BSDF_GLASS").distribution = "MULTI_GGX"
-        return m
-    return _ball_under_bulb("rough_tinted_glass", glass)
+    return _ball_under_bulb("rough_tinted_glass", lambda: B.material(
+        "TintedRoughGlass", "glass", (0.9, 0.6, 0.3), roughness=0.5, ior=1.5, distribution="MULTI_GGX"))
 
 
 def fake_shadow_ball():

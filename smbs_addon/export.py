@@ -1245,9 +1245,9 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
                 # no slots: default diffuse; an empty slot: default diffuse; an index past
                 # the last slot uses the last slot (as Blender does)
                 ids = np.array([material_id(m) for m in slots] or [material_id(None)], np.int32)
-                tri_mat = ids[np.clip(local["mat_index"], 0, len(ids) - 1)]
-                local["tri_material"] = tri_mat.astype(np.int32)
                 local["mat_index"] = np.clip(local["mat_index"], 0, len(ids) - 1)
+                tri_mat = ids[local["mat_index"]]
+                local["tri_material"] = tri_mat.astype(np.int32)
                 if any(int(m) in bump_specs for m in np.unique(tri_mat)):
                     local["bump_source"] = dict(
                         name=orig.name, matrix=M, texspace=(tuple(ob.data.texspace_location),
