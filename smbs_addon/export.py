@@ -881,7 +881,8 @@ def _bake_normals(source, co, tv, slot, uvs, uv_name, kind) -> np.ndarray:
             tree.links.new(em.outputs["Emission"], out.inputs["Surface"])
             out.is_active_output = True
             me.materials.append(copy)
-        attr = me.color_attributes.new("smbs_height", "FLOAT_COLOR", "POINT" if kind == "height" else "CORNER")
+        name = "smbs_height" if kind == "height" else "smbs_normal"
+        attr = me.color_attributes.new(name, "FLOAT_COLOR", "POINT" if kind == "height" else "CORNER")
         me.color_attributes.active_color = attr
         ob = bpy.data.objects.new("smbs_bump", me)
         made.insert(0, (bpy.data.objects, ob))
@@ -901,7 +902,7 @@ def _bake_normals(source, co, tv, slot, uvs, uv_name, kind) -> np.ndarray:
         if "FINISHED" not in res:
             raise RuntimeError(f"Cycles' bake returned {sorted(res)}")
         values = np.empty((len(co) if kind == "height" else tv.size) * 4, np.float32)
-        me.color_attributes["smbs_height"].data.foreach_get("color", values)
+        me.color_attributes[name].data.foreach_get("color", values)
         values = values.reshape(-1, 4).astype(float)
         return values[:, 0] if kind == "height" else values[:, :3].reshape(-1, 3, 3)
     finally:

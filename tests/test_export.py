@@ -877,21 +877,28 @@ def test_a_bump_inside_a_mix_is_said():
                         "caustic is baked from the unbumped surface, where Cycles' follows the bumps"]
 
 
+def test_a_bump_whose_height_reads_a_mesh_attribute_is_said():
+    """Cycles' bake of the Height would read the copy's attributes, which the export does not carry over."""
+    m = material("Painted", "ShaderNodeBsdfGlossy", Roughness=0.0)
+    nt = m.node_tree
+    bump = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(bump.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
+    nt.links.new(nt.nodes.new("ShaderNodeAttribute").outputs["Fac"], bump.inputs["Height"])
+    _, warnings = one_material(m)
+    assert len(warnings) == 1 and warnings[0].startswith("material 'Painted': ") \
+        and "driven by nodes the export cannot bake" in warnings[0], warnings
+
+
 @pytest.mark.parametrize("name,node_type,driver,socket,said", [
     ("Nested", "ShaderNodeBsdfGlossy", "ShaderNodeBump", "Bump", "driven by nodes the export cannot bake"),
-    ("Painted", "ShaderNodeBsdfGlossy", "ShaderNodeAttribute", "Bump", "driven by nodes the export cannot bake"),
     ("Displaced", "ShaderNodeBsdfGlass", "ShaderNodeDisplacement", "Material Output", "its Displacement is linked")])
 def test_nested_bumps_or_a_displacement_are_said(name, node_type, driver, socket, said):
+    """A Bump node whose Normal is another Bump's (Cycles' bake has no differentials), or a linked Displacement."""
     m = material(name, node_type, Roughness=0.0)
     nt = m.node_tree
-    if socket == "Bump":  # a Bump node whose Normal is another Bump's (Cycles' bake has no differentials),
-        outer = nt.nodes.new("ShaderNodeBump")  # or whose Height reads the mesh's own attribute
+    if socket == "Bump":
+        outer = nt.nodes.new("ShaderNodeBump")
         nt.links.new(outer.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
-        if driver == "ShaderNodeAttribute":
-            nt.links.new(nt.nodes.new(driver).outputs["Fac"], outer.inputs["Height"])
-            _, warnings = one_material(m)
-            assert len(warnings) == 1 and said in warnings[0], warnings
-            return
         nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], outer.inputs["Height"])
     node = outer if socket == "Bump" else nt.nodes[socket]
     nt.links.new(nt.nodes.new(driver).outputs[0], node.inputs["Displacement" if node.type == "OUTPUT_MATERIAL"
