@@ -136,6 +136,24 @@ def material(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45, distrib
     return m
 
 
+def bumped_glass(name, distance, scale=5.0, coords=None, ior=1.33):
+    """Waves as artists make them: a Glass BSDF whose Normal is a Bump node (Distance `distance`) of a
+    Noise Texture (Scale `scale`, Detail 2, Generated coordinates, or the Texture Coordinate node's
+    output `coords`)."""
+    m = material(name, "glass", (1.0, 1.0, 1.0), ior=ior)
+    nt = m.node_tree
+    glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
+    noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
+    if coords is not None:
+        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs[coords], noise.inputs["Vector"])
+    noise.inputs["Scale"].default_value = scale
+    noise.inputs["Detail"].default_value = 2.0
+    bump.inputs["Distance"].default_value = distance
+    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], glass.inputs["Normal"])
+    return m
+
+
 def mesh_object(scene, name, verts, faces, mat, smooth=False, location=(0, 0, 0),
                 rotation=(0, 0, 0), caster=False, receiver=False):
     me = bpy.data.meshes.new(name)
@@ -308,16 +326,11 @@ def build_water(out):
     save(out / "water.blend")
 
 
-def build_pool(out):
-    scene = reset()
-    scene.name = "Pool"
-    render_settings(scene, 160, 120)
-    black_world(scene)
+def _tiled_floor(scene, n=8, size=4.0):
+    """A floor of n x n tiles over size x size m, two materials in a checker, a caustics receiver."""
     tile_a = material("TileLight", "diffuse", (0.8, 0.8, 0.8))
     tile_b = material("TileDark", "diffuse", (0.3, 0.45, 0.6))
-    water = material("Water", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.33)
-    n = 8  # tiled floor: 8 x 8 tiles over 4 x 4 m, two materials
-    v, f = grid(4, 4, n, n)
+    v, f = grid(size, size, n, n)
     me = bpy.data.meshes.new("PoolFloor")
     me.from_pydata(v, [], f)
     me.materials.append(tile_a)
@@ -328,6 +341,16 @@ def build_pool(out):
     floor = bpy.data.objects.new("PoolFloor", me)
     floor.cycles.is_caustics_receiver = True
     scene.collection.objects.link(floor)
+    return floor
+
+
+def build_pool(out):
+    scene = reset()
+    scene.name = "Pool"
+    render_settings(scene, 160, 120)
+    black_world(scene)
+    _tiled_floor(scene)
+    water = material("Water", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.33)
 
     def wave(x, y):
         return 0.03 * math.sin(3.1 * x + 0.4) * math.cos(2.3 * y) + 0.02 * math.sin(4.7 * (x + y))
@@ -338,6 +361,24 @@ def build_pool(out):
               angle=math.radians(0.5))
     add_camera(scene, (0, -3.2, 3.0), (0, 0, 0), lens=35)
     save(out / "pool.blend")
+
+
+def build_waves(out):
+    """pool.blend's floor and sun under water made the way artists make it: one flat quad whose Glass
+    BSDF's Normal is a Bump node over a Noise Texture. The export has Cycles bake the Bump's Height on a
+    finer copy of the quad and bends its normals as Cycles' Bump node does (smbs_addon/bump.py)."""
+    scene = reset()
+    scene.name = "Waves"
+    render_settings(scene, 160, 120)
+    black_world(scene)
+    _tiled_floor(scene)
+    v, f = grid(4, 4)
+    mesh_object(scene, "WaterSurface", v, f, bumped_glass("BumpedWater", 0.05, scale=10.0), location=(0, 0, 0.6),
+                caster=True)
+    add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(10), math.radians(15), 0), energy=4.0,
+              angle=math.radians(0.5))
+    add_camera(scene, (0, -3.2, 3.0), (0, 0, 0), lens=35)
+    save(out / "waves.blend")
 
 
 def build_hdri_glass(out):
@@ -361,6 +402,7 @@ def main(argv=None):
     build_water(out)
     build_pool(out)
     build_hdri_glass(out)
+    build_waves(out)
 
 
 if __name__ == "__main__":

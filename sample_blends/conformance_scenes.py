@@ -222,18 +222,7 @@ def bumped_pool_sun():
 def _bumped_water(name, distance, scale=5.0, coords=None):
     """A Glass BSDF 1.33 whose Normal is a Bump node (Distance `distance`) of a Noise Texture (Scale
     `scale`, Detail 2, Generated coordinates, or the Texture Coordinate node's `coords`)."""
-    m = B.material(name, "glass", (1.0, 1.0, 1.0), ior=1.33)
-    nt = m.node_tree
-    glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
-    noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
-    if coords is not None:
-        nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs[coords], noise.inputs["Vector"])
-    noise.inputs["Scale"].default_value = scale
-    noise.inputs["Detail"].default_value = 2.0
-    bump.inputs["Distance"].default_value = distance
-    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
-    nt.links.new(bump.outputs["Normal"], glass.inputs["Normal"])
-    return m
+    return B.bumped_glass(name, distance, scale, coords)
 
 
 def bumped_slab_sun():

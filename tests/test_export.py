@@ -1336,6 +1336,22 @@ def test_sample_blends_export_cleanly():
     assert sc.camera.type == S.ORTHO and sc.camera.ortho_scale == 2
 
 
+def test_the_waves_sample_exports_its_bumps():
+    """waves.blend: a flat quad of water whose Glass BSDF's Normal is a Bump of a Noise Texture (Generated
+    coordinates: the bumps flip with the surface, so no normals from behind). The quad is cut into
+    bump.TARGET_TRIANGLES triangles whose normals the bump tilts (up to ~10 degrees, 3 in the median),
+    said nowhere, as a bump the export bakes."""
+    bpy.ops.wm.open_mainfile(filepath=str(SAMPLES / "waves.blend"))
+    sc, warnings = export()
+    assert warnings == []
+    v, n = obj_tris(sc, "WaterSurface")
+    assert len(v) == bump.TARGET_TRIANGLES and np.allclose(v[..., 2], 0.6)
+    tilt = np.degrees(np.arccos(np.clip(n[..., 2], -1.0, 1.0)))
+    assert 1.5 < np.median(tilt) < 6.0 and 6.0 < tilt.max() < 20.0, (np.median(tilt), tilt.max())
+    assert sc.tri_normals_back.shape == (0, 3, 3)
+    assert len(obj_tris(sc, "PoolFloor")[0]) == 128
+
+
 def test_export_does_not_change_the_scene():
     add_camera()
     ob = link(bpy.data.objects.new("Cube", cube_mesh()))

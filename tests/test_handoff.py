@@ -139,6 +139,59 @@ def test_seen_handoff_starts_with_the_first_chunk_where_a_caster_is_smooth():
     assert [can_focus(ball, lp) for lp in make_plan(ball).lights] == [True]
 
 
+def _ball_under_a_sun(angle_deg, resolution=(32, 24)):
+    """glass_sphere_scene's ball and camera under a sun of angle_deg, straight down."""
+    from smbs_addon.builder import SceneBuilder
+
+    b = SceneBuilder("ball under a sun")
+    b.plane("Floor", (0, 0, 0), 10, b.material("floor", "diffuse", color=(scenes.FLOOR_ALBEDO,) * 3))
+    b.uv_sphere("Ball", (0, 0, 0.9), 0.5, b.material("glass", "dielectric", color=(1, 1, 1), ior=1.5))
+    b.light("Sun", "SUN", location=(0, 0, 10), target=(0, 0, 0), power=3.0, angle=math.radians(angle_deg))
+    b.set_camera((0, -2.0, 3.0), (0, 0, 0.0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
+
+
+def test_a_sun_too_small_for_cosine_sampling_is_walked_at_seen_receivers():
+    """handoff_gather's 64 cosine directions from a receiver seen through glass find a sun of 0.5
+    degrees, at the hand-off's least concentration (4), 0.005 times (bumped water under such a sun:
+    10 paths where the walks met 1,796, each a firefly); one of 4 degrees 0.31 times. The small sun's
+    focusing paths stay with the walks from the first chunk on (exact counts); the large one's first
+    chunk hands them off, as an area light's does."""
+    from smbs_addon import manifold
+    from smbs_addon.indirect import HANDOFF_SAMPLES
+
+    small, large = _ball_under_a_sun(0.5), _ball_under_a_sun(4.0)
+    omega = 2 * math.pi * (1 - math.cos(math.radians(0.25)))
+    assert math.isclose(manifold.handoff_hits(small, 0), HANDOFF_SAMPLES * 4 * omega / math.pi, rel_tol=1e-12)
+    assert manifold.handoff_hits(small, 0) < manifold.SEEN_HANDOFF_HITS < manifold.handoff_hits(large, 0)
+    assert manifold.handoff_hits(scenes.glass_sphere_scene(), 0) == math.inf  # an area light: by its evidence
+    for sc, chunks in ((small, 0), (large, 1)):
+        st = bake(sc, BakeSettings(method="sms", spp=1, batches=1, seed=1)).stats["lights"]["Sun"]
+        assert st["walks_seen"] > 0 and st.get("seen_handoff_chunks", 0) == chunks
+
+
+def test_seen_handoff_stops_where_its_gather_finds_fewer_focusing_paths_than_the_walks():
+    """The rule, chunk by chunk, from the light's statistics so far: before any hand-off, a first chunk
+    where the caster can focus, or once walks met a focusing path; after one, on while it found such
+    paths, until the walks have met 16 and the gather fewer than half as many (the bumped water under
+    a 0.5-degree sun, were it not walked: about 1 gathered to 225 walked per chunk)."""
+    from smbs_addon import manifold
+
+    ball = scenes.glass_sphere_scene(resolution=(32, 24))
+    (lp,) = make_plan(ball).lights
+    assert (manifold.SEEN_HANDOFF_RATIO, manifold.SEEN_HANDOFF_EVIDENCE) == (0.5, 16)
+    ran = {"walks": 10, "seen_handoff_chunks": 2}
+    for st, want in (({}, True), ({"walks": 10}, False), ({"walks": 10, "seen_focus": 3}, True),
+                     ({"walks": 10, "seen_handoff_chunks": 1}, False),
+                     ({**ran, "seen_handoff_paths": 101}, True),
+                     ({**ran, "seen_focus": 12, "seen_handoff_paths": 0}, True),  # too few to tell
+                     ({**ran, "seen_focus": 16, "seen_handoff_paths": 7}, False),
+                     ({**ran, "seen_focus": 16, "seen_handoff_paths": 8}, True),
+                     ({**ran, "seen_focus": 225, "seen_handoff_paths": 1}, False),
+                     ({"walks": 10, "seen_focus": 225, "seen_handoff_paths": 1}, True)):  # it has not run yet
+        assert manifold._hand_off_seen(ball, lp, st) is want, st
+
+
 def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(monkeypatch):
     """After the first chunk, receivers seen through glass keep handing off where an earlier
     chunk found focusing paths there, by its walks (seen_focus) or by the hand-off itself

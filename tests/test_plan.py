@@ -265,6 +265,8 @@ SAMPLE_PLANS = {  # word for word: what each sample scene bakes, by which paths,
     "pool.blend": ["Sun -> WaterSurface (refraction) -> PoolFloor",
                    "Sun -> diffuse -> WaterSurface -> PoolFloor (after a diffuse bounce)"],
     "water.blend": ["Point -> Water (refraction) -> Floor", "Sun -> Water (refraction) -> Floor"],
+    "waves.blend": ["Sun -> WaterSurface (refraction) -> PoolFloor",
+                    "Sun -> diffuse -> WaterSurface -> PoolFloor (after a diffuse bounce)"],
 }
 
 
