@@ -112,13 +112,24 @@ def _closed(scene, obj) -> bool:
 
 
 def _watertight(scene, obj) -> bool:
+    """Every edge of the object's triangles shared by exactly two, its vertices merged where their
+    coordinates agree to 1e-9. Sorted by coordinates (np.lexsort) and by one integer per edge: a
+    bumped water's 131,072 triangles in ~0.07 s, where np.unique over rows took 0.66 s (once per
+    scene a bake makes: auto's pilots are scenes of their own)."""
     tv = scene.tri_vertices[scene.tri_object == obj]
     if len(tv) == 0:
         return False
-    _, inv = np.unique(np.round(tv.reshape(-1, 3), 9), axis=0, return_inverse=True)
-    f = inv.reshape(-1, 3)
-    e = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
-    _, counts = np.unique(e, axis=0, return_counts=True)
+    p = np.round(tv.reshape(-1, 3), 9)
+    order = np.lexsort((p[:, 2], p[:, 1], p[:, 0]))
+    q = p[order]
+    new = np.ones(len(q), bool)
+    new[1:] = np.any(q[1:] != q[:-1], axis=1)
+    ids = np.empty(len(q), np.int64)
+    ids[order] = np.cumsum(new) - 1
+    f = ids.reshape(-1, 3)
+    a, b = f.ravel(), f[:, [1, 2, 0]].ravel()
+    key = np.minimum(a, b) * (int(ids.max()) + 1) + np.maximum(a, b)
+    _, counts = np.unique(key, return_counts=True)
     return bool(np.all(counts == 2))
 
 

@@ -369,3 +369,31 @@ def test_pilots_on_one_thread_or_two_plan_the_same():
         plans.append((plan.words(), plan.cost["rays"], plan.cost["pilot_photons"], plan.indirect_lights))
     assert plans[0] == plans[1]
     assert len(plans[0][0]) >= 4 and plans[0][3]
+
+
+def test_a_closed_mesh_is_told_from_an_open_one():
+    """manifold._watertight (which chain types a caster gets: a closed glass has inside paths): every
+    edge shared by exactly two triangles, vertices merged by coordinates (flat-shaded meshes repeat
+    them per face; -0.0 is 0.0). A cube of 12 triangles, each with its own corners: closed; one
+    triangle less: open; a glass ball closed, a pane's box closed, a plane open."""
+    from smbs_addon import manifold
+
+    corners = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])
+    quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
+    tris = np.array([corners[[q[0], q[i], q[i + 1]]] for q in quads for i in (1, 2)])
+    tris[0, 0] = -0.0  # the corner at the origin, written as -0.0 once
+    assert np.signbit(tris[0, 0]).all() and not np.signbit(tris[1, 0]).any()
+    glass = lambda b: b.material("glass", "dielectric", ior=1.5)  # noqa: E731
+
+    def one(t):
+        b = SceneBuilder("cube")
+        b.mesh_corners("Cube", t, np.zeros_like(t) + [0, 0, 1.0], np.zeros(t.shape[:2] + (2,)),
+                       np.full(len(t), glass(b)))
+        sc = b.build()
+        sc.validate()
+        return manifold._watertight(sc, 0)
+
+    assert one(tris) is True and one(tris[1:]) is False
+    ball, pane = scenes.glass_sphere_scene(), scenes.pane_scene()
+    assert [manifold._watertight(ball, o) for o in range(2)] == [False, True]
+    assert [manifold._watertight(pane, o) for o in range(len(pane.object_names))] == [False, True]
