@@ -61,6 +61,7 @@ SEEN_HANDOFF_MIN = 4.0
 # where it only cost time (a normal-mapped pool under a 4-degree sun, 1 to 9: 1.4x the time, the same
 # error; too few to tell, so it goes on there).
 SEEN_HANDOFF_HITS = 0.05
+HITS_AT = 4.0  # handoff_hits' concentration: the default hand-off's least at seen receivers
 SEEN_HANDOFF_EVIDENCE = 16
 SEEN_HANDOFF_RATIO = 0.5
 # ... and there the paths no walk takes (chains longer than max_chain, ...) go to it too, for each
@@ -673,7 +674,7 @@ def _hand_off_seen(scene, lp, st) -> bool:
     SEEN_HANDOFF_RATIO of the SEEN_HANDOFF_EVIDENCE or more that the walks met (st: the light's
     statistics so far, from earlier chunks only, so each chunk's estimate stays unbiased and the
     image does not depend on the thread count)."""
-    if handoff_hits(scene, lp.index) < SEEN_HANDOFF_HITS:
+    if handoff_hits(scene, lp.index, lp.caster_objects) < SEEN_HANDOFF_HITS:
         return False
     walked, gathered = st.get("seen_focus", 0), st.get("seen_handoff_paths", 0)
     if st.get("seen_handoff_chunks", 0) > 0 and walked >= SEEN_HANDOFF_EVIDENCE \
@@ -684,18 +685,35 @@ def _hand_off_seen(scene, lp, st) -> bool:
     return st.get("walks", 0) == 0 and can_focus(scene, lp)
 
 
-def handoff_hits(scene, li) -> float:
+def handoff_hits(scene, li, casters=()) -> float:
     """The paths to light li that handoff_gather's cosine directions from one receiver can expect
-    to find at the hand-off's least concentration (SEEN_HANDOFF_MIN: the light's image through the
-    chain SEEN_HANDOFF_MIN times its solid angle), where that solid angle is the light's own: a sun's
-    cone. inf for other lights (their solid angle depends on where the receiver is)."""
-    if scene.light_type[li] != S.SUN:
-        return math.inf
+    to find at the default hand-off's least concentration (HITS_AT: the light's image through the
+    chain HITS_AT times its solid angle): a sun's cone; a point or spot light's sphere
+    and an area light (its area over the squared distance) as seen from the nearest point of its
+    casters' boxes (casters: object ids), the largest they can look there. inf for a world."""
     from .indirect import HANDOFF_SAMPLES
 
-    half = distant_cone(scene, li)[1]
-    omega = 2.0 * math.pi * (1.0 - math.cos(half))
-    return HANDOFF_SAMPLES * SEEN_HANDOFF_MIN * omega / math.pi
+    typ = scene.light_type[li]
+    if typ == S.WORLD:
+        return math.inf
+    if typ == S.SUN:
+        omega = 2.0 * math.pi * (1.0 - math.cos(distant_cone(scene, li)[1]))
+    else:
+        pos = np.asarray(scene.light_matrix[li], float)[:3, 3]
+        d2 = math.inf
+        for o in casters:
+            lo, hi = scene.object_bounds(int(o))
+            d2 = min(d2, float(np.sum((pos - np.clip(pos, lo, hi)) ** 2)))
+        if not math.isfinite(d2):
+            return math.inf
+        if typ == S.AREA:
+            sx, sy = (float(x) for x in scene.light_size[li])
+            area = sx * sy * (math.pi / 4.0 if scene.light_shape[li] in (S.DISK, S.ELLIPSE) else 1.0)
+            omega = 2.0 * math.pi if area >= 2.0 * math.pi * d2 else area / d2
+        else:
+            r2 = float(scene.light_radius[li]) ** 2
+            omega = 2.0 * math.pi if r2 >= d2 else 2.0 * math.pi * (1.0 - math.sqrt(1.0 - r2 / d2))
+    return HANDOFF_SAMPLES * HITS_AT * omega / math.pi
 
 
 def can_focus(scene, lp) -> bool:

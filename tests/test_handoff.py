@@ -11,6 +11,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake, reference
+from smbs_addon import scene as S
 from smbs_addon.bake import caustic_region
 from smbs_addon.camera import CameraModel
 from smbs_addon.film import Film
@@ -139,35 +140,50 @@ def test_seen_handoff_starts_with_the_first_chunk_where_a_caster_is_smooth():
     assert [can_focus(ball, lp) for lp in make_plan(ball).lights] == [True]
 
 
-def _ball_under_a_sun(angle_deg, resolution=(32, 24)):
-    """glass_sphere_scene's ball and camera under a sun of angle_deg, straight down."""
+def _ball_under(light, size, resolution=(32, 24)):
+    """glass_sphere_scene's ball (0.9 up) and camera under a sun of angle `size` degrees, straight down,
+    or a point light of radius `size` 4 m up."""
     from smbs_addon.builder import SceneBuilder
 
-    b = SceneBuilder("ball under a sun")
+    b = SceneBuilder("ball under a " + light)
     b.plane("Floor", (0, 0, 0), 10, b.material("floor", "diffuse", color=(scenes.FLOOR_ALBEDO,) * 3))
     b.uv_sphere("Ball", (0, 0, 0.9), 0.5, b.material("glass", "dielectric", color=(1, 1, 1), ior=1.5))
-    b.light("Sun", "SUN", location=(0, 0, 10), target=(0, 0, 0), power=3.0, angle=math.radians(angle_deg))
+    if light == "sun":
+        b.light("Sun", "SUN", location=(0, 0, 10), target=(0, 0, 0), power=3.0, angle=math.radians(size))
+    else:
+        b.light("Bulb", "POINT", location=(0, 0, 4.0), power=1000.0, radius=size)
     b.set_camera((0, -2.0, 3.0), (0, 0, 0.0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
     return b.build()
 
 
-def test_a_sun_too_small_for_cosine_sampling_is_walked_at_seen_receivers():
+def test_a_light_too_small_for_cosine_sampling_is_walked_at_seen_receivers():
     """handoff_gather's 64 cosine directions from a receiver seen through glass find a sun of 0.5
     degrees, at the hand-off's least concentration (4), 0.005 times (bumped water under such a sun:
-    10 paths where the walks met 1,796, each a firefly); one of 4 degrees 0.31 times. The small sun's
-    focusing paths stay with the walks from the first chunk on (exact counts); the large one's first
-    chunk hands them off, as an area light's does."""
+    10 paths where the walks met 1,796, each a firefly); one of 4 degrees 0.31 times; a bulb of 1 cm
+    radius 3.1 m above the ball's box 0.001 times, one of 30 cm 0.97. The small lights' focusing paths
+    stay with the walks from the first chunk on (exact counts); the large ones' first chunk hands them
+    off, as an area light's does."""
     from smbs_addon import manifold
     from smbs_addon.indirect import HANDOFF_SAMPLES
 
-    small, large = _ball_under_a_sun(0.5), _ball_under_a_sun(4.0)
+    def hits(sc):
+        (lp,) = make_plan(sc).lights
+        return manifold.handoff_hits(sc, lp.index, lp.caster_objects)
+
+    small, large = _ball_under("sun", 0.5), _ball_under("sun", 4.0)
     omega = 2 * math.pi * (1 - math.cos(math.radians(0.25)))
-    assert math.isclose(manifold.handoff_hits(small, 0), HANDOFF_SAMPLES * 4 * omega / math.pi, rel_tol=1e-12)
-    assert manifold.handoff_hits(small, 0) < manifold.SEEN_HANDOFF_HITS < manifold.handoff_hits(large, 0)
-    assert manifold.handoff_hits(scenes.glass_sphere_scene(), 0) == math.inf  # an area light: by its evidence
-    for sc, chunks in ((small, 0), (large, 1)):
-        st = bake(sc, BakeSettings(method="sms", spp=1, batches=1, seed=1)).stats["lights"]["Sun"]
-        assert st["walks_seen"] > 0 and st.get("seen_handoff_chunks", 0) == chunks
+    assert math.isclose(hits(small), HANDOFF_SAMPLES * 4 * omega / math.pi, rel_tol=1e-12)
+    tiny, soft = _ball_under("point", 0.01), _ball_under("point", 0.3)
+    d = 4.0 - 1.4  # the bulb to the top of the ball's box
+    omega = 2 * math.pi * (1 - math.sqrt(1 - (0.3 / d) ** 2))
+    assert math.isclose(hits(soft), HANDOFF_SAMPLES * 4 * omega / math.pi, rel_tol=1e-3)
+    assert max(hits(small), hits(tiny)) < manifold.SEEN_HANDOFF_HITS < min(hits(large), hits(soft))
+    world = scenes.world_mirror_scene()
+    assert world.light_type.tolist() == [S.WORLD] and hits(world) == math.inf
+    for sc, chunks in ((small, 0), (large, 1), (tiny, 0), (soft, 1)):
+        name = make_plan(sc).lights[0].name
+        st = bake(sc, BakeSettings(method="sms", spp=1, batches=1, seed=1)).stats["lights"][name]
+        assert st["walks_seen"] > 0 and st.get("seen_handoff_chunks", 0) == chunks, (name, chunks)
 
 
 def test_seen_handoff_stops_where_its_gather_finds_fewer_focusing_paths_than_the_walks():
