@@ -53,7 +53,8 @@ SEEN_HANDOFF_MIN = 4.0
 # ... and only where cosine sampling can find them. Under a sun of 0.5 degrees (handoff_hits 0.005
 # paths per receiver) the gather found 10 paths where the walks met 1,796 (bumped water, SMBS 16 spp):
 # each one a firefly, the bake's relative error 1.36-1.85 against 0.27-0.43 walked, in 2.3x the time.
-# A sun below SEEN_HANDOFF_HITS (about 1.6 degrees) is walked; elsewhere, once the walks have met
+# A light below SEEN_HANDOFF_HITS (a sun under about 1.6 degrees, a bulb of 1 cm 2.6 m from its caster)
+# is walked; elsewhere, once the walks have met
 # SEEN_HANDOFF_EVIDENCE focusing paths, the hand-off goes on while its gather has found at least
 # SEEN_HANDOFF_RATIO as many. On the conformance scenes the gather found 1.4-105x the walks' focusing
 # paths where it lowered the error (a disk seen through a pane, glass balls under soft point lights, a
@@ -668,7 +669,7 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
 
 def _hand_off_seen(scene, lp, st) -> bool:
     """Does this chunk hand off light lp's focusing paths at receivers seen through mirrors
-    or glass? Never for a sun too small for cosine sampling to hit (handoff_hits); in the bake's
+    or glass? Never for a light too small for cosine sampling to hit (handoff_hits); in the bake's
     first chunk where its caster can focus, later where an earlier chunk found such paths, by its
     walks or by the hand-off itself; but no more once the hand-off has run and found fewer than
     SEEN_HANDOFF_RATIO of the SEEN_HANDOFF_EVIDENCE or more that the walks met (st: the light's
