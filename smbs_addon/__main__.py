@@ -65,6 +65,16 @@ def _target(s):
     return v
 
 
+def _clamp(s):
+    try:
+        v = float(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a luminance") from None
+    if not (0 <= v < float("inf")):
+        raise argparse.ArgumentTypeError(f"must be 0 (off) or a positive luminance, not {s}")
+    return v
+
+
 def _methods(s):
     from .bake import METHODS
 
@@ -108,6 +118,9 @@ def _bake_options(b):
                    help="honour Cycles' caustic caster/receiver/light flags")
     b.add_argument("--no-indirect", dest="indirect", action="store_false",
                    help="leave out caustics seen after further diffuse bounces (first-order only)")
+    b.add_argument("--clamp", type=_clamp, default=0.0, metavar="LUMINANCE",
+                   help="manifold methods: the largest luminance one solution may add (0, the default: no "
+                        "clamp); trades the fireflies of a caustic's folds for a bias the statistics report")
 
 
 def _settings(args, method: str, spp: int, time_budget: float = 0.0, noise_target: float = 0.0):
@@ -117,7 +130,7 @@ def _settings(args, method: str, spp: int, time_budget: float = 0.0, noise_targe
                             threads=args.threads or 0, use_cycles_flags=args.flags,
                             estimator=args.estimator, trials=args.trials,
                             indirect=args.indirect, time_budget=time_budget,
-                            noise_target=noise_target, pilots=args.pilots)
+                            noise_target=noise_target, pilots=args.pilots, clamp_g=args.clamp)
     settings.validate()
     return settings
 

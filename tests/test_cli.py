@@ -105,6 +105,8 @@ def test_default_output_names(npz, tmp_path):
     (["--seed", "-1"], 2, ["--seed", "must not be negative", "-1"]),
     (["--method", "nonsense"], 2, ["--method", "invalid choice", "'nonsense'", "reference"]),
     (["--batches", "0"], 2, ["--batches", "at least 1"]),
+    (["--clamp", "-1"], 2, ["--clamp", "0 (off) or a positive luminance", "-1"]),
+    (["--clamp", "bright"], 2, ["--clamp", "'bright'", "not a luminance"]),
 ])
 def test_bad_arguments(npz, tmp_path, args, code, words):
     out = tmp_path / "x.exr"
@@ -242,6 +244,18 @@ def test_time_and_noise_stop_rules(npz, tmp_path):
     stats = json.loads(out.with_suffix(".json").read_text())
     assert stats["stopped_by"] == "noise" and stats["relative_error"] <= 0.2
     assert "stopped by the noise rule" in proc.stdout
+
+
+def test_clamp_on_the_command_line(npz, tmp_path):
+    """--clamp caps each manifold solution's luminance (BakeSettings.clamp_g): what it cut is in the
+    statistics per light, and the output says the error bar leaves the clamp's bias out."""
+    out = tmp_path / "clamped.exr"
+    proc = run("bake", npz, "--method", "sms", "--spp", 2, "--batches", 2, "--clamp", 0.001, "--out", out)
+    assert proc.returncode == 0, proc.stderr
+    stats = json.loads(out.with_suffix(".json").read_text())
+    assert stats["settings"]["clamp_g"] == 0.001
+    assert stats["lights"]["Disk"]["clamped"] > 0 and stats["lights"]["Disk"]["clamped_energy"] > 0
+    assert "not the clamp's bias (clamp_g 0.001)" in proc.stdout, proc.stdout
 
 
 @pytest.mark.parametrize("args,needle", [(("--noise", "0"), "positive relative error"),
