@@ -160,7 +160,7 @@ def test_a_light_too_small_for_cosine_sampling_is_walked_at_seen_receivers():
     """handoff_gather's 64 cosine directions from a receiver seen through glass find a sun of 0.5
     degrees, at the hand-off's least concentration (4), 0.005 times (bumped water under such a sun:
     10 paths where the walks met 1,796, each a firefly); one of 4 degrees 0.31 times; a bulb of 1 cm
-    radius 3.1 m above the ball's box 0.001 times, one of 30 cm 0.97. The small lights' focusing paths
+    radius 2.6 m above the ball's box 0.004 times, one of 30 cm 3.4. The small lights' focusing paths
     stay with the walks from the first chunk on (exact counts); the large ones' first chunk hands them
     off, as an area light's does."""
     from smbs_addon import manifold
