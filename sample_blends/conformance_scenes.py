@@ -216,13 +216,7 @@ def bumped_pool_sun():
     """pool_sun4's water flat (one quad), its waves a Bump node (Distance 0.3) on the Glass BSDF's Normal,
     the Height a Noise Texture (Scale 5, Detail 2, the quad's Generated coordinates): the pattern of the
     caustic is the bump's alone."""
-    return _pool("bumped_pool_sun", lambda: _bumped_water("BumpedWater", 0.3), wave=None, cells=1)
-
-
-def _bumped_water(name, distance, scale=5.0, coords=None):
-    """A Glass BSDF 1.33 whose Normal is a Bump node (Distance `distance`) of a Noise Texture (Scale
-    `scale`, Detail 2, Generated coordinates, or the Texture Coordinate node's `coords`)."""
-    return B.bumped_glass(name, distance, scale, coords)
+    return _pool("bumped_pool_sun", lambda: B.bumped_glass("BumpedWater", 0.3), wave=None, cells=1)
 
 
 def bumped_slab_sun():
@@ -234,7 +228,7 @@ def bumped_slab_sun():
     scene = _scene("bumped_slab_sun")
     _floor(scene, size=10.0)
     v, f = _box(0.6, 0.6, 0.1)
-    B.mesh_object(scene, "Slab", v, f, _bumped_water("BumpedGlass", 0.1, 2.0, "Object"), smooth=False,
+    B.mesh_object(scene, "Slab", v, f, B.bumped_glass("BumpedGlass", 0.1, 2.0, "Object"), smooth=False,
                   location=(0, 0, 2.5), caster=True)
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0))
     B.add_camera(scene, (-2.4, 0, 4.5), (-1.44, 0, 0), lens=35)

@@ -53,16 +53,14 @@ SEEN_HANDOFF_MIN = 4.0
 # ... and only where cosine sampling can find them. Under a sun of 0.5 degrees (handoff_hits 0.005
 # paths per receiver) the gather found 10 paths where the walks met 1,796 (bumped water, SMBS 16 spp):
 # each one a firefly, the bake's relative error 1.36-1.85 against 0.27-0.43 walked, in 2.3x the time.
-# A light below SEEN_HANDOFF_HITS (a sun under about 1.6 degrees, a bulb of 1 cm 2.6 m from its caster)
-# is walked; elsewhere, once the walks have met
-# SEEN_HANDOFF_EVIDENCE focusing paths, the hand-off goes on while its gather has found at least
-# SEEN_HANDOFF_RATIO as many. On the conformance scenes the gather found 1.4-105x the walks' focusing
-# paths where it lowered the error (a disk seen through a pane, glass balls under soft point lights, a
-# cube's internal reflections, an egg under a spot: 17 to 12, 0.213 against 0.254 walked) and fewer
-# where it only cost time (a normal-mapped pool under a 4-degree sun, 1 to 9: 1.4x the time, the same
-# error; too few to tell, so it goes on there).
+# A light below SEEN_HANDOFF_HITS (a sun under about 1.6 degrees, a bulb of 1 cm 2.6 m from its
+# caster) is walked; elsewhere, once the walks have met SEEN_HANDOFF_EVIDENCE focusing paths, the
+# hand-off goes on while its gather has found at least SEEN_HANDOFF_RATIO as many. On the conformance
+# scenes the gather found 1.4-105x the walks' focusing paths where it lowered the error (a disk seen
+# through a pane, glass balls under soft point lights, a cube's internal reflections, an egg under a
+# spot: 17 to 12, 0.213 against 0.254 walked) and fewer where it only cost time (a normal-mapped pool
+# under a 4-degree sun, 1 to 9: 1.4x the time, the same error; too few to tell, so it goes on there).
 SEEN_HANDOFF_HITS = 0.05
-HITS_AT = 4.0  # handoff_hits' concentration: the default hand-off's least at seen receivers
 SEEN_HANDOFF_EVIDENCE = 16
 SEEN_HANDOFF_RATIO = 0.5
 # ... and there the paths no walk takes (chains longer than max_chain, ...) go to it too, for each
@@ -688,8 +686,8 @@ def _hand_off_seen(scene, lp, st) -> bool:
 
 def handoff_hits(scene, li, casters=()) -> float:
     """The paths to light li that handoff_gather's cosine directions from one receiver can expect
-    to find at the default hand-off's least concentration (HITS_AT: the light's image through the
-    chain HITS_AT times its solid angle): a sun's cone; a point or spot light's sphere
+    to find at the least concentration handed off there (SEEN_HANDOFF_MIN: the light's image through
+    the chain that many times its solid angle): a sun's cone; a point or spot light's sphere
     and an area light (its area over the squared distance) as seen from the nearest point of its
     casters' boxes (casters: object ids), the largest they can look there. inf for a world."""
     from .indirect import HANDOFF_SAMPLES
@@ -714,7 +712,7 @@ def handoff_hits(scene, li, casters=()) -> float:
         else:
             r2 = float(scene.light_radius[li]) ** 2
             omega = 2.0 * math.pi if r2 >= d2 else 2.0 * math.pi * (1.0 - math.sqrt(1.0 - r2 / d2))
-    return HANDOFF_SAMPLES * HITS_AT * omega / math.pi
+    return HANDOFF_SAMPLES * SEEN_HANDOFF_MIN * omega / math.pi
 
 
 def can_focus(scene, lp) -> bool:

@@ -225,6 +225,7 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     manifold = importlib.import_module("smbs_addon.manifold")
     monkeypatch.setattr(bake_module, "WALK_CHUNK", 32 * 24)  # 4 spp: 4 chunks or more
     monkeypatch.setattr(manifold, "SEEN_HANDOFF_MIN", 0.0)
+    monkeypatch.setattr(manifold, "SEEN_HANDOFF_HITS", 0.0)  # at concentration 0 no light is large enough
     monkeypatch.setattr(manifold, "concentration", lambda types, x0, *a: np.zeros(len(x0)))
     calls = []
     gather = indirect.handoff_gather
