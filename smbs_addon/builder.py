@@ -46,12 +46,14 @@ class SceneBuilder:
         self.world_color = np.zeros(3)
         self.world_map, self.world_map_rotation = np.zeros((0, 0, 3), np.float32), np.eye(3)
         self.light_paths = np.full(4, -1, np.int64)  # Cycles' bounce limits (scene.Scene.light_paths)
+        # what the camera sees at s x s sub-pixels (Scene.view_normals, view_points)
+        self.view_normals = self.view_points = np.zeros((0, 0, 3), np.float32)
 
     # ------------------------------------------------------------ materials
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
                  bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0),
-                 distribution=1) -> int:
+                 distribution=1, view_bump=False) -> int:
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -62,7 +64,7 @@ class SceneBuilder:
                                    fresnel=int(fresnel), bump_correction=bool(bump_correction),
                                    layer=np.asarray(layer, float), textured=bool(textured),
                                    absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy(),
-                                   distribution=int(distribution)))
+                                   distribution=int(distribution), view_bump=bool(view_bump)))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
@@ -264,6 +266,10 @@ class SceneBuilder:
             else np.zeros((0, 3)),
             mat_distribution=np.array([x["distribution"] for x in m], np.int64)
             if any(x["distribution"] != 1 for x in m) else np.zeros(0, np.int64),
+            mat_view_bump=np.array([x["view_bump"] for x in m], bool) if any(x["view_bump"] for x in m)
+            else np.zeros(0, bool),
+            view_normals=np.asarray(self.view_normals, np.float32),
+            view_points=np.asarray(self.view_points, np.float32),
         )
         sc.validate()
         return sc

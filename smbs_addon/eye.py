@@ -36,9 +36,54 @@ class Receivers:
     # (M,3) int: Cycles' diffuse, glossy and transmission bounces the camera's path took before
     # x0 (bounces.Limits; a reflection is glossy, a refraction transmission)
     prior: np.ndarray
+    # (M,3) x0's smooth shading normal (Cycles' sd->N), which ns is unless a bump bends it there
+    # (view_bumped): the bump's shadowing term reads both (optics.bump_shadowing1); None: ns
+    sn: np.ndarray = None
+
+    def __post_init__(self):
+        if self.sn is None:
+            self.sn = self.ns
 
     def take(self, idx) -> "Receivers":
         return Receivers(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+
+
+def view_tables(scene) -> tuple:
+    """What the kernels read of the bumped receivers' view (kernels.view_normal1): (Scene.mat_view_bump
+    as flags (M,), view_normals, view_points, s: scene.view_scale); s = 0 where there is none."""
+    s = S.view_scale(scene)
+    flags = np.asarray(scene.mat_view_bump, bool)
+    if s == 0 or not flags.any():
+        z = np.zeros((0, 0, 3), np.float32)
+        return np.zeros(len(scene.mat_kind), np.bool_), z, z, 0
+    return (np.ascontiguousarray(flags), np.ascontiguousarray(scene.view_normals, np.float32),
+            np.ascontiguousarray(scene.view_points, np.float32), int(s))
+
+
+def view_bumped(scene, cam, rx, ry, p, ng, ns, w_eye, mat, eye_specular) -> np.ndarray:
+    """x0's shading normals (M,3) as Cycles bends them where the camera sees a bumped diffuse
+    receiver directly (Scene.mat_view_bump): read from what Cycles' camera rays meet at the film
+    position (rx, ry) (Scene.view_normals; kernels.view_normal1); ns elsewhere. A receiver seen
+    through mirrors or glass, or one of Scene.view_points' sub-pixels that is not x0's surface (an
+    edge), keeps ns."""
+    flags, vn, vp, s = view_tables(scene)
+    if s == 0 or len(p) == 0:
+        return ns
+    from . import kernels
+
+    on = np.flatnonzero(flags[mat] & (eye_specular == 0))
+    if on.size == 0:
+        return ns
+    pts = np.ascontiguousarray(p[on], np.float64)
+    foot = np.full(on.size, cam.pix_w) if cam.ortho else np.sqrt(((pts - cam.origin) ** 2).sum(1)) * cam.pix_w
+    out = np.array(ns, np.float64)
+    bent = np.empty((on.size, 3))
+    kernels.view_normal_rows(vn, vp, s, np.ascontiguousarray(rx[on], np.float64),
+                             np.ascontiguousarray(ry[on], np.float64), pts, np.ascontiguousarray(ng[on], np.float64),
+                             np.ascontiguousarray(ns[on], np.float64), np.ascontiguousarray(w_eye[on], np.float64),
+                             foot, bent)
+    out[on] = bent
+    return out
 
 
 def direct_albedo(scene, rc: Receivers, idx=None) -> np.ndarray | None:
@@ -178,7 +223,9 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     rec, rec_i, prior = (np.concatenate([p[k] for p in parts]) for k in range(3))
     ln = rec_i[:, 0]
     beta = rec[:, 12:15]
+    sn = rec[:, 6:9]
+    ns = view_bumped(scene, cam, rx[ln], ry[ln], rec[:, 0:3], rec[:, 3:6], sn, rec[:, 9:12], rec_i[:, 2], rec_i[:, 1])
     if has_layers(scene):  # x0's diffuse under its glossy layer, towards the eye (layer.py)
-        beta = beta * layer_weight(layer_table(scene), rec_i[:, 2], dot(rec[:, 9:12], rec[:, 6:9]))[:, None]
-    return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=rec[:, 0:3], ng=rec[:, 3:6], ns=rec[:, 6:9],
-                     w_eye=rec[:, 9:12], beta=beta, mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior)
+        beta = beta * layer_weight(layer_table(scene), rec_i[:, 2], dot(rec[:, 9:12], ns))[:, None]
+    return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=rec[:, 0:3], ng=rec[:, 3:6], ns=ns,
+                     w_eye=rec[:, 9:12], beta=beta, mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior, sn=sn)

@@ -483,7 +483,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     rt = tracer.rays()
     none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
     cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
-    counts = kernels.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye),
+    counts = kernels.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye),
                                    f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
                                    np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters),
                                    optics.materials(scene), bool(physical),

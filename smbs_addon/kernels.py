@@ -32,7 +32,7 @@ from numba.extending import intrinsic
 from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
 from .layer import MU_STEPS
-from .optics import bend1, fresnel_dielectric1, scatter1
+from .optics import bend1, bump_shadowing1, fresnel_dielectric1, scatter1
 from .rough import SINGULAR_ALPHA2
 
 # packed vertex columns
@@ -1507,12 +1507,12 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
 
 
 @njit(**_JIT)
-def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg, seg_n,
-                  hist, h_prim, cand, cdf, guide):
+def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
+                  seg_n, hist, h_prim, cand, cdf, guide):
     """handoff_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    x0, ng0, ns0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
-        (x0, ng0, ns0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide))
+    x0, ng0, ns0, sn0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
+        (x0, ng0, ns0, sn0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
     targeted = cand.shape[0] > 0
     for lane in range(x0.shape[0] * samples):
@@ -1533,6 +1533,8 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
         if not ok:
             continue
         kc = _coat_factor(mats, mat0[i], _v(ns0, i, 0), _v(w0, i, 0), d, True)  # under a Principled coat
+        # and a bumped receiver's shadowing (1 where ns0 is sn0, its smooth normal: no bump)
+        kc = _mul(bump_shadowing1(_v(sn0, i, 0), _v(ns0, i, 0), d, mats[5][mat0[i]] != 0), kc)
         b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
         o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
         medium = -1
@@ -1575,10 +1577,11 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, 
 
 @TypedOnce
 @njit(**_JIT)
-def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg, seg_n,
-                  hist, h_prim, cand, cdf, guide):
+def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
+                  seg_n, hist, h_prim, cand, cdf, guide):
     """indirect.handoff_gather's paths, lane i // samples's receiver (x0, ng0, ns0, w0: the
-    direction back to the eye, beta0: the throughput, alb: the albedo): a cosine bounce with
+    direction back to the eye, beta0: the throughput, alb: the albedo; sn0: the smooth normal ns0
+    a bump bent, eye.Receivers.sn): a cosine bounce with
     Russian roulette on the albedo (indirect._diffuse_bounce), then through up to K specular
     vertices (optics.scatter1, not adjoint; physical: scale_eta), every ray cast here. Lane l is
     sample s = l % samples of receiver a0 + l // samples, its uniform numbers keyed_uniform(key,
@@ -1595,8 +1598,8 @@ def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, g
     one Cycles' Bump Map Correction bends there, or the lane ends. Returns the ray counters
     (embree.ray_state)."""
     ray = ray_state(rt)
-    _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg, seg_n,
-                  hist, h_prim, cand, cdf, guide)
+    _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
+                  seg_n, hist, h_prim, cand, cdf, guide)
     return ray[6]
 
 # ------------------------------------------------------------------ the light tracer's photons
@@ -1784,6 +1787,45 @@ CAM_CLIP_END, CAM_PIX_AREA, CAM_INV, CAM_REGION = 19, 20, 21, 30
 CAM_F = 34
 
 
+# a point of Scene.view_points is the receiver's own where it lies on its plane within this share of the
+# sub-pixel's footprint, and at most VIEW_NEAR footprints from it
+VIEW_PLANE, VIEW_NEAR = 0.05, 4.0
+
+
+@njit(inline="always", **_JIT)
+def view_normal1(vn, vp, s, px, py, p, ng, ns, to_eye, foot):
+    """The shading normal Cycles' camera ray through raster position (px, py) meets at p, a point of
+    a bumped diffuse receiver the camera sees directly (ng, ns: its geometric and smooth shading
+    normals; to_eye: unit, towards the camera; foot: the width a pixel covers there): the normal of
+    Scene.view_normals' sub-pixel there (vn, vp: view_normals, view_points; s: scene.view_scale),
+    turned to ns's side (Cycles' faces the eye), where the sub-pixel's point is p's surface (on
+    its plane, near it: VIEW_PLANE, VIEW_NEAR); else ns."""
+    h, w = vn.shape[0], vn.shape[1]
+    c = min(max(int(math.floor(px * s)), 0), w - 1)
+    r = min(max(int(math.floor(py * s)), 0), h - 1)
+    q = (float(vp[r, c, 0]) - p[0], float(vp[r, c, 1]) - p[1], float(vp[r, c, 2]) - p[2])
+    f = foot / s
+    slant = max(abs(_dot(to_eye, ng)), 0.02)
+    if not (abs(_dot(q, ng)) <= VIEW_PLANE * f + 1e-6 * (abs(p[0]) + abs(p[1]) + abs(p[2]))
+            and _dot(q, q) <= (VIEW_NEAR * f / slant) ** 2):
+        return ns
+    n = (float(vn[r, c, 0]), float(vn[r, c, 1]), float(vn[r, c, 2]))
+    ln = math.sqrt(_dot(n, n))
+    if not ln > 0.5:
+        return ns
+    k = (1.0 if _dot(to_eye, ng) * _dot(ns, ng) >= 0 else -1.0) / ln
+    return (k * n[0], k * n[1], k * n[2])
+
+
+@njit(**_JIT)
+def view_normal_rows(vn, vp, s, px, py, p, ng, ns, to_eye, foot, out):
+    """view_normal1 per row into out (N,3)."""
+    for i in range(p.shape[0]):
+        n = view_normal1(vn, vp, s, px[i], py[i], _v(p, i, 0), _v(ng, i, 0), _v(ns, i, 0), _v(to_eye, i, 0),
+                         foot[i])
+        out[i, 0], out[i, 1], out[i, 2] = n[0], n[1], n[2]
+
+
 @njit(inline="always", **_JIT)
 def _cam_mat(cam, a, v):
     """The 3x3 matrix kept row by row at cam[a:a + 9] (CAM_AXES, CAM_INV) times v."""
@@ -1824,13 +1866,14 @@ def camera_rays(cam, x, y):
 
 
 @njit(**_JIT)
-def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, rx, ry, val, alb):
+def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, rx, ry, val, alb):
     """camera_splats' loop, on borrowed arrays (its caller holds them). Returns (rays cast, splats
     written)."""
     ray = _borrowed(ray)
-    mats = _borrowed(mats)
+    mats, view = _borrowed(mats), _borrowed(view)
     cam, rec, mat, rx, ry, val = _borrowed((cam, rec, mat, rx, ry, val))
     textured, alb = _borrowed((textured, alb))
+    v_flag, v_n, v_p, v_s = view
     mat_color = mats[2]
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
@@ -1863,6 +1906,11 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
         else:
             to_cam = _mul(1.0 / max(dist, 1e-300), _neg(q))
             tmax = dist * (1.0 - cam[CAM_CLIP] / max(depth, 1e-300))
+        m = mat[i]
+        sn = ns
+        if v_s > 0 and v_flag[m]:  # a bumped receiver: its normal as Cycles' camera ray meets it (eye.view_bumped)
+            ns = view_normal1(v_n, v_p, v_s, px, py, y, ng, sn, to_cam,
+                              cam[CAM_PIX_W] * (1.0 if ortho else dist))
         ci_g, co_g, ci_s = _dot(w, ng), _dot(to_cam, ng), _dot(w, ns)
         if not (ci_g * co_g > 0 and ci_s * (1.0 if ci_g > 0 else -1.0) > 0):  # same side, lit per shading normal
             continue
@@ -1872,13 +1920,12 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
             continue
         # the diffuse BSDF with the shading-normal correction of the adjoint (Veach 5.3), the
         # camera's importance (CameraModel.importance)
-        corr = abs(ci_s) / max(abs(ci_g), 1e-12)
+        corr = abs(ci_s) / max(abs(ci_g), 1e-12) * bump_shadowing1(sn, ns, w, mats[5][m] != 0)
         if ortho:
             imp = abs(co_g) / cam[CAM_PIX_AREA]
         else:
             c3 = max(cos_axis, 1e-12) ** 3
             imp = abs(co_g) / (max(dist, 1e-300) ** 2 * cam[CAM_PIX_AREA] * c3)
-        m = mat[i]
         tw = _tab_weight(mats[6], m, _dot(to_cam, ns))  # under a glossy coat
         k = corr * imp / math.pi * tw
         kc = _coat_factor(mats, m, ns, to_cam, w, first_order)  # and what on-minus-off keeps of it
@@ -1894,7 +1941,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
 
 @TypedOnce
 @njit(**_JIT)
-def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, rx, ry, val, alb):
+def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, view, rx, ry, val, alb):
     """reference.splat_records: the light tracer's records (rec: REC_* columns; mat: their
     materials, diffuse with albedo mats[2][mat] under a Principled coat: layer.py, first_order: the
     records are x0's own caustic, not light after a diffuse bounce): each diffuse vertex connected
@@ -1903,10 +1950,12 @@ def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, r
     region), its shadow ray cast here, the splat's raster position and value (the flux times the
     diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
     ry, val; with textured (Scene.mat_textured, or empty) and alb (as val, or empty), the albedo of
-    each splat on a textured material (Film.splat), zero elsewhere. Returns (shadow rays cast,
-    splats written, the ray counters)."""
+    each splat on a textured material (Film.splat), zero elsewhere; view (eye.view_tables): a bumped
+    receiver's normals as the camera sees them. Returns (shadow rays cast, splats written, the ray
+    counters)."""
     ray = ray_state(rt)
-    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, rx, ry, val, alb)
+    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, rx, ry, val,
+                                 alb)
     return rays, n, ray[6]
 
 

@@ -25,7 +25,7 @@ from .eye import direct_albedo, eye_receivers
 from .geometry import triangle_areas
 from .layer import coat_factor, has_layers
 from .lights import area_light_points, distant_cone, env_map
-from .optics import has_reflection
+from .optics import bump_shadowing, has_reflection
 from .rough import rough_casters, walk_casters
 from .trials import bernoulli_trials
 from .vec import channel_mean, dot, normalize, uniform_cone, frame, to_world
@@ -357,6 +357,8 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     side = np.sign(dot(w_eye, ng0))
     cos0 = dot(d01, ns0) * side
     ok = okg & (dot(d01, ng0) * side > 0) & (cos0 > 0)
+    if np.any(scene.mat_view_bump):  # bumped receivers: Cycles' shadowing of their bent normals
+        cos0 = cos0 * bump_shadowing(scene, rc.mat[idx], rc.sn[idx], ns0, d01)
     T = chain_throughput(scene, types, x0, verts, le.y, le.directional, ctx.physical)
     albedo = scene.mat_color[rc.mat[idx]]
     if ctx.coated:  # under a Principled coat: Cycles' on-minus-off keeps (f_d + f_g) x the diffuse's MIS share

@@ -100,6 +100,30 @@ def bend1(w, ns, ng):
 
 
 @njit(inline="always", **JIT)
+def bump_shadowing1(sn, n, wi, correction):
+    """Cycles' bump_shadowing_term (kernel/closure/bsdf.h) of a diffuse closure whose normal n
+    (unit) a bump or normal map bent away from the smooth shading normal sn (sd->N), for light
+    from wi (unit, away from the surface): 0 where wi lies below sn's hemisphere while above n's
+    (or the other way); with Bump Map Correction (correction) the microfacet shadowing of Conty
+    Estevez et al. (2019), a GGX G1 of alpha^2 = min(tan^2(angle(sn, n)) / 8, 1) at wi's angle
+    to sn; 1 where n is sn (no bump), exactly."""
+    if sn[0] == n[0] and sn[1] == n[1] and sn[2] == n[2]:
+        return 1.0
+    cos_si, cos_sn, cos_ni = _dot(sn, wi), _dot(sn, n), _dot(n, wi)
+    if cos_si * cos_sn * cos_ni < 0.0:
+        return 0.0
+    if not correction:
+        return 1.0
+    cos_i, cos_d = abs(cos_si), abs(cos_sn)
+    if cos_d >= 1.0 or cos_i >= 1.0:
+        return 1.0
+    if cos_i < 1e-6:
+        return 0.0
+    alpha2 = min(max(0.125 * (1.0 / (cos_d * cos_d) - 1.0), 0.0), 1.0)
+    return 2.0 / (1.0 + math.sqrt(1.0 + alpha2 * max(1.0 / (cos_i * cos_i) - 1.0, 0.0)))
+
+
+@njit(inline="always", **JIT)
 def fresnel_dielectric1(cos_i, eta):
     """Unpolarised Fresnel reflectance. cos_i = w.n (its sign tells the side); eta =
     n_inside / n_outside with n pointing outside. 1 on total internal reflection."""
@@ -291,6 +315,22 @@ def _bent_rows(wi, ns, ng):
     for i in range(n):
         out[i] = bend1(_row3(wi, i), _row3(ns, i), _row3(ng, i))[1]
     return out
+
+
+@njit(**JIT)
+def _shadowing_rows(sn, n, wi, correction):
+    out = np.ones(sn.shape[0])
+    for i in range(sn.shape[0]):
+        out[i] = bump_shadowing1(_row3(sn, i), _row3(n, i), _row3(wi, i), correction[i])
+    return out
+
+
+def bump_shadowing(scene, mat, sn, n, wi) -> np.ndarray:
+    """bump_shadowing1 per row ((N,3) arrays; mat: the diffuse materials, whose Bump Map Correction
+    it reads): (N,) factors."""
+    (sn, n, wi), shape = _rows3(sn, n, wi)
+    corr = np.ascontiguousarray(bump_correction(scene)[np.asarray(mat, np.int64).reshape(-1)], np.bool_)
+    return _shadowing_rows(sn, n, wi, corr).reshape(shape)
 
 
 def bent(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:

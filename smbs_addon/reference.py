@@ -21,6 +21,7 @@ from . import embree, kernels, lanes
 from .optics import materials, scatter_rows
 from .rough import rough_materials, rough_objects
 from .estimators import concentration
+from .eye import view_tables
 from .bounces import Limits
 from .geometry import vertex_from_hits
 
@@ -220,12 +221,13 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     textured = scene.textured_materials()
     textured = np.zeros(0, bool) if textured is None else np.ascontiguousarray(textured)
     alb = np.zeros((n if textured.size else 0, 3))
+    view = view_tables(scene)
 
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()
         rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], mats,
-                                                bool(first_order), tracer.eps, textured, rx[a:b], ry[a:b], val[a:b],
-                                                alb[a:b] if textured.size else alb)
+                                                bool(first_order), tracer.eps, textured, view, rx[a:b], ry[a:b],
+                                                val[a:b], alb[a:b] if textured.size else alb)
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays
 

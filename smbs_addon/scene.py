@@ -44,7 +44,8 @@ PERSP, ORTHO = 0, 1
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
-            "world_map_rotation", "mat_distribution", "tri_normals_back")
+            "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
+            "view_points")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -63,6 +64,16 @@ def column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(min, max) per column of v (N, 3): column by column, ~25x faster than numpy's reduction
     over axis 0 with 3 columns; raises on N = 0 as that reduction does."""
     return (np.array([v[:, c].min() for c in range(3)]), np.array([v[:, c].max() for c in range(3)]))
+
+
+def view_scale(scene) -> int:
+    """The sub-pixels per pixel side of Scene.view_normals (s): 0 where it is empty or not the
+    camera's frame times a whole number."""
+    h, w = np.shape(scene.view_normals)[:2]
+    H, W = scene.camera.height, scene.camera.width
+    if h == 0 or h % H or w % W or h // H != w // W:
+        return 0
+    return h // H
 
 
 @dataclass
@@ -186,6 +197,16 @@ class Scene:
     # from both sides (a scene without bumps, built in code, or saved before they were exported)
     tri_normals_back: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
+    # (M,) bool: a diffuse material whose Normal a Bump or Normal Map node drives; where the camera
+    # sees it directly its shading normal is read from view_normals (eye.view_bumped). Empty: none
+    mat_view_bump: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
+    # (H s, W s, 3) float32 each, top row first: what Cycles' camera rays meet first through the
+    # centres of s x s sub-pixels of the whole frame (its Normal and Position passes at s times the
+    # resolution, a sample each, in world space): the shading normal a bump bends there and the
+    # point, for mat_view_bump's receivers. Empty: none
+    view_normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
+    view_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
+
     # ------------------------------------------------------------------ derived
     def textured_materials(self) -> np.ndarray | None:
         """(M,) bool: the materials whose colour is a texture (mat_textured read as flags: a scene
@@ -304,6 +325,22 @@ class Scene:
             else []
         if len(wrong):
             raise SceneError(f"material '{self.mat_names[int(wrong[0])]}': only a diffuse material can be textured")
+        if self.mat_view_bump.shape not in ((0,), (M,)):
+            raise SceneError(f"scene array 'mat_view_bump' must have one entry per material ({M}) or none")
+        wrong = np.flatnonzero(self.mat_view_bump.astype(bool) & (self.mat_kind != DIFFUSE)) \
+            if self.mat_view_bump.size else []
+        if len(wrong):
+            raise SceneError(f"material '{self.mat_names[int(wrong[0])]}': only a diffuse material's bumps are "
+                             f"read from the view")
+        vn, vp = np.asarray(self.view_normals), np.asarray(self.view_points)
+        if vn.shape != vp.shape or vn.ndim != 3 or vn.shape[2] != 3:
+            raise SceneError(f"scene arrays 'view_normals' {vn.shape} and 'view_points' {vp.shape} must both be "
+                             f"(H s, W s, 3)")
+        if vn.size and view_scale(self) == 0:
+            raise SceneError(f"scene arrays 'view_normals' {vn.shape}: not the camera's frame "
+                             f"({self.camera.height} x {self.camera.width} pixels) times a whole number")
+        if vn.size and not (np.all(np.isfinite(vn)) and np.all(np.isfinite(vp))):
+            raise SceneError("scene arrays 'view_normals' and 'view_points' hold NaN or infinite values")
         if self.mat_absorb.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []

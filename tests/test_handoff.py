@@ -289,7 +289,7 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     seg, seg_n = np.zeros((m, K, 10)), np.zeros(m, np.int64)
     hist, h_prim = np.zeros((m, K, 8)), np.zeros((m, K), np.int64)
     rt = tracer.rays()
-    counts = kernels.handoff_lanes(rt, key, a0, samples, K, x0, ng, ns, w0, beta0, alb,
+    counts = kernels.handoff_lanes(rt, key, a0, samples, K, x0, ng, ns, ns, w0, beta0, alb,
                                    scene.tri_material[h0.prim].astype(np.int64), tracer.kernel_geometry(plan.casters),
                                    optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim,
                                    np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))

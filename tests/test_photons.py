@@ -11,6 +11,7 @@ from smbs_addon import BakeSettings, bake, embree, kernels, optics, reference
 from smbs_addon import scene as S
 from smbs_addon.bounces import Limits
 from smbs_addon.builder import SceneBuilder
+from smbs_addon.eye import view_tables
 from smbs_addon.lights import emit
 from smbs_addon.plan import make_plan
 from smbs_addon.tracer import Tracer
@@ -244,7 +245,8 @@ def test_camera_splats_are_the_numpy_connection(name):
     rx, ry, val, alb = np.empty(n), np.empty(n), np.empty((n, 3)), np.full((n, 3), np.nan)
     textured = scene.mat_kind == S.DIFFUSE  # every receiver textured: each splat's albedo written beside it
     rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
-                                       optics.materials(scene), True, tracer.eps, textured, rx, ry, val, alb)
+                                       optics.materials(scene), True, tracer.eps, textured, view_tables(scene),
+                                       rx, ry, val, alb)
     assert 100 < m <= rays <= n and rays == want[3]
     floor = scene.mat_color[scene.mat_kind == S.DIFFUSE].max(axis=0)
     if "principled" in name:  # the albedo under the coat, towards the camera: less than the colour
