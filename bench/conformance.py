@@ -54,6 +54,7 @@ SPP_BY_SCENE = {
     # a floor under a glossy layer (its diffuse weighs 0.90-0.91 there): 2048 spp resolves 0.5%
     "principled_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "rough_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
+    "bumped_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "mirror_alloy": {"reference": 1024, "sms": 16, "smbs": 16},
     "coated_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},
     "checker_floor": {"reference": 2048, "sms": 32, "smbs": 32, "mnee": 64},

@@ -615,6 +615,27 @@ def checker_floor():
     return _slanted_ball("checker_floor", _checker)
 
 
+def _bumpy():
+    m = B.material("BumpyFloor", "diffuse", (0.8,) * 3)
+    nt = m.node_tree
+    diffuse = next(n for n in nt.nodes if n.type == "BSDF_DIFFUSE")
+    noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
+    noise.inputs["Scale"].default_value = 8.0  # bumps of ~0.1 m, a few across the caustic
+    noise.inputs["Detail"].default_value = 2.0
+    bump.inputs["Distance"].default_value = 0.1
+    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
+    nt.links.new(bump.outputs["Normal"], diffuse.inputs["Normal"])
+    return m
+
+
+def bumped_floor():
+    """The slanted glass ball over a Diffuse BSDF floor (0.8) whose Normal is a Bump node (Distance 0.1)
+    of a Noise Texture (Scale 8, Detail 2, Object coordinates): the caustic follows the bumps' shading,
+    Cycles' shadowing term of a bent normal included."""
+    return _slanted_ball("bumped_floor", _bumpy)
+
+
 def _mix(name, first, second, factor):
     """A material whose Surface is Mix Shader(first, second) at Factor factor (first and second:
     (bl_idname, {input: value}))."""
@@ -808,6 +829,8 @@ SCENES = {
                     "point light, part of its caustic seen through it"),
     "checker_floor": (checker_floor, "the slanted ball over a Principled floor whose Base Color is a Checker "
                       "Texture (the render's Diffuse Color pass holds the albedo)"),
+    "bumped_floor": (bumped_floor, "a Diffuse BSDF receiver whose Normal is a Bump node of a Noise Texture, "
+                     "seen at a slant under a glass ball"),
     "rough_floor": (rough_floor, "a Diffuse BSDF receiver of Roughness 1 (Oren-Nayar) seen at a slant, "
                     "under a glass ball"),
     "egg_sun_spot": (egg_sun_spot, "Glass BSDF tinted 1.45, non-uniformly scaled and turned smooth sphere, "

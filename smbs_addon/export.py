@@ -601,8 +601,9 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         a = node.inputs.get("Alpha")
         if a is not None and (_follow(a) is not None or float(a.default_value) < 1.0):
             ignored.append("alpha")
-        if _linked(node, "Normal") and not (direct and (metallic >= 0.5 or trans >= 0.5)
-                                            and _normal_source(node) is not None):
+        # a receiver's bump: read from the view where the camera sees it (_view_maps); a mirror's
+        # or glass's: baked (bump.py)
+        if _linked(node, "Normal") and not (direct and (receiver or _normal_source(node) is not None)):
             ignored.append("normal map")
         if ignored:
             warn(f"material '{mat.name}': Principled BSDF {', '.join(ignored)} ignored")
@@ -647,7 +648,7 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         coat_rough = float(_input(node, "Coat Roughness", 0.03))
         return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
                     layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
-                           coat_ior, coat_rough), textured=textured)
+                           coat_ior, coat_rough), textured=textured, view_bump=direct and _linked(node, "Normal"))
     if t in _BUMPABLE and _linked(node, "Normal") and not (direct and _normal_source(node) is not None):
         warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by nodes the export cannot bake "
              f"(a Bump node below another node, a node group, a mesh attribute, a bump inside a shader mix): its "
@@ -674,11 +675,13 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         color, textured = _colour(node, "Color")
         if textured:
             _say_textured(mat, color, warn)
-        if _linked(node, "Normal"):
-            warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by a node (a bump or normal map): "
-                 f"the caustic on it is shaded with the unbumped normal, where Cycles' follows the bumps")
+        if _linked(node, "Normal") and not direct:
+            warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by a node (a bump or normal map) "
+                 f"inside a shader mix: the caustic on it is shaded with the unbumped normal, where Cycles' follows "
+                 f"the bumps")
         return dict(kind=S.DIFFUSE, color=color, roughness=sigma, textured=textured,
-                    layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0, 0.0, 0.0, 0.0))
+                    layer=(0.0, 0.0, 0.0, 1.0, min(sigma, 1.0) if sigma >= 1e-5 else 0.0, 0.0, 0.0, 0.0),
+                    view_bump=direct and _linked(node, "Normal"))
     if t == "EMISSION":
         return dict(kind=S.EMITTER, color=_const(node, "Color"),
                     strength=_const(node, "Strength"))
@@ -911,6 +914,88 @@ def _bake_normals(source, co, tv, slot, uvs, uv_name, kind) -> np.ndarray:
                 coll.remove(block)
             except (ReferenceError, RuntimeError):
                 pass
+
+
+# ------------------------------------------------------------------------------ a bumped receiver's view
+VIEW_SUBPIXELS = 2_000_000  # the view maps' sub-pixels at most (two float32 maps of 24 MB)
+VIEW_MOST = 4  # sub-pixels per pixel side at most
+
+
+def _view_render(sc):
+    """Cycles' render of scene sc to its render.filepath."""
+    bpy.ops.render.render(write_still=True, scene=sc.name)
+
+
+def _view_maps(bpy_scene, objects, camera, warn):
+    """What Cycles' camera rays meet first through the centres of s x s sub-pixels of the frame
+    (Scene.view_normals, view_points: its Normal and Position passes, a sample per sub-pixel, no
+    bounces, a pixel filter of 0.01): the shading normals a bump or normal map on a receiver bends,
+    as Cycles' own nodes make them, whatever drives them. s is the most (up to VIEW_MOST) that keeps
+    VIEW_SUBPIXELS. A scene of its own holds the objects (shared, not copied) and the camera, at the
+    scene's frame; it, its files and a Render Result image it made are removed again, the user's
+    scene is not touched. None, said, where Cycles cannot render it."""
+    import tempfile
+    from pathlib import Path
+
+    import OpenImageIO as oiio
+
+    W, H = camera.width, camera.height
+    s = max(1, min(VIEW_MOST, math.isqrt(max(VIEW_SUBPIXELS // (W * H), 1))))
+    sc = None
+    results = {im.name for im in bpy.data.images if im.type == "RENDER_RESULT"}
+    try:
+        with tempfile.TemporaryDirectory() as tmp:
+            sc = bpy.data.scenes.new("smbs_view")
+            for ob in objects:
+                sc.collection.objects.link(ob)
+            if bpy_scene.camera.name not in sc.collection.objects:
+                sc.collection.objects.link(bpy_scene.camera)
+            sc.camera = bpy_scene.camera
+            sc.frame_set(bpy_scene.frame_current, subframe=bpy_scene.frame_subframe)
+            r, ur = sc.render, bpy_scene.render
+            r.engine = "CYCLES"
+            r.resolution_x, r.resolution_y, r.resolution_percentage = W * s, H * s, 100
+            r.pixel_aspect_x, r.pixel_aspect_y = ur.pixel_aspect_x, ur.pixel_aspect_y
+            r.use_border = False
+            r.use_motion_blur = False
+            r.use_compositing = r.use_sequencer = False
+            r.image_settings.media_type = "MULTI_LAYER_IMAGE"
+            r.image_settings.color_depth = "32"
+            r.filepath = str(Path(tmp) / "view.exr")
+            c = sc.cycles
+            c.device = "CPU"
+            c.samples, c.seed, c.use_animated_seed = 1, 0, False
+            c.use_adaptive_sampling = c.use_denoising = False
+            c.max_bounces = 0
+            c.filter_width = 0.01  # each sub-pixel's sample at its centre
+            vl = sc.view_layers[0]
+            vl.use_pass_normal = vl.use_pass_position = True
+            _view_render(sc)
+            inp = oiio.ImageInput.open(r.filepath)
+            if inp is None:
+                raise RuntimeError(oiio.geterror())
+            chans, sub = {}, 0
+            try:
+                while inp.seek_subimage(sub, 0):  # a part per pass
+                    px = np.asarray(inp.read_image("float"), np.float32)
+                    for i, name in enumerate(inp.spec().channelnames):
+                        chans[name.rsplit(".", 2)[-2] + "." + name.rsplit(".", 1)[-1]] = px[..., i]
+                    sub += 1
+            finally:
+                inp.close()
+            maps = [np.stack([chans[f"{p}.{a}"] for a in "XYZ"], axis=-1) for p in ("Normal", "Position")]
+            if maps[0].shape[:2] != (H * s, W * s):
+                raise RuntimeError(f"a render of {maps[0].shape[1]} x {maps[0].shape[0]} pixels")
+            return tuple(np.ascontiguousarray(np.nan_to_num(m, nan=0.0, posinf=0.0, neginf=0.0)) for m in maps)
+    except Exception as e:  # noqa: BLE001 - Cycles could not render it: the receivers unbumped, and said so
+        warn(f"scene '{bpy_scene.name}': the view of its bumped receivers could not be rendered ({e}); the "
+             f"caustic on them is shaded with their unbumped normals")
+        return None
+    finally:
+        if sc is not None:
+            bpy.data.scenes.remove(sc)
+        for im in [im for im in bpy.data.images if im.type == "RENDER_RESULT" and im.name not in results]:
+            bpy.data.images.remove(im)  # the render's image, where the file had none
 
 
 # ------------------------------------------------------------------------------ lights
@@ -1205,6 +1290,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
 
     mesh_cache = {}
     meshes = []  # (name, mesh_cache key, matrix, caster, receiver) in the depsgraph's order
+    view_objects = {}  # the objects (or their instancers) those are, in order: what the camera's view holds
     names_used = {}
     viewport = getattr(depsgraph, "mode", "VIEWPORT") == "VIEWPORT"
     for inst in depsgraph.object_instances:
@@ -1260,6 +1346,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             continue
         if k == 0 and not inst.is_instance:
             _say_visibility(orig, _warn)
+        view_objects[inst.parent.original if inst.is_instance and inst.parent is not None else orig] = None
         meshes.append((name, key, M, bool(orig.cycles.is_caustics_caster), bool(orig.cycles.is_caustics_receiver)))
     # bumps are baked once the depsgraph's instances are read (the bake adds a scene of its own)
     bumped = [key for key, local in mesh_cache.items() if local is not None and "bump_source" in local]
@@ -1269,9 +1356,20 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         source = local.pop("bump_source")
         specs = {int(m): bump_specs[int(m)] for m in np.unique(local["tri_material"]) if int(m) in bump_specs}
         mesh_cache[key] = _bumped(local, specs, source, int(target), _warn)
+    view_bumped = set()  # the objects with a bumped diffuse (a receiver, by the plan's rules): the view holds them
     for name, key, M, caster, receiver in meshes:
         local = mesh_cache[key]
         v, n, uv, back = _to_world(local, M)
         b.mesh_corners(name, v, n, uv, local["tri_material"], caster=caster, receiver=receiver,
                        smooth=bool(local["smooth"].any()), tri_normals_back=back)
+        if any(b.materials[int(m)]["view_bump"] for m in np.unique(local["tri_material"])):
+            view_bumped.add(name)
+    maps = None
+    if view_bumped:
+        maps = _view_maps(bpy_scene, list(view_objects), camera, _warn)
+        if maps is not None:
+            b.view_normals, b.view_points = maps
+    if maps is None:
+        for m in b.materials:
+            m["view_bump"] = False
     return b.build()

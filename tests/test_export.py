@@ -846,18 +846,98 @@ def test_a_bump_cycles_cannot_bake_leaves_the_surface_unbumped_and_the_scene_as_
     assert len(v) == 2 and np.allclose(n, [0.0, 0.0, 1.0])
 
 
-def test_a_bumped_diffuse_receiver_is_said():
-    """A Bump node on a Diffuse BSDF's Normal: the caustic on it is shaded with the unbumped normal
-    (bump.py bakes mirrors' and glass's bumps only); said, where it was silent."""
-    m = material("Stone", "ShaderNodeBsdfDiffuse")
+def _bumpy(name, node_type="ShaderNodeBsdfDiffuse"):
+    """A receiver's material whose Normal is a Bump node (Distance 0.1) of a Noise Texture (Scale 8,
+    Object coordinates)."""
+    m = material(name, node_type)
     nt = m.node_tree
-    b = nt.nodes.new("ShaderNodeBump")
-    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], b.inputs["Height"])
-    nt.links.new(b.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Normal"])
-    sc, warnings = one_material(m)
-    assert sc.mat_kind[0] == S.DIFFUSE and len(sc.tri_vertices) == 12
-    assert warnings == ["material 'Stone': the Normal of 'Diffuse BSDF' is driven by a node (a bump or normal map): "
-                        "the caustic on it is shaded with the unbumped normal, where Cycles' follows the bumps"]
+    noise, b = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
+    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
+    noise.inputs["Scale"].default_value = 8.0
+    b.inputs["Distance"].default_value = 0.1
+    nt.links.new(noise.outputs["Fac"], b.inputs["Height"])
+    bsdf = next(n for n in nt.nodes if n.type.startswith("BSDF"))
+    nt.links.new(b.outputs["Normal"], bsdf.inputs["Normal"])
+    return m
+
+
+def _floor_under_camera(m, s_x=40, s_y=30):
+    me = bpy.data.meshes.new("Floor")
+    me.from_pydata([(-3, -3, 0), (3, -3, 0), (3, 3, 0), (-3, 3, 0)], [], [(0, 1, 2, 3)])
+    me.materials.append(m)
+    link(bpy.data.objects.new("Floor", me))
+    add_camera(location=(0.2, 0.1, 4.0), rotation=(0.1, 0, 0))
+    scene().render.resolution_x, scene().render.resolution_y = s_x, s_y
+
+
+def _render_settings():
+    r = scene().render
+    return (r.resolution_x, r.resolution_y, r.resolution_percentage, r.filepath, r.engine, r.use_border,
+            scene().cycles.samples, scene().cycles.filter_width, scene().view_layers[0].use_pass_normal)
+
+
+@pytest.mark.parametrize("node_type", ["ShaderNodeBsdfDiffuse", "ShaderNodeBsdfPrincipled"])
+def test_a_bumped_diffuse_receiver_is_exported_as_the_camera_sees_it(node_type):
+    """A Bump node on a Diffuse (or a diffuse Principled) BSDF's Normal: the export renders what
+    Cycles' camera rays meet (export._view_maps: the Normal and Position passes at s x s sub-pixels,
+    s = 4 for 40 x 30 pixels): over the floor, unit normals the bumps tilt (up to 10 degrees and
+    more), never below the floor; the points on the floor, where our own camera's rays through the
+    sub-pixels' centres meet it. Nothing said; the user's scene and render settings as they were."""
+    _floor_under_camera(_bumpy("Stone", node_type))
+    before, settings, images = _blend_data(), _render_settings(), list(bpy.data.images)
+    sc, warnings = export()
+    assert warnings == []
+    assert _blend_data() == before and _render_settings() == settings and list(bpy.data.images) == images
+    assert sc.mat_view_bump.tolist() == [True] and S.view_scale(sc) == 4
+    n, p = sc.view_normals.reshape(-1, 3), sc.view_points.reshape(-1, 3)
+    assert sc.view_normals.shape == (120, 160, 3) and sc.view_normals.dtype == np.float32
+    np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-5)
+    assert n[:, 2].min() > 0 and np.degrees(np.arccos(n[:, 2].min())) > 10.0
+    assert np.degrees(np.arccos(n[:, 2].max())) < 0.5  # and some face up
+    from smbs_addon import kernels
+    from smbs_addon.camera import CameraModel
+
+    cam = CameraModel(sc.camera)
+    rows, cols = np.mgrid[0:120, 0:160]
+    o, d = kernels.camera_rays(cam.kernel_params(), (cols.ravel() + 0.5) / 4, (rows.ravel() + 0.5) / 4)
+    t = -o[:, 2] / d[:, 2]
+    np.testing.assert_allclose(p, o + t[:, None] * d, atol=1e-4)
+
+
+def test_a_bumped_receivers_view_cycles_cannot_render_is_said(monkeypatch):
+    """Where Cycles cannot render the view, the receiver is shaded unbumped, said once, and the scene
+    the export made for it is removed again."""
+    _floor_under_camera(_bumpy("Stone"))
+    before = _blend_data()
+
+    def fails(sc):
+        assert sc.name in bpy.data.scenes
+        raise RuntimeError("no Cycles here")
+
+    monkeypatch.setattr(export_module, "_view_render", fails)
+    sc, warnings = export()
+    assert warnings == [f"scene '{scene().name}': the view of its bumped receivers could not be rendered (no Cycles "
+                        f"here); the caustic on them is shaded with their unbumped normals"]
+    assert _blend_data() == before
+    assert sc.mat_view_bump.size == 0 and sc.view_normals.size == 0
+
+
+def test_a_bumped_diffuse_in_a_mix_is_said():
+    """A bump on a Diffuse BSDF inside a shader mix: the view's normal would be the mix's average, so
+    the caustic on it is the unbumped surface's; said."""
+    m = _bumpy("Stone")
+    nt = m.node_tree
+    out, diffuse = nt.nodes["Material Output"], nt.nodes["Diffuse BSDF"]
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    nt.links.new(diffuse.outputs[0], mix.inputs[1])
+    nt.links.new(nt.nodes.new("ShaderNodeBsdfDiffuse").outputs[0], mix.inputs[2])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    _floor_under_camera(m)
+    sc, warnings = export()
+    assert warnings == ["material 'Stone': the Normal of 'Diffuse BSDF' is driven by a node (a bump or normal map) "
+                        "inside a shader mix: the caustic on it is shaded with the unbumped normal, where Cycles' "
+                        "follows the bumps"]
+    assert sc.mat_view_bump.size == 0 and sc.view_normals.size == 0
 
 
 def test_a_bump_inside_a_mix_is_said():
