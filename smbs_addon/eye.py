@@ -48,16 +48,26 @@ class Receivers:
         return Receivers(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
 
 
-def view_tables(scene) -> tuple:
+def view_tables(scene, cam) -> tuple:
     """What the kernels read of the bumped receivers' view (kernels.view_normal1): (Scene.mat_view_bump
-    as flags (M,), view_normals, view_points, s: scene.view_scale); s = 0 where there is none."""
-    s = S.view_scale(scene)
+    as flags (M,), view_normals, view_points, t (4,)): t takes a raster position (x, y) of camera
+    model cam to the view's, (t0 x + t1, t2 y + t3), through the view plane (the camera at the
+    view's resolution frames it, camera.CameraModel); t0 = 0 where there is no view."""
     flags = np.asarray(scene.mat_view_bump, bool)
-    if s == 0 or not flags.any():
+    h, w = np.shape(scene.view_normals)[:2]
+    if h == 0 or not flags.any():
         z = np.zeros((0, 0, 3), np.float32)
-        return np.zeros(len(scene.mat_kind), np.bool_), z, z, 0
+        return np.zeros(len(scene.mat_kind), np.bool_), z, z, np.zeros(4)
+    from dataclasses import replace
+
+    from .camera import CameraModel
+
+    m = CameraModel(replace(cam.cam, resolution_x=w, resolution_y=h, resolution_percentage=100, use_border=False))
+    # view plane: fx = xmin + x pix_w, fy = ymin + (H - y) pix_h, in both
+    t = np.array([cam.pix_w / m.pix_w, (cam.xmin - m.xmin) / m.pix_w, cam.pix_h / m.pix_h,
+                  m.H - (cam.ymin + cam.H * cam.pix_h - m.ymin) / m.pix_h])
     return (np.ascontiguousarray(flags), np.ascontiguousarray(scene.view_normals, np.float32),
-            np.ascontiguousarray(scene.view_points, np.float32), int(s))
+            np.ascontiguousarray(scene.view_points, np.float32), t)
 
 
 def view_bumped(scene, cam, rx, ry, p, ng, ns, w_eye, mat, eye_specular) -> np.ndarray:
@@ -66,8 +76,8 @@ def view_bumped(scene, cam, rx, ry, p, ng, ns, w_eye, mat, eye_specular) -> np.n
     position (rx, ry) (Scene.view_normals; kernels.view_normal1); ns elsewhere. A receiver seen
     through mirrors or glass, or one of Scene.view_points' sub-pixels that is not x0's surface (an
     edge), keeps ns."""
-    flags, vn, vp, s = view_tables(scene)
-    if s == 0 or len(p) == 0:
+    flags, vn, vp, t = view_tables(scene, cam)
+    if not t[0] > 0 or len(p) == 0:
         return ns
     from . import kernels
 
@@ -78,7 +88,7 @@ def view_bumped(scene, cam, rx, ry, p, ng, ns, w_eye, mat, eye_specular) -> np.n
     foot = np.full(on.size, cam.pix_w) if cam.ortho else np.sqrt(((pts - cam.origin) ** 2).sum(1)) * cam.pix_w
     out = np.array(ns, np.float64)
     bent = np.empty((on.size, 3))
-    kernels.view_normal_rows(vn, vp, s, np.ascontiguousarray(rx[on], np.float64),
+    kernels.view_normal_rows(vn, vp, t, np.ascontiguousarray(rx[on], np.float64),
                              np.ascontiguousarray(ry[on], np.float64), pts, np.ascontiguousarray(ng[on], np.float64),
                              np.ascontiguousarray(ns[on], np.float64), np.ascontiguousarray(w_eye[on], np.float64),
                              foot, bent)

@@ -1793,18 +1793,18 @@ VIEW_PLANE, VIEW_NEAR = 0.05, 4.0
 
 
 @njit(inline="always", **_JIT)
-def view_normal1(vn, vp, s, px, py, p, ng, ns, to_eye, foot):
+def view_normal1(vn, vp, t, px, py, p, ng, ns, to_eye, foot):
     """The shading normal Cycles' camera ray through raster position (px, py) meets at p, a point of
     a bumped diffuse receiver the camera sees directly (ng, ns: its geometric and smooth shading
     normals; to_eye: unit, towards the camera; foot: the width a pixel covers there): the normal of
-    Scene.view_normals' sub-pixel there (vn, vp: view_normals, view_points; s: scene.view_scale),
-    turned to ns's side (Cycles' faces the eye), where the sub-pixel's point is p's surface (on
-    its plane, near it: VIEW_PLANE, VIEW_NEAR); else ns."""
+    Scene.view_normals' sub-pixel there (vn, vp: view_normals, view_points; t: eye.view_tables'
+    raster to the view's), turned to ns's side (Cycles' faces the eye), where the sub-pixel's point
+    is p's surface (on its plane, near it: VIEW_PLANE, VIEW_NEAR); else ns."""
     h, w = vn.shape[0], vn.shape[1]
-    c = min(max(int(math.floor(px * s)), 0), w - 1)
-    r = min(max(int(math.floor(py * s)), 0), h - 1)
+    c = min(max(int(math.floor(t[0] * px + t[1])), 0), w - 1)
+    r = min(max(int(math.floor(t[2] * py + t[3])), 0), h - 1)
     q = (float(vp[r, c, 0]) - p[0], float(vp[r, c, 1]) - p[1], float(vp[r, c, 2]) - p[2])
-    f = foot / s
+    f = foot / t[0]
     slant = max(abs(_dot(to_eye, ng)), 0.02)
     if not (abs(_dot(q, ng)) <= VIEW_PLANE * f + 1e-6 * (abs(p[0]) + abs(p[1]) + abs(p[2]))
             and _dot(q, q) <= (VIEW_NEAR * f / slant) ** 2):
@@ -1818,10 +1818,10 @@ def view_normal1(vn, vp, s, px, py, p, ng, ns, to_eye, foot):
 
 
 @njit(**_JIT)
-def view_normal_rows(vn, vp, s, px, py, p, ng, ns, to_eye, foot, out):
+def view_normal_rows(vn, vp, t, px, py, p, ng, ns, to_eye, foot, out):
     """view_normal1 per row into out (N,3)."""
     for i in range(p.shape[0]):
-        n = view_normal1(vn, vp, s, px[i], py[i], _v(p, i, 0), _v(ng, i, 0), _v(ns, i, 0), _v(to_eye, i, 0),
+        n = view_normal1(vn, vp, t, px[i], py[i], _v(p, i, 0), _v(ng, i, 0), _v(ns, i, 0), _v(to_eye, i, 0),
                          foot[i])
         out[i, 0], out[i, 1], out[i, 2] = n[0], n[1], n[2]
 
@@ -1873,7 +1873,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
     mats, view = _borrowed(mats), _borrowed(view)
     cam, rec, mat, rx, ry, val = _borrowed((cam, rec, mat, rx, ry, val))
     textured, alb = _borrowed((textured, alb))
-    v_flag, v_n, v_p, v_s = view
+    v_flag, v_n, v_p, v_t = view
     mat_color = mats[2]
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
@@ -1908,8 +1908,8 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
             tmax = dist * (1.0 - cam[CAM_CLIP] / max(depth, 1e-300))
         m = mat[i]
         sn = ns
-        if v_s > 0 and v_flag[m]:  # a bumped receiver: its normal as Cycles' camera ray meets it (eye.view_bumped)
-            ns = view_normal1(v_n, v_p, v_s, px, py, y, ng, sn, to_cam,
+        if v_t[0] > 0 and v_flag[m]:  # a bumped receiver: its normal as Cycles' camera ray meets it (eye.view_bumped)
+            ns = view_normal1(v_n, v_p, v_t, px, py, y, ng, sn, to_cam,
                               cam[CAM_PIX_W] * (1.0 if ortho else dist))
         ci_g, co_g, ci_s = _dot(w, ng), _dot(to_cam, ng), _dot(w, ns)
         if not (ci_g * co_g > 0 and ci_s * (1.0 if ci_g > 0 else -1.0) > 0):  # same side, lit per shading normal

@@ -221,7 +221,7 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     textured = scene.textured_materials()
     textured = np.zeros(0, bool) if textured is None else np.ascontiguousarray(textured)
     alb = np.zeros((n if textured.size else 0, 3))
-    view = view_tables(scene)
+    view = view_tables(scene, cam)
 
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()

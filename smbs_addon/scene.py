@@ -66,16 +66,6 @@ def column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return (np.array([v[:, c].min() for c in range(3)]), np.array([v[:, c].max() for c in range(3)]))
 
 
-def view_scale(scene) -> int:
-    """The sub-pixels per pixel side of Scene.view_normals (s): 0 where it is empty or not the
-    camera's frame times a whole number."""
-    h, w = np.shape(scene.view_normals)[:2]
-    H, W = scene.camera.height, scene.camera.width
-    if h == 0 or h % H or w % W or h // H != w // W:
-        return 0
-    return h // H
-
-
 @dataclass
 class Camera:
     """A Blender camera with the render settings that shape the image."""
@@ -203,7 +193,8 @@ class Scene:
     # (H s, W s, 3) float32 each, top row first: what Cycles' camera rays meet first through the
     # centres of s x s sub-pixels of the whole frame (its Normal and Position passes at s times the
     # resolution, a sample each, in world space): the shading normal a bump bends there and the
-    # point, for mat_view_bump's receivers. Empty: none
+    # point, for mat_view_bump's receivers. The camera at their resolution frames them (a bake at
+    # another resolution, auto's pilots, reads them through it: eye.view_tables). Empty: none
     view_normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
     view_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
 
@@ -336,9 +327,6 @@ class Scene:
         if vn.shape != vp.shape or vn.ndim != 3 or vn.shape[2] != 3:
             raise SceneError(f"scene arrays 'view_normals' {vn.shape} and 'view_points' {vp.shape} must both be "
                              f"(H s, W s, 3)")
-        if vn.size and view_scale(self) == 0:
-            raise SceneError(f"scene arrays 'view_normals' {vn.shape}: not the camera's frame "
-                             f"({self.camera.height} x {self.camera.width} pixels) times a whole number")
         if vn.size and not (np.all(np.isfinite(vn)) and np.all(np.isfinite(vp))):
             raise SceneError("scene arrays 'view_normals' and 'view_points' hold NaN or infinite values")
         if self.mat_absorb.shape not in ((0, 3), (M, 3)):

@@ -780,3 +780,34 @@ def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
     bake.cancel()
     assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
     assert data() == before
+
+
+def test_bake_operator_bakes_a_bumped_floor(empty_bpy, addon, tmp_path):
+    """The button on a floor whose Diffuse BSDF's Normal is a Bump node of a Noise Texture: the
+    export's render of the camera's view (export._view_maps) runs inside the operator and leaves no
+    scene, object, mesh, material or image of its own behind; the floor is read as bumped."""
+    scene = _mirror_scene()
+    nt = bpy.data.materials["Floor"].node_tree
+    bump = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], bump.inputs["Height"])
+    nt.links.new(bump.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Normal"])
+    settings = scene.smbs_caustics
+    settings.method, settings.spp, settings.seed = "reference", 1, 3
+    settings.output_path = str(tmp_path / "layer.exr")
+
+    def data():
+        return [sorted(x.name for x in coll) for coll in (bpy.data.scenes, bpy.data.objects, bpy.data.meshes,
+                                                          bpy.data.materials)]
+
+    before = data()
+    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
+    assert "Floor" not in settings.bake_warnings and "could not be rendered" not in settings.bake_warnings
+    assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
+    bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
+    bake = bake_op.ModalBake(lambda level, message: None)
+    assert bake.start(bpy.context)
+    sc = bake.prep.data
+    assert sc.mat_view_bump[sc.mat_names.index("Floor")] and sc.view_normals.shape == (16 * 4, 24 * 4, 3)
+    bake.cancel()
+    assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
+    assert data() == before and sorted(im.name for im in bpy.data.images) == [LAYER]

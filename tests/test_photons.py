@@ -245,7 +245,7 @@ def test_camera_splats_are_the_numpy_connection(name):
     rx, ry, val, alb = np.empty(n), np.empty(n), np.empty((n, 3)), np.full((n, 3), np.nan)
     textured = scene.mat_kind == S.DIFFUSE  # every receiver textured: each splat's albedo written beside it
     rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
-                                       optics.materials(scene), True, tracer.eps, textured, view_tables(scene),
+                                       optics.materials(scene), True, tracer.eps, textured, view_tables(scene, cam),
                                        rx, ry, val, alb)
     assert 100 < m <= rays <= n and rays == want[3]
     floor = scene.mat_color[scene.mat_kind == S.DIFFUSE].max(axis=0)

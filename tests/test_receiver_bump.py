@@ -85,7 +85,6 @@ def test_a_bumped_floor_takes_the_cosine_of_its_bent_normal(method, correction):
     bumped = _mirror_scene(correction)
     bumped.view_normals, bumped.view_points = _view(bumped, TILTED)
     bumped.validate()
-    assert S.view_scale(bumped) == 2
     want = float(np.dot(TILTED, OMEGA)) / OMEGA[2] * bump_shadowing1(UP, TILTED, tuple(OMEGA), correction)
     assert want == pytest.approx(0.6585 if not correction else 0.6559, abs=5e-4)
     settings = BakeSettings(method=method, spp=4, seed=3, indirect=False)
@@ -123,9 +122,31 @@ def test_the_view_is_read_only_where_it_shows_the_receiver_itself():
     np.testing.assert_array_equal(out, ns[:1])
 
 
-def test_a_view_of_the_wrong_size_is_refused():
-    """Scene.validate: the view must be the camera's frame times a whole number."""
+def test_a_view_of_two_sizes_is_refused():
+    """Scene.validate: the view's normals and points must be maps of one size."""
     sc = _mirror_scene(True)
-    sc.view_normals = sc.view_points = np.zeros((24 * 2, 32 * 3, 3), np.float32)
+    sc.view_normals, sc.view_points = np.zeros((48, 64, 3), np.float32), np.zeros((48, 63, 3), np.float32)
     with pytest.raises(S.SceneError, match="view_normals"):
         sc.validate()
+
+
+def test_a_pilots_smaller_frame_reads_the_same_view():
+    """auto's pilots bake the scene at a smaller resolution (auto._pilot_scene): eye.view_tables takes
+    their raster positions to the view's through the view plane, so a point of the floor reads the
+    same sub-pixel at 32 x 24 and at 12 x 9 pixels."""
+    import dataclasses
+
+    from smbs_addon.eye import view_tables
+
+    sc = _mirror_scene(True)
+    sc.view_normals, sc.view_points = _view(sc, TILTED)
+    full = CameraModel(sc.camera)
+    small = CameraModel(dataclasses.replace(sc.camera, resolution_percentage=40))
+    assert (small.W, small.H) == (12, 9)
+    p = np.array([[0.3, 0.2, 0.0], [-0.5, -0.4, 0.0], [0.9, 0.6, 0.0]])
+    for cam in (full, small):
+        rx, ry = cam.project(p)[:2]
+        t = view_tables(sc, cam)[3]
+        col, row = np.floor(t[0] * rx + t[1]).astype(int), np.floor(t[2] * ry + t[3]).astype(int)
+        np.testing.assert_allclose(sc.view_points[row, col], p, atol=0.06)  # within a sub-pixel's footprint
+    np.testing.assert_allclose(view_tables(sc, full)[3], [2.0, 0.0, 2.0, 0.0], atol=1e-9)
