@@ -750,25 +750,32 @@ def test_keep_out_of_cycles_off(empty_bpy, addon, tmp_path):
     assert "Keep Out of Cycles is off" in s.cycles_note
 
 
+def _bumped(scene, material, bsdf, tmp_path):
+    """Material's BSDF node bsdf with a Bump node (Distance 0.05) of a Noise Texture on its Normal; the
+    scene's settings for a quick light-tracing bake to tmp_path (returned)."""
+    nt = bpy.data.materials[material].node_tree
+    bump = nt.nodes.new("ShaderNodeBump")
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], bump.inputs["Height"])
+    nt.links.new(bump.outputs[0], nt.nodes[bsdf].inputs["Normal"])
+    bump.inputs["Distance"].default_value = 0.05
+    settings = scene.smbs_caustics
+    settings.method, settings.spp, settings.seed = "reference", 1, 3
+    settings.output_path = str(tmp_path / "layer.exr")
+    return settings
+
+
+def _data():
+    return [sorted(x.name for x in coll) for coll in (bpy.data.scenes, bpy.data.objects, bpy.data.meshes,
+                                                      bpy.data.materials)]
+
+
 def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
     """The button on a mirror whose Normal is a Bump node of a Noise Texture: the export's own Cycles
     bake of the Height (bump.py) runs inside the operator, synchronous here and from the modal
     operator's start, and leaves no scene, object, mesh or material of its own behind."""
     scene = _mirror_scene()
-    nt = bpy.data.materials["Mirror"].node_tree
-    bump = nt.nodes.new("ShaderNodeBump")
-    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], bump.inputs["Height"])
-    nt.links.new(bump.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
-    bump.inputs["Distance"].default_value = 0.05
-    settings = scene.smbs_caustics
-    settings.method, settings.spp, settings.seed = "reference", 1, 3
-    settings.output_path = str(tmp_path / "layer.exr")
-
-    def data():
-        return [sorted(x.name for x in coll) for coll in (bpy.data.scenes, bpy.data.objects, bpy.data.meshes,
-                                                          bpy.data.materials)]
-
-    before = data()
+    settings = _bumped(scene, "Mirror", "Glossy BSDF", tmp_path)
+    before = _data()
     assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
     assert "Bump" not in settings.bake_warnings and "could not be baked" not in settings.bake_warnings
     assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
@@ -779,7 +786,7 @@ def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
     assert len(normals) > 10_000 and np.ptp(normals.reshape(-1, 3), axis=0).max() > 0.01  # cut finer, bent
     bake.cancel()
     assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
-    assert data() == before
+    assert _data() == before
 
 
 def test_bake_operator_bakes_a_bumped_floor(empty_bpy, addon, tmp_path):
@@ -787,19 +794,8 @@ def test_bake_operator_bakes_a_bumped_floor(empty_bpy, addon, tmp_path):
     export's render of the camera's view (export._view_maps) runs inside the operator and leaves no
     scene, object, mesh, material or image of its own behind; the floor is read as bumped."""
     scene = _mirror_scene()
-    nt = bpy.data.materials["Floor"].node_tree
-    bump = nt.nodes.new("ShaderNodeBump")
-    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs[0], bump.inputs["Height"])
-    nt.links.new(bump.outputs[0], nt.nodes["Diffuse BSDF"].inputs["Normal"])
-    settings = scene.smbs_caustics
-    settings.method, settings.spp, settings.seed = "reference", 1, 3
-    settings.output_path = str(tmp_path / "layer.exr")
-
-    def data():
-        return [sorted(x.name for x in coll) for coll in (bpy.data.scenes, bpy.data.objects, bpy.data.meshes,
-                                                          bpy.data.materials)]
-
-    before = data()
+    settings = _bumped(scene, "Floor", "Diffuse BSDF", tmp_path)
+    before = _data()
     assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
     assert "Floor" not in settings.bake_warnings and "could not be rendered" not in settings.bake_warnings
     assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
@@ -810,4 +806,4 @@ def test_bake_operator_bakes_a_bumped_floor(empty_bpy, addon, tmp_path):
     assert sc.mat_view_bump[sc.mat_names.index("Floor")] and sc.view_normals.shape == (16 * 4, 24 * 4, 3)
     bake.cancel()
     assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
-    assert data() == before and sorted(im.name for im in bpy.data.images) == [LAYER]
+    assert _data() == before and sorted(im.name for im in bpy.data.images) == [LAYER]
