@@ -192,11 +192,15 @@ def pool_sun4():
     return _pool("pool_sun4", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33))
 
 
-def _pool(name, water, wave=_water_wave, cells=120):
+def _pool(name, water, wave=_water_wave, cells=120, floor=None):
     """pool_sun4 with the water's material water() (made once the scene is new), its surface
-    wave(x, y) on a grid of cells x cells."""
+    wave(x, y) on a grid of cells x cells; the floor's material floor() (None: diffuse 0.8)."""
     scene = _scene(name)
-    _floor(scene, size=8.0)
+    if floor is None:
+        _floor(scene, size=8.0)
+    else:
+        v, f = B.grid(8.0, 8.0)
+        B.mesh_object(scene, "Floor", v, f, floor(), receiver=True)
     v, f = B.grid(6, 6, cells, cells, wave)
     B.mesh_object(scene, "Water", v, f, water(), smooth=True, location=(0, 0, 1.0), caster=True)
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(20), math.radians(10), 0), energy=3.0,
@@ -629,6 +633,13 @@ def _bumpy():
     return m
 
 
+def pool_bumped_floor():
+    """pool_sun4 over bumped_floor's floor (a Diffuse BSDF whose Normal is a Bump of a Noise Texture): the
+    camera sees the bumps through the water."""
+    return _pool("pool_bumped_floor", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33),
+                 floor=_bumpy)
+
+
 def bumped_floor():
     """The slanted glass ball over a Diffuse BSDF floor (0.8) whose Normal is a Bump node (Distance 0.1)
     of a Noise Texture (Scale 8, Detail 2, Object coordinates): the caustic follows the bumps' shading,
@@ -831,6 +842,8 @@ SCENES = {
                       "Texture (the render's Diffuse Color pass holds the albedo)"),
     "bumped_floor": (bumped_floor, "a Diffuse BSDF receiver whose Normal is a Bump node of a Noise Texture, "
                      "seen at a slant under a glass ball"),
+    "pool_bumped_floor": (pool_bumped_floor, "pool_sun4 over a bumped Diffuse BSDF floor, seen through the "
+                          "water"),
     "rough_floor": (rough_floor, "a Diffuse BSDF receiver of Roughness 1 (Oren-Nayar) seen at a slant, "
                     "under a glass ball"),
     "egg_sun_spot": (egg_sun_spot, "Glass BSDF tinted 1.45, non-uniformly scaled and turned smooth sphere, "

@@ -927,13 +927,15 @@ def _view_render(sc):
 
 
 def _view_maps(bpy_scene, objects, camera, warn):
-    """What Cycles' camera rays meet first through the centres of s x s sub-pixels of the frame
-    (Scene.view_normals, view_points: its Normal and Position passes, a sample per sub-pixel, no
-    bounces, a pixel filter of 0.01): the shading normals a bump or normal map on a receiver bends,
-    as Cycles' own nodes make them, whatever drives them. s is the most (up to VIEW_MOST) that keeps
-    VIEW_SUBPIXELS. A scene of its own holds the objects (shared, not copied) and the camera, at the
-    scene's frame; it, its files and a Render Result image it made are removed again, the user's
-    scene is not touched. None, said, where Cycles cannot render it."""
+    """What Cycles' camera rays meet first on the bumped receivers `objects` alone, through the
+    centres of s x s sub-pixels of the frame (Scene.view_normals, view_points: its Normal and
+    Position passes, a sample per sub-pixel, no bounces, a pixel filter of 0.01): the shading normals
+    a bump or normal map bends, as Cycles' own nodes make them, whatever drives them, where nothing
+    else hides them (a floor under water, seen through it, is looked up where it projects:
+    eye.view_bumped). s is the most (up to VIEW_MOST) that keeps VIEW_SUBPIXELS. A scene of its own
+    holds the objects (shared, not copied) and the camera, at the scene's frame; it, its files and a
+    Render Result image it made are removed again, the user's scene is not touched. None, said, where
+    Cycles cannot render it."""
     import tempfile
     from pathlib import Path
 
@@ -1290,7 +1292,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
 
     mesh_cache = {}
     meshes = []  # (name, mesh_cache key, matrix, caster, receiver) in the depsgraph's order
-    view_objects = {}  # the objects (or their instancers) those are, in order: what the camera's view holds
+    view_objects = {}  # each mesh's object (or its instancer), in order, by its key: what the view may hold
     names_used = {}
     viewport = getattr(depsgraph, "mode", "VIEWPORT") == "VIEWPORT"
     for inst in depsgraph.object_instances:
@@ -1346,7 +1348,8 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             continue
         if k == 0 and not inst.is_instance:
             _say_visibility(orig, _warn)
-        view_objects[inst.parent.original if inst.is_instance and inst.parent is not None else orig] = None
+        view_objects.setdefault(key, {})[inst.parent.original if inst.is_instance and inst.parent is not None
+                                        else orig] = None
         meshes.append((name, key, M, bool(orig.cycles.is_caustics_caster), bool(orig.cycles.is_caustics_receiver)))
     # bumps are baked once the depsgraph's instances are read (the bake adds a scene of its own)
     bumped = [key for key, local in mesh_cache.items() if local is not None and "bump_source" in local]
@@ -1356,17 +1359,17 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         source = local.pop("bump_source")
         specs = {int(m): bump_specs[int(m)] for m in np.unique(local["tri_material"]) if int(m) in bump_specs}
         mesh_cache[key] = _bumped(local, specs, source, int(target), _warn)
-    view_bumped = set()  # the objects with a bumped diffuse (a receiver, by the plan's rules): the view holds them
+    view_bumped = {}  # the objects with a bumped diffuse (a receiver, by the plan's rules): the view holds them alone
     for name, key, M, caster, receiver in meshes:
         local = mesh_cache[key]
         v, n, uv, back = _to_world(local, M)
         b.mesh_corners(name, v, n, uv, local["tri_material"], caster=caster, receiver=receiver,
                        smooth=bool(local["smooth"].any()), tri_normals_back=back)
         if any(b.materials[int(m)]["view_bump"] for m in np.unique(local["tri_material"])):
-            view_bumped.add(name)
+            view_bumped.update(view_objects[key])
     maps = None
     if view_bumped:
-        maps = _view_maps(bpy_scene, list(view_objects), camera, _warn)
+        maps = _view_maps(bpy_scene, list(view_bumped), camera, _warn)
         if maps is not None:
             b.view_normals, b.view_points = maps
     if maps is None:

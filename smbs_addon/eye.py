@@ -70,28 +70,28 @@ def view_tables(scene, cam) -> tuple:
             np.ascontiguousarray(scene.view_points, np.float32), t)
 
 
-def view_bumped(scene, cam, rx, ry, p, ng, ns, w_eye, mat, eye_specular) -> np.ndarray:
-    """x0's shading normals (M,3) as Cycles bends them where the camera sees a bumped diffuse
-    receiver directly (Scene.mat_view_bump): read from what Cycles' camera rays meet at the film
-    position (rx, ry) (Scene.view_normals; kernels.view_normal1); ns elsewhere. A receiver seen
-    through mirrors or glass, or one of Scene.view_points' sub-pixels that is not x0's surface (an
-    edge), keeps ns."""
+def view_bumped(scene, cam, p, ng, ns, mat) -> np.ndarray:
+    """x0's shading normals (M,3) as Cycles bends them on a bumped diffuse receiver
+    (Scene.mat_view_bump): read from the view of the bumped receivers alone (Scene.view_normals)
+    where x0 projects, seen directly or through mirrors and glass alike (kernels.view_normal1); ns
+    elsewhere: off the frame, and where the view's sub-pixel there is not x0's surface (the receiver
+    hides itself, an edge)."""
     flags, vn, vp, t = view_tables(scene, cam)
     if not t[0] > 0 or len(p) == 0:
         return ns
     from . import kernels
 
-    on = np.flatnonzero(flags[mat] & (eye_specular == 0))
+    on = np.flatnonzero(flags[mat])
+    rx, ry, to_cam, _, _, dist, valid = cam.towards(np.ascontiguousarray(p[on], np.float64), margin=np.inf)
+    on, rx, ry, to_cam, dist = on[valid], rx[valid], ry[valid], to_cam[valid], dist[valid]
     if on.size == 0:
         return ns
-    pts = np.ascontiguousarray(p[on], np.float64)
-    foot = np.full(on.size, cam.pix_w) if cam.ortho else np.sqrt(((pts - cam.origin) ** 2).sum(1)) * cam.pix_w
+    foot = (np.ones(on.size) if cam.ortho else dist) * cam.pix_w
     out = np.array(ns, np.float64)
     bent = np.empty((on.size, 3))
-    kernels.view_normal_rows(vn, vp, t, np.ascontiguousarray(rx[on], np.float64),
-                             np.ascontiguousarray(ry[on], np.float64), pts, np.ascontiguousarray(ng[on], np.float64),
-                             np.ascontiguousarray(ns[on], np.float64), np.ascontiguousarray(w_eye[on], np.float64),
-                             foot, bent)
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    kernels.view_normal_rows(vn, vp, t, f64(rx), f64(ry), f64(p[on]), f64(ng[on]), f64(ns[on]), f64(to_cam), foot,
+                             bent)
     out[on] = bent
     return out
 
@@ -234,7 +234,7 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     ln = rec_i[:, 0]
     beta = rec[:, 12:15]
     sn = rec[:, 6:9]
-    ns = view_bumped(scene, cam, rx[ln], ry[ln], rec[:, 0:3], rec[:, 3:6], sn, rec[:, 9:12], rec_i[:, 2], rec_i[:, 1])
+    ns = view_bumped(scene, cam, rec[:, 0:3], rec[:, 3:6], sn, rec_i[:, 2])
     if has_layers(scene):  # x0's diffuse under its glossy layer, towards the eye (layer.py)
         beta = beta * layer_weight(layer_table(scene), rec_i[:, 2], dot(rec[:, 9:12], ns))[:, None]
     return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=rec[:, 0:3], ng=rec[:, 3:6], ns=ns,

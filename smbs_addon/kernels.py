@@ -1795,11 +1795,11 @@ VIEW_PLANE, VIEW_NEAR = 0.05, 4.0
 @njit(inline="always", **_JIT)
 def view_normal1(vn, vp, t, px, py, p, ng, ns, to_eye, foot):
     """The shading normal Cycles' camera ray through raster position (px, py) meets at p, a point of
-    a bumped diffuse receiver the camera sees directly (ng, ns: its geometric and smooth shading
+    a bumped diffuse receiver that projects there (ng, ns: its geometric and smooth shading
     normals; to_eye: unit, towards the camera; foot: the width a pixel covers there): the normal of
     Scene.view_normals' sub-pixel there (vn, vp: view_normals, view_points; t: eye.view_tables'
-    raster to the view's), turned to ns's side (Cycles' faces the eye), where the sub-pixel's point
-    is p's surface (on its plane, near it: VIEW_PLANE, VIEW_NEAR); else ns."""
+    raster to the view's), turned to ns's side (Cycles' faces the camera), where the sub-pixel's
+    point is p's surface (on its plane, near it: VIEW_PLANE, VIEW_NEAR); else ns."""
     h, w = vn.shape[0], vn.shape[1]
     c = min(max(int(math.floor(t[0] * px + t[1])), 0), w - 1)
     r = min(max(int(math.floor(t[2] * py + t[3])), 0), h - 1)
