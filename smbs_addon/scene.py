@@ -187,13 +187,13 @@ class Scene:
     # from both sides (a scene without bumps, built in code, or saved before they were exported)
     tri_normals_back: np.ndarray = field(default_factory=lambda: np.zeros((0, 3, 3)))
 
-    # (M,) bool: a diffuse material whose Normal a Bump or Normal Map node drives; where the camera
-    # sees it directly its shading normal is read from view_normals (eye.view_bumped). Empty: none
+    # (M,) bool: a diffuse material whose Normal a Bump or Normal Map node drives; its shading normal
+    # is read from view_normals where its point projects (eye.view_bumped). Empty: none
     mat_view_bump: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
-    # (H s, W s, 3) float32 each, top row first: what Cycles' camera rays meet first through the
-    # centres of s x s sub-pixels of the whole frame (its Normal and Position passes at s times the
-    # resolution, a sample each, in world space): the shading normal a bump bends there and the
-    # point, for mat_view_bump's receivers. The camera at their resolution frames them (a bake at
+    # (H s, W s, 3) float32 each, top row first: what Cycles' camera rays meet first on the bumped
+    # receivers alone through the centres of s x s sub-pixels of the whole frame (its Normal and
+    # Position passes at s times the resolution, a sample each, in world space): the shading normal
+    # a bump bends there and the point, for mat_view_bump's receivers. The camera at their resolution frames them (a bake at
     # another resolution, auto's pilots, reads them through it: eye.view_tables). Empty: none
     view_normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
     view_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
