@@ -939,7 +939,7 @@ def _view_maps(bpy_scene, objects, camera, warn):
     import tempfile
     from pathlib import Path
 
-    import OpenImageIO as oiio
+    from .imageio import read_passes
 
     W, H = camera.width, camera.height
     s = max(1, min(VIEW_MOST, math.isqrt(max(VIEW_SUBPIXELS // (W * H), 1))))
@@ -973,18 +973,7 @@ def _view_maps(bpy_scene, objects, camera, warn):
             vl = sc.view_layers[0]
             vl.use_pass_normal = vl.use_pass_position = True
             _view_render(sc)
-            inp = oiio.ImageInput.open(r.filepath)
-            if inp is None:
-                raise RuntimeError(oiio.geterror())
-            chans, sub = {}, 0
-            try:
-                while inp.seek_subimage(sub, 0):  # a part per pass
-                    px = np.asarray(inp.read_image("float"), np.float32)
-                    for i, name in enumerate(inp.spec().channelnames):
-                        chans[name.rsplit(".", 2)[-2] + "." + name.rsplit(".", 1)[-1]] = px[..., i]
-                    sub += 1
-            finally:
-                inp.close()
+            chans = read_passes(r.filepath)
             maps = [np.stack([chans[f"{p}.{a}"] for a in "XYZ"], axis=-1) for p in ("Normal", "Position")]
             if maps[0].shape[:2] != (H * s, W * s):
                 raise RuntimeError(f"a render of {maps[0].shape[1]} x {maps[0].shape[0]} pixels")

@@ -110,3 +110,24 @@ def read_exr(path, channel: str | None = None) -> tuple[np.ndarray, dict]:
         return img[:, :, names.index(channel)], meta
     colour = [names.index(c) for c in ("R", "G", "B", "A") if c in names]
     return (img[:, :, colour] if colour else img), meta
+
+
+def read_passes(path) -> dict:
+    """Every channel of every part of a multi-part EXR (Blender's multilayer render: a part per pass,
+    channels named 'ViewLayer.Pass.X'), as (H, W) float32 keyed 'Pass.X' (the view layer's name
+    dropped): render passes to read in code, not images to look at (read_exr)."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SceneError(f"cannot read image '{path}': {oiio.geterror()}")
+    out, part = {}, 0
+    try:
+        while inp.seek_subimage(part, 0):
+            px = np.asarray(inp.read_image(oiio.FLOAT), np.float32)
+            for i, name in enumerate(inp.spec().channelnames):
+                out[".".join(name.rsplit(".", 2)[-2:])] = px[..., i]
+            part += 1
+    finally:
+        inp.close()
+    return out

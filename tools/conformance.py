@@ -259,8 +259,9 @@ def render_diffuse_color(name: str, blend: Path, spp: int = 64, threads: int = 2
     is a texture, the albedo our per-albedo layer is multiplied by, as the add-on's compositor does
     (BakeResult.per_albedo). Stored beside the reference (diffcol_path)."""
     import bpy
-    import OpenImageIO as oiio
     from cycles_reference import _set_render
+
+    from smbs_addon.imageio import read_passes
 
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     scene = bpy.context.scene
@@ -271,21 +272,10 @@ def render_diffuse_color(name: str, blend: Path, spp: int = 64, threads: int = 2
         path = Path(tmp) / "diffcol.exr"
         scene.render.filepath = str(path)
         bpy.ops.render.render(write_still=True)
-        inp = oiio.ImageInput.open(str(path))
-        try:
-            sub = 0
-            while inp.seek_subimage(sub, 0):
-                names = list(inp.spec().channelnames)
-                if any("Diffuse Color" in c for c in names):
-                    px = np.asarray(inp.read_image(), np.float64)
-                    idx = [names.index(next(c for c in names if c.endswith(f"Diffuse Color.{ch}"))) for ch in "RGB"]
-                    dc = px[..., idx]
-                    break
-                sub += 1
-            else:
-                raise RuntimeError(f"{name}: the render has no Diffuse Color pass")
-        finally:
-            inp.close()
+        chans = read_passes(path)
+        if "Diffuse Color.R" not in chans:
+            raise RuntimeError(f"{name}: the render has no Diffuse Color pass")
+        dc = np.stack([chans[f"Diffuse Color.{ch}"] for ch in "RGB"], axis=-1).astype(np.float64)
     np.savez_compressed(diffcol_path(name), diffcol=dc.astype(np.float32), spp=np.asarray(spp))
     return dc
 
