@@ -769,6 +769,21 @@ def _data():
                                                       bpy.data.materials)]
 
 
+def _button_then_prepared(addon, settings, unsaid):
+    """The Bake Caustics button (a layer with light in it, none of the words unsaid in its warnings),
+    then the modal bake's start: the scene it prepared (cancelled again at once)."""
+    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
+    assert not any(word in settings.bake_warnings for word in unsaid), settings.bake_warnings
+    assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
+    bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
+    bake = bake_op.ModalBake(lambda level, message: None)
+    assert bake.start(bpy.context)
+    data = bake.prep.data
+    bake.cancel()
+    assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
+    return data
+
+
 def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
     """The button on a mirror whose Normal is a Bump node of a Noise Texture: the export's own Cycles
     bake of the Height (bump.py) runs inside the operator, synchronous here and from the modal
@@ -776,16 +791,9 @@ def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
     scene = _mirror_scene()
     settings = _bumped(scene, "Mirror", "Glossy BSDF", tmp_path)
     before = _data()
-    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
-    assert "Bump" not in settings.bake_warnings and "could not be baked" not in settings.bake_warnings
-    assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
-    bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
-    bake = bake_op.ModalBake(lambda level, message: None)
-    assert bake.start(bpy.context)
-    normals = bake.prep.data.tri_normals[bake.prep.data.tri_object == bake.prep.data.object_names.index("Mirror")]
+    sc = _button_then_prepared(addon, settings, ("Bump", "could not be baked"))
+    normals = sc.tri_normals[sc.tri_object == sc.object_names.index("Mirror")]
     assert len(normals) > 10_000 and np.ptp(normals.reshape(-1, 3), axis=0).max() > 0.01  # cut finer, bent
-    bake.cancel()
-    assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
     assert _data() == before
 
 
@@ -796,14 +804,6 @@ def test_bake_operator_bakes_a_bumped_floor(empty_bpy, addon, tmp_path):
     scene = _mirror_scene()
     settings = _bumped(scene, "Floor", "Diffuse BSDF", tmp_path)
     before = _data()
-    assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
-    assert "Floor" not in settings.bake_warnings and "could not be rendered" not in settings.bake_warnings
-    assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
-    bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
-    bake = bake_op.ModalBake(lambda level, message: None)
-    assert bake.start(bpy.context)
-    sc = bake.prep.data
+    sc = _button_then_prepared(addon, settings, ("Floor", "could not be rendered"))
     assert sc.mat_view_bump[sc.mat_names.index("Floor")] and sc.view_normals.shape == (16 * 4, 24 * 4, 3)
-    bake.cancel()
-    assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
     assert _data() == before and sorted(im.name for im in bpy.data.images) == [LAYER]
