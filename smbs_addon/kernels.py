@@ -1793,10 +1793,10 @@ VIEW_PLANE, VIEW_NEAR = 0.05, 4.0
 
 
 @njit(inline="always", **_JIT)
-def view_normal1(vn, vp, t, px, py, p, ng, ns, to_eye, foot):
+def view_normal1(vn, vp, t, px, py, p, ng, ns, to_cam, foot):
     """The shading normal Cycles' camera ray through raster position (px, py) meets at p, a point of
     a bumped diffuse receiver that projects there (ng, ns: its geometric and smooth shading
-    normals; to_eye: unit, towards the camera; foot: the width a pixel covers there): the normal of
+    normals; to_cam: unit, towards the camera; foot: the width a pixel covers there): the normal of
     Scene.view_normals' sub-pixel there (vn, vp: view_normals, view_points; t: eye.view_tables'
     raster to the view's), turned to ns's side (Cycles' faces the camera), where the sub-pixel's
     point is p's surface (on its plane, near it: VIEW_PLANE, VIEW_NEAR); else ns."""
@@ -1805,7 +1805,7 @@ def view_normal1(vn, vp, t, px, py, p, ng, ns, to_eye, foot):
     r = min(max(int(math.floor(t[2] * py + t[3])), 0), h - 1)
     q = (float(vp[r, c, 0]) - p[0], float(vp[r, c, 1]) - p[1], float(vp[r, c, 2]) - p[2])
     f = foot / t[0]
-    slant = max(abs(_dot(to_eye, ng)), 0.02)
+    slant = max(abs(_dot(to_cam, ng)), 0.02)
     if not (abs(_dot(q, ng)) <= VIEW_PLANE * f + 1e-6 * (abs(p[0]) + abs(p[1]) + abs(p[2]))
             and _dot(q, q) <= (VIEW_NEAR * f / slant) ** 2):
         return ns
@@ -1813,15 +1813,15 @@ def view_normal1(vn, vp, t, px, py, p, ng, ns, to_eye, foot):
     ln = math.sqrt(_dot(n, n))
     if not ln > 0.5:
         return ns
-    k = (1.0 if _dot(to_eye, ng) * _dot(ns, ng) >= 0 else -1.0) / ln
+    k = (1.0 if _dot(to_cam, ng) * _dot(ns, ng) >= 0 else -1.0) / ln
     return (k * n[0], k * n[1], k * n[2])
 
 
 @njit(**_JIT)
-def view_normal_rows(vn, vp, t, px, py, p, ng, ns, to_eye, foot, out):
+def view_normal_rows(vn, vp, t, px, py, p, ng, ns, to_cam, foot, out):
     """view_normal1 per row into out (N,3)."""
     for i in range(p.shape[0]):
-        n = view_normal1(vn, vp, t, px[i], py[i], _v(p, i, 0), _v(ng, i, 0), _v(ns, i, 0), _v(to_eye, i, 0),
+        n = view_normal1(vn, vp, t, px[i], py[i], _v(p, i, 0), _v(ng, i, 0), _v(ns, i, 0), _v(to_cam, i, 0),
                          foot[i])
         out[i, 0], out[i, 1], out[i, 2] = n[0], n[1], n[2]
 
