@@ -81,6 +81,7 @@ SPP_BY_SCENE = {
     # a bumped slab: two bumped surfaces on every path, many solutions per floor point (at 4 spp the
     # walks' 3 sigma was 32-42%)
     "bumped_slab_sun": {"reference": 1024, "sms": 64, "smbs": 64},
+    "ray_visibility": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 64},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE

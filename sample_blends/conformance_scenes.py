@@ -799,6 +799,28 @@ def hdri_ball():
     return scene
 
 
+def ray_visibility():
+    """Cycles' Ray Visibility on lights and casters: a glass ball and a standing mirror under a bulb that
+    glossy rays do not see (Cycles: the ball's refraction alone, no light off the mirror or the ball's
+    outside) and a lamp that transmission rays do not see (the mirror's light and the ball's reflection
+    alone), beside a second glass ball that diffuse and shadow rays do not see (no caustic, no shadow:
+    the invisible-to-lighting trick). Seen from above at a slant, the mirror's caustic in the frame."""
+    scene = _standing_mirror("ray_visibility")
+    bulb = B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
+                       use_soft_falloff=True)
+    bulb.visible_glossy = False
+    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    _sphere(scene, "Ball", glass, 0.45, (0, 0, 0.9))
+    ghost = _sphere(scene, "Ghost", glass, 0.35, (-1.1, 0.5, 0.6))
+    ghost.visible_diffuse = False
+    ghost.visible_shadow = False
+    lamp = B.add_light(scene, "Lamp", "POINT", (-0.2, -1.0, 1.6), energy=300.0, shadow_soft_size=0.15,
+                       use_soft_falloff=False)
+    lamp.visible_transmission = False
+    B.add_camera(scene, (-1.2, -3.6, 3.2), (0.3, 0.2, 0.2), lens=30)
+    return scene
+
+
 SCENES = {
     # name: (builder, what it covers)
     "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
@@ -876,6 +898,8 @@ SCENES = {
                        "GGX), the floor seen through it"),
     "rough_tinted_mirror": (rough_tinted_mirror, "mirror_point_hard's mirror as a coloured Glossy BSDF of "
                             "Roughness 0.3, Multiscatter GGX"),
+    "ray_visibility": (ray_visibility, "Ray Visibility: a bulb glossy rays do not see, a lamp transmission rays "
+                       "do not see, a glass ball diffuse and shadow rays do not see, beside a ball and a mirror"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

@@ -69,11 +69,12 @@ class SceneBuilder:
 
     # --------------------------------------------------------------- meshes
     def mesh(self, name, vertices, faces, material, normals=None, smooth=None, uvs=None,
-             caster=False, receiver=False, face_materials=None) -> int:
+             caster=False, receiver=False, face_materials=None, visibility=S.RAY_ALL) -> int:
         """Add a mesh. faces: (F,3) triangles or (F,4) quads (split 0-1-2, 0-2-3).
 
         normals: per-vertex normals (V,3) for smooth shading; None means flat.
         material: a material index, or a name already defined.
+        visibility: the rays that meet it (S.RAY_* bits, Cycles' Ray Visibility).
         """
         V = np.asarray(vertices, float).reshape(-1, 3)
         F = np.asarray(faces, np.int64)
@@ -100,7 +101,8 @@ class SceneBuilder:
             tu = np.broadcast_to(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), (len(F), 3, 2))
         oid = len(self.objects)
         self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
-                                 smooth=bool(normals is not None if smooth is None else smooth)))
+                                 smooth=bool(normals is not None if smooth is None else smooth),
+                                 visibility=int(visibility)))
         self._tris.append(tv)
         self._normals.append(tn)
         self._back.append(None)
@@ -112,14 +114,14 @@ class SceneBuilder:
         return oid
 
     def mesh_corners(self, name, tri_vertices, tri_normals, tri_uvs, tri_material,
-                     caster=False, receiver=False, smooth=False, tri_normals_back=None) -> int:
+                     caster=False, receiver=False, smooth=False, tri_normals_back=None, visibility=S.RAY_ALL) -> int:
         """Add an object from per-triangle arrays (the Blender export's entry point).
 
         tri_vertices, tri_normals: (T,3,3) world positions and unit shading normals per
         corner; tri_uvs: (T,3,2) or None; tri_material: (T,) material indices (already
         defined with ``material``); smooth: whether any face is smooth shaded;
         tri_normals_back: (T,3,3) the normals a ray meets from behind (Scene.tri_normals_back),
-        None: tri_normals.
+        None: tri_normals; visibility: the rays that meet it (S.RAY_* bits).
         """
         tv = np.asarray(tri_vertices, float).reshape(-1, 3, 3)
         T = len(tv)
@@ -140,7 +142,7 @@ class SceneBuilder:
             raise SceneError(f"object '{name}': {len(tb)} back normal triples for {T} triangles")
         oid = len(self.objects)
         self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
-                                 smooth=bool(smooth)))
+                                 smooth=bool(smooth), visibility=int(visibility)))
         self._tris.append(tv)
         self._normals.append(tn)
         self._back.append(tb)
@@ -182,8 +184,9 @@ class SceneBuilder:
     def light(self, name, type, matrix=None, location=None, target=None, power=1000.0,
               color=(1.0, 1.0, 1.0), radius=0.0, soft_falloff=False, spot_size=math.radians(45),
               spot_blend=0.15, shape="SQUARE", size=(1.0, 1.0), spread=math.pi, angle=0.0,
-              caustics=True) -> int:
-        """power: watts (point/spot/area) or irradiance W/m^2 (sun); a world: see world()."""
+              caustics=True, visibility=S.RAY_ALL) -> int:
+        """power: watts (point/spot/area) or irradiance W/m^2 (sun); a world: see world().
+        visibility: the rays that meet it (S.RAY_* bits, Cycles' Ray Visibility)."""
         if matrix is None:
             loc = np.zeros(3) if location is None else location
             tgt = np.asarray(loc, float) - np.array([0, 0, 1.0]) if target is None else target
@@ -195,10 +198,11 @@ class SceneBuilder:
             soft_falloff=bool(soft_falloff), spot_size=float(spot_size),
             spot_blend=float(spot_blend), shape=S.AREA_SHAPES.index(shape),
             size=np.asarray(size, float), spread=float(spread), angle=float(angle),
-            caustics=bool(caustics)))
+            caustics=bool(caustics), visibility=int(visibility)))
         return len(self.lights) - 1
 
-    def world(self, color, strength=1.0, name="World", caustics=True, image=None, rotation=None) -> int:
+    def world(self, color, strength=1.0, name="World", caustics=True, image=None, rotation=None,
+              visibility=S.RAY_ALL) -> int:
         """A world (Cycles' Background node), baked as a light of its own (S.WORLD): radiance
         color x strength from every direction, or with image, an equirectangular map (H, W, 3),
         rows from the bottom up, scaled by color x strength, looked up at rotation @ d
@@ -207,7 +211,8 @@ class SceneBuilder:
         if image is not None:
             self.world_map = np.asarray(image, np.float32)
             self.world_map_rotation = np.eye(3) if rotation is None else np.asarray(rotation, float)
-        return self.light(name, "WORLD", matrix=np.eye(4), color=self.world_color, power=1.0, caustics=caustics)
+        return self.light(name, "WORLD", matrix=np.eye(4), color=self.world_color, power=1.0, caustics=caustics,
+                          visibility=visibility)
 
     # --------------------------------------------------------------- camera
     def set_camera(self, location=None, target=None, matrix=None, **kw) -> S.Camera:
@@ -270,6 +275,10 @@ class SceneBuilder:
             else np.zeros(0, bool),
             view_normals=np.asarray(self.view_normals, np.float32),
             view_points=np.asarray(self.view_points, np.float32),
+            object_visibility=np.array([o["visibility"] for o in ob], np.int64)
+            if any(o["visibility"] != S.RAY_ALL for o in ob) else np.zeros(0, np.int64),
+            light_visibility=np.array([x["visibility"] for x in lt], np.int64)
+            if any(x["visibility"] != S.RAY_ALL for x in lt) else np.zeros(0, np.int64),
         )
         sc.validate()
         return sc

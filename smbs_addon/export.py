@@ -688,18 +688,26 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
     raise _Unsupported(f"node '{node.name}' is not supported")
 
 
-_RAYS = (("visible_camera", "camera"), ("visible_diffuse", "diffuse"), ("visible_glossy", "glossy"),
-         ("visible_transmission", "transmission"), ("visible_shadow", "shadow"))
+_RAYS = (("visible_camera", "camera", S.RAY_CAMERA), ("visible_diffuse", "diffuse", S.RAY_DIFFUSE),
+         ("visible_glossy", "glossy", S.RAY_GLOSSY), ("visible_transmission", "transmission", S.RAY_TRANSMISSION),
+         ("visible_shadow", "shadow", S.RAY_SHADOW))
+
+
+def _ray_visibility(ob) -> int:
+    """An object's or a light's Ray Visibility (Object > Visibility) as S.RAY_* bits."""
+    return sum(bit for attr, _, bit in _RAYS if getattr(ob, attr, True))
 
 
 def _say_visibility(ob, warn):
-    """Warn about an object's Cycles settings the layer does not read: Ray Visibility switched off for
-    some rays (the layer's rays all meet it), a holdout, a shadow catcher (the layer's caustic on it is
-    added to the render like any receiver's)."""
-    off = [label for attr, label in _RAYS if not getattr(ob, attr, True)]
+    """Warn about an object's Cycles settings the layer does not read: Ray Visibility off for camera,
+    glossy or transmission rays (the layer's rays of those kinds meet it; shadow rays are no part of a
+    caustic path, and an object diffuse rays do not meet casts no caustic: the plan leaves it out), a
+    holdout, a shadow catcher (the layer's caustic on it is added to the render like any receiver's)."""
+    off = [label for attr, label, bit in _RAYS if not getattr(ob, attr, True)
+           and bit in (S.RAY_CAMERA, S.RAY_GLOSSY, S.RAY_TRANSMISSION)]
     if off:
-        warn(f"object '{ob.name}': its Ray Visibility is off for {', '.join(off)} rays; the layer's rays of every "
-             f"kind meet it")
+        warn(f"object '{ob.name}': its Ray Visibility is off for {', '.join(off)} rays; the layer's rays of "
+             f"{'that kind' if len(off) == 1 else 'those kinds'} meet it")
     if getattr(ob, "is_holdout", False):
         warn(f"object '{ob.name}': a holdout; the layer treats it as its material says")
     if getattr(ob, "is_shadow_catcher", False):
@@ -1051,7 +1059,11 @@ def _export_light(b, name, ob, M, warn):
     else:
         warn(f"light '{name}': type {lt.type} is not supported; skipped")
         return
-    b.light(name, lt.type, power=power, **kw)
+    # a light's Ray Visibility (its object's): which rays leaving a mirror or glass (or a diffuse
+    # surface, for light that bounces before it meets a caster) see it; camera and shadow rays are in no
+    # caustic path of the layer's (the bits stay on)
+    seen = _ray_visibility(ob) & (S.RAY_DIFFUSE | S.RAY_GLOSSY | S.RAY_TRANSMISSION)
+    b.light(name, lt.type, power=power, visibility=seen | S.RAY_CAMERA | S.RAY_SHADOW, **kw)
 
 
 # ------------------------------------------------------------------------------ camera
@@ -1188,19 +1200,16 @@ def _averaged_down(image, width):
     return (summed / np.outer(np.diff(rows), np.diff(cols))[..., None]).astype(np.float32)
 
 
-def _world_seen_by_caustics(w, warn) -> bool:
-    """Does the world light the last segment of a caustic path, a ray leaving a mirror (glossy)
-    or glass (transmission)? Its Ray Visibility (World > Settings) says; the layer cannot leave
-    out one kind alone and bakes both then, which it says."""
+def _world_visibility(w) -> int:
+    """The rays that see the world (World > Settings > Ray Visibility) as S.RAY_* bits: a caustic's
+    last segment is a ray leaving a mirror (glossy) or glass (transmission); seen by neither, the world
+    lights no caustic (Cycles' does not either)."""
     vis = getattr(w, "cycles_visibility", None)
-    glossy, transmission = (True, True) if vis is None else (bool(vis.glossy), bool(vis.transmission))
-    if not (glossy or transmission):
-        return False  # Cycles' world lights no caustic either
-    if not (glossy and transmission):
-        off = "glossy" if not glossy else "transmission"
-        warn(f"world '{w.name}': its Ray Visibility has {off} rays off; the layer bakes its caustics through "
-             "mirrors and glass alike")
-    return True
+    if vis is None:
+        return S.RAY_ALL
+    return S.RAY_SHADOW | sum(bit for attr, bit in (("camera", S.RAY_CAMERA), ("diffuse", S.RAY_DIFFUSE),
+                                                    ("glossy", S.RAY_GLOSSY), ("transmission", S.RAY_TRANSMISSION))
+                              if bool(getattr(vis, attr, True)))
 
 
 # ------------------------------------------------------------------------------ export
@@ -1246,11 +1255,11 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
     world, world_map, rotation = _world(bpy_scene, _warn)
     b.world_color = world
     lit = world.max() > 0 and (world_map is None or world_map.max() > 0)
-    if lit and _world_seen_by_caustics(bpy_scene.world, _warn):
+    if lit and _world_visibility(bpy_scene.world) & (S.RAY_GLOSSY | S.RAY_TRANSMISSION):
         # a light of the layer's: its light through mirrors and glass is a caustic too
         w = bpy_scene.world
         b.world(world, name=w.name, caustics=bool(getattr(w.cycles, "is_caustics_light", False)),
-                image=world_map, rotation=rotation)
+                image=world_map, rotation=rotation, visibility=_world_visibility(w))
     c = getattr(bpy_scene, "cycles", None)
     if c is not None:  # Light Paths > Max Bounces, as Cycles renders with them (bounces.py)
         b.light_paths = np.array([c.max_bounces, c.diffuse_bounces, c.glossy_bounces, c.transmission_bounces],
@@ -1280,7 +1289,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
     bump_specs = {}  # builder material id -> (kind, node name, Distance, Strength, flips, bpy Material) (_bump_of)
 
     mesh_cache = {}
-    meshes = []  # (name, mesh_cache key, matrix, caster, receiver) in the depsgraph's order
+    meshes = []  # (name, mesh_cache key, matrix, caster, receiver, Ray Visibility) in the depsgraph's order
     view_objects = {}  # each mesh's object (or its instancer), in order, by its key: what the view may hold
     names_used = {}
     viewport = getattr(depsgraph, "mode", "VIEWPORT") == "VIEWPORT"
@@ -1339,7 +1348,8 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             _say_visibility(orig, _warn)
         view_objects.setdefault(key, {})[inst.parent.original if inst.is_instance and inst.parent is not None
                                         else orig] = None
-        meshes.append((name, key, M, bool(orig.cycles.is_caustics_caster), bool(orig.cycles.is_caustics_receiver)))
+        meshes.append((name, key, M, bool(orig.cycles.is_caustics_caster), bool(orig.cycles.is_caustics_receiver),
+                       _ray_visibility(orig)))
     # bumps are baked once the depsgraph's instances are read (the bake adds a scene of its own)
     bumped = [key for key, local in mesh_cache.items() if local is not None and "bump_source" in local]
     areas = [_area(mesh_cache[key]["verts"], mesh_cache[key]["bump_source"]["matrix"]) for key in bumped]
@@ -1349,11 +1359,11 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         specs = {int(m): bump_specs[int(m)] for m in np.unique(local["tri_material"]) if int(m) in bump_specs}
         mesh_cache[key] = _bumped(local, specs, source, int(target), _warn)
     view_bumped = {}  # the objects with a bumped diffuse (a receiver, by the plan's rules): the view holds them alone
-    for name, key, M, caster, receiver in meshes:
+    for name, key, M, caster, receiver, visibility in meshes:
         local = mesh_cache[key]
         v, n, uv, back = _to_world(local, M)
         b.mesh_corners(name, v, n, uv, local["tri_material"], caster=caster, receiver=receiver,
-                       smooth=bool(local["smooth"].any()), tri_normals_back=back)
+                       smooth=bool(local["smooth"].any()), tri_normals_back=back, visibility=visibility)
         if any(b.materials[int(m)]["view_bump"] for m in np.unique(local["tri_material"])):
             view_bumped.update(view_objects[key])
     maps = None

@@ -187,6 +187,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         before = cnt.copy()  # the events before the latest
         o = tracer.spawn(f_p[sel], f_ng[sel], d)
         last_caster = np.zeros(len(lane), bool)
+        last_refl = np.zeros(len(lane), bool)  # the latest specular event a reflection (a glossy ray leaves it)
         medium = np.full(len(lane), -1)  # inside a glass (its material) or not
         # the chain since the latest diffuse vertex: its letters (bit 1: R, the first vertex the
         # highest, as reference._chain_codes) and whether every vertex is on a walked caster
@@ -206,7 +207,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 surf_t = np.where(h.hit, h.t, np.inf)
                 seen_l = np.zeros((len(o), 3))
                 for li in lights_hit:
-                    L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
+                    L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=last_refl)
                     seen_l += np.where((tl < surf_t)[:, None], L, 0.0)
                 count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
                                        & lim.fits(before))
@@ -247,20 +248,23 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                                             beta[spec], scale_eta=physical)
             sk = spec[keep]
             last_caster = plan.casters[scene.tri_object[prim[sk]]]
+            kinds = specular_kind(d_in[keep], dd, h.ng[sk])
+            last_refl = kinds == 1
             if others:
-                code = code[sk] * 2 + (specular_kind(d_in[keep], dd, h.ng[sk]) == 1)
+                code = code[sk] * 2 + last_refl
                 on = on[sk] & walked[scene.tri_object[prim[sk]]]
             if absorbing:
                 medium = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
             lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
             before = cnt[sk]
             cnt = before.copy()
-            cnt[np.arange(len(sk)), specular_kind(d_in[keep], dd, h.ng[sk])] += 1
+            cnt[np.arange(len(sk)), kinds] += 1
             # a path whose events before the latest no longer fit cannot fit later
             alive = np.flatnonzero(lim.fits(before))
             if alive.size < len(lane):
                 lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
                 last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
+                last_refl = last_refl[alive]
                 if others:
                     code, on = code[alive], on[alive]
                 if absorbing:
@@ -283,7 +287,7 @@ def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance,
         other = ok & (~on | ~np.isin(code, walked))
         if not other.any():
             continue
-        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit)
+        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=(code & 1) == 1)  # the latest vertex's letter
         seen = np.flatnonzero(other & (tl < surf_t) & (L.max(axis=1) > 0))
         np.add.at(radiance, lane[seen], beta[seen] * L[seen])
         stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
@@ -331,9 +335,9 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
         # every light in front of the next surface counts, not the nearest
         o, d, surf_t = seg[:, kernels.SEG_O:kernels.SEG_O + 3], seg[:, kernels.SEG_D:kernels.SEG_D + 3], \
             seg[:, kernels.SEG_T]
-        beta = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3]
+        beta, refl = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3], seg[:, kernels.SEG_REFL] > 0
         for li in hit_lights:
-            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t))
+            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl)
             seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
             np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
     if len(vx):
@@ -507,7 +511,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
         # bent paths are bent_gather's alone (handoff_gather's docstring)
         fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
-            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t))
+            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=hist[row, k, 5] > 0)
             seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits)
             if seen.size == 0:
                 continue

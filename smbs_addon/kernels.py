@@ -52,6 +52,7 @@ _R_MIN2 = _R_MIN**2
 _OK, _MISS, _NOT_CASTER, _WRONG_MATERIAL, _TIR, _SIDE = 0, 1, 2, 3, 4, 5
 _TIR_INNER, _SIDE_INNER = 11, 12
 _CONDUCTOR, _DIELECTRIC = 1, 2
+_RAY_DIFFUSE, _RAY_GLOSSY, _RAY_TRANSMISSION = 2, 4, 8  # scene.RAY_*: Cycles' Ray Visibility
 # ray kinds the walk kernels count (embree.ray_state's counters)
 RAYS_SEED, RAYS_WALK = 0, 1
 
@@ -1633,7 +1634,7 @@ def _next_surface(ray, o, d, tv, tng, tns, eps):
 
 
 @njit(**_JIT)
-def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
+def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
                  physical, eps, rec, rec_i, hist, h_prim, tally):
     """photon_lanes' loop over its lanes from lane0, on borrowed arrays (its caller holds them).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; records
@@ -1691,7 +1692,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
                 nrec += 1
             step = 0 if it == 0 else 1  # the photon's first event is the path's free last one
             if indirect and kind == _DIFFUSE:
-                if not _fits(lim, nd + step + 1, ngl, nt):
+                if not _fits(lim, nd + step + 1, ngl, nt) or (it == 0 and not lvis & _RAY_DIFFUSE):
                     break
                 ok, dd, bb = _diffuse_scatter(keyed_uniform(key, lane, it, 0), keyed_uniform(key, lane, it, 1),
                                               keyed_uniform(key, lane, it, 2), _neg(d), g, n, _v(mat_color, m, 0),
@@ -1720,6 +1721,8 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
                     tally[PH_LOST] += 1
                     break
                 refl = _dot(d, g) * _dot(dd, g) < 0  # bounces.specular_kind
+                if it == 0 and not lvis & (_RAY_GLOSSY if refl else _RAY_TRANSMISSION):
+                    break  # the camera path's last ray, leaving this vertex, does not see the light
                 if refl:
                     ngl += step
                 else:
@@ -1747,7 +1750,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, ma
 
 @TypedOnce
 @njit(**_JIT)
-def photon_lanes(rt, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
+def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
                  physical, eps, rec, rec_i, hist, h_prim, tally):
     """The light tracer's photons (o0, d0: origin and unit direction; w0: flux), each traced from
     its light to its end, every ray cast here, its random numbers keyed_uniform(key, lane,
@@ -1761,7 +1764,8 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mat
     up to max_iter events; a record at each diffuse receiver once the path holds a specular
     vertex on a caster and a diffuse one. Both keep the scene's Light Paths limits (lim:
     Limits.array(); bounces.py: the photon's first event is free, x0's diffuse bounce counts).
-    soft: a soft-falloff light's centre and radius (radius 0: none), applied at the first hit.
+    soft: a soft-falloff light's centre and radius (radius 0: none), applied at the first hit;
+    lvis: the rays that see the light (scene.RAY_* bits): the first event must cast such a ray.
 
     Writes splat records (rec: REC_* columns, rec_i: lane, specular bounces before it,
     material) and, for the hand-off, the first K = hist.shape[1] specular vertices of each lane
@@ -1770,8 +1774,8 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mat
     records would not fit in rec is left whole for the next call; records written; the ray
     counters, embree.ray_state)."""
     ray = ray_state(rt)
-    nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, key, lane0, geo, receivers, mats, lim, max_bounces,
-                             max_iter, physical, eps, rec, rec_i, hist, h_prim, tally)
+    nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receivers, mats, lim,
+                             max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally)
     return nxt, nrec, ray[6]
 
 
@@ -2027,9 +2031,10 @@ def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, m
 
 # ------------------------------------------------------------------ the light tracer's gathering
 # a segment record of gather_lanes (after a specular vertex on a caster: the caller looks for
-# lights on it): origin, direction, distance to the next surface (inf: none), throughput
-SEG_O, SEG_D, SEG_T, SEG_BETA = 0, 3, 6, 7
-SEG_F = 10
+# lights on it): origin, direction, distance to the next surface (inf: none), throughput, 1 if the
+# vertex it leaves reflected (a glossy ray; 0: a refraction, a transmission ray)
+SEG_O, SEG_D, SEG_T, SEG_BETA, SEG_REFL = 0, 3, 6, 7, 10
+SEG_F = 11
 # a vertex record (a diffuse vertex after a specular one on a caster, lit directly by the caller):
 # point, geometric and shading normals, the direction back along the path, throughput x albedo
 VX_P, VX_NG, VX_NS, VX_W, VX_BETA = 0, 3, 6, 9, 12
@@ -2075,6 +2080,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
             bd, bg, bt = nd, ngl, nt  # the events before the latest
             o = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
             last_caster = False
+            last_refl = False  # the latest specular event a reflection
             go_on = False  # a next diffuse vertex to bounce from
             medium = -1
             for bounce in range(max_specular + 1):
@@ -2087,6 +2093,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                     for c in range(3):
                         seg[nseg, SEG_O + c], seg[nseg, SEG_D + c], seg[nseg, SEG_BETA + c] = o[c], d[c], b[c]
                     seg[nseg, SEG_T] = t
+                    seg[nseg, SEG_REFL] = 1.0 if last_refl else 0.0
                     seg_i[nseg] = lane
                     nseg += 1
                 if pr < 0:
@@ -2120,7 +2127,8 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                 last_caster = casters[tri_object[pr]]
                 has_s = has_s or last_caster
                 bd, bg, bt = nd, ngl, nt
-                if _dot(d, hg) * _dot(dd, hg) < 0:  # bounces.specular_kind
+                last_refl = _dot(d, hg) * _dot(dd, hg) < 0  # bounces.specular_kind
+                if last_refl:
                     ngl += 1
                 else:
                     nt += 1

@@ -34,6 +34,9 @@ class Photons:
     w: np.ndarray  # (N,3) flux carried by each photon (already divided by N)
     soft_center: np.ndarray | None = None  # soft-falloff point/spot light: its centre and radius;
     soft_radius: float = 0.0  # the first hit's weight takes soft_falloff_factor()
+    # the rays that see the light (S.RAY_* bits, its Ray Visibility): the photon's first event, the
+    # camera path's last, must cast a ray of such a kind (kernels._photon_rows)
+    visibility: int = S.RAY_ALL
 
 
 def _smoothstep(x):
@@ -357,6 +360,13 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
 
     Directions are drawn from a mixture of the cones around the targets (in proportion to their
     solid angles seen from the light's centre) and weighted by the mixture's density."""
+    ph = _emit(scene, li, targets, n, rng)
+    if scene.light_visibility.size:
+        ph.visibility = int(scene.light_visibility[li])
+    return ph
+
+
+def _emit(scene, li, targets, n, rng) -> Photons:
     typ = scene.light_type[li]
     color = np.asarray(scene.light_color[li], np.float64)
     m = scene.light_matrix[li]
@@ -443,10 +453,23 @@ def _sphere_hit(o, d, c, r):
     return np.where(ok & (t > 0) & (cc > 0), t, np.inf)
 
 
-def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.ndarray | None = None):
+def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.ndarray | None = None,
+                   refl: np.ndarray | None = None):
     """Radiance a ray o + t d sees from light li, and the distance (inf if the ray
     misses it). escaped marks rays that left the scene (needed for a sun or the world).
-    Point lights of radius 0 cannot be hit (delta lights)."""
+    Point lights of radius 0 cannot be hit (delta lights). refl: per ray, whether it leaves a
+    reflection (a glossy ray) or a refraction (a transmission ray): where the light's Ray Visibility
+    leaves that kind out, the ray passes it (None: every ray sees it)."""
+    L, t = _light_radiance(scene, li, o, d, escaped)
+    if refl is not None and scene.light_visibility.size:
+        seen = np.where(np.asarray(refl, bool), scene.light_seen_by(li, S.RAY_GLOSSY),
+                        scene.light_seen_by(li, S.RAY_TRANSMISSION))
+        if not seen.all():
+            L, t = np.where(seen[:, None], L, 0.0), np.where(seen, t, np.inf)
+    return L, t
+
+
+def _light_radiance(scene, li, o, d, escaped):
     n = len(o)
     L = np.zeros((n, 3))
     t = np.full(n, np.inf)

@@ -406,7 +406,7 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     """Per-receiver radiance (M,3) of one light and one chain type."""
     n = len(rc.p)
     out = np.zeros((n, 3))
-    if n == 0:
+    if n == 0 or not ctx.scene.chain_lit(li, types):  # the light's Ray Visibility leaves the chain's last ray out
         return out
     # the same for every chunk: built once per bake (its areas, cdf and planes cost ~50 ms per
     # chunk on a 131k-triangle mirror)

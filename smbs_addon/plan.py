@@ -156,6 +156,13 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         for o in np.flatnonzero(has_spec & ~scene.object_caster):
             skipped.append(("caster", scene.object_names[o], "not flagged as caustic caster"))
         casters &= scene.object_caster
+    blind = []
+    for o in np.flatnonzero(casters):
+        if not scene.object_seen_by(o, S.RAY_DIFFUSE):  # a receiver's bounce never meets it
+            skipped.append(("caster", scene.object_names[o], "its Ray Visibility is off for diffuse rays: Cycles "
+                                                             "shows no caustic of it"))
+            casters[o] = False
+            blind.append(scene.object_names[o])
     receivers = has_diff.copy()
     if _use_flags(flags, scene.object_receiver):
         for o in np.flatnonzero(has_diff & ~scene.object_receiver):
@@ -165,6 +172,10 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     plan = Plan(casters=casters, receivers=receivers, lights=[], skipped=skipped, flag_casters=casters.copy())
     if scene.n_lights == 0:
         plan.nothing = f"scene '{scene.name}' has no light"
+    elif not casters.any() and blind:
+        plan.nothing = (f"scene '{scene.name}' has no caustic caster: diffuse rays do not see "
+                        f"{', '.join(repr(n) for n in blind)} (Ray Visibility), so Cycles shows no caustic of "
+                        f"{'it' if len(blind) == 1 else 'them'}")
     elif not casters.any():
         plan.nothing = (f"scene '{scene.name}' has no caustic caster: no object with a glossy or glass "
                         "material" + (" is flagged 'Cast Shadow Caustics'"
@@ -203,8 +214,12 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
             skipped.append(("light", name, "its object is scaled to zero along an axis the light needs "
                                            "(no direction or no area)"))
             continue
-        if any(light_covers(scene, li, sp[:3], sp[3]) for sp in rec_spheres):
+        if scene.light_seen_by(li, S.RAY_DIFFUSE) and any(light_covers(scene, li, sp[:3], sp[3]) for sp in rec_spheres):
             plan.indirect_lights.append(li)  # its light on a receiver may go on to a caster
+        if not (scene.light_seen_by(li, S.RAY_GLOSSY) or scene.light_seen_by(li, S.RAY_TRANSMISSION)):
+            skipped.append(("light", name, "its Ray Visibility is off for glossy and transmission rays: no ray "
+                                           "leaving a mirror or glass meets it"))
+            continue
         objs = [o for o, sp in spheres.items() if light_covers(scene, li, sp[:3], sp[3])]
         if not objs:
             skipped.append(("light", name, "reaches no caster"))

@@ -172,6 +172,7 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     o0, d0, w0 = f64(photons.o), f64(photons.d), f64(photons.w)
     soft = np.zeros(4) if photons.soft_center is None else np.append(photons.soft_center, photons.soft_radius)
+    lvis = int(photons.visibility)
     hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
     tally = np.zeros(kernels.PH_TALLY, np.int64)
     args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
@@ -185,8 +186,8 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
         while lane < b:
             rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
             rt = tracer.rays()
-            lane, m, counts = kernels.photon_lanes(rt, bool(indirect), o0[:b], d0[:b], w0[:b], soft, key, lane, *args,
-                                                   rec, rec_i, hist[:b], h_prim[:b], tally_p)
+            lane, m, counts = kernels.photon_lanes(rt, bool(indirect), o0[:b], d0[:b], w0[:b], soft, lvis, key, lane,
+                                                   *args, rec, rec_i, hist[:b], h_prim[:b], tally_p)
             tracer.cast_by_kernel(rt, counts)
             rays += int(counts[embree.KINDS:].sum())
             recs.append(rec[:m])

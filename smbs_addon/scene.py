@@ -42,10 +42,18 @@ AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
 
 PERSP, ORTHO = 0, 1
 
+# Cycles' Ray Visibility (an object's or a light's Object > Visibility > Ray Visibility; the world's
+# World > Settings): which rays meet it, as bits of Scene.object_visibility and light_visibility. A
+# ray's kind is the event at the vertex it leaves, from the camera: a diffuse receiver's bounce casts
+# a diffuse ray, a mirror's reflection or a glass's (inside too) a glossy one, a refraction a
+# transmission one
+RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION, RAY_SHADOW = 1, 2, 4, 8, 16
+RAY_ALL = 31
+
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
             "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
-            "view_points")
+            "view_points", "object_visibility", "light_visibility")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -197,6 +205,10 @@ class Scene:
     # another resolution, auto's pilots, reads them through it: eye.view_tables). Empty: none
     view_normals: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
     view_points: np.ndarray = field(default_factory=lambda: np.zeros((0, 0, 3), np.float32))
+    # (O,) and (L,) int: the rays each object and light is visible to (RAY_* bits, Cycles' Ray
+    # Visibility). Empty: every ray (a scene built in code, or saved before they were exported)
+    object_visibility: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    light_visibility: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
 
     # ------------------------------------------------------------------ derived
     def textured_materials(self) -> np.ndarray | None:
@@ -204,6 +216,20 @@ class Scene:
         built in code may hold 0/1 numbers), or None where there is none."""
         t = np.asarray(self.mat_textured, bool)
         return t if t.any() else None
+
+    def light_seen_by(self, li: int, ray: int) -> bool:
+        """Do rays of kind ray (RAY_*) meet light li (Cycles' Ray Visibility)?"""
+        return not self.light_visibility.size or bool(int(self.light_visibility[li]) & ray)
+
+    def chain_lit(self, li: int, types: str) -> bool:
+        """Can a chain of type types (letters from the receiver's side) take light li's light: is the
+        light visible to the ray leaving its last vertex (a glossy ray after an R, a transmission ray
+        after a T)?"""
+        return self.light_seen_by(li, RAY_GLOSSY if types[-1] == "R" else RAY_TRANSMISSION)
+
+    def object_seen_by(self, o: int, ray: int) -> bool:
+        """Do rays of kind ray (RAY_*) meet object o (Cycles' Ray Visibility)?"""
+        return not self.object_visibility.size or bool(int(self.object_visibility[o]) & ray)
 
     @property
     def n_tris(self) -> int:
@@ -329,6 +355,11 @@ class Scene:
                              f"(H s, W s, 3)")
         if vn.size and not (np.all(np.isfinite(vn)) and np.all(np.isfinite(vp))):
             raise SceneError("scene arrays 'view_normals' and 'view_points' hold NaN or infinite values")
+        for name, n in (("object_visibility", O), ("light_visibility", L)):
+            a = getattr(self, name)
+            if a.shape not in ((0,), (n,)) or (a.size and not np.all((a >= 0) & (a <= RAY_ALL))):
+                raise SceneError(f"scene array '{name}' must have one entry of Ray Visibility bits (0 to "
+                                 f"{RAY_ALL}) per {name.split('_')[0]} ({n}) or none")
         if self.mat_absorb.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []

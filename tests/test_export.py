@@ -1018,17 +1018,35 @@ def test_a_normal_map_on_a_mirror_is_baked_as_cycles_evaluates_it():
 
 
 def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():
+    """Camera rays are not read (shadow rays are in no caustic path: nothing to say)."""
     ob = mesh_with(material("D", "ShaderNodeBsdfDiffuse"))
     ob.visible_camera = False
     ob.visible_shadow = False
     ob.is_shadow_catcher = True
     add_camera()
     _, warnings = export()
-    assert warnings == ["object 'Thing': its Ray Visibility is off for camera, shadow rays; the layer's rays of every "
-                        "kind meet it",
+    assert warnings == ["object 'Thing': its Ray Visibility is off for camera rays; the layer's rays of that kind "
+                        "meet it",
                         "object 'Thing': a shadow catcher; the caustic on it is composited like any receiver's, not "
                         "into Cycles' shadow catcher pass"]
     assert ob.visible_camera is False and ob.is_shadow_catcher  # the user's scene is only read
+
+
+def test_ray_visibility_of_objects_and_lights_is_read():
+    """Diffuse rays off on a glass (no caustic of it) and shadow rays off (in no caustic path) say nothing;
+    the objects' and lights' Ray Visibility is exported as S.RAY_* bits (shadow rays are in no caustic
+    path: a light's bits keep them)."""
+    ob = mesh_with(material("G", "ShaderNodeBsdfGlass"))
+    ob.visible_diffuse = False
+    ob.visible_shadow = False
+    lamp = add_light("POINT")
+    lamp.visible_glossy = False
+    add_camera()
+    sc, warnings = export()
+    assert warnings == []
+    assert sc.object_visibility.tolist() == [S.RAY_ALL & ~S.RAY_DIFFUSE & ~S.RAY_SHADOW]
+    assert sc.light_visibility.tolist() == [S.RAY_ALL & ~S.RAY_GLOSSY]
+    assert ob.visible_diffuse is False and lamp.visible_glossy is False  # the user's scene is only read
 
 
 def test_a_textured_metal_is_still_a_diffuse_stand_in():
@@ -1258,9 +1276,11 @@ def test_world_background_colour_times_strength():
     # a light of the layer's: radiance from every direction, flagged as the world is
     assert sc.light_names == ["Sky"] and sc.light_type.tolist() == [S.WORLD]
     assert np.allclose(sc.light_color[0], [1.0, 0.5, 2.0]) and sc.light_caustics.tolist() == [True]
+    assert sc.light_visibility.size == 0  # every ray sees it
     w.cycles_visibility.glossy = False  # World > Settings > Ray Visibility: what Cycles' own world does
     sc, warnings = export()
-    assert sc.light_names == ["Sky"] and len(warnings) == 1 and "glossy rays off" in warnings[0]
+    assert sc.light_names == ["Sky"] and warnings == []
+    assert sc.light_visibility.tolist() == [S.RAY_ALL & ~S.RAY_GLOSSY]  # no caustic through mirrors
     w.cycles_visibility.transmission = False  # no caustic ray sees it: no light
     sc, warnings = export()
     assert sc.light_names == [] and warnings == [] and np.allclose(sc.world_color, [1.0, 0.5, 2.0])
