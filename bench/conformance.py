@@ -82,6 +82,7 @@ SPP_BY_SCENE = {
     # walks' 3 sigma was 32-42%)
     "bumped_slab_sun": {"reference": 1024, "sms": 64, "smbs": 64},
     "ray_visibility": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 64},
+    "hidden_ball": {"sms": 16, "smbs": 16, "mnee": 32},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE

@@ -821,6 +821,20 @@ def ray_visibility():
     return scene
 
 
+def hidden_ball():
+    """sphere_point_soft's ball and bulb, the ball hidden from camera rays (Ray Visibility): the camera
+    sees the floor past it, the caustic under it directly, where it saw it through the ball; a card hidden
+    from camera rays too stands before the camera, out of the light's way."""
+    scene = _ball_under_bulb("hidden_ball", lambda: principled("WhiteGlass", base=(1.0, 1.0, 1.0),
+                                                               transmission=1.0, ior=1.5))
+    bpy.data.objects["Ball"].visible_camera = False
+    card = B.material("Card", "diffuse", (0.5, 0.3, 0.2))
+    v, f = B.grid(0.9, 0.6)
+    ob = B.mesh_object(scene, "Card", v, f, card, location=(-0.35, -2.2, 1.55), rotation=(math.radians(60), 0, 0))
+    ob.visible_camera = False
+    return scene
+
+
 SCENES = {
     # name: (builder, what it covers)
     "lens_area": (lens_area, "Glass BSDF 1.5, square area, closed glass (T T), seen directly"),
@@ -900,6 +914,8 @@ SCENES = {
                             "Roughness 0.3, Multiscatter GGX"),
     "ray_visibility": (ray_visibility, "Ray Visibility: a bulb glossy rays do not see, a lamp transmission rays "
                        "do not see, a glass ball diffuse and shadow rays do not see, beside a ball and a mirror"),
+    "hidden_ball": (hidden_ball, "Ray Visibility: a glass ball and a card camera rays do not meet, the caustic "
+                    "under the ball seen past it"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

@@ -268,7 +268,7 @@ def _specular_visible(scene, tracer, cam, plan, film, cells=None) -> tuple[bool,
         o, d = cam.centre_rays(jj, ii)
     if jj.size == 0:
         return False, 0
-    h = tracer.intersect(o, d)
+    h = tracer.camera_intersect(o, d)
     kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
     from . import scene as S
     return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))), int(jj.size)

@@ -53,6 +53,9 @@ _OK, _MISS, _NOT_CASTER, _WRONG_MATERIAL, _TIR, _SIDE = 0, 1, 2, 3, 4, 5
 _TIR_INNER, _SIDE_INNER = 11, 12
 _CONDUCTOR, _DIELECTRIC = 1, 2
 _RAY_DIFFUSE, _RAY_GLOSSY, _RAY_TRANSMISSION = 2, 4, 8  # scene.RAY_*: Cycles' Ray Visibility
+# surfaces of objects camera rays do not meet (Scene.camera_hidden) a camera ray passes, at most: past
+# them it counts as a miss (a maze of hidden glass)
+HIDDEN_PASSES = 16
 # ray kinds the walk kernels count (embree.ray_state's counters)
 RAYS_SEED, RAYS_WALK = 0, 1
 
@@ -1869,8 +1872,48 @@ def camera_rays(cam, x, y):
     return o, d
 
 
+@njit(inline="always", **_JIT)
+def _pass_hidden(ray, o, d, pr, t, p, g, n, b1, b2, tv, tng, tns, tri_object, hidden, eps):
+    """A camera ray's first hit (_next_surface's pr, t, p, g, n, b1, b2 of the ray o + t d) past the
+    surfaces of objects camera rays do not meet (hidden: (O,) bool, empty: none), up to HIDDEN_PASSES
+    of them (then a miss); each next hit re-computed on the line from o (tracer.intersect's
+    exact_origin), t from o."""
+    k = 0
+    while hidden.shape[0] > 0 and pr >= 0 and hidden[tri_object[pr]]:
+        if k == HIDDEN_PASSES:
+            return -1, np.inf, p, g, g, 0.0, 0.0
+        ob = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
+        pr, t32 = intersect1(ray, ob, d, np.inf, 0)
+        if pr < 0:
+            return -1, np.inf, p, g, g, 0.0, 0.0
+        t, p, g, v0, e1, e2 = _hit_point(ob, d, o, True, t32, pr, tv, tng, eps)
+        b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
+        n = _shading_normal(tns, pr, b1, b2, g, d)
+        k += 1
+    return pr, t, p, g, n, b1, b2
+
+
+@njit(inline="always", **_JIT)
+def _camera_clear(ray, o, d, tmax, tng, tri_object, hidden, eps):
+    """Whether nothing camera rays meet lies on o + t d, 0 < t < tmax (the shadow ray towards the
+    camera, counted as kind 1): the surfaces of hidden objects (hidden: (O,) bool) are passed, up to
+    HIDDEN_PASSES of them."""
+    if hidden.shape[0] == 0:
+        return not occluded1(ray, o, d, tmax, 1)
+    for _ in range(HIDDEN_PASSES + 1):
+        pr, t = intersect1(ray, o, d, tmax, 1)
+        if pr < 0:
+            return True
+        if not hidden[tri_object[pr]]:
+            return False
+        g = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
+        o = _add(_add(o, _mul(t, d)), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
+        tmax -= t
+    return False
+
+
 @njit(**_JIT)
-def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, rx, ry, val, alb):
+def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry, val, alb):
     """camera_splats' loop, on borrowed arrays (its caller holds them). Returns (rays cast, splats
     written)."""
     ray = _borrowed(ray)
@@ -1878,6 +1921,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
     cam, rec, mat, rx, ry, val = _borrowed((cam, rec, mat, rx, ry, val))
     textured, alb = _borrowed((textured, alb))
     v_flag, v_n, v_p, v_t = view
+    tng, tri_object, hidden = hide
     mat_color = mats[2]
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
@@ -1920,7 +1964,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
             continue
         o = _add(y, _mul(eps if co_g >= 0 else -eps, ng))  # tracer.spawn
         rays += 1
-        if occluded1(ray, o, to_cam, tmax - eps, 1):
+        if not _camera_clear(ray, o, to_cam, tmax - eps, tng, tri_object, hidden, eps):
             continue
         # the diffuse BSDF with the shading-normal correction of the adjoint (Veach 5.3), the
         # camera's importance (CameraModel.importance)
@@ -1945,7 +1989,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
 
 @TypedOnce
 @njit(**_JIT)
-def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, view, rx, ry, val, alb):
+def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry, val, alb):
     """reference.splat_records: the light tracer's records (rec: REC_* columns; mat: their
     materials, diffuse with albedo mats[2][mat] under a Principled coat: layer.py, first_order: the
     records are x0's own caustic, not light after a diffuse bounce): each diffuse vertex connected
@@ -1955,21 +1999,23 @@ def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, v
     diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
     ry, val; with textured (Scene.mat_textured, or empty) and alb (as val, or empty), the albedo of
     each splat on a textured material (Film.splat), zero elsewhere; view (eye.view_tables): a bumped
-    receiver's normals as the camera sees them. Returns (shadow rays cast, splats written, the ray
-    counters)."""
+    receiver's normals as the camera sees them; hide: (triangles' geometric normals, objects, the
+    objects camera rays do not meet, Scene.camera_hidden), whose surfaces the shadow rays pass.
+    Returns (shadow rays cast, splats written, the ray counters)."""
     ray = ray_state(rt)
-    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, rx, ry, val,
-                                 alb)
+    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry,
+                                 val, alb)
     return rays, n, ray[6]
 
 
 @njit(**_JIT)
-def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
-              rec_i, prior):
+def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_bounces, min_specular, scale_eta, eps,
+              rec, rec_i, prior):
     """eye_lanes' loop over its lanes, on borrowed arrays (its caller holds them). Returns the
     records written."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
     cam, rx, ry, sample, receivers, rec, rec_i, prior = _borrowed((cam, rx, ry, sample, receivers, rec, rec_i, prior))
+    hidden = _borrowed(hidden)
     tv, tng, tns, tri_material, mat_kind, tri_object, _, _ = geo
     nrec = 0
     for lane in range(rx.shape[0]):
@@ -1979,6 +2025,9 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
         medium = -1
         for depth in range(max_bounces + 1):
             pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
+            if depth == 0:  # the camera's own ray passes what it does not meet
+                pr, t, p, g, n, b1, b2 = _pass_hidden(ray, o, d, pr, t, p, g, n, b1, b2, tv, tng, tns, tri_object,
+                                                      hidden, eps)
             if pr < 0:
                 break
             b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, g, t, b)
@@ -2012,8 +2061,8 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
 
 @TypedOnce
 @njit(**_JIT)
-def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
-              rec_i, prior):
+def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_bounces, min_specular, scale_eta, eps,
+              rec, rec_i, prior):
     """eye.eye_receivers' paths: from the camera (cam: CameraModel.kernel_params; rx, ry: raster
     positions, each ray starting on the near clip plane) through mirrors and glass
     (optics.scatter1, the lobe picked by keyed_uniform(key, sample[lane], depth, 0): a sample's
@@ -2021,11 +2070,12 @@ def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, m
     units) to the first diffuse surface, recorded (rec: REC_* columns with the eye path's
     throughput; rec_i: lane, specular vertices before it, material; prior: the camera's diffuse,
     glossy and transmission bounces, Cycles' counts) where it is a receiver after at least
-    min_specular specular vertices; up to max_bounces of them. Returns the records written and
-    the ray counters (embree.ray_state)."""
+    min_specular specular vertices; up to max_bounces of them. The camera's own ray passes the objects
+    it does not meet (hidden: Scene.camera_hidden). Returns the records written and the ray counters
+    (embree.ray_state)."""
     ray = ray_state(rt)
-    nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps,
-                     rec, rec_i, prior)
+    nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_bounces, min_specular,
+                     scale_eta, eps, rec, rec_i, prior)
     return nrec, ray[6]
 
 

@@ -272,9 +272,10 @@ def _rng(seed, *key):
     return np.random.default_rng(np.random.SeedSequence([int(seed), *[int(k) for k in key]]))
 
 
-def _surfaces(scene, tracer, o, d):
-    """Trace rays: (hits, indices of the rays that hit, their object, material and kind)."""
-    h = tracer.intersect(o, d)
+def _surfaces(scene, tracer, o, d, camera=False):
+    """Trace rays (camera: the camera's own, Tracer.camera_intersect): (hits, indices of the rays that
+    hit, their object, material and kind)."""
+    h = tracer.camera_intersect(o, d) if camera else tracer.intersect(o, d)
     i = np.flatnonzero(h.hit)
     mat = scene.tri_material[h.prim[i]]
     return h, i, scene.tri_object[h.prim[i]], mat, scene.mat_kind[mat]
@@ -341,7 +342,7 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap, rng):
     for depth in range(max_bounces + 1):
         if len(o) == 0:
             break
-        hit, i, obj, mat, kind = _surfaces(scene, tracer, o, d)
+        hit, i, obj, mat, kind = _surfaces(scene, tracer, o, d, camera=depth == 0)
         rays += len(o)
         r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj])
         if depth == 0:
@@ -386,7 +387,8 @@ def _sees_point(scene, tracer, cam, p, ng, w_in):
     valid &= dot(w_in, ng) * dot(to_cam, ng) > 0
     idx = np.flatnonzero(valid)
     if idx.size:
-        blocked = tracer.occluded(tracer.spawn(p[idx], ng[idx], to_cam[idx]), to_cam[idx], tmax[idx] - tracer.eps)
+        blocked = tracer.camera_occluded(tracer.spawn(p[idx], ng[idx], to_cam[idx]), to_cam[idx],
+                                         tmax[idx] - tracer.eps)
         valid[idx[blocked]] = False
     return valid, int(idx.size)
 

@@ -175,7 +175,10 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     lvis = int(photons.visibility)
     hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
     tally = np.zeros(kernels.PH_TALLY, np.int64)
-    args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
+    # a record is a photon's diffuse vertex the camera may see directly (splat_records): none on an object
+    # camera rays do not meet (its light seen in a mirror is the eye pass's)
+    receivers = plan.receivers if not tracer.hidden.size else plan.receivers & ~tracer.hidden
+    args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(receivers, bool), materials(scene),
             Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical), tracer.eps)
     key = int(rng.integers(2**63))
 
@@ -227,7 +230,8 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()
         rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], mats,
-                                                bool(first_order), tracer.eps, textured, view, rx[a:b], ry[a:b],
+                                                bool(first_order), tracer.eps, textured, view,
+                                                (tracer.ng, scene.tri_object, tracer.hidden), rx[a:b], ry[a:b],
                                                 val[a:b], alb[a:b] if textured.size else alb)
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays

@@ -227,6 +227,14 @@ class Scene:
         after a T)?"""
         return self.light_seen_by(li, RAY_GLOSSY if types[-1] == "R" else RAY_TRANSMISSION)
 
+    def camera_hidden(self) -> np.ndarray:
+        """(O,) bool: the objects camera rays do not meet (their Ray Visibility), which the camera sees
+        through; empty where it sees every object."""
+        if not self.object_visibility.size:
+            return np.zeros(0, bool)
+        hidden = (np.asarray(self.object_visibility) & RAY_CAMERA) == 0
+        return hidden if hidden.any() else np.zeros(0, bool)
+
     def object_seen_by(self, o: int, ray: int) -> bool:
         """Do rays of kind ray (RAY_*) meet object o (Cycles' Ray Visibility)?"""
         return not self.object_visibility.size or bool(int(self.object_visibility[o]) & ray)

@@ -64,6 +64,7 @@ class Tracer:
         self.set_extent(*scene.bounds())
         self._embree = embree.Scene(self.v) if scene.n_tris else None
         self.rays_cast = 0
+        self.hidden = scene.camera_hidden()  # (O,) bool: objects camera rays pass (empty: none)
 
     def set_extent(self, lo, hi) -> None:
         """Tolerances for geometry within [lo, hi] (the bake's plan: objects out of it change
@@ -155,6 +156,50 @@ class Tracer:
 
             lanes.run(job, n, self.threads, _MIN_SPLIT)
         return Hits(hit=prim >= 0, prim=prim, t=t, p=p, ng=ng, ns=ns, b=b)
+
+    def camera_intersect(self, o: np.ndarray, d: np.ndarray) -> Hits:
+        """intersect for camera rays: past the surfaces of the objects they do not meet (self.hidden,
+        Cycles' Ray Visibility), up to kernels.HIDDEN_PASSES of them (then a miss), as the kernels'
+        camera rays (kernels._pass_hidden)."""
+        from .kernels import HIDDEN_PASSES
+
+        h = self.intersect(o, d)
+        if not self.hidden.size:
+            return h
+        obj = self.scene.tri_object
+        for k in range(HIDDEN_PASSES + 1):
+            j = np.flatnonzero(h.hit & self.hidden[obj[np.maximum(h.prim, 0)]])
+            if j.size == 0:
+                break
+            if k == HIDDEN_PASSES:
+                h.hit[j], h.prim[j], h.t[j] = False, -1, np.inf
+                break
+            g = self.intersect(self.spawn(h.p[j], h.ng[j], d[j]), d[j], exact_origin=o[j])
+            for f in ("hit", "prim", "t", "p", "ng", "ns", "b"):
+                getattr(h, f)[j] = getattr(g, f)
+        return h
+
+    def camera_occluded(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
+        """occluded for rays towards the camera: the surfaces of the objects camera rays do not meet
+        are passed (kernels._camera_clear)."""
+        if not self.hidden.size:
+            return self.occluded(o, d, tmax)
+        from .kernels import HIDDEN_PASSES
+
+        o, tmax = np.array(o, np.float64), np.array(np.broadcast_to(tmax, (len(o),)), np.float64)
+        blocked, todo = np.zeros(len(o), bool), np.arange(len(o))
+        for _ in range(HIDDEN_PASSES + 1):
+            h = self.intersect(o[todo], d[todo], tmax[todo])
+            seen = self.hidden[self.scene.tri_object[np.maximum(h.prim, 0)]]
+            blocked[todo[h.hit & ~seen]] = True
+            go = np.flatnonzero(h.hit & seen)
+            todo, h_go = todo[go], go
+            if todo.size == 0:
+                return blocked
+            o[todo] = self.spawn(h.p[h_go], h.ng[h_go], d[todo])
+            tmax[todo] -= h.t[h_go]
+        blocked[todo] = True
+        return blocked
 
     def kernel_geometry(self, casters: np.ndarray) -> tuple:
         """The scene as the kernels trace paths through it (kernels._trace_lane's geo), with the

@@ -1018,15 +1018,18 @@ def test_a_normal_map_on_a_mirror_is_baked_as_cycles_evaluates_it():
 
 
 def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():
-    """Camera rays are not read (shadow rays are in no caustic path: nothing to say)."""
+    """Glossy and transmission rays are not read (camera rays are; shadow rays are in no caustic path:
+    nothing to say)."""
     ob = mesh_with(material("D", "ShaderNodeBsdfDiffuse"))
     ob.visible_camera = False
     ob.visible_shadow = False
+    ob.visible_glossy = False
+    ob.visible_transmission = False
     ob.is_shadow_catcher = True
     add_camera()
     _, warnings = export()
-    assert warnings == ["object 'Thing': its Ray Visibility is off for camera rays; the layer's rays of that kind "
-                        "meet it",
+    assert warnings == ["object 'Thing': its Ray Visibility is off for glossy, transmission rays; the layer's rays "
+                        "of those kinds meet it",
                         "object 'Thing': a shadow catcher; the caustic on it is composited like any receiver's, not "
                         "into Cycles' shadow catcher pass"]
     assert ob.visible_camera is False and ob.is_shadow_catcher  # the user's scene is only read

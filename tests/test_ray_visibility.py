@@ -175,3 +175,84 @@ def test_a_world_seen_by_glossy_rays_alone_lights_its_mirror_the_same(method):
     assert np.array_equal(bake(sc, cfg).image, every)
     sc.light_visibility = np.array([NO_GLOSSY])
     assert bake(sc, cfg).image.max() == 0.0
+
+
+NO_CAMERA = S.RAY_ALL & ~S.RAY_CAMERA
+
+
+def _hidden_scene(card=True, card_vis=NO_CAMERA, floor_vis=S.RAY_ALL):
+    """The ball and the bulb of _ball_and_mirror (no mirror), and a diffuse card between the camera and
+    the floor, out of the light's way, that camera rays do not meet (or none)."""
+    b = SceneBuilder("hidden")
+    floor = b.material("floor", "diffuse", color=(0.8, 0.8, 0.8))
+    b.plane("Floor", (0, 0, 0), 6.0, floor, receiver=True, visibility=floor_vis)
+    b.uv_sphere("Ball", (0.3, 0, 0.6), 0.35, b.material("glass", "dielectric", ior=1.5), segments=32, rings=16,
+                caster=True)
+    if card:
+        b.plane("Card", (0.25, -1.6, 1.3), (1.2, 0.8), floor, normal=(0, -1, 0.6), visibility=card_vis)
+    b.light("Bulb", "POINT", location=(0.3, 0.0, 2.5), power=300.0, radius=0.1)
+    b.set_camera(location=(0.3, -3.0, 1.9), target=(0.3, 0, 0.0), resolution_x=40, resolution_y=30)
+    return b.build()
+
+
+def _pixel_rays(sc):
+    cam = CameraModel(sc.camera)
+    H, W = sc.camera.height, sc.camera.width
+    yy, xx = (a.ravel() + 0.5 for a in np.mgrid[0:H, 0:W].astype(float))
+    o, d, tnear = cam.rays(xx, yy)
+    return o + tnear[:, None] * d, d
+
+
+def test_camera_rays_pass_what_they_do_not_meet():
+    """A card that camera rays do not meet hides half the floor's caustic: the camera's rays pass it
+    (Tracer.camera_intersect, the kernels' eye rays) and meet what they meet without the card."""
+    sc, bare = _hidden_scene(), _hidden_scene(card=False)
+    assert sc.camera_hidden().tolist() == [False, False, True] and bare.camera_hidden().size == 0
+    o, d = _pixel_rays(sc)
+    on_card = Tracer(sc).intersect(o, d)
+    card = sc.object_names.index("Card")
+    behind = on_card.hit & (sc.tri_object[np.maximum(on_card.prim, 0)] == card)
+    assert 0.2 < behind.mean() < 0.8
+    h, want = Tracer(sc).camera_intersect(o, d), Tracer(bare).intersect(o, d)
+    assert np.array_equal(h.hit, want.hit)
+    assert np.abs(h.p - want.p).max() < 1e-9 and np.array_equal(sc.tri_object[h.prim], bare.tri_object[want.prim])
+
+
+@pytest.mark.parametrize("method", ["reference", "sms"])
+def test_a_card_camera_rays_do_not_meet_hides_nothing(method):
+    """The same bake with the card (out of the light's way) and without it: the caustic behind the card
+    is there, as much (the light tracer's photons reach the camera past the card, the walks' receivers
+    are found past it); seen by camera rays, the card hides it."""
+    cfg = BakeSettings(method=method, spp=8, seed=2, batches=4)
+    img = {k: bake(sc, cfg).image.mean(axis=2) for k, sc in
+           (("hidden", _hidden_scene()), ("bare", _hidden_scene(card=False)),
+            ("seen", _hidden_scene(card_vis=S.RAY_ALL)))}
+    o, d = _pixel_rays(_hidden_scene())
+    h = Tracer(_hidden_scene(card_vis=S.RAY_ALL)).intersect(o, d)
+    behind = (h.hit & (_hidden_scene().tri_object[np.maximum(h.prim, 0)] == 2)).reshape(img["bare"].shape)
+    pad = np.pad(behind, 2)  # 2 pixels inside the card's edge and the frame's, past the pixel filter's reach
+    H, W = behind.shape
+    inner = np.all([pad[2 + dy:2 + dy + H, 2 + dx:2 + dx + W] for dy in range(-2, 3) for dx in range(-2, 3)], axis=0)
+    assert img["bare"][inner].sum() > 0.2 * img["bare"].sum()  # the card covers much of the caustic
+    assert img["seen"][inner].max() == 0.0
+    assert abs(img["hidden"].sum() / img["bare"].sum() - 1.0) < 0.02, img["hidden"].sum() / img["bare"].sum()
+    assert abs(img["hidden"][behind].sum() / img["bare"][behind].sum() - 1.0) < 0.03
+
+
+@pytest.mark.parametrize("method", METHODS)
+def test_a_floor_camera_rays_do_not_meet_shows_its_caustic_through_glass_alone(method):
+    """The floor hidden from camera rays: no caustic where the camera would see it directly (2 pixels
+    around the ball's outline aside: the pixel filter); through the ball, transmission rays still see it
+    (the walks find its caustic there at 2 spp)."""
+    sc = _hidden_scene(card=False, floor_vis=NO_CAMERA)
+    img = bake(sc, BakeSettings(method=method, spp=2, seed=1)).image.max(axis=2)
+    o, d = _pixel_rays(sc)
+    h = Tracer(sc).intersect(o, d)
+    ball = (h.hit & (sc.tri_object[np.maximum(h.prim, 0)] == 1)).reshape(img.shape)
+    near = np.pad(ball, 2)
+    H, W = ball.shape
+    near = np.any([near[2 + dy:2 + dy + H, 2 + dx:2 + dx + W] for dy in range(-2, 3) for dx in range(-2, 3)], axis=0)
+    assert img[~near].max() == 0.0
+    if method in ("sms", "smbs"):
+        assert img[ball].max() > 0
+    assert bake(_hidden_scene(card=False), BakeSettings(method=method, spp=2, seed=1)).image.max(axis=2)[~near].max() > 0
