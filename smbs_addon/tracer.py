@@ -190,14 +190,14 @@ class Tracer:
         blocked, todo = np.zeros(len(o), bool), np.arange(len(o))
         for _ in range(HIDDEN_PASSES + 1):
             h = self.intersect(o[todo], d[todo], tmax[todo])
-            seen = self.hidden[self.scene.tri_object[np.maximum(h.prim, 0)]]
-            blocked[todo[h.hit & ~seen]] = True
-            go = np.flatnonzero(h.hit & seen)
-            todo, h_go = todo[go], go
-            if todo.size == 0:
+            passed = h.hit & self.hidden[self.scene.tri_object[np.maximum(h.prim, 0)]]
+            blocked[todo[h.hit & ~passed]] = True
+            go = np.flatnonzero(passed)  # on past the hidden surface, what is left of the segment
+            if go.size == 0:
                 return blocked
-            o[todo] = self.spawn(h.p[h_go], h.ng[h_go], d[todo])
-            tmax[todo] -= h.t[h_go]
+            todo = todo[go]
+            o[todo] = self.spawn(h.p[go], h.ng[go], d[todo])
+            tmax[todo] -= h.t[go]
         blocked[todo] = True
         return blocked
 

@@ -216,6 +216,14 @@ def test_camera_rays_pass_what_they_do_not_meet():
     h, want = Tracer(sc).camera_intersect(o, d), Tracer(bare).intersect(o, d)
     assert np.array_equal(h.hit, want.hit)
     assert np.abs(h.p - want.p).max() < 1e-9 and np.array_equal(sc.tri_object[h.prim], bare.tri_object[want.prim])
+    # and back, from the floor's points towards the camera: the card stops them, but not camera rays
+    t = Tracer(sc)
+    floor = np.flatnonzero(want.hit & (bare.tri_object[np.maximum(want.prim, 0)] == 0))
+    back = -d[floor]
+    start = t.spawn(want.p[floor], want.ng[floor], back)
+    dist = np.linalg.norm(o[floor] - want.p[floor], axis=1)
+    assert t.occluded(start, back, dist)[behind[floor]].all() and behind[floor].sum() > 100
+    assert not t.camera_occluded(start, back, dist).any()
 
 
 @pytest.mark.parametrize("method", ["reference", "sms"])
