@@ -1349,8 +1349,11 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             _say_visibility(orig, _warn)
         view_objects.setdefault(key, {})[inst.parent.original if inst.is_instance and inst.parent is not None
                                         else orig] = None
+        visibility = _ray_visibility(orig)
+        if inst.is_instance and inst.parent is not None:  # Cycles: an instance inherits what its instancer hides
+            visibility &= _ray_visibility(inst.parent.original)
         meshes.append((name, key, M, bool(orig.cycles.is_caustics_caster), bool(orig.cycles.is_caustics_receiver),
-                       _ray_visibility(orig)))
+                       visibility))
     # bumps are baked once the depsgraph's instances are read (the bake adds a scene of its own)
     bumped = [key for key, local in mesh_cache.items() if local is not None and "bump_source" in local]
     areas = [_area(mesh_cache[key]["verts"], mesh_cache[key]["bump_source"]["matrix"]) for key in bumped]

@@ -267,6 +267,12 @@ def test_collection_instances():
     for name, x in (("Inst0/Part", -3.0), ("Inst1/Part", 3.0)):
         v, _ = obj_tris(sc, name)
         assert np.allclose(v.reshape(-1, 3).mean(axis=0), [x, 0, 0])
+    assert sc.object_visibility.size == 0
+    # Ray Visibility: an instance hides what its object or its instancer hides (Cycles' inheritance)
+    bpy.data.objects["Inst1"].visible_camera = False
+    inner.visible_diffuse = False
+    sc, _ = export()
+    assert sc.object_visibility.tolist() == [S.RAY_ALL & ~S.RAY_DIFFUSE, S.RAY_ALL & ~S.RAY_DIFFUSE & ~S.RAY_CAMERA]
 
 
 def test_linked_duplicates_share_data_but_get_their_own_transform():
