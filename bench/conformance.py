@@ -83,6 +83,7 @@ SPP_BY_SCENE = {
     "bumped_slab_sun": {"reference": 1024, "sms": 64, "smbs": 64},
     "ray_visibility": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 64},
     "hidden_ball": {"sms": 16, "smbs": 16, "mnee": 32},
+    "hidden_kinds": {"sms": 16, "smbs": 16, "mnee": 32},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE

@@ -821,6 +821,22 @@ def ray_visibility():
     return scene
 
 
+def hidden_kinds():
+    """Ray Visibility of objects for the rays after a mirror or glass: mirror_point_hard's mirror and bulb
+    with a dark card between them that glossy rays do not meet (the mirror's light passes it; shadow
+    rays do meet it: the floor's direct light does not), and a glass ball transmission rays do not
+    meet (a refraction's ray passes the ball's own far side: one refraction, then the light)."""
+    scene = _mirror_under_bulb("hidden_kinds")
+    card = B.material("Card", "diffuse", (0.2, 0.2, 0.2))
+    v, f = B.grid(0.5, 0.7)
+    ob = B.mesh_object(scene, "Card", v, f, card, location=(0.85, 0.0, 1.15), rotation=(0, math.radians(50), 0))
+    ob.visible_glossy = False
+    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    ball = _sphere(scene, "Ball", glass, 0.3, (-0.2, 0.6, 0.55))
+    ball.visible_transmission = False
+    return scene
+
+
 def hidden_ball():
     """sphere_point_soft's ball and bulb, the ball hidden from camera rays (Ray Visibility): the camera
     sees the floor past it, the caustic under it directly, where it saw it through the ball; a card hidden
@@ -914,6 +930,8 @@ SCENES = {
                             "Roughness 0.3, Multiscatter GGX"),
     "ray_visibility": (ray_visibility, "Ray Visibility: a bulb glossy rays do not see, a lamp transmission rays "
                        "do not see, a glass ball diffuse and shadow rays do not see, beside a ball and a mirror"),
+    "hidden_kinds": (hidden_kinds, "Ray Visibility after a mirror or glass: a card glossy rays do not meet "
+                     "between a mirror and its bulb, a glass ball transmission rays do not meet"),
     "hidden_ball": (hidden_ball, "Ray Visibility: a glass ball and a card camera rays do not meet, the caustic "
                     "under the ball seen past it"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "

@@ -790,7 +790,13 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
         eye_stats = {"eye_paths": 0, "rays_eye": 0}
         per_batch = _eye_per_batch(cam, film, settings)
         guide = None
-        if settings.guide:
+        # the guide's pre-pass traces its photons past no surface: where some object's Ray Visibility leaves
+        # out a kind of a path's rays it would miss paths that pass it, and leave their chain types unwalked
+        hides = bool(np.any(scene.hidden_kinds() & (S.RAY_DIFFUSE | S.RAY_GLOSSY | S.RAY_TRANSMISSION)))
+        if hides and settings.guide:
+            plan.notes.append("the photon pre-pass (the guide) is off: some object's Ray Visibility leaves out "
+                              "diffuse, glossy or transmission rays")
+        if settings.guide and not hides:
             from .guide import Guide, build_guide, photon_budget
 
             t_g = time.perf_counter()

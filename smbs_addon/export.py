@@ -699,16 +699,9 @@ def _ray_visibility(ob) -> int:
 
 
 def _say_visibility(ob, warn):
-    """Warn about an object's Cycles settings the layer does not read: Ray Visibility off for glossy or
-    transmission rays (the layer's rays of those kinds meet it; camera rays pass it as Cycles' do, shadow
-    rays are no part of a caustic path, and an object diffuse rays do not meet casts no caustic: the
-    plan leaves it out), a holdout, a shadow catcher (the layer's caustic on it is added to the render
-    like any receiver's)."""
-    off = [label for attr, label, bit in _RAYS if not getattr(ob, attr, True)
-           and bit in (S.RAY_GLOSSY, S.RAY_TRANSMISSION)]
-    if off:
-        warn(f"object '{ob.name}': its Ray Visibility is off for {', '.join(off)} rays; the layer's rays of "
-             f"{'that kind' if len(off) == 1 else 'those kinds'} meet it")
+    """Warn about an object's Cycles settings the layer does not read: a holdout, a shadow catcher (the
+    layer's caustic on it is added to the render like any receiver's). (Its Ray Visibility is read:
+    _ray_visibility.)"""
     if getattr(ob, "is_holdout", False):
         warn(f"object '{ob.name}': a holdout; the layer treats it as its material says")
     if getattr(ob, "is_shadow_catcher", False):

@@ -216,8 +216,8 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     n = len(rx)
     stats["eye_paths"] = stats.get("eye_paths", 0) + n
     params = cam.kernel_params()
-    args = (key, tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), tracer.hidden,
-            materials(scene), int(max_bounces), int(min_specular), bool(scale_eta), tracer.eps)
+    args = (key, tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
+            int(max_bounces), int(min_specular), bool(scale_eta), tracer.eps)
 
     def part(a, b):  # a part of the lanes on a thread (lanes.run), its records in lane order
         rec, rec_i, prior = np.empty((b - a, kernels.REC_F)), np.empty((b - a, 3), np.int64), \

@@ -196,7 +196,9 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         for bounce in range(MAX_SPECULAR + 1):
             if len(lane) == 0:
                 break
-            h = tracer.intersect(o, d)
+            # past what the ray's kind does not meet: the diffuse bounce's, then the latest event's
+            h = tracer.intersect_past(o, d, S.RAY_DIFFUSE if bounce == 0 else
+                                      np.where(last_refl, S.RAY_GLOSSY, S.RAY_TRANSMISSION))
             stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
             if others and bounce > 0:
                 _count_others(scene, others, o, d, h, lane, beta, code, on, bounce, (depth >= 1) & lim.fits(before),

@@ -52,9 +52,10 @@ _R_MIN2 = _R_MIN**2
 _OK, _MISS, _NOT_CASTER, _WRONG_MATERIAL, _TIR, _SIDE = 0, 1, 2, 3, 4, 5
 _TIR_INNER, _SIDE_INNER = 11, 12
 _CONDUCTOR, _DIELECTRIC = 1, 2
-_RAY_DIFFUSE, _RAY_GLOSSY, _RAY_TRANSMISSION = 2, 4, 8  # scene.RAY_*: Cycles' Ray Visibility
-# surfaces of objects camera rays do not meet (Scene.camera_hidden) a camera ray passes, at most: past
-# them it counts as a miss (a maze of hidden glass)
+_RAY_CAMERA, _RAY_DIFFUSE, _RAY_GLOSSY, _RAY_TRANSMISSION = 1, 2, 4, 8  # scene.RAY_*: Cycles' Ray Visibility
+_PATH_RAYS = _RAY_DIFFUSE | _RAY_GLOSSY | _RAY_TRANSMISSION  # the kinds a caustic path's rays after the camera's are
+# the surfaces of objects a ray's kind does not meet (Scene.hidden_kinds) it passes, at most: past them
+# it counts as a miss (a maze of hidden glass)
 HIDDEN_PASSES = 16
 # ray kinds the walk kernels count (embree.ray_state's counters)
 RAYS_SEED, RAYS_WALK = 0, 1
@@ -847,7 +848,7 @@ def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
     here (embree.intersect1, counted as `kind`). The row of F, I, status (walk outcome, OK
     where every vertex is valid) and out (the direction leaving the last vertex) is written
     from scratch. geo: (tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior)."""
-    tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior = geo
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior, hid = geo
     k = kinds.shape[0]
     for j in range(k):
         for c in range(NF):
@@ -858,6 +859,18 @@ def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
     prev = x0
     for j in range(k):
         pr, t32 = intersect1(ray, o, d, np.inf, kind)
+        passed = False
+        if hid.shape[0] > 0:  # past what this ray's kind does not meet (x0's diffuse bounce, then the letter before)
+            bit = _RAY_DIFFUSE if j == 0 else (_RAY_TRANSMISSION if kinds[j - 1] == 1 else _RAY_GLOSSY)  # 1: refracts
+            for _ in range(HIDDEN_PASSES + 1):
+                if pr < 0 or not hid[tri_object[pr]] & bit:
+                    break
+                g = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
+                o = _add(_add(o, _mul(t32, d)), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
+                pr, t32 = intersect1(ray, o, d, np.inf, kind)
+                passed = True
+            if pr >= 0 and hid[tri_object[pr]] & bit:
+                pr = -1
         if pr < 0:
             status[lane] = _MISS
             return
@@ -866,8 +879,9 @@ def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
         # whose exit dips below the geometric surface (a shading normal leaning away, as on a
         # normal-mapped mirror) is kept: every walk goes on from it, as SMS does from any seed on
         # the caster, and converges only once the exit is valid
-        go, o, d, prev = _lane_vertex(kinds[j] == 1, j == k - 1, j, lane, o, d, prev, j > 0, pr, t32, tv, tng, tns,
-                                      eps, tri_material, mat_kind, tri_object, casters, mat_ior, F, I, status, out)
+        go, o, d, prev = _lane_vertex(kinds[j] == 1, j == k - 1, j, lane, o, d, prev, j > 0 or passed, pr, t32, tv,
+                                      tng, tns, eps, tri_material, mat_kind, tri_object, casters, mat_ior, F, I,
+                                      status, out)
         if not go:
             return
 
@@ -1517,7 +1531,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
     x0, ng0, ns0, sn0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
         (x0, ng0, ns0, sn0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide))
-    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     targeted = cand.shape[0] > 0
     for lane in range(x0.shape[0] * samples):
         seg_n[lane] = 0
@@ -1542,8 +1556,9 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
         b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
         o = _add(_v(x0, i, 0), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
         medium = -1
+        bit = _RAY_DIFFUSE  # the kind of the next ray: x0's bounce, then the latest event's
         for bounce in range(K + 1):
-            pr, t, p, gg, v0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
+            pr, t, p, gg, v0, e1, e2 = _hit_or_miss_past(ray, o, d, tv, tng, tri_object, hid, bit, eps)
             if bounce > 0:  # a segment after a specular vertex: the caller looks for lights on it
                 k = seg_n[lane]
                 for c in range(3):
@@ -1574,6 +1589,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
             hist[lane, bounce, 3], hist[lane, bounce, 4] = b1, b2
             hist[lane, bounce, 5] = 1.0 if _dot(d, n) * _dot(dd, n) < 0 else 0.0
             hist[lane, bounce, 6] = 1.0 if casters[tri_object[pr]] else 0.0
+            bit = _RAY_GLOSSY if hist[lane, bounce, 5] > 0 else _RAY_TRANSMISSION
             o = _add(p, _mul(eps if _dot(dd, gg) >= 0 else -eps, gg))
             medium = _medium_after(m, kind, dd, gg)
             d, b = dd, bb
@@ -1645,7 +1661,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
     o0, d0, w0, soft, receivers, lim, rec, rec_i, hist, h_prim, tally = _borrowed(
         (o0, d0, w0, soft, receivers, lim, rec, rec_i, hist, h_prim, tally))
-    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     mat_color = mats[2]
     counts = ray[6]
     K = hist.shape[1]
@@ -1665,11 +1681,32 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
         n_diff = 0  # diffuse vertices so far (indirect)
         full = False
         medium = -1  # inside a glass (its material) or not
-        for it in range(max_iter):
+        # Ray Visibility (geo's hid, Scene.hidden_kinds): the kinds of ray the previous vertex meets (the
+        # light's, lvis, at first), those the surfaces passed since meet (a ray of such a kind would have
+        # stopped there), and how many were passed
+        prev_vis, passed, n_pass = lvis, 0, 0
+        it = 0  # the path's vertices so far (the photon's events)
+        while it < max_iter:
             pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
             b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, g, t, b)
+            h = hid[tri_object[pr]] & _PATH_RAYS if hid.shape[0] > 0 else 0
+            if h != 0:
+                # a surface some kinds of ray do not meet: the path may pass it or meet it, as the kind of
+                # the ray the next vertex casts decides (checked there): hidden from all, it is passed;
+                # else either, at random, weighted 2
+                go_past = h == _PATH_RAYS
+                if not go_past:
+                    go_past = keyed_uniform(key, lane, it, 3 + n_pass) < 0.5
+                    b = _mul(2.0, b)
+                if go_past:
+                    if n_pass == HIDDEN_PASSES:
+                        break
+                    passed |= _PATH_RAYS & ~h
+                    n_pass += 1
+                    o = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn, on along d
+                    continue
             if it == 0 and soft[3] > 0:  # lights.soft_falloff_factor
                 dc = _sub(p, (soft[0], soft[1], soft[2]))
                 d2 = _dot(dc, dc)
@@ -1682,7 +1719,10 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
                 spec = spec and casters[obj]  # a caustic photon's first hit: a planned caster
             # a splat where the camera's x0 would be: after a specular vertex (indirect: after a
             # specular vertex on a caster and a diffuse one), x0's own bounce within the limits
-            if (kind == _DIFFUSE and receivers[obj] and _fits(lim, nd + 1, ngl, nt)
+            # a diffuse event casts a diffuse ray towards where the photon came from: it must meet the previous
+            # vertex and pass what the photon passed
+            diffuse_seen = (prev_vis & _RAY_DIFFUSE) != 0 and (passed & _RAY_DIFFUSE) == 0
+            if (kind == _DIFFUSE and receivers[obj] and _fits(lim, nd + 1, ngl, nt) and diffuse_seen
                     and ((has_s and n_diff >= 1) if indirect else it > 0)):
                 if nrec == cap:
                     full = True
@@ -1695,7 +1735,7 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
                 nrec += 1
             step = 0 if it == 0 else 1  # the photon's first event is the path's free last one
             if indirect and kind == _DIFFUSE:
-                if not _fits(lim, nd + step + 1, ngl, nt) or (it == 0 and not lvis & _RAY_DIFFUSE):
+                if not _fits(lim, nd + step + 1, ngl, nt) or not diffuse_seen:
                     break
                 ok, dd, bb = _diffuse_scatter(keyed_uniform(key, lane, it, 0), keyed_uniform(key, lane, it, 1),
                                               keyed_uniform(key, lane, it, 2), _neg(d), g, n, _v(mat_color, m, 0),
@@ -1724,8 +1764,9 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
                     tally[PH_LOST] += 1
                     break
                 refl = _dot(d, g) * _dot(dd, g) < 0  # bounces.specular_kind
-                if it == 0 and not lvis & (_RAY_GLOSSY if refl else _RAY_TRANSMISSION):
-                    break  # the camera path's last ray, leaving this vertex, does not see the light
+                e = _RAY_GLOSSY if refl else _RAY_TRANSMISSION
+                if not prev_vis & e or passed & e:
+                    break  # the ray this vertex casts towards the light does not meet the previous vertex
                 if refl:
                     ngl += step
                 else:
@@ -1744,6 +1785,8 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
             o = _add(p, _mul(eps if _dot(dd, g) >= 0 else -eps, g))  # tracer.spawn
             medium = _medium_after(m, kind, dd, g)
             d, b = dd, bb
+            prev_vis, passed, n_pass = _PATH_RAYS & ~hid[obj] if hid.shape[0] > 0 else _PATH_RAYS, 0, 0
+            it += 1
         if full:
             counts[0], counts[1], counts[KINDS] = c0, c1, c2
             tally[0], tally[1], tally[2], tally[3] = t0
@@ -1873,38 +1916,50 @@ def camera_rays(cam, x, y):
 
 
 @njit(inline="always", **_JIT)
-def _pass_hidden(ray, o, d, pr, t, p, g, n, b1, b2, tv, tng, tns, tri_object, hidden, eps):
-    """A camera ray's first hit (_next_surface's pr, t, p, g, n, b1, b2 of the ray o + t d) past the
-    surfaces of objects camera rays do not meet (hidden: (O,) bool, empty: none), up to HIDDEN_PASSES
-    of them (then a miss); each next hit re-computed on the line from o (tracer.intersect's
+def _hit_or_miss_past(ray, o, d, tv, tng, tri_object, hid, bit, eps):
+    """_hit_or_miss past the surfaces of objects a ray of kind bit (a scene.RAY_* bit) does not meet
+    (hid: (O,) the kinds each object does not meet, Scene.hidden_kinds; empty: none), up to
+    HIDDEN_PASSES of them (then a miss); each next hit re-computed on the line from o (tracer.intersect's
     exact_origin), t from o."""
+    pr, t, p, g, v0, e1, e2 = _hit_or_miss(ray, o, d, tv, tng, eps)
     k = 0
-    while hidden.shape[0] > 0 and pr >= 0 and hidden[tri_object[pr]]:
+    while hid.shape[0] > 0 and pr >= 0 and hid[tri_object[pr]] & bit:
         if k == HIDDEN_PASSES:
-            return -1, np.inf, p, g, g, 0.0, 0.0
+            pr = -1
+            break
         ob = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
         pr, t32 = intersect1(ray, ob, d, np.inf, 0)
-        if pr < 0:
-            return -1, np.inf, p, g, g, 0.0, 0.0
-        t, p, g, v0, e1, e2 = _hit_point(ob, d, o, True, t32, pr, tv, tng, eps)
-        b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
-        n = _shading_normal(tns, pr, b1, b2, g, d)
+        if pr >= 0:
+            t, p, g, v0, e1, e2 = _hit_point(ob, d, o, True, t32, pr, tv, tng, eps)
         k += 1
-    return pr, t, p, g, n, b1, b2
+    if pr < 0:
+        z = (0.0, 0.0, 0.0)
+        return pr, np.inf, z, z, z, z, z
+    return pr, t, p, g, v0, e1, e2
 
 
 @njit(inline="always", **_JIT)
-def _camera_clear(ray, o, d, tmax, tng, tri_object, hidden, eps):
+def _next_past(ray, o, d, tv, tng, tns, tri_object, hid, bit, eps):
+    """_next_surface past the surfaces a ray of kind bit does not meet (_hit_or_miss_past)."""
+    pr, t, p, g, v0, e1, e2 = _hit_or_miss_past(ray, o, d, tv, tng, tri_object, hid, bit, eps)
+    if pr < 0:
+        return pr, t, p, g, g, 0.0, 0.0
+    b1, b2, _, _, _ = _barycentric(e1, e2, _sub(p, v0))
+    return pr, t, p, g, _shading_normal(tns, pr, b1, b2, g, d), b1, b2
+
+
+@njit(inline="always", **_JIT)
+def _camera_clear(ray, o, d, tmax, tng, tri_object, hid, eps):
     """Whether nothing camera rays meet lies on o + t d, 0 < t < tmax (the shadow ray towards the
-    camera, counted as kind 1): the surfaces of hidden objects (hidden: (O,) bool) are passed, up to
-    HIDDEN_PASSES of them."""
-    if hidden.shape[0] == 0:
+    camera, counted as kind 1): the surfaces of objects camera rays do not meet (hid & RAY_CAMERA,
+    Scene.hidden_kinds) are passed, up to HIDDEN_PASSES of them."""
+    if hid.shape[0] == 0:
         return not occluded1(ray, o, d, tmax, 1)
     for _ in range(HIDDEN_PASSES + 1):
         pr, t = intersect1(ray, o, d, tmax, 1)
         if pr < 0:
             return True
-        if not hidden[tri_object[pr]]:
+        if not hid[tri_object[pr]] & _RAY_CAMERA:
             return False
         g = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
         o = _add(_add(o, _mul(t, d)), _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
@@ -1921,7 +1976,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
     cam, rec, mat, rx, ry, val = _borrowed((cam, rec, mat, rx, ry, val))
     textured, alb = _borrowed((textured, alb))
     v_flag, v_n, v_p, v_t = view
-    tng, tri_object, hidden = hide
+    tng, tri_object, hid = hide
     mat_color = mats[2]
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
@@ -1964,7 +2019,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
             continue
         o = _add(y, _mul(eps if co_g >= 0 else -eps, ng))  # tracer.spawn
         rays += 1
-        if not _camera_clear(ray, o, to_cam, tmax - eps, tng, tri_object, hidden, eps):
+        if not _camera_clear(ray, o, to_cam, tmax - eps, tng, tri_object, hid, eps):
             continue
         # the diffuse BSDF with the shading-normal correction of the adjoint (Veach 5.3), the
         # camera's importance (CameraModel.importance)
@@ -1999,8 +2054,8 @@ def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, v
     diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
     ry, val; with textured (Scene.mat_textured, or empty) and alb (as val, or empty), the albedo of
     each splat on a textured material (Film.splat), zero elsewhere; view (eye.view_tables): a bumped
-    receiver's normals as the camera sees them; hide: (triangles' geometric normals, objects, the
-    objects camera rays do not meet, Scene.camera_hidden), whose surfaces the shadow rays pass.
+    receiver's normals as the camera sees them; hide: (triangles' geometric normals, objects,
+    Scene.hidden_kinds): the shadow rays pass the surfaces camera rays do not meet.
     Returns (shadow rays cast, splats written, the ray counters)."""
     ray = ray_state(rt)
     rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry,
@@ -2009,25 +2064,22 @@ def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, v
 
 
 @njit(**_JIT)
-def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_bounces, min_specular, scale_eta, eps,
-              rec, rec_i, prior):
+def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
+              rec_i, prior):
     """eye_lanes' loop over its lanes, on borrowed arrays (its caller holds them). Returns the
     records written."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
     cam, rx, ry, sample, receivers, rec, rec_i, prior = _borrowed((cam, rx, ry, sample, receivers, rec, rec_i, prior))
-    hidden = _borrowed(hidden)
-    tv, tng, tns, tri_material, mat_kind, tri_object, _, _ = geo
+    tv, tng, tns, tri_material, mat_kind, tri_object, _, _, hid = geo
     nrec = 0
     for lane in range(rx.shape[0]):
         o, d = _camera_ray(cam, rx[lane], ry[lane])
         b = (1.0, 1.0, 1.0)
         ngl = nt = 0  # the camera's glossy and transmission bounces so far
         medium = -1
+        bit = _RAY_CAMERA  # the kind of the next ray: the camera's, then the latest event's
         for depth in range(max_bounces + 1):
-            pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
-            if depth == 0:  # the camera's own ray passes what it does not meet
-                pr, t, p, g, n, b1, b2 = _pass_hidden(ray, o, d, pr, t, p, g, n, b1, b2, tv, tng, tns, tri_object,
-                                                      hidden, eps)
+            pr, t, p, g, n, b1, b2 = _next_past(ray, o, d, tv, tng, tns, tri_object, hid, bit, eps)
             if pr < 0:
                 break
             b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, g, t, b)
@@ -2051,8 +2103,10 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_b
                 break
             if _dot(d, g) * _dot(dd, g) < 0:  # bounces.specular_kind
                 ngl += 1
+                bit = _RAY_GLOSSY
             else:
                 nt += 1
+                bit = _RAY_TRANSMISSION
             o = _add(p, _mul(eps if _dot(dd, g) >= 0 else -eps, g))  # tracer.spawn
             medium = _medium_after(m, kind, dd, g)
             d, b = dd, bb
@@ -2061,8 +2115,8 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_b
 
 @TypedOnce
 @njit(**_JIT)
-def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_bounces, min_specular, scale_eta, eps,
-              rec, rec_i, prior):
+def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
+              rec_i, prior):
     """eye.eye_receivers' paths: from the camera (cam: CameraModel.kernel_params; rx, ry: raster
     positions, each ray starting on the near clip plane) through mirrors and glass
     (optics.scatter1, the lobe picked by keyed_uniform(key, sample[lane], depth, 0): a sample's
@@ -2070,12 +2124,12 @@ def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_bo
     units) to the first diffuse surface, recorded (rec: REC_* columns with the eye path's
     throughput; rec_i: lane, specular vertices before it, material; prior: the camera's diffuse,
     glossy and transmission bounces, Cycles' counts) where it is a receiver after at least
-    min_specular specular vertices; up to max_bounces of them. The camera's own ray passes the objects
-    it does not meet (hidden: Scene.camera_hidden). Returns the records written and the ray counters
-    (embree.ray_state)."""
+    min_specular specular vertices; up to max_bounces of them. Each ray passes the objects its kind
+    does not meet (the camera's, then glossy or transmission: geo's Scene.hidden_kinds). Returns the
+    records written and the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
-    nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, hidden, mats, max_bounces, min_specular,
-                     scale_eta, eps, rec, rec_i, prior)
+    nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps,
+                     rec, rec_i, prior)
     return nrec, ray[6]
 
 
@@ -2100,7 +2154,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
     x0, ng0, ns0, w0, beta0, mat0, prior, lim, seg, seg_i, vx, vx_i = _borrowed(
         (x0, ng0, ns0, w0, beta0, mat0, prior, lim, seg, seg_i, vx, vx_i))
-    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _ = geo
+    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     mat_color = mats[2]
     counts = ray[6]
     nseg = nvx = 0
@@ -2134,7 +2188,9 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
             go_on = False  # a next diffuse vertex to bounce from
             medium = -1
             for bounce in range(max_specular + 1):
-                pr, t, hp, hg, hn, _, _ = _next_surface(ray, o, d, tv, tng, tns, eps)
+                # past what this ray's kind does not meet: the diffuse bounce's, then the latest event's
+                bit = _RAY_DIFFUSE if bounce == 0 else (_RAY_GLOSSY if last_refl else _RAY_TRANSMISSION)
+                pr, t, hp, hg, hn, _, _ = _next_past(ray, o, d, tv, tng, tns, tri_object, hid, bit, eps)
                 if (want_seg and bounce > 0 and last_caster and (depth >= 1 or count_first)
                         and _fits(lim, bd, bg, bt)):
                     if nseg == seg.shape[0]:

@@ -177,8 +177,11 @@ def chain_types(scene, plan, opts: ManifoldOptions, light_paths: bool = True) ->
                 inside = [scene.light_matrix[lp.index][:3, 3] for lp in plan.lights
                           if scene.light_type[lp.index] not in S.DISTANT]
                 lit_inside = any(np.all(lo <= y) and np.all(y <= hi) for y in inside)
-                if (np.all(rec_lo <= hi) and np.all(lo <= rec_hi)) or lit_inside:
-                    types.append("T")  # a receiver may reach inside, or a light sits inside
+                if (np.all(rec_lo <= hi) and np.all(lo <= rec_hi)) or lit_inside \
+                        or not scene.object_seen_by(o, S.RAY_TRANSMISSION):
+                    # a receiver may reach inside, or a light sits inside, or the glass's own inside passes
+                    # the ray a refraction casts (its Ray Visibility): one refraction, then the light
+                    types.append("T")
             else:
                 types.append("T")
     out = []
@@ -375,7 +378,9 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     vis_idx = np.flatnonzero(ok)
     if vis_idx.size:
         o = tracer.spawn(xk[vis_idx], verts[k - 1].ng[vis_idx], dirs[vis_idx])
-        blocked = tracer.occluded(o, dirs[vis_idx], tmax[vis_idx] - tracer.eps)
+        # the ray leaving the last vertex, glossy or transmission: it passes what its kind does not meet
+        blocked = tracer.occluded_past(o, dirs[vis_idx], tmax[vis_idx] - tracer.eps,
+                                       S.RAY_GLOSSY if types[-1] == "R" else S.RAY_TRANSMISSION)
         ctx.count("rays_shadow", vis_idx.size)
         ctx.stats["occluded"] = ctx.stats.get("occluded", 0) + int(blocked.sum())
         ok[vis_idx[blocked]] = False

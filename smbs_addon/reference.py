@@ -231,7 +231,7 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
         rt = tracer.rays()
         rays, m, counts = kernels.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], mats,
                                                 bool(first_order), tracer.eps, textured, view,
-                                                (tracer.ng, scene.tri_object, tracer.hidden), rx[a:b], ry[a:b],
+                                                (tracer.ng, scene.tri_object, tracer.hid), rx[a:b], ry[a:b],
                                                 val[a:b], alb[a:b] if textured.size else alb)
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays

@@ -235,6 +235,16 @@ class Scene:
         hidden = (np.asarray(self.object_visibility) & RAY_CAMERA) == 0
         return hidden if hidden.any() else np.zeros(0, bool)
 
+    def hidden_kinds(self) -> np.ndarray:
+        """(O,) int: the kinds of a path's rays (RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
+        bits) each object does not meet (its Ray Visibility): such a ray passes it. Empty where every
+        object meets them all."""
+        kinds = RAY_CAMERA | RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION
+        if not self.object_visibility.size:
+            return np.zeros(0, np.int64)
+        hid = (~np.asarray(self.object_visibility, np.int64)) & kinds
+        return hid if hid.any() else np.zeros(0, np.int64)
+
     def object_seen_by(self, o: int, ray: int) -> bool:
         """Do rays of kind ray (RAY_*) meet object o (Cycles' Ray Visibility)?"""
         return not self.object_visibility.size or bool(int(self.object_visibility[o]) & ray)

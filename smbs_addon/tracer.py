@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import embree, lanes
+from . import scene as S
 from .kernels import barycentric_rows, intersect_rays, shading_normal_rows
 from .vec import cross, dot, normalize
 
@@ -64,6 +65,7 @@ class Tracer:
         self.set_extent(*scene.bounds())
         self._embree = embree.Scene(self.v) if scene.n_tris else None
         self.rays_cast = 0
+        self.hid = scene.hidden_kinds()  # (O,) the kinds of ray each object does not meet (empty: none)
         self.hidden = scene.camera_hidden()  # (O,) bool: objects camera rays pass (empty: none)
 
     def set_extent(self, lo, hi) -> None:
@@ -157,18 +159,20 @@ class Tracer:
             lanes.run(job, n, self.threads, _MIN_SPLIT)
         return Hits(hit=prim >= 0, prim=prim, t=t, p=p, ng=ng, ns=ns, b=b)
 
-    def camera_intersect(self, o: np.ndarray, d: np.ndarray) -> Hits:
-        """intersect for camera rays: past the surfaces of the objects they do not meet (self.hidden,
-        Cycles' Ray Visibility), up to kernels.HIDDEN_PASSES of them (then a miss), as the kernels'
-        camera rays (kernels._pass_hidden)."""
+    def intersect_past(self, o: np.ndarray, d: np.ndarray, kind) -> Hits:
+        """intersect for rays of kind `kind` (a scene.RAY_* bit, or one per ray): past the surfaces of
+        the objects such rays do not meet (self.hid, Cycles' Ray Visibility), up to
+        kernels.HIDDEN_PASSES of them (then a miss), each next hit on the ray's own line, as the kernels'
+        rays (kernels._hit_or_miss_past)."""
         from .kernels import HIDDEN_PASSES
 
         h = self.intersect(o, d)
-        if not self.hidden.size:
+        if not self.hid.size:
             return h
+        kind = np.broadcast_to(kind, (len(o),))
         obj = self.scene.tri_object
         for k in range(HIDDEN_PASSES + 1):
-            j = np.flatnonzero(h.hit & self.hidden[obj[np.maximum(h.prim, 0)]])
+            j = np.flatnonzero(h.hit & (self.hid[obj[np.maximum(h.prim, 0)]] & kind != 0))
             if j.size == 0:
                 break
             if k == HIDDEN_PASSES:
@@ -179,10 +183,14 @@ class Tracer:
                 getattr(h, f)[j] = getattr(g, f)
         return h
 
-    def camera_occluded(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
-        """occluded for rays towards the camera: the surfaces of the objects camera rays do not meet
-        are passed (kernels._camera_clear)."""
-        if not self.hidden.size:
+    def camera_intersect(self, o: np.ndarray, d: np.ndarray) -> Hits:
+        """intersect_past for the camera's own rays."""
+        return self.intersect_past(o, d, S.RAY_CAMERA)
+
+    def occluded_past(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, kind: int) -> np.ndarray:
+        """occluded for rays of kind `kind` (a scene.RAY_* bit): the surfaces of the objects such rays do
+        not meet are passed (kernels._camera_clear for the camera's)."""
+        if not self.hid.size or not (self.hid & kind).any():
             return self.occluded(o, d, tmax)
         from .kernels import HIDDEN_PASSES
 
@@ -190,7 +198,7 @@ class Tracer:
         blocked, todo = np.zeros(len(o), bool), np.arange(len(o))
         for _ in range(HIDDEN_PASSES + 1):
             h = self.intersect(o[todo], d[todo], tmax[todo])
-            passed = h.hit & self.hidden[self.scene.tri_object[np.maximum(h.prim, 0)]]
+            passed = h.hit & (self.hid[self.scene.tri_object[np.maximum(h.prim, 0)]] & kind != 0)
             blocked[todo[h.hit & ~passed]] = True
             go = np.flatnonzero(passed)  # on past the hidden surface, what is left of the segment
             if go.size == 0:
@@ -201,11 +209,16 @@ class Tracer:
         blocked[todo] = True
         return blocked
 
+    def camera_occluded(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray) -> np.ndarray:
+        """occluded_past for rays towards the camera."""
+        return self.occluded_past(o, d, tmax, S.RAY_CAMERA)
+
     def kernel_geometry(self, casters: np.ndarray) -> tuple:
         """The scene as the kernels trace paths through it (kernels._trace_lane's geo), with the
-        plan's caster flags per object."""
+        plan's caster flags per object and the kinds of ray each object does not meet (self.hid)."""
         sc = self.scene
-        return self.v, self.ng, self.ns_corner, sc.tri_material, sc.mat_kind, sc.tri_object, casters, sc.mat_ior
+        return (self.v, self.ng, self.ns_corner, sc.tri_material, sc.mat_kind, sc.tri_object, casters, sc.mat_ior,
+                self.hid)
 
     # ------------------------------------------------------------- geometry
     def barycentrics(self, prim: np.ndarray, p: np.ndarray) -> np.ndarray:

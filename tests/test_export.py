@@ -1023,9 +1023,8 @@ def test_a_normal_map_on_a_mirror_is_baked_as_cycles_evaluates_it():
     assert sc.tri_normals_back.shape == (0, 3, 3)  # a Normal Map flips with the surface
 
 
-def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():
-    """Glossy and transmission rays are not read (camera rays are; shadow rays are in no caustic path:
-    nothing to say)."""
+def test_holdout_and_shadow_catcher_are_said_to_be_unread():
+    """The Ray Visibility is read (nothing to say of it); a shadow catcher is not."""
     ob = mesh_with(material("D", "ShaderNodeBsdfDiffuse"))
     ob.visible_camera = False
     ob.visible_shadow = False
@@ -1034,9 +1033,7 @@ def test_ray_visibility_holdout_and_shadow_catcher_are_said_to_be_unread():
     ob.is_shadow_catcher = True
     add_camera()
     _, warnings = export()
-    assert warnings == ["object 'Thing': its Ray Visibility is off for glossy, transmission rays; the layer's rays "
-                        "of those kinds meet it",
-                        "object 'Thing': a shadow catcher; the caustic on it is composited like any receiver's, not "
+    assert warnings == ["object 'Thing': a shadow catcher; the caustic on it is composited like any receiver's, not "
                         "into Cycles' shadow catcher pass"]
     assert ob.visible_camera is False and ob.is_shadow_catcher  # the user's scene is only read
 

@@ -246,7 +246,7 @@ def test_camera_splats_are_the_numpy_connection(name):
     textured = scene.mat_kind == S.DIFFUSE  # every receiver textured: each splat's albedo written beside it
     rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
                                        optics.materials(scene), True, tracer.eps, textured, view_tables(scene, cam),
-                                       (tracer.ng, scene.tri_object, tracer.hidden), rx, ry, val, alb)
+                                       (tracer.ng, scene.tri_object, tracer.hid), rx, ry, val, alb)
     assert 100 < m <= rays <= n and rays == want[3]
     floor = scene.mat_color[scene.mat_kind == S.DIFFUSE].max(axis=0)
     if "principled" in name:  # the albedo under the coat, towards the camera: less than the colour
