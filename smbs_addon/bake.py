@@ -792,7 +792,7 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
         guide = None
         # the guide's pre-pass traces its photons past no surface: where some object's Ray Visibility leaves
         # out a kind of a path's rays it would miss paths that pass it, and leave their chain types unwalked
-        hides = bool(np.any(scene.hidden_kinds() & (S.RAY_DIFFUSE | S.RAY_GLOSSY | S.RAY_TRANSMISSION)))
+        hides = bool(np.any(tracer.hid & S.PATH_RAYS))
         if hides and settings.guide:
             plan.notes.append("the photon pre-pass (the guide) is off: some object's Ray Visibility leaves out "
                               "diffuse, glossy or transmission rays")

@@ -693,9 +693,10 @@ _RAYS = (("visible_camera", "camera", S.RAY_CAMERA), ("visible_diffuse", "diffus
          ("visible_shadow", "shadow", S.RAY_SHADOW))
 
 
-def _ray_visibility(ob) -> int:
-    """An object's or a light's Ray Visibility (Object > Visibility) as S.RAY_* bits."""
-    return sum(bit for attr, _, bit in _RAYS if getattr(ob, attr, True))
+def _ray_visibility(ob, prefix="visible_") -> int:
+    """An object's or a light's Ray Visibility (Object > Visibility) as S.RAY_* bits (prefix "": the
+    world's, World > Settings; a setting it lacks counts as on)."""
+    return sum(bit for attr, _, bit in _RAYS if getattr(ob, prefix + attr.removeprefix("visible_"), True))
 
 
 def _say_visibility(ob, warn):
@@ -1056,8 +1057,8 @@ def _export_light(b, name, ob, M, warn):
     # a light's Ray Visibility (its object's): which rays leaving a mirror or glass (or a diffuse
     # surface, for light that bounces before it meets a caster) see it; camera and shadow rays are in no
     # caustic path of the layer's (the bits stay on)
-    seen = _ray_visibility(ob) & (S.RAY_DIFFUSE | S.RAY_GLOSSY | S.RAY_TRANSMISSION)
-    b.light(name, lt.type, power=power, visibility=seen | S.RAY_CAMERA | S.RAY_SHADOW, **kw)
+    b.light(name, lt.type, power=power, visibility=_ray_visibility(ob) & S.PATH_RAYS | S.RAY_CAMERA | S.RAY_SHADOW,
+            **kw)
 
 
 # ------------------------------------------------------------------------------ camera
@@ -1199,11 +1200,7 @@ def _world_visibility(w) -> int:
     last segment is a ray leaving a mirror (glossy) or glass (transmission); seen by neither, the world
     lights no caustic (Cycles' does not either)."""
     vis = getattr(w, "cycles_visibility", None)
-    if vis is None:
-        return S.RAY_ALL
-    return S.RAY_SHADOW | sum(bit for attr, bit in (("camera", S.RAY_CAMERA), ("diffuse", S.RAY_DIFFUSE),
-                                                    ("glossy", S.RAY_GLOSSY), ("transmission", S.RAY_TRANSMISSION))
-                              if bool(getattr(vis, attr, True)))
+    return S.RAY_ALL if vis is None else _ray_visibility(vis, prefix="") | S.RAY_SHADOW
 
 
 # ------------------------------------------------------------------------------ export

@@ -49,6 +49,7 @@ PERSP, ORTHO = 0, 1
 # transmission one
 RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION, RAY_SHADOW = 1, 2, 4, 8, 16
 RAY_ALL = 31
+PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays after the camera's
 
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
@@ -230,19 +231,16 @@ class Scene:
     def camera_hidden(self) -> np.ndarray:
         """(O,) bool: the objects camera rays do not meet (their Ray Visibility), which the camera sees
         through; empty where it sees every object."""
-        if not self.object_visibility.size:
-            return np.zeros(0, bool)
-        hidden = (np.asarray(self.object_visibility) & RAY_CAMERA) == 0
+        hidden = (self.hidden_kinds() & RAY_CAMERA) != 0
         return hidden if hidden.any() else np.zeros(0, bool)
 
     def hidden_kinds(self) -> np.ndarray:
         """(O,) int: the kinds of a path's rays (RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
         bits) each object does not meet (its Ray Visibility): such a ray passes it. Empty where every
         object meets them all."""
-        kinds = RAY_CAMERA | RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION
         if not self.object_visibility.size:
             return np.zeros(0, np.int64)
-        hid = (~np.asarray(self.object_visibility, np.int64)) & kinds
+        hid = (~np.asarray(self.object_visibility, np.int64)) & (RAY_CAMERA | PATH_RAYS)
         return hid if hid.any() else np.zeros(0, np.int64)
 
     def object_seen_by(self, o: int, ray: int) -> bool:
