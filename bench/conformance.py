@@ -84,6 +84,7 @@ SPP_BY_SCENE = {
     "ray_visibility": {"reference": 1024, "sms": 16, "smbs": 16, "mnee": 64},
     "hidden_ball": {"sms": 16, "smbs": 16, "mnee": 32},
     "hidden_kinds": {"sms": 16, "smbs": 16, "mnee": 32},
+    "mesh_light_mirror": {"sms": 16, "smbs": 16},
 }
 
 NOT_APPLICABLE = conf.NOT_APPLICABLE

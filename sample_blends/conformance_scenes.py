@@ -786,6 +786,45 @@ def world_mirror_bulb():
     return scene
 
 
+def _emission(name, color, strength):
+    """A material whose Surface is an Emission node (Color, Strength): a mesh light."""
+    m = bpy.data.materials.new(name)
+    nt = m.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (*color, 1.0)
+    em.inputs["Strength"].default_value = strength
+    nt.links.new(em.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def mesh_light_ball():
+    """sphere_point_soft's Glass BSDF ball (IOR 1.5) lit by a mesh light: an Emission plane (0.8 m square,
+    Strength 60, tinted) whose normal points up, away from the ball, which sees its back (Cycles' mesh
+    lights shine from both sides)."""
+    scene = _scene("mesh_light_ball")
+    _floor(scene)
+    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    v, f = B.grid(0.8, 0.8)
+    B.mesh_object(scene, "Panel", v, f, _emission("Glow", (1.0, 0.9, 0.75), 60.0), location=(0.3, -0.2, 3.0))
+    B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
+    return scene
+
+
+def mesh_light_mirror():
+    """_standing_mirror lit by a closed mesh light: a smooth Emission ball of radius 0.2 (Strength 250: about
+    mirror_point_hard's 400 W bulb), the camera seeing the reflected light on the floor directly and in the
+    mirror."""
+    scene = _standing_mirror("mesh_light_mirror")
+    v, f = B.uv_sphere(0.2, 32, 16)
+    B.mesh_object(scene, "Bulb", v, f, _emission("Lamp", (1.0, 1.0, 1.0), 250.0), smooth=True,
+                  location=(0.5, 0.0, 1.4))
+    B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
+    return scene
+
+
 def hdri_ball():
     """world_ball's ball and camera under an Environment Texture (a packed float image: a pale sky and
     a Gaussian sun of 3 pixels, 4 degrees, 55 degrees up behind the camera) turned 40 degrees about Z
@@ -934,6 +973,9 @@ SCENES = {
                      "between a mirror and its bulb, a glass ball transmission rays do not meet"),
     "hidden_ball": (hidden_ball, "Ray Visibility: a glass ball and a card camera rays do not meet, the caustic "
                     "under the ball seen past it"),
+    "mesh_light_ball": (mesh_light_ball, "a mesh light (an Emission plane) seen from its back by a Glass BSDF ball"),
+    "mesh_light_mirror": (mesh_light_mirror, "a closed mesh light (an Emission ball) over a standing Glossy BSDF "
+                          "mirror"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

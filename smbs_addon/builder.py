@@ -226,11 +226,13 @@ class SceneBuilder:
         def cat(parts, shape, dtype=float):
             return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
 
-        m, lt, ob = self.materials, self.lights, self.objects
+        m, ob = self.materials, self.objects
+        tri_object, tri_material = cat(self._obj, (0,), np.int32), cat(self._mat, (0,), np.int32)
+        tri_vertices = cat(self._tris, (0, 3, 3))
+        lt, tri_light = self._mesh_lights(tri_vertices, tri_object, tri_material)
         sc = S.Scene(
-            tri_vertices=cat(self._tris, (0, 3, 3)), tri_normals=cat(self._normals, (0, 3, 3)),
-            tri_uvs=cat(self._uvs, (0, 3, 2)), tri_object=cat(self._obj, (0,), np.int32),
-            tri_material=cat(self._mat, (0,), np.int32),
+            tri_vertices=tri_vertices, tri_normals=cat(self._normals, (0, 3, 3)),
+            tri_uvs=cat(self._uvs, (0, 3, 2)), tri_object=tri_object, tri_material=tri_material,
             tri_normals_back=(cat([n if b is None else b for n, b in zip(self._normals, self._back)], (0, 3, 3))
                               if any(b is not None for b in self._back) else np.zeros((0, 3, 3))),
             object_names=[o["name"] for o in ob],
@@ -279,6 +281,43 @@ class SceneBuilder:
             if any(o["visibility"] != S.RAY_ALL for o in ob) else np.zeros(0, np.int64),
             light_visibility=np.array([x["visibility"] for x in lt], np.int64)
             if any(x["visibility"] != S.RAY_ALL for x in lt) else np.zeros(0, np.int64),
+            tri_light=tri_light,
         )
         sc.validate()
         return sc
+
+    def _mesh_lights(self, tv, tri_object, tri_material):
+        """The lights, then a MESH light per object and emitter material of positive radiance (Color x
+        Strength) on its triangles, named after the object (and the material, where the object has more
+        than one that shines), seen by the rays that see the object; and Scene.tri_light (empty: none)."""
+        lt = list(self.lights)
+        shines = [j for j, x in enumerate(self.materials)
+                  if x["kind"] == S.EMITTER and (np.asarray(x["color"], float) * x["strength"]).max() > 0]
+        if not shines or not len(tv):
+            return lt, np.zeros(0, np.int32)
+        tri_light = np.full(len(tv), -1, np.int32)
+        glows = np.flatnonzero(np.isin(tri_material, shines))
+        # (object, material) pairs in object order, then material order; each pair's triangles
+        pairs, which = np.unique(np.stack([tri_object[glows], tri_material[glows]], axis=1), axis=0,
+                                 return_inverse=True)
+        which = which.reshape(-1)
+        order = np.argsort(which, kind="stable")
+        starts = np.searchsorted(which[order], np.arange(len(pairs) + 1))
+        per_object = np.bincount(pairs[:, 0], minlength=len(self.objects))
+        for k, (o, j) in enumerate(pairs):
+            tris = glows[order[starts[k]:starts[k + 1]]]
+            obj, x = self.objects[int(o)], self.materials[int(j)]
+            v = tv[tris]
+            area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+            mid = v.mean(axis=1)
+            c = (area @ mid) / area.sum() if area.sum() > 0 else mid.mean(axis=0)
+            matrix = np.eye(4)
+            matrix[:3, 3] = c
+            tri_light[tris] = len(lt)
+            lt.append(dict(
+                name=obj["name"] if per_object[o] == 1 else f"{obj['name']}/{x['name']}", type=S.MESH,
+                matrix=matrix, color=np.asarray(x["color"], float) * x["strength"],
+                radius=float(np.sqrt(np.max(np.sum((v - c) ** 2, axis=2)))), soft_falloff=False,
+                spot_size=0.0, spot_blend=0.0, shape=S.SQUARE, size=np.zeros(2), spread=math.pi, angle=0.0,
+                caustics=True, visibility=int(obj.get("visibility", S.RAY_ALL))))
+        return lt, tri_light

@@ -29,7 +29,7 @@ from .geometry import packed_floats
 from .kernels import chain_kinds, chain_solve
 from .lights import distant_cone, env_map, has_spread, soft_falloff_factor, spot_mask, spread_factor
 from .optics import absorbing, arriving, bent, bump_correction, inside, specular_weights, transmittance
-from .vec import dot, frame, normalize
+from .vec import cross, dot, frame, normalize
 
 def chain_throughput(scene, types, x0, verts, light_point, directional, physical=False):
     """Product over the chain of the specular weights (optics.specular_weights), (N,3); zero
@@ -89,6 +89,11 @@ def light_end_at_solution(scene, li, light: LightEnd, xk):
             return LightEnd(True, light.y, ys, yt), env.value(light.y)
         return LightEnd(True, light.y, ys, yt), np.broadcast_to(distant_cone(scene, li)[2], (n, 3)).copy()
     m = scene.light_matrix[li]
+    if typ == S.MESH:  # (L) / (1 / A) from both sides, the tangents those sample_light drew
+        nrm = cross(light.ys, light.yt)
+        facing = dot(xk - light.y, nrm) != 0
+        e = np.where(facing[:, None], color * scene.mesh_light(li)[4], 0.0)
+        return LightEnd(False, light.y, light.ys, light.yt), e
     if typ == S.AREA:
         ax = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
         nrm = -ax[:, 2]

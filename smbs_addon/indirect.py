@@ -36,10 +36,10 @@ from . import scene as S
 from .bounces import ONE_DIFFUSE, Limits, specular_kind
 from .eye import Receivers, direct_albedo, surface_at
 from .geometry import triangle_areas
-from .lights import light_radiance, area_light_shape
+from .lights import area_light_shape, light_radiance, shadow_tmax
 from .reference import _letters, run_photons, scatter_specular, splat_records
 from .rough import walk_casters
-from .vec import dot, normalize
+from .vec import cross, dot, normalize
 
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
@@ -115,6 +115,8 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
         if typ == S.AREA:
             nrm = area_light_shape(scene, li)[3]
             cos_y = np.maximum(0.0, -dot(dirs, nrm))
+        elif typ == S.MESH:  # both sides shine
+            cos_y = np.abs(dot(dirs, cross(light.ys, light.yt)))
         elif scene.light_radius[li] > 0:
             cos_y = np.maximum(0.0, -dot(dirs, normalize(light.y - scene.light_matrix[li][:3, 3])))
         else:
@@ -126,7 +128,8 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
     idx = np.flatnonzero(ok)
     if idx.size:
         o = tracer.spawn(p[idx], ng[idx], dirs[idx])
-        tmax = np.where(np.isfinite(dist[idx]), dist[idx] * (1 - 1e-7) - tracer.eps, np.inf)
+        tmax = np.full(idx.size, np.inf) if light.directional else \
+            shadow_tmax(scene, li, light.y[idx], light.ys[idx], light.yt[idx], o, dirs[idx], dist[idx], tracer.eps)
         blocked = tracer.occluded(o, dirs[idx], tmax)
         stats["rays_direct"] = stats.get("rays_direct", 0) + int(idx.size)
         idx = idx[~blocked]
@@ -209,7 +212,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 surf_t = np.where(h.hit, h.t, np.inf)
                 seen_l = np.zeros((len(o), 3))
                 for li in lights_hit:
-                    L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=last_refl)
+                    L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=last_refl, surf_t=surf_t)
                     seen_l += np.where((tl < surf_t)[:, None], L, 0.0)
                 count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
                                        & lim.fits(before))
@@ -289,7 +292,7 @@ def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance,
         other = ok & (~on | ~np.isin(code, walked))
         if not other.any():
             continue
-        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=(code & 1) == 1)  # the latest vertex's letter
+        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=(code & 1) == 1, surf_t=surf_t)  # the latest vertex's letter
         seen = np.flatnonzero(other & (tl < surf_t) & (L.max(axis=1) > 0))
         np.add.at(radiance, lane[seen], beta[seen] * L[seen])
         stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
@@ -339,7 +342,7 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
             seg[:, kernels.SEG_T]
         beta, refl = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3], seg[:, kernels.SEG_REFL] > 0
         for li in hit_lights:
-            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl)
+            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
             seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
             np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
     if len(vx):
@@ -513,7 +516,8 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
         # bent paths are bent_gather's alone (handoff_gather's docstring)
         fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
-            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=hist[row, k, 5] > 0)
+            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=hist[row, k, 5] > 0,
+                                    surf_t=surf_t)
             seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits)
             if seen.size == 0:
                 continue

@@ -7,7 +7,9 @@ Units (measured against Cycles, see testing-against-cycles.md):
 - area: one-sided radiance P / (pi A) along the light's local -Z;
 - sun: strength S is the irradiance on a plane facing the sun;
 - world (a constant Background colour): radiance L from every direction, a sun
-  whose disc fills the sky (distant_cone).
+  whose disc fills the sky (distant_cone);
+- mesh (an object's triangles of an Emission shader): radiance L = Color x Strength
+  from both sides of every triangle (Cycles' emissive closure is two-sided).
 
 A caustic path starts light -> caster, so photons are only emitted towards the
 bounding spheres of the casters ("targets"). Directions are drawn from a
@@ -192,6 +194,31 @@ def area_light_points(scene, li: int, n: int, rng) -> np.ndarray:
     return cen + (a * hx)[:, None] * ex + (b * hy)[:, None] * ey
 
 
+def mesh_light_points(scene, li: int, n: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """Points uniform in area on MESH light li's triangles, and their unit geometric normals."""
+    _, tv, ng, cdf, total = scene.mesh_light(li)
+    j = np.minimum(np.searchsorted(cdf, rng.random(n) * total, side="right"), len(cdf) - 1)
+    su, u2 = np.sqrt(rng.random(n)), rng.random(n)
+    b1, b2 = (u2 * su)[:, None], (1.0 - su)[:, None]
+    t = tv[j]
+    return t[:, 0] * (1.0 - b1 - b2) + t[:, 1] * b1 + t[:, 2] * b2, ng[j]
+
+
+def shadow_tmax(scene, li: int, y, ys, yt, o, d, dist, eps):
+    """How far the shadow ray o + t d towards light li's point y (dist from the vertex o was
+    spawned from) may look: dist less eps, and for a mesh light, whose y lies on a triangle of
+    the scene (tangents ys, yt), short of where the ray meets that triangle's plane: the ray
+    runs eps off the line to y, and at normal incidence dist less eps is that plane to float32's
+    precision."""
+    tmax = dist * (1 - 1e-7) - eps
+    if scene.light_type[li] != S.MESH:
+        return tmax
+    n = np.cross(ys, yt)
+    den = dot(d, n)
+    tp = np.divide(dot(y - o, n), den, out=np.full(len(o), np.inf), where=np.abs(den) > 1e-12)
+    return np.minimum(tmax, tp * (1 - 1e-6) - eps)
+
+
 # ------------------------------------------------------------------ emission, per photon
 @njit(inline="always", **JIT)
 def _frame1(n):
@@ -302,6 +329,32 @@ def _emit_area(u, cen, ex, ey, nrm, hx, hy, area, disk, radiance, targets, cdf, 
 
 
 @njit(**JIT)
+def _emit_mesh(u, tv, ng, tri_cdf, total, radiance, eps, targets, cdf, probs, o, d, w):
+    """Mesh lights: origins uniform in area on the triangles (picked by u3 in proportion to their areas
+    tri_cdf, u3 used again within the one picked), eps off the surface on the side the photon leaves,
+    directions towards the targets, weighted by the cosine at the light (both sides shine)."""
+    n = u.shape[0]
+    for i in range(n):
+        x = u[i, 3] * total
+        j = _pick(tri_cdf, u[i, 3])
+        lo = tri_cdf[j - 1] if j > 0 else 0.0
+        a = tri_cdf[j] - lo
+        r = min(max((x - lo) / a, 0.0), 1.0) if a > 0 else 0.5
+        su = math.sqrt(r)
+        b1, b2 = u[i, 4] * su, 1.0 - su
+        b0 = 1.0 - b1 - b2
+        p = (b0 * tv[j, 0, 0] + b1 * tv[j, 1, 0] + b2 * tv[j, 2, 0],
+             b0 * tv[j, 0, 1] + b1 * tv[j, 1, 1] + b2 * tv[j, 2, 1],
+             b0 * tv[j, 0, 2] + b1 * tv[j, 1, 2] + b2 * tv[j, 2, 2])
+        di, pdf = _cone_mixture1(u[i, 0], u[i, 1], u[i, 2], p, targets, cdf, probs, 0.0)
+        c = di[0] * ng[j, 0] + di[1] * ng[j, 1] + di[2] * ng[j, 2]
+        s = eps if c >= 0 else -eps
+        for k in range(3):
+            o[i, k], d[i, k] = p[k] + s * ng[j, k], di[k]
+            w[i, k] = radiance[k] * (abs(c) * total / (pdf * n)) if pdf > 0 else 0.0
+
+
+@njit(**JIT)
 def _emit_sun(u, axis, half, color, targets, cdf, probs, far, o, d, w):
     """Suns: directions in the sun's cone, then a point on a disc across one target sphere (picked
     in proportion to its cross-section), its density counting every disc that holds it; the
@@ -393,6 +446,12 @@ def _emit(scene, li, targets, n, rng) -> Photons:
         if has_spread(scene, li):
             w *= spread_factor(scene, li, dot(d, nrm))[:, None]
         return Photons(o, d, w)
+    if typ == S.MESH:
+        _, tv, ng, tri_cdf, total = scene.mesh_light(li)
+        probs = _cone_probs(c, targets)
+        _emit_mesh(u, tv, ng, tri_cdf, total, color, S.offset_eps(*scene.bounds()), targets, np.cumsum(probs),
+                   probs, o, d, w)
+        return Photons(o, d, w)
     if typ in S.DISTANT:
         area_k = math.pi * targets[:, 3] ** 2
         probs = area_k / area_k.sum()
@@ -454,18 +513,48 @@ def _sphere_hit(o, d, c, r):
 
 
 def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.ndarray | None = None,
-                   refl: np.ndarray | None = None):
+                   refl: np.ndarray | None = None, surf_t: np.ndarray | None = None):
     """Radiance a ray o + t d sees from light li, and the distance (inf if the ray
     misses it). escaped marks rays that left the scene (needed for a sun or the world).
     Point lights of radius 0 cannot be hit (delta lights). refl: per ray, whether it leaves a
     reflection (a glossy ray) or a refraction (a transmission ray): where the light's Ray Visibility
-    leaves that kind out, the ray passes it (None: every ray sees it)."""
-    L, t = _light_radiance(scene, li, o, d, escaped)
+    leaves that kind out, the ray passes it (None: every ray sees it). surf_t: where each ray meets
+    the scene's first surface (inf: none), which a mesh light needs: its triangles are that surface
+    or none of the ray's."""
+    if scene.light_type[li] == S.MESH:
+        L, t = _mesh_light_radiance(scene, li, o, d, surf_t)
+    else:
+        L, t = _light_radiance(scene, li, o, d, escaped)
     if refl is not None and scene.light_visibility.size:
         seen = np.where(np.asarray(refl, bool), scene.light_seen_by(li, S.RAY_GLOSSY),
                         scene.light_seen_by(li, S.RAY_TRANSMISSION))
         if not seen.all():
             L, t = np.where(seen[:, None], L, 0.0), np.where(seen, t, np.inf)
+    return L, t
+
+
+def _mesh_light_radiance(scene, li, o, d, surf_t):
+    """A mesh light's radiance where a ray's first surface (at surf_t) is one of its triangles: met
+    again in an embree scene of its triangles alone, no farther than that surface (within float32's
+    error); t is then just before that surface, as the callers count a light before it."""
+    from . import embree
+
+    if surf_t is None:
+        raise ValueError(f"light '{scene.light_names[li]}': a mesh light is met as a surface: give surf_t")
+    n = len(o)
+    L, t = np.zeros((n, 3)), np.full(n, np.inf)
+    idx = np.flatnonzero(np.isfinite(surf_t))
+    if idx.size == 0:
+        return L, t
+    own = scene.derived(("mesh_light_embree", int(li)), lambda: embree.Scene(scene.mesh_light(li)[1]))
+    st = np.asarray(surf_t, np.float64)[idx]
+    prim, tl = np.full(idx.size, -1, np.int64), np.full(idx.size, np.inf)
+    embree.cast_rays(embree.rays(own), np.ascontiguousarray(o[idx], np.float64),
+                     np.ascontiguousarray(d[idx], np.float64), st * (1.0 + 1e-5) + S.offset_eps(*scene.bounds()),
+                     False, prim, tl)
+    hit = idx[prim >= 0]
+    L[hit] = scene.light_color[li]
+    t[hit] = np.asarray(surf_t, np.float64)[hit] * (1.0 - 1e-12)
     return L, t
 
 

@@ -24,7 +24,7 @@ from .estimators import chain_throughput, concentration, geometric_term, light_e
 from .eye import direct_albedo, eye_receivers
 from .geometry import triangle_areas
 from .layer import coat_factor, has_layers
-from .lights import area_light_points, distant_cone, env_map
+from .lights import area_light_points, distant_cone, env_map, mesh_light_points, shadow_tmax
 from .optics import bump_shadowing, has_reflection
 from .rough import rough_casters, walk_casters
 from .trials import bernoulli_trials
@@ -233,6 +233,10 @@ def sample_light(scene, li, n, rng, cap=None) -> LightEnd:
         return LightEnd(True, to_sun, z, z.copy())
     if typ == S.AREA:
         return LightEnd(False, area_light_points(scene, li, n, rng), z, z.copy())
+    if typ == S.MESH:  # its tangents are its triangle's, known now
+        y, ng = mesh_light_points(scene, li, n, rng)
+        ys, yt = frame(ng)
+        return LightEnd(False, y, ys, yt)
     c = m[:3, 3]
     r = float(scene.light_radius[li])
     if r > 0:
@@ -379,7 +383,10 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     if vis_idx.size:
         o = tracer.spawn(xk[vis_idx], verts[k - 1].ng[vis_idx], dirs[vis_idx])
         # the ray leaving the last vertex, glossy or transmission: it passes what its kind does not meet
-        blocked = tracer.occluded_past(o, dirs[vis_idx], tmax[vis_idx] - tracer.eps,
+        t_far = tmax[vis_idx] - tracer.eps if le.directional else \
+            shadow_tmax(scene, li, le.y[vis_idx], le.ys[vis_idx], le.yt[vis_idx], o, dirs[vis_idx],
+                        dist[vis_idx], tracer.eps)
+        blocked = tracer.occluded_past(o, dirs[vis_idx], t_far,
                                        S.RAY_GLOSSY if types[-1] == "R" else S.RAY_TRANSMISSION)
         ctx.count("rays_shadow", vis_idx.size)
         ctx.stats["occluded"] = ctx.stats.get("occluded", 0) + int(blocked.sum())
@@ -712,9 +719,10 @@ def handoff_hits(scene, li, casters=()) -> float:
             d2 = min(d2, float(np.sum((pos - np.clip(pos, lo, hi)) ** 2)))
         if not math.isfinite(d2):
             return math.inf
-        if typ == S.AREA:
+        if typ in (S.AREA, S.MESH):
             sx, sy = (float(x) for x in scene.light_size[li])
-            area = sx * sy * (math.pi / 4.0 if scene.light_shape[li] in (S.DISK, S.ELLIPSE) else 1.0)
+            area = scene.mesh_light(li)[4] if typ == S.MESH else \
+                sx * sy * (math.pi / 4.0 if scene.light_shape[li] in (S.DISK, S.ELLIPSE) else 1.0)
             omega = 2.0 * math.pi if area >= 2.0 * math.pi * d2 else area / d2
         else:
             r2 = float(scene.light_radius[li]) ** 2
@@ -730,9 +738,11 @@ def can_focus(scene, lp) -> bool:
 
 def light_can_be_hit(scene, li) -> bool:
     """Whether a ray can hit light li: an area light, a sun with an angle, a point or spot
-    light with a radius (delta lights can only be connected to, by the walks)."""
+    light with a radius, a mesh light (delta lights can only be connected to, by the walks)."""
     typ = scene.light_type[li]
     if typ == S.AREA:
+        return True
+    if typ == S.MESH:  # as a surface (lights.light_radiance)
         return True
     if typ in S.DISTANT:
         return bool(distant_cone(scene, li)[1] > 0)

@@ -207,6 +207,9 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         if scene.light_type[li] == S.AREA and not (scene.light_size[li].min() > 0):
             skipped.append(("light", name, "zero size"))
             continue
+        if scene.light_type[li] == S.MESH and not (scene.mesh_light(li)[4] > 0):
+            skipped.append(("light", name, "its emitting faces have no area"))
+            continue
         if scene.light_type[li] == S.AREA and not (scene.light_spread[li] > 0):
             skipped.append(("light", name, "spread 0: a beam along its normal, which no estimator here samples"))
             continue

@@ -32,9 +32,11 @@ MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
 FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY = 0, 1, 2
 
 # Light types (Scene.light_type), as Cycles defines them; WORLD is a world of constant colour
-# (a Background node): radiance light_color from every direction, at infinity
-POINT, SPOT, AREA, SUN, WORLD = 0, 1, 2, 3, 4
-LIGHT_TYPES = ("POINT", "SPOT", "AREA", "SUN", "WORLD")
+# (a Background node): radiance light_color from every direction, at infinity; MESH is a mesh
+# light (an object's triangles of an emitter material, Scene.tri_light): radiance light_color
+# from both sides of each triangle, as Cycles' Emission shader shines
+POINT, SPOT, AREA, SUN, WORLD, MESH = 0, 1, 2, 3, 4, 5
+LIGHT_TYPES = ("POINT", "SPOT", "AREA", "SUN", "WORLD", "MESH")
 DISTANT = (SUN, WORLD)  # lights at infinity: a path's light end is a direction
 # Area light shapes (Scene.light_shape)
 SQUARE, RECTANGLE, DISK, ELLIPSE = 0, 1, 2, 3
@@ -54,7 +56,7 @@ PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
             "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
-            "view_points", "object_visibility", "light_visibility")
+            "view_points", "object_visibility", "light_visibility", "tri_light")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -67,6 +69,14 @@ def flat_axes(m3) -> bool:
     relative to its own scale?"""
     m = np.asarray(m3, float)
     return not (abs(np.linalg.det(m)) > 1e-12 * max(float(np.abs(m).max()), 1e-300) ** 3)
+
+
+def offset_eps(lo, hi) -> float:
+    """The self-intersection offset for geometry within [lo, hi]: a few float32 ulps of the
+    largest coordinate (tracer.Tracer.eps)."""
+    extent = float(max(np.abs(lo).max(initial=0), np.abs(hi).max(initial=0)))
+    d = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
+    return 4e-6 * (extent + (d if d > 0 else 1.0))
 
 
 def column_bounds(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -210,8 +220,28 @@ class Scene:
     # Visibility). Empty: every ray (a scene built in code, or saved before they were exported)
     object_visibility: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
     light_visibility: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int64))
+    # (T,) int: the MESH light each triangle shines as (-1: none). Empty: no mesh light (a scene
+    # saved before they were baked). A MESH light's light_color is its radiance (W/m^2/sr: an
+    # Emission shader's Color x Strength), the translation of its light_matrix its triangles'
+    # centroid and light_radius the distance from there to its farthest corner
+    tri_light: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
 
     # ------------------------------------------------------------------ derived
+    def mesh_light(self, li: int):
+        """MESH light li's triangles, for sampling points on it in proportion to area: (indices (K,),
+        corners (K, 3, 3), unit geometric normals (K, 3), cumulative areas (K,), total area), kept
+        from validate() on."""
+        def compute():
+            idx = np.flatnonzero(self.tri_light == li) if self.tri_light.size else np.zeros(0, np.int64)
+            tv = np.ascontiguousarray(self.tri_vertices[idx], np.float64)
+            c = np.cross(tv[:, 1] - tv[:, 0], tv[:, 2] - tv[:, 0])
+            a2 = np.sqrt(np.einsum("ij,ij->i", c, c))
+            ng = c / np.maximum(a2, 1e-300)[:, None]
+            cdf = np.cumsum(0.5 * a2)
+            return idx, tv, np.ascontiguousarray(ng), cdf, float(cdf[-1]) if len(cdf) else 0.0
+
+        return self.derived(("mesh_light", int(li)), compute)
+
     def textured_materials(self) -> np.ndarray | None:
         """(M,) bool: the materials whose colour is a texture (mat_textured read as flags: a scene
         built in code may hold 0/1 numbers), or None where there is none."""
@@ -467,6 +497,18 @@ class Scene:
                                | (self.light_angle < 0) | (self.light_spot_size < 0)) if L else []
         if len(sizes):
             raise SceneError(f"light '{self.light_names[sizes[0]]}': negative size, radius, angle or spot size")
+        tl = np.asarray(self.tri_light)
+        if tl.shape not in ((0,), (T,)) or (tl.size and not np.all((tl >= -1) & (tl < L))):
+            raise SceneError(f"scene array 'tri_light' must have one entry per triangle ({T}), a light index or -1, "
+                             f"or none")
+        owned = np.bincount(tl[tl >= 0], minlength=L) if tl.size else np.zeros(L, np.int64)
+        bare = np.flatnonzero((self.light_type == MESH) & (owned == 0))
+        if bare.size:
+            raise SceneError(f"light '{self.light_names[bare[0]]}': a mesh light without triangles")
+        wrong = np.flatnonzero(self.light_type[tl[tl >= 0]] != MESH) if tl.size else []
+        if len(wrong):
+            raise SceneError(f"light '{self.light_names[int(tl[tl >= 0][wrong[0]])]}': triangles shine as it, but it "
+                             f"is not a mesh light")
         wm = np.asarray(self.world_map)
         if wm.ndim != 3 or wm.shape[2] != 3 or (wm.size and min(wm.shape[:2]) < 1):
             raise SceneError(f"scene array 'world_map' must be (H, W, 3), not {wm.shape}")

@@ -72,10 +72,9 @@ class Tracer:
         """Tolerances for geometry within [lo, hi] (the bake's plan: objects out of it change
         none): the self-intersection offset, a few float32 ulps of the largest coordinate,
         and the area below which a triangle counts as degenerate."""
-        extent = float(max(np.abs(lo).max(initial=0), np.abs(hi).max(initial=0)))
         d = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
         scale = d if d > 0 else 1.0
-        self.eps = 4e-6 * (extent + scale)
+        self.eps = S.offset_eps(lo, hi)
         self.degenerate = ~(self.area2 > 1e-14 * max(scale, 1e-30) ** 2)
 
     # ------------------------------------------------------------- low level

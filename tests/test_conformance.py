@@ -93,6 +93,12 @@ CASES = [
     ("hidden_ball", "reference", 256),
     # a card glossy rays and a ball transmission rays do not meet (the same test)
     ("hidden_kinds", "reference", 256),
+    # mesh lights (an Emission shader's object): no light at all to the layer before; a panel whose back the
+    # ball sees, and a closed glowing ball over a mirror (0.655 of Cycles when the shadow ray to a point on
+    # the ball met the ball itself)
+    ("mesh_light_ball", "reference", 256),
+    ("mesh_light_ball", "smbs", 4),
+    ("mesh_light_mirror", "sms", 16),
 ]
 
 

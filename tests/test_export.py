@@ -459,6 +459,22 @@ def test_emission():
     assert np.allclose(sc.mat_color[0], [1.0, 0.5, 0.25])
 
 
+def test_an_emission_object_is_a_mesh_light_of_its_own():
+    """Cycles lights the scene with an Emission shader's object (a mesh light): the export makes it a
+    light named after the object, of radiance Color x Strength, taking the object's Ray Visibility."""
+    add_camera()
+    lamp = mesh_with(material("Lamp", "ShaderNodeEmission", Color=(1.0, 0.5, 0.25), Strength=7.0), "Softbox")
+    lamp.visible_glossy = False
+    lamp.location = (0.0, 0.0, 3.0)
+    sc, warnings = export()
+    assert warnings == []
+    assert sc.light_names == ["Softbox"] and sc.light_type.tolist() == [S.MESH]
+    assert np.allclose(sc.light_color[0], [7.0, 3.5, 1.75])
+    assert np.array_equal(sc.tri_light, np.zeros(12, np.int32)) and math.isclose(sc.mesh_light(0)[4], 24.0)
+    assert np.allclose(sc.light_matrix[0][:3, 3], [0.0, 0.0, 3.0])
+    assert not sc.light_seen_by(0, S.RAY_GLOSSY) and sc.light_seen_by(0, S.RAY_TRANSMISSION)
+
+
 def test_unsupported_node_warns_naming_the_material():
     m = material("Foo", "ShaderNodeBsdfTransparent")
     sc, warnings = one_material(m)

@@ -16,7 +16,7 @@ from smbs_addon.scene import Scene
 
 
 def full_scene() -> Scene:
-    """Every light type and area shape, every material kind, a smooth mesh with UVs,
+    """Every light type (the emitter panel a mesh light) and area shape, every material kind, a smooth mesh with UVs,
     a non-default camera."""
     b = SceneBuilder("everything")
     floor = b.material("Floor", "diffuse", color=(0.8, 0.7, 0.6), textured=True)
@@ -63,7 +63,8 @@ def assert_scenes_equal(a: Scene, b: Scene):
 
 def test_round_trip_every_field(tmp_path):
     sc = full_scene()
-    assert sc.n_lights == 7 and set(sc.light_type.tolist()) == {S.POINT, S.SPOT, S.AREA, S.SUN}
+    assert sc.n_lights == 8 and set(sc.light_type.tolist()) == {S.POINT, S.SPOT, S.AREA, S.SUN, S.MESH}
+    assert sc.light_names[-1] == "Panel" and sc.tri_light.max() == 7  # the emitter panel: a mesh light
     assert set(sc.light_shape[sc.light_type == S.AREA].tolist()) == {S.SQUARE, S.RECTANGLE, S.DISK, S.ELLIPSE}
     assert set(sc.mat_kind.tolist()) == {S.DIFFUSE, S.CONDUCTOR, S.DIELECTRIC, S.EMITTER}
     assert sc.mat_textured.tolist() == [True, False, False, False]
