@@ -813,6 +813,22 @@ def mesh_light_ball():
     return scene
 
 
+def principled_glow_ball():
+    """mesh_light_ball with the panel's material a Principled BSDF (Base Color 0.8, Roughness 0.5) of Emission
+    Strength 60, tinted: its faces shine and receive."""
+    scene = _scene("principled_glow_ball")
+    _floor(scene)
+    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    glow = principled("Glow", base=(0.8, 0.8, 0.8), roughness=0.5)
+    node = next(n for n in glow.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
+    node.inputs["Emission Color"].default_value = (1.0, 0.9, 0.75, 1.0)
+    node.inputs["Emission Strength"].default_value = 60.0
+    v, f = B.grid(0.8, 0.8)
+    B.mesh_object(scene, "Panel", v, f, glow, location=(0.3, -0.2, 3.0))
+    B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
+    return scene
+
+
 def mesh_light_mirror():
     """_standing_mirror lit by a closed mesh light: a smooth Emission ball of radius 0.2 (Strength 250: about
     mirror_point_hard's 400 W bulb), the camera seeing the reflected light on the floor directly and in the
@@ -974,6 +990,8 @@ SCENES = {
     "hidden_ball": (hidden_ball, "Ray Visibility: a glass ball and a card camera rays do not meet, the caustic "
                     "under the ball seen past it"),
     "mesh_light_ball": (mesh_light_ball, "a mesh light (an Emission plane) seen from its back by a Glass BSDF ball"),
+    "principled_glow_ball": (principled_glow_ball, "a mesh light of a Principled BSDF's Emission (the panel "
+                             "receives too)"),
     "mesh_light_mirror": (mesh_light_mirror, "a closed mesh light (an Emission ball) over a standing Glossy BSDF "
                           "mirror"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "

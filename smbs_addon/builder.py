@@ -53,7 +53,9 @@ class SceneBuilder:
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
                  bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0),
-                 distribution=1, view_bump=False) -> int:
+                 distribution=1, view_bump=False, emission=(0.0, 0.0, 0.0)) -> int:
+        """emission: radiance (W/m^2/sr) its surface emits beside its own kind (a Principled BSDF's
+        Emission); an emitter's is color x strength. Either makes a mesh light of its faces (build)."""
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -64,7 +66,8 @@ class SceneBuilder:
                                    fresnel=int(fresnel), bump_correction=bool(bump_correction),
                                    layer=np.asarray(layer, float), textured=bool(textured),
                                    absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy(),
-                                   distribution=int(distribution), view_bump=bool(view_bump)))
+                                   distribution=int(distribution), view_bump=bool(view_bump),
+                                   emission=np.broadcast_to(np.asarray(emission, float), (3,)).copy()))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
@@ -275,6 +278,8 @@ class SceneBuilder:
             if any(x["distribution"] != 1 for x in m) else np.zeros(0, np.int64),
             mat_view_bump=np.array([x["view_bump"] for x in m], bool) if any(x["view_bump"] for x in m)
             else np.zeros(0, bool),
+            mat_emission=np.array([x["emission"] for x in m], float).reshape(-1, 3)
+            if any(x["emission"].max() > 0 for x in m) else np.zeros((0, 3)),
             view_normals=np.asarray(self.view_normals, np.float32),
             view_points=np.asarray(self.view_points, np.float32),
             object_visibility=np.array([o["visibility"] for o in ob], np.int64)
@@ -286,13 +291,19 @@ class SceneBuilder:
         sc.validate()
         return sc
 
+    @staticmethod
+    def _radiance(x) -> np.ndarray:
+        """A material's emitted radiance: an emitter's colour x strength, and its emission."""
+        own = np.asarray(x["color"], float) * x["strength"] if x["kind"] == S.EMITTER else np.zeros(3)
+        return own + x["emission"]
+
     def _mesh_lights(self, tv, tri_object, tri_material):
-        """The lights, then a MESH light per object and emitter material of positive radiance (Color x
-        Strength) on its triangles, named after the object (and the material, where the object has more
+        """The lights, then a MESH light per object and material of positive radiance (_radiance) on its
+        triangles, named after the object (and the material, where the object has more
         than one that shines), seen by the rays that see the object; and Scene.tri_light (empty: none)."""
         lt = list(self.lights)
-        shines = [j for j, x in enumerate(self.materials)
-                  if x["kind"] == S.EMITTER and (np.asarray(x["color"], float) * x["strength"]).max() > 0]
+        glow = [self._radiance(x) for x in self.materials]
+        shines = [j for j, g in enumerate(glow) if g.max() > 0]
         if not shines or not len(tv):
             return lt, np.zeros(0, np.int32)
         tri_light = np.full(len(tv), -1, np.int32)
@@ -316,7 +327,7 @@ class SceneBuilder:
             tri_light[tris] = len(lt)
             lt.append(dict(
                 name=obj["name"] if per_object[o] == 1 else f"{obj['name']}/{x['name']}", type=S.MESH,
-                matrix=matrix, color=np.asarray(x["color"], float) * x["strength"],
+                matrix=matrix, color=glow[int(j)],
                 radius=float(np.sqrt(np.max(np.sum((v - c) ** 2, axis=2)))), soft_falloff=False,
                 spot_size=0.0, spot_blend=0.0, shape=S.SQUARE, size=np.zeros(2), spread=math.pi, angle=0.0,
                 caustics=True, visibility=int(obj.get("visibility", S.RAY_ALL))))

@@ -441,6 +441,10 @@ def _mixed(parts, left, mat, warn) -> dict:
         kw["strength"] = 1.0
     else:
         kw["color"] = sum(w * np.asarray(p["color"], float) for w, p, _ in chosen)
+    kw.pop("emission", None)
+    emission = sum(w * np.asarray(p.get("emission", np.zeros(3)), float) for w, p, _ in parts)
+    if np.max(emission) > 0:  # a Principled part's emission shines whichever part the rest is taken as
+        kw["emission"] = emission
     if "reflect_color" in first:
         kw["reflect_color"] = sum(w * np.asarray(p.get("reflect_color", p["color"]), float) for w, p, _ in chosen)
     if kind == S.DIFFUSE:
@@ -583,8 +587,16 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
             sock = node.inputs.get(sock_name)
             return sock is not None and (_follow(sock) is not None or nonzero(sock.default_value))
 
+        emission = np.zeros(3)
         if active("Emission Strength") and active("Emission Color", lambda c: max(c[:3]) > 0):
-            ignored.append("emission")
+            # a mesh light of radiance Emission Color x Strength (builder); Cycles puts the emission
+            # under the coat and the sheen, which take an angle-dependent share of it
+            if _linked(node, "Emission Color") or _linked(node, "Emission Strength") or active("Coat Weight") \
+                    or active("Sheen Weight"):
+                ignored.append("emission" + (" (under a coat or sheen)" if not (
+                    _linked(node, "Emission Color") or _linked(node, "Emission Strength")) else " (textured)"))
+            else:
+                emission = _const(node, "Emission Color")[:3] * float(_const(node, "Emission Strength"))
         receiver = metallic < 0.5 and trans < 0.5
         coat_w = 0.0
         if active("Coat Weight"):
@@ -622,7 +634,7 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
                      f"its coat ({1 - metallic:.0%} of it) receives no caustics")
             return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
                         reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0,
-                        distribution=_distribution(node, mat, warn, rough))
+                        distribution=_distribution(node, mat, warn, rough), emission=emission)
         if trans >= 0.5:
             w_glass = float((1.0 - metallic) * trans)
             if w_glass < 1.0:
@@ -635,7 +647,7 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
                 warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
             return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
                         reflect_color=np.full(3, w_glass), ior=ior, roughness=rough,
-                        distribution=_distribution(node, mat, warn, rough))
+                        distribution=_distribution(node, mat, warn, rough), emission=emission)
         # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
         # dielectric glossy layer that takes its share towards the eye (layer.py)
         level = _input(node, "Specular IOR Level", 0.5)
@@ -648,7 +660,8 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         coat_rough = float(_input(node, "Coat Roughness", 0.03))
         return dict(kind=S.DIFFUSE, color=base * (1.0 - metallic) * (1.0 - trans), roughness=rough,
                     layer=(eta, float(rough), tint_max, (1.0 - metallic) * (1.0 - trans), sigma, coat_w,
-                           coat_ior, coat_rough), textured=textured, view_bump=direct and _linked(node, "Normal"))
+                           coat_ior, coat_rough), textured=textured, view_bump=direct and _linked(node, "Normal"),
+                    emission=emission)
     if t in _BUMPABLE and _linked(node, "Normal") and not (direct and _normal_source(node) is not None):
         warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by nodes the export cannot bake "
              f"(a Bump node below another node, a node group, a mesh attribute, a bump inside a shader mix): its "

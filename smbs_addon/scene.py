@@ -56,7 +56,7 @@ PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
             "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
-            "view_points", "object_visibility", "light_visibility", "tri_light")
+            "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -225,6 +225,9 @@ class Scene:
     # Emission shader's Color x Strength), the translation of its light_matrix its triangles'
     # centroid and light_radius the distance from there to its farthest corner
     tri_light: np.ndarray = field(default_factory=lambda: np.zeros(0, np.int32))
+    # (M,3): radiance (W/m^2/sr) a material emits beside its own kind (a Principled BSDF's Emission
+    # Color x Strength; its faces are then a MESH light too). Empty: none
+    mat_emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
 
     # ------------------------------------------------------------------ derived
     def mesh_light(self, li: int):
@@ -406,6 +409,13 @@ class Scene:
             if a.shape not in ((0,), (n,)) or (a.size and not np.all((a >= 0) & (a <= RAY_ALL))):
                 raise SceneError(f"scene array '{name}' must have one entry of Ray Visibility bits (0 to "
                                  f"{RAY_ALL}) per {name.split('_')[0]} ({n}) or none")
+        if self.mat_emission.shape not in ((0, 3), (M, 3)):
+            raise SceneError(f"scene array 'mat_emission' must be ({M}, 3) or empty")
+        bad = ~np.all(np.isfinite(self.mat_emission) & (self.mat_emission >= 0) & (self.mat_emission <= MAX_POWER),
+                      axis=1) if self.mat_emission.size else []
+        if np.any(bad):
+            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': emission must be finite, "
+                             f"from 0 to {MAX_POWER:g}")
         if self.mat_absorb.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []

@@ -99,6 +99,8 @@ CASES = [
     ("mesh_light_ball", "reference", 256),
     ("mesh_light_ball", "smbs", 4),
     ("mesh_light_mirror", "sms", 16),
+    # a Principled BSDF's Emission on a receiving panel (left out, warned, before)
+    ("principled_glow_ball", "reference", 256),
 ]
 
 

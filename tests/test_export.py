@@ -1516,9 +1516,32 @@ def test_light_node_tree_emission_scales_the_light():
 
 def test_principled_extras_are_reported_as_ignored():
     sc, warnings = one_material(material("Glow", "ShaderNodeBsdfPrincipled", **{
-        "Emission Strength": 2.0, "Emission Color": (1.0, 1.0, 1.0), "Alpha": 0.5}))
-    assert sc.mat_kind[0] == S.DIFFUSE
-    assert warnings == ["material 'Glow': Principled BSDF emission, alpha ignored"]
+        "Emission Strength": 2.0, "Emission Color": (1.0, 1.0, 1.0), "Alpha": 0.5, "Sheen Weight": 0.3}))
+    assert sc.mat_kind[0] == S.DIFFUSE and sc.n_lights == 0
+    assert warnings == ["material 'Glow': Principled BSDF emission (under a coat or sheen), sheen, alpha ignored"]
+
+
+def test_principled_emission_makes_a_mesh_light_of_the_receiver():
+    """A Principled BSDF's Emission Color x Strength: its faces shine as a mesh light (Cycles adds the
+    emission to the BSDF), and the surface stays what its BSDF makes it; in a Mix Shader the emission
+    counts by the part's weight."""
+    sc, warnings = one_material(material("Glow", "ShaderNodeBsdfPrincipled", **{
+        "Emission Strength": 2.0, "Emission Color": (1.0, 0.5, 0.25)}))
+    assert warnings == [] and sc.mat_kind[0] == S.DIFFUSE
+    assert sc.light_names == ["Thing"] and sc.light_type.tolist() == [S.MESH]
+    assert np.allclose(sc.light_color[0], [2.0, 1.0, 0.5]) and np.allclose(sc.mat_emission[0], [2.0, 1.0, 0.5])
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    m = material("Half", "ShaderNodeMixShader", Fac=0.75)
+    nt = m.node_tree
+    glow = nt.nodes.new("ShaderNodeBsdfPrincipled")
+    glow.inputs["Emission Strength"].default_value = 4.0
+    glow.inputs["Emission Color"].default_value = (1.0, 1.0, 1.0, 1.0)
+    glass = nt.nodes.new("ShaderNodeBsdfGlass")
+    mix = nt.nodes["Mix Shader"]
+    nt.links.new(glow.outputs[0], mix.inputs[1])
+    nt.links.new(glass.outputs[0], mix.inputs[2])
+    sc, _ = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC and np.allclose(sc.light_color[0], 1.0)  # (1 - 0.75) x 4
 
 
 def test_library_linked_objects_are_exported(tmp_path):

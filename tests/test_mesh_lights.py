@@ -20,17 +20,19 @@ from smbs_addon.estimators import light_end_at_solution
 
 def _panel_scene(light="mesh", facing=-1.0, strength=60.0, size=0.8, res=(48, 36)):
     """A glass ball over a floor under a square light 3 m up: a mesh panel of an emitter material whose
-    normal points down (facing -1, towards the ball) or up (facing 1: the ball sees its back), or an
-    area light of the same radiance (power L pi A) facing down."""
+    normal points down (facing -1, towards the ball) or up (facing 1: the ball sees its back), or of a
+    diffuse material with that emission (light "glow", a Principled BSDF's Emission), or an area light
+    of the same radiance (power L pi A) facing down."""
     b = SceneBuilder("panel")
     floor = b.material("Floor", "diffuse", color=(0.8, 0.8, 0.8))
     glass = b.material("Glass", "dielectric", color=(1.0, 1.0, 1.0), ior=1.5)
     b.plane("Floor", (0, 0, 0), 6, floor, receiver=True)
     b.uv_sphere("Ball", (0, 0, 0.9), 0.5, glass, segments=48, rings=24, caster=True)
     color = (1.0, 0.9, 0.75)
-    if light == "mesh":
-        lamp = b.material("Glow", "emitter", color=color, strength=strength)
-        b.plane("Panel", (0.3, -0.2, 3.0), size, lamp, normal=(0, 0, facing))
+    if light in ("mesh", "glow"):
+        lamp = b.material("Glow", "emitter", color=color, strength=strength) if light == "mesh" else \
+            b.material("Glow", "diffuse", color=(0.8, 0.8, 0.8), emission=np.multiply(color, strength))
+        b.plane("Panel", (0.3, -0.2, 3.0), size, lamp, normal=(0, 0, facing), receiver=light == "glow")
     else:
         b.light("Panel", "AREA", location=(0.3, -0.2, 3.0), target=(0.3, -0.2, 0.0),
                 power=strength * math.pi * size * size, color=color, size=size)
@@ -71,10 +73,13 @@ def test_dark_emitters_are_no_light_and_each_glowing_material_is_one():
 
 
 def test_a_scene_file_keeps_its_mesh_lights(tmp_path):
-    sc = _panel_scene()
+    sc = _panel_scene(light="glow")
+    assert np.allclose(sc.mat_emission, [[0.0, 0.0, 0.0], [0.0, 0.0, 0.0], [60.0, 54.0, 45.0]])
+    assert np.allclose(sc.light_color, [[60.0, 54.0, 45.0]])
     sc.save(tmp_path / "s.npz")
     back = S.Scene.load(tmp_path / "s.npz")
     assert np.array_equal(back.tri_light, sc.tri_light) and back.light_type.tolist() == [S.MESH]
+    assert np.array_equal(back.mat_emission, sc.mat_emission)
 
 
 def test_validation_names_the_light():
@@ -88,6 +93,10 @@ def test_validation_names_the_light():
         sc.validate()
     sc.tri_light = np.zeros(3, np.int32)
     with pytest.raises(SceneError, match="'tri_light' must have one entry per triangle"):
+        sc.validate()
+    sc = _panel_scene(light="glow")
+    sc.mat_emission[2, 1] = -1.0
+    with pytest.raises(SceneError, match="material 'Glow': emission must be finite"):
         sc.validate()
 
 
@@ -126,12 +135,13 @@ def _caustic(sc, method, spp, seed):
     return per.mean(), per.std(ddof=1) / math.sqrt(len(per))
 
 
-@pytest.mark.parametrize("method,facing", [("reference", 1.0), ("smbs", -1.0), ("sms", 1.0)])
-def test_a_mesh_panel_casts_the_caustic_of_an_area_light_of_its_radiance(method, facing):
-    """The ball's caustic under the panel (either side towards it) equals the one under an area light
-    of the same radiance and size, whose estimate is independent (4 standard errors of the
-    difference; each ~1.5% at 32 samples per pixel)."""
-    m, m_se = _caustic(_panel_scene(facing=facing), method, 32, 5)
+@pytest.mark.parametrize("method,facing,light", [("reference", 1.0, "mesh"), ("smbs", -1.0, "mesh"),
+                                                ("sms", 1.0, "mesh"), ("smbs", 1.0, "glow")])
+def test_a_mesh_panel_casts_the_caustic_of_an_area_light_of_its_radiance(method, facing, light):
+    """The ball's caustic under the panel (either side towards it; an emitter, or a diffuse receiver that
+    emits) equals the one under an area light of the same radiance and size, whose estimate is
+    independent (4 standard errors of the difference; each ~1.5% at 32 samples per pixel)."""
+    m, m_se = _caustic(_panel_scene(light=light, facing=facing), method, 32, 5)
     a, a_se = _caustic(_panel_scene(light="area"), method, 32, 6)
     assert m > 0 and a > 0
     assert abs(m - a) <= 4.0 * math.hypot(m_se, a_se), (m, m_se, a, a_se)
