@@ -442,8 +442,12 @@ def _mixed(parts, left, mat, warn) -> dict:
     else:
         kw["color"] = sum(w * np.asarray(p["color"], float) for w, p, _ in chosen)
     kw.pop("emission", None)
-    emission = sum(w * np.asarray(p.get("emission", np.zeros(3)), float) for w, p, _ in parts)
-    if np.max(emission) > 0:  # a Principled part's emission shines whichever part the rest is taken as
+    # every part's emission shines whichever part the rest is taken as: a Principled part's, and an
+    # Emission node's beside a BSDF taken as the surface
+    glows = [(w, p) for w, p, _ in parts if kind != S.EMITTER and p["kind"] == S.EMITTER]
+    emission = sum(w * np.asarray(p.get("emission", np.zeros(3)), float) for w, p, _ in parts) + \
+        sum(w * np.asarray(p["color"], float) * float(p.get("strength", 1.0)) for w, p in glows)
+    if np.max(emission) > 0:
         kw["emission"] = emission
     if "reflect_color" in first:
         kw["reflect_color"] = sum(w * np.asarray(p.get("reflect_color", p["color"]), float) for w, p, _ in chosen)
@@ -457,7 +461,8 @@ def _mixed(parts, left, mat, warn) -> dict:
         if any(not np.allclose(np.delete(la, 3), np.delete(lays[heaviest], 3)) for la in lays):
             warn(f"material '{mat.name}': the diffuse parts of its shader mix are layered differently; "
                  f"the caustic on it is shaded as '{chosen[heaviest][2]}' is")
-    dropped = [(w, name, f"{_PART_WORDS[p['kind']]}") for w, p, name in parts if _group_key(p) != key]
+    dropped = [(w, name, f"{_PART_WORDS[p['kind']]}") for w, p, name in parts if _group_key(p) != key
+               and not (kind != S.EMITTER and p["kind"] == S.EMITTER)]
     dropped += [(w, name, why) for w, name, why in left]
     if dropped:
         said = ", ".join(f"'{name}' (weight {w:.2f}, {why})" for w, name, why in dropped)

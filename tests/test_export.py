@@ -1542,6 +1542,15 @@ def test_principled_emission_makes_a_mesh_light_of_the_receiver():
     nt.links.new(glass.outputs[0], mix.inputs[2])
     sc, _ = one_material(m)
     assert sc.mat_kind[0] == S.DIELECTRIC and np.allclose(sc.light_color[0], 1.0)  # (1 - 0.75) x 4
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    m = material("Sign", "ShaderNodeMixShader", Fac=0.25)  # 0.75 diffuse, 0.25 an Emission node
+    nt = m.node_tree
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 8.0
+    nt.links.new(nt.nodes.new("ShaderNodeBsdfDiffuse").outputs[0], nt.nodes["Mix Shader"].inputs[1])
+    nt.links.new(em.outputs[0], nt.nodes["Mix Shader"].inputs[2])
+    sc, warnings = one_material(m)
+    assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.light_color[0], 2.0) and warnings == []
 
 
 def test_library_linked_objects_are_exported(tmp_path):
