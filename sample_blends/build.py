@@ -392,6 +392,25 @@ def build_hdri_glass(out):
     save(out / "hdri_glass.blend")
 
 
+def build_softbox(out):
+    """The glass ball lit by a softbox as artists make one: a 1.2 x 0.8 m plane of an Emission shader
+    (Strength 30, warm) up and to the side, turned towards the ball: a mesh light, no lamp."""
+    scene = _glass_ball_scene("Softbox", 0.6)
+    glow = bpy.data.materials.new("SoftboxGlow")
+    nt = glow.node_tree
+    for n in list(nt.nodes):
+        nt.nodes.remove(n)
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Color"].default_value = (1.0, 0.92, 0.8, 1.0)
+    em.inputs["Strength"].default_value = 30.0
+    nt.links.new(em.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    v, f = grid(1.2, 0.8)
+    mesh_object(scene, "Softbox", v, f, glow, location=(1.6, -0.6, 2.4),
+                rotation=(math.radians(10), math.radians(-40), math.radians(-20)))
+    add_camera(scene, (0, -4, 3), (0, 0, 0.3), lens=50)
+    save(out / "softbox.blend")
+
+
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     out = Path(argv[0]).resolve() if argv else HERE
@@ -403,6 +422,7 @@ def main(argv=None):
     build_pool(out)
     build_hdri_glass(out)
     build_waves(out)
+    build_softbox(out)
 
 
 if __name__ == "__main__":

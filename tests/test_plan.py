@@ -267,6 +267,9 @@ SAMPLE_PLANS = {  # word for word: what each sample scene bakes, by which paths,
     "water.blend": ["Point -> Water (refraction) -> Floor", "Sun -> Water (refraction) -> Floor"],
     "waves.blend": ["Sun -> WaterSurface (refraction) -> PoolFloor",
                     "Sun -> diffuse -> WaterSurface -> PoolFloor (after a diffuse bounce)"],
+    # a mesh light (an Emission plane): no light at all before
+    "softbox.blend": ["Softbox -> Sphere (refraction, 2 vertices 91%; reflection 8%; rarer paths 1%) -> Floor",
+                      "Softbox -> diffuse -> Sphere -> Floor (after a diffuse bounce)"],
 }
 
 
