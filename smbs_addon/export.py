@@ -717,6 +717,18 @@ def _ray_visibility(ob, prefix="visible_") -> int:
     return sum(bit for attr, _, bit in _RAYS if getattr(ob, prefix + attr.removeprefix("visible_"), True))
 
 
+def _say_light_linking(ob, warn, what="light"):
+    """Cycles' Light Linking (Object > Shading > Light Linking: the objects a light lights, the
+    objects that shadow it) is not followed: said once per object that sets it."""
+    link = getattr(ob, "light_linking", None)
+    sets = [f"{label} '{c.name}'" for label, c in (("receiver collection", getattr(link, "receiver_collection", None)),
+                                                  ("blocker collection", getattr(link, "blocker_collection", None)))
+            if c is not None]
+    if sets:
+        warn(f"{what} '{ob.name}': its Light Linking ({', '.join(sets)}) is not followed: the layer lights and "
+             f"shadows every object as if it were unlinked")
+
+
 def _say_visibility(ob, warn):
     """Warn about an object's Cycles settings the layer does not read: a holdout, a shadow catcher (the
     layer's caustic on it is added to the render like any receiver's). (Its Ray Visibility is read:
@@ -1325,6 +1337,8 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             name = f"{name}.{k}"
         if ob.type == "LIGHT":
             _export_light(b, name, ob, M, _warn)
+            if k == 0 and not inst.is_instance:
+                _say_light_linking(orig, _warn)
             continue
 
         key = (orig.name_full, ob.data.as_pointer() if ob.data is not None else 0)
@@ -1355,6 +1369,8 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             continue
         if k == 0 and not inst.is_instance:
             _say_visibility(orig, _warn)
+            if any(SceneBuilder._radiance(b.materials[int(m)]).max() > 0 for m in np.unique(local["tri_material"])):
+                _say_light_linking(orig, _warn, "mesh light")
         view_objects.setdefault(key, {})[inst.parent.original if inst.is_instance and inst.parent is not None
                                         else orig] = None
         visibility = _ray_visibility(orig)

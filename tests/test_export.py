@@ -475,6 +475,24 @@ def test_an_emission_object_is_a_mesh_light_of_its_own():
     assert not sc.light_seen_by(0, S.RAY_GLOSSY) and sc.light_seen_by(0, S.RAY_TRANSMISSION)
 
 
+def test_light_linking_is_said_not_followed():
+    """Light Linking (a light's receiver or blocker collection) changes what Cycles lights; the layer does
+    not follow it and says so, for a lamp and for a mesh light, not for an unlinked one."""
+    add_camera()
+    lamp = add_light("POINT", energy=10.0)
+    only = bpy.data.collections.new("OnlyFloor")
+    lamp.light_linking.receiver_collection = only
+    glow = mesh_with(material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
+    glow.light_linking.blocker_collection = only
+    mesh_with(material("Glass", "ShaderNodeBsdfGlass"), "Ball")
+    _, warnings = export()
+    assert sorted(warnings) == [
+        f"light '{lamp.name}': its Light Linking (receiver collection 'OnlyFloor') is not followed: the layer "
+        f"lights and shadows every object as if it were unlinked",
+        "mesh light 'Panel': its Light Linking (blocker collection 'OnlyFloor') is not followed: the layer "
+        "lights and shadows every object as if it were unlinked"]
+
+
 def test_unsupported_node_warns_naming_the_material():
     m = material("Foo", "ShaderNodeBsdfTransparent")
     sc, warnings = one_material(m)
