@@ -8,9 +8,9 @@ drops glossy and transmission after a diffuse bounce, which also switches its
 shadow caustics (MNEE) off. Those switches are global, so:
 
 - the plan covers every caster, receiver and light of the scene (a world of
-  constant colour is one of its lights; there is no emissive material, which the
-  layer does not handle; a world too faint to show through mirrors and glass is
-  named as dropped instead, see coverage): a bake turns both switches off,
+  constant colour is one of its lights, an object with an emitting material a mesh
+  light; a world too faint to show through mirrors and glass is named as dropped
+  instead, see coverage): a bake turns both switches off,
   remembering how they were; Remove Caustic Layer puts them back;
 - otherwise Cycles is left as it is, and the note says what is counted where.
 
@@ -76,7 +76,8 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
 
     faint = {x["name"]: x["reason"] for x in skipped if x["kind"] == "light" and x["reason"].startswith(FAINT)}
     planned = {lp.index for lp in plan.lights} | set(plan.indirect_lights)
-    light_flags_used = flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.light_caustics)))
+    lamps = data.light_type != S.MESH  # a mesh light has no Shadow Caustics flag (plan.make_plan)
+    light_flags_used = flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.light_caustics[lamps])))
     dropped = []
     for li, name in enumerate(data.light_names):
         if (li in planned and name not in faint) or not (data.light_color[li].max() > 0):
@@ -95,10 +96,6 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
         if not any(e == name or e.endswith("/" + name) or e.startswith(name + ".") for e in exported):
             left.append(f"light '{name}' (a kind the layer cannot bake)")
 
-    used = np.unique(data.tri_material) if data.n_tris else np.zeros(0, int)
-    for m in used:
-        if data.mat_kind[m] == S.EMITTER:
-            left.append(f"emission of material '{data.mat_names[m]}' (the layer has no mesh lights)")
 
     return Coverage(covered=not left,
                     casters=_names(data.object_names, plan.casters),

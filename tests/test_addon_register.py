@@ -605,6 +605,27 @@ def test_covered_scene_keeps_caustics_out_of_cycles(empty_bpy, addon, tmp_path):
     assert _flags(scene) == flags
 
 
+def test_a_mesh_light_is_covered_by_the_layer(empty_bpy, addon, tmp_path):
+    """The mirror scene lit by an Emission panel beside its lamp: the panel is a mesh light of the layer,
+    so the layer covers every light and Cycles' caustics go off (an emissive material kept them on, the
+    note saying 'the layer has no mesh lights', before)."""
+    from blend_helpers import plane
+
+    scene = _mirror_scene()
+    glow = bpy.data.materials.new("Glow")
+    nt = glow.node_tree
+    nt.nodes.clear()
+    em = nt.nodes.new("ShaderNodeEmission")
+    em.inputs["Strength"].default_value = 20.0
+    nt.links.new(em.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    plane(scene, "Panel", 0.5, glow, (-2, 0.8, 1.5), (0, math.radians(-90), 0))
+    s = _bake(scene, tmp_path)
+    stats = json.loads(s.last_stats)
+    assert list(stats["lights"]) == ["Disk", "Panel"], stats["lights"]
+    assert not scene.cycles.caustics_reflective and s.cycles_kept_out, s.cycles_note
+    assert "'Panel'" in s.cycles_note
+
+
 def test_the_last_bakes_warnings_stay_in_the_panel(empty_bpy, addon, tmp_path):
     """A bake's warnings (here: a rough mirror's Beckmann baked as GGX) are kept for the panel after the reports
     scroll away, the first few listed; a clean re-bake and Remove Caustic Layer clear them."""

@@ -173,3 +173,29 @@ def test_a_glowing_ball_lights_a_mirror_as_a_sphere_light_of_its_power():
     m, m_se = _caustic(ball, "sms", 16, 3)
     p, p_se = _caustic(_bulb_over_mirror(area=ball.mesh_light(0)[4]), "sms", 16, 4)
     assert abs(m - p) <= 4.0 * math.hypot(m_se, p_se), (m, m_se, p, p_se)
+
+
+def test_a_mesh_light_does_not_make_auto_honour_the_lamps_flags():
+    """Cycles has no Shadow Caustics flag for a mesh light: it is always baked, and it does not count as
+    a flagged light, so AUTO keeps an unflagged lamp beside it (and honours the lamps' flags once one
+    lamp is flagged)."""
+    from smbs_addon.plan import make_plan
+
+    def plan_of(flag_lamp):
+        b = SceneBuilder("flags")
+        floor = b.material("Floor", "diffuse")
+        glass = b.material("Glass", "dielectric", ior=1.5)
+        lamp = b.material("Glow", "emitter", color=(1, 1, 1), strength=10.0)
+        b.plane("Floor", (0, 0, 0), 6, floor, receiver=True)
+        b.uv_sphere("Ball", (0, 0, 0.9), 0.5, glass, segments=16, rings=8, caster=True)
+        b.plane("Panel", (0.3, -0.2, 3.0), 0.8, lamp)
+        b.light("Bulb", "POINT", location=(1, 0, 3), power=100.0, radius=0.1, caustics=False)
+        if flag_lamp:
+            b.light("Key", "POINT", location=(-1, 0, 3), power=100.0, radius=0.1, caustics=True)
+        b.set_camera((0, -3.6, 2.8), (0, 0, 0.2), resolution_x=32, resolution_y=24)
+        return make_plan(b.build())
+
+    assert sorted(lp.name for lp in plan_of(False).lights) == ["Bulb", "Panel"]
+    plan = plan_of(True)
+    assert sorted(lp.name for lp in plan.lights) == ["Key", "Panel"]
+    assert ("light", "Bulb", "not flagged 'Shadow Caustics'") in plan.skipped
