@@ -76,8 +76,7 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
 
     faint = {x["name"]: x["reason"] for x in skipped if x["kind"] == "light" and x["reason"].startswith(FAINT)}
     planned = {lp.index for lp in plan.lights} | set(plan.indirect_lights)
-    lamps = data.light_type != S.MESH  # a mesh light has no Shadow Caustics flag (plan.make_plan)
-    light_flags_used = flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.light_caustics[lamps])))
+    light_flags_used = flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.caustic_flags())))
     dropped = []
     for li, name in enumerate(data.light_names):
         if (li in planned and name not in faint) or not (data.light_color[li].max() > 0):

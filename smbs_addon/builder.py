@@ -10,6 +10,7 @@ import numpy as np
 
 from . import scene as S
 from .errors import SceneError
+from .geometry import triangle_areas
 
 
 def _unit(v):
@@ -319,7 +320,7 @@ class SceneBuilder:
             tris = glows[order[starts[k]:starts[k + 1]]]
             obj, x = self.objects[int(o)], self.materials[int(j)]
             v = tv[tris]
-            area = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+            area = triangle_areas(v)
             mid = v.mean(axis=1)
             c = (area @ mid) / area.sum() if area.sum() > 0 else mid.mean(axis=0)
             matrix = np.eye(4)

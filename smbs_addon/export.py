@@ -596,10 +596,9 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         if active("Emission Strength") and active("Emission Color", lambda c: max(c[:3]) > 0):
             # a mesh light of radiance Emission Color x Strength (builder); Cycles puts the emission
             # under the coat and the sheen, which take an angle-dependent share of it
-            if _linked(node, "Emission Color") or _linked(node, "Emission Strength") or active("Coat Weight") \
-                    or active("Sheen Weight"):
-                ignored.append("emission" + (" (under a coat or sheen)" if not (
-                    _linked(node, "Emission Color") or _linked(node, "Emission Strength")) else " (textured)"))
+            textured_glow = _linked(node, "Emission Color") or _linked(node, "Emission Strength")
+            if textured_glow or active("Coat Weight") or active("Sheen Weight"):
+                ignored.append("emission (textured)" if textured_glow else "emission (under a coat or sheen)")
             else:
                 emission = _const(node, "Emission Color")[:3] * float(_const(node, "Emission Strength"))
         receiver = metallic < 0.5 and trans < 0.5

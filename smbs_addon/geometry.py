@@ -40,6 +40,16 @@ def triangle_areas(v: np.ndarray) -> np.ndarray:
     return 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
 
 
+def area_points(v: np.ndarray, cdf: np.ndarray, total: float, n: int, rng) -> tuple[np.ndarray, np.ndarray]:
+    """n points uniform in area over triangles v (T,3,3) whose areas' cumulative sum is cdf (total its
+    last entry): (points (n,3), the triangle of each). Draws the pick, then the two barycentric numbers."""
+    t = np.minimum(np.searchsorted(cdf, rng.random(n) * total, side="right"), len(cdf) - 1)
+    u1, u2 = rng.random(n), rng.random(n)
+    su = np.sqrt(u1)
+    b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
+    return b0[:, None] * v[t, 0] + b1[:, None] * v[t, 1] + b2[:, None] * v[t, 2], t
+
+
 def vertex_from_hits(scene, tracer, prim: np.ndarray, p: np.ndarray, b: np.ndarray, d=None) -> Vertex:
     """The walk's vertex (kernels._lane_vertex's record) at points p (barycentrics b) of triangles
     prim, met by rays of direction d (None: from the front; a bumped surface met from behind has

@@ -25,6 +25,7 @@ import numpy as np
 from numba import njit
 
 from . import scene as S
+from .geometry import area_points
 from .jit import JIT
 from .vec import concentric_disk, dot
 
@@ -197,11 +198,8 @@ def area_light_points(scene, li: int, n: int, rng) -> np.ndarray:
 def mesh_light_points(scene, li: int, n: int, rng) -> tuple[np.ndarray, np.ndarray]:
     """Points uniform in area on MESH light li's triangles, and their unit geometric normals."""
     _, tv, ng, cdf, total = scene.mesh_light(li)
-    j = np.minimum(np.searchsorted(cdf, rng.random(n) * total, side="right"), len(cdf) - 1)
-    su, u2 = np.sqrt(rng.random(n)), rng.random(n)
-    b1, b2 = (u2 * su)[:, None], (1.0 - su)[:, None]
-    t = tv[j]
-    return t[:, 0] * (1.0 - b1 - b2) + t[:, 1] * b1 + t[:, 2] * b2, ng[j]
+    y, j = area_points(tv, cdf, total, n, rng)
+    return y, ng[j]
 
 
 def shadow_tmax(scene, li: int, y, ys, yt, o, d, dist, eps):
@@ -543,18 +541,18 @@ def _mesh_light_radiance(scene, li, o, d, surf_t):
         raise ValueError(f"light '{scene.light_names[li]}': a mesh light is met as a surface: give surf_t")
     n = len(o)
     L, t = np.zeros((n, 3)), np.full(n, np.inf)
+    surf_t = np.asarray(surf_t, np.float64)
     idx = np.flatnonzero(np.isfinite(surf_t))
     if idx.size == 0:
         return L, t
     own = scene.derived(("mesh_light_embree", int(li)), lambda: embree.Scene(scene.mesh_light(li)[1]))
-    st = np.asarray(surf_t, np.float64)[idx]
     prim, tl = np.full(idx.size, -1, np.int64), np.full(idx.size, np.inf)
     embree.cast_rays(embree.rays(own), np.ascontiguousarray(o[idx], np.float64),
-                     np.ascontiguousarray(d[idx], np.float64), st * (1.0 + 1e-5) + S.offset_eps(*scene.bounds()),
-                     False, prim, tl)
+                     np.ascontiguousarray(d[idx], np.float64),
+                     surf_t[idx] * (1.0 + 1e-5) + S.offset_eps(*scene.bounds()), False, prim, tl)
     hit = idx[prim >= 0]
     L[hit] = scene.light_color[li]
-    t[hit] = np.asarray(surf_t, np.float64)[hit] * (1.0 - 1e-12)
+    t[hit] = surf_t[hit] * (1.0 - 1e-12)
     return L, t
 
 

@@ -22,7 +22,7 @@ from .bounces import Limits
 from .constraints import LightEnd
 from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
 from .eye import direct_albedo, eye_receivers
-from .geometry import triangle_areas
+from .geometry import area_points, triangle_areas
 from .layer import coat_factor, has_layers
 from .lights import area_light_points, distant_cone, env_map, mesh_light_points, shadow_tmax
 from .optics import bump_shadowing, has_reflection
@@ -307,12 +307,7 @@ class Seeder:
             if light.directional:
                 return light.y.copy(), None
             return normalize(light.y - x0), None
-        t = np.searchsorted(self.cdf, rng.random(n) * self.total, side="right")
-        t = np.minimum(t, len(self.cdf) - 1)
-        u1, u2 = rng.random(n), rng.random(n)
-        su = np.sqrt(u1)
-        b0, b1, b2 = 1 - su, su * (1 - u2), su * u2
-        q = b0[:, None] * self.v[t, 0] + b1[:, None] * self.v[t, 1] + b2[:, None] * self.v[t, 2]
+        q, t = area_points(self.v, self.cdf, self.total, n, rng)
         return normalize(q - x0), self.obj[t]
 
     def seed(self, ctx, rng, types, x0, ng0, light):
@@ -720,9 +715,11 @@ def handoff_hits(scene, li, casters=()) -> float:
         if not math.isfinite(d2):
             return math.inf
         if typ in (S.AREA, S.MESH):
-            sx, sy = (float(x) for x in scene.light_size[li])
-            area = scene.mesh_light(li)[4] if typ == S.MESH else \
-                sx * sy * (math.pi / 4.0 if scene.light_shape[li] in (S.DISK, S.ELLIPSE) else 1.0)
+            if typ == S.MESH:
+                area = scene.mesh_light(li)[4]
+            else:
+                sx, sy = (float(x) for x in scene.light_size[li])
+                area = sx * sy * (math.pi / 4.0 if scene.light_shape[li] in (S.DISK, S.ELLIPSE) else 1.0)
             omega = 2.0 * math.pi if area >= 2.0 * math.pi * d2 else area / d2
         else:
             r2 = float(scene.light_radius[li]) ** 2

@@ -195,9 +195,7 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         lo, hi = scene.object_bounds(o)
         spheres[o] = _bounding_sphere(lo, hi, scene)
     rec_spheres = [_bounding_sphere(*scene.object_bounds(o), scene) for o in np.flatnonzero(receivers)]
-    # a mesh light has no Shadow Caustics flag in Cycles (light_caustics True: always baked): it does not
-    # make AUTO honour the lamps' flags
-    use_light_flags = _use_flags(flags, scene.light_caustics[scene.light_type != S.MESH])
+    use_light_flags = _use_flags(flags, scene.caustic_flags())  # a mesh light has none: it does not count
     for li in range(scene.n_lights):
         name = scene.light_names[li]
         if use_light_flags and not scene.light_caustics[li]:

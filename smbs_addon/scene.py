@@ -251,6 +251,12 @@ class Scene:
         t = np.asarray(self.mat_textured, bool)
         return t if t.any() else None
 
+    def caustic_flags(self) -> np.ndarray:
+        """Cycles' Shadow Caustics flags of the lights that have one: every light's but a mesh light's (it
+        has none, and is always baked: light_caustics True), which the AUTO flags mode reads to tell
+        whether the user flags lights at all."""
+        return self.light_caustics[self.light_type != MESH]
+
     def light_seen_by(self, li: int, ray: int) -> bool:
         """Do rays of kind ray (RAY_*) meet light li (Cycles' Ray Visibility)?"""
         return not self.light_visibility.size or bool(int(self.light_visibility[li]) & ray)
