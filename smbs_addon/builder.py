@@ -54,9 +54,11 @@ class SceneBuilder:
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
                  bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0),
-                 distribution=1, view_bump=False, emission=(0.0, 0.0, 0.0)) -> int:
+                 distribution=1, view_bump=False, emission=(0.0, 0.0, 0.0), metal=(0.0,) * 6) -> int:
         """emission: radiance (W/m^2/sr) its surface emits beside its own kind (a Principled BSDF's
-        Emission); an emitter's is color x strength. Either makes a mesh light of its faces (build)."""
+        Emission); an emitter's is color x strength. Either makes a mesh light of its faces (build).
+        metal: a metal's Fresnel beyond its colour (Scene.mat_metal): F82-Tint's B per channel
+        (fresnel FRESNEL_SCHLICK), or n then k per channel (FRESNEL_CONDUCTOR)."""
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -68,7 +70,8 @@ class SceneBuilder:
                                    layer=np.asarray(layer, float), textured=bool(textured),
                                    absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy(),
                                    distribution=int(distribution), view_bump=bool(view_bump),
-                                   emission=np.broadcast_to(np.asarray(emission, float), (3,)).copy()))
+                                   emission=np.broadcast_to(np.asarray(emission, float), (3,)).copy(),
+                                   metal=np.broadcast_to(np.asarray(metal, float), (6,)).copy()))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
@@ -281,6 +284,8 @@ class SceneBuilder:
             else np.zeros(0, bool),
             mat_emission=np.array([x["emission"] for x in m], float).reshape(-1, 3)
             if any(x["emission"].max() > 0 for x in m) else np.zeros((0, 3)),
+            mat_metal=np.array([x["metal"] for x in m], float).reshape(-1, 6)
+            if any(np.any(x["metal"] != 0) for x in m) else np.zeros((0, 6)),
             view_normals=np.asarray(self.view_normals, np.float32),
             view_points=np.asarray(self.view_points, np.float32),
             object_visibility=np.array([o["visibility"] for o in ob], np.int64)

@@ -20,7 +20,8 @@ from .jit import JIT
 from .rough import alphas, distributions, energy_gain1, energy_tables, lambda1, visible_normal1
 
 _CONDUCTOR, _DIELECTRIC = S.CONDUCTOR, S.DIELECTRIC
-_SCHLICK, _REFRACTION_ONLY = S.FRESNEL_SCHLICK, S.REFRACTION_ONLY
+_SCHLICK, _REFRACTION_ONLY, _PHYSICAL = S.FRESNEL_SCHLICK, S.REFRACTION_ONLY, S.FRESNEL_CONDUCTOR
+_NO_METAL = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
 
 
 # ------------------------------------------------------------------ per lane
@@ -160,13 +161,42 @@ def _schlick(m5, f0):
 
 
 @njit(inline="always", **JIT)
-def specular_weights1(kind, fres, color, rcolor, eta, cos_i):
+def _f82(m5, s, mu, f0, b):
+    """Cycles' F82-Tint metal (fresnel_f82, kernel/closure/bsdf_util.h; Kutz et al., "Novel aspects
+    of the Adobe Standard Material"): Schlick from f0 less b mu s^6, s = 1 - mu, m5 = s^5, kept in
+    [0, 1]; Schlick's own value where b is 0 (f0 in [0, 1])."""
+    return _clip01(_schlick(m5, f0) - b * mu * m5 * s)
+
+
+@njit(inline="always", **JIT)
+def fresnel_conductor1(mu, n, k):
+    """Unpolarised reflectance of a conductor of complex index n + ik under a medium of index 1 at
+    incidence cosine mu in [0, 1] (Cycles' fresnel_conductor_polarized, from Born and Wolf 14.4.1):
+    the mean of the s and p reflectances; at mu = 1, ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2), and
+    for k = 0 the dielectric Fresnel of index n."""
+    nk2 = 2.0 * n * k
+    t1 = n * n - k * k - (1.0 - mu * mu)
+    t2 = math.sqrt(t1 * t1 + nk2 * nk2)
+    u2 = max(0.5 * (t2 + t1), 0.0)
+    v2 = max(0.5 * (t2 - t1), 0.0)
+    u, v = math.sqrt(u2), math.sqrt(v2)
+    den_s = (mu + u) * (mu + u) + v2
+    rs = ((mu - u) * (mu - u) + v2) / den_s if den_s != 0.0 else 0.0
+    t3, t4 = (n * n - k * k) * mu, nk2 * mu
+    den_p = (t3 + u) * (t3 + u) + (t4 + v) * (t4 + v)
+    rp = ((t3 - u) * (t3 - u) + (t4 - v) * (t4 - v)) / den_p if den_p != 0.0 else 0.0
+    return 0.5 * (rs + rp)
+
+
+@njit(inline="always", **JIT)
+def specular_weights1(kind, fres, color, rcolor, eta, metal, cos_i):
     """Weights (R, T) (3-tuples) of the mirror and refraction lobes of a material for
     incidence cos_i = w_i . n (its sign tells the side; Cycles' conventions):
 
-    - conductor: R = colour (Glossy BSDF) or Schlick from F0 = colour times the reflection tint
-      (Principled metallic: its Metallic weight m), plus (1 - m) x the dielectric Fresnel of
-      index eta (the coat over the rest); T = 0;
+    - conductor: R = colour (Glossy BSDF), or Cycles' F82-Tint from F0 = colour and B = metal[:3]
+      (Schlick where B is 0), or a physical conductor's Fresnel of index metal[:3] + i metal[3:]
+      (Metallic BSDF), times the reflection tint (Principled metallic: its Metallic weight m),
+      plus (1 - m) x the dielectric Fresnel of index eta (the coat over the rest); T = 0;
     - glass: R = F * reflection tint, T = (1 - F) * transmission tint, F the dielectric
       Fresnel term (1 under total internal reflection);
     - Refraction BSDF: R = 0, T = colour, and T = 0 under total internal reflection.
@@ -175,12 +205,19 @@ def specular_weights1(kind, fres, color, rcolor, eta, cos_i):
     physical convention scale refractions themselves."""
     zero = (0.0, 0.0, 0.0)
     if kind == _CONDUCTOR:
-        if fres == _SCHLICK:
-            m5 = math.pow(_clip01(1.0 - abs(cos_i)), 5.0)
-            # Principled metallic: Schlick from F0 = colour, weighed by Metallic (the reflection
-            # tint); what Metallic leaves is under a dielectric coat of index eta, a mirror too
-            r = (_schlick(m5, color[0]) * rcolor[0], _schlick(m5, color[1]) * rcolor[1],
-                 _schlick(m5, color[2]) * rcolor[2])
+        if fres == _SCHLICK or fres == _PHYSICAL:
+            mu = min(abs(cos_i), 1.0)
+            if fres == _SCHLICK:
+                s = _clip01(1.0 - abs(cos_i))
+                m5 = math.pow(s, 5.0)
+                f = (_f82(m5, s, mu, color[0], metal[0]), _f82(m5, s, mu, color[1], metal[1]),
+                     _f82(m5, s, mu, color[2], metal[2]))
+            else:
+                f = (fresnel_conductor1(mu, metal[0], metal[3]), fresnel_conductor1(mu, metal[1], metal[4]),
+                     fresnel_conductor1(mu, metal[2], metal[5]))
+            # Principled metallic: weighed by Metallic (the reflection tint); what Metallic leaves
+            # is under a dielectric coat of index eta, a mirror too
+            r = (f[0] * rcolor[0], f[1] * rcolor[1], f[2] * rcolor[2])
             if rcolor[0] < 1.0:
                 fc = fresnel_dielectric1(abs(cos_i), eta)
                 r = (r[0] + (1.0 - rcolor[0]) * fc, r[1] + (1.0 - rcolor[1]) * fc, r[2] + (1.0 - rcolor[2]) * fc)
@@ -199,6 +236,14 @@ def specular_weights1(kind, fres, color, rcolor, eta, cos_i):
 @njit(inline="always", **JIT)
 def _row3(a, i):
     return (a[i, 0], a[i, 1], a[i, 2])
+
+
+@njit(inline="always", **JIT)
+def _metal1(metal, m):
+    """Material m's row of a metal's Fresnel (Scene.mat_metal; none: an empty table) as a 6-tuple."""
+    if metal.shape[0] == 0:
+        return _NO_METAL
+    return (metal[m, 0], metal[m, 1], metal[m, 2], metal[m, 3], metal[m, 4], metal[m, 5])
 
 
 @njit(inline="always", **JIT)
@@ -244,7 +289,7 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
         nf = (sgn * h[0], sgn * h[1], sgn * h[2])  # on ng's side, as ns
         cf = _dot(w_in, nf)
         front = cf * sgn > 0
-    R, T = specular_weights1(kind, fres, color, rcolor, eta, cf)
+    R, T = specular_weights1(kind, fres, color, rcolor, eta, _metal1(mats[13], m), cf)
     r_lum, t_lum = R[0] + R[1] + R[2], T[0] + T[1] + T[2]
     tot = r_lum + t_lum
     p_r = r_lum / tot if tot > 0 else 0.0
@@ -342,13 +387,13 @@ def bent(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:
 
 
 @njit(**JIT)
-def _weights_rows(mat, mats, cos_i):
+def _weights_rows(mat, mats, metal, cos_i):
     n = mat.shape[0]
     R = np.zeros((n, 3))
     T = np.zeros((n, 3))
     for i in range(n):
         kind, fres, color, rcolor, eta = _material(mats, mat[i])
-        r, t = specular_weights1(kind, fres, color, rcolor, eta, cos_i[i])
+        r, t = specular_weights1(kind, fres, color, rcolor, eta, _metal1(metal, mat[i]), cos_i[i])
         for c in range(3):
             R[i, c], T[i, c] = r[c], t[c]
     return R, T
@@ -385,12 +430,13 @@ def materials(scene) -> tuple:
     the diffuse's weight and the coat's multiple-scattering gain by the eye's cosine, and the
     coats (Scene.mat_layer), the diffuse's weight under its glossy coat alone (kernels._tab_weight,
     kernels._coat_factor), each glass's absorption; then the rough mirrors' and glass's GGX alpha (0:
-    a perfect one) and Multiscatter GGX's factors (rough.py)."""
+    a perfect one) and Multiscatter GGX's factors (rough.py); last the metals' Fresnel beyond their
+    colour (metal(): mats[13])."""
     from .layer import coat, gain_table, spec_table, table
 
     spec = spec_table(scene)
     return _surface_tables(scene) + (bump_correction(scene).astype(np.int64), table(scene, spec), gain_table(scene),
-                                     coat(scene), spec, absorption(scene), alphas(scene), _energy(scene))
+                                     coat(scene), spec, absorption(scene), alphas(scene), _energy(scene), metal(scene))
 
 
 def _surface_tables(scene) -> tuple:
@@ -401,11 +447,17 @@ def _surface_tables(scene) -> tuple:
             np.ascontiguousarray(scene.mat_ior, np.float64))
 
 
+def metal(scene) -> np.ndarray:
+    """(M,6) Scene.mat_metal, or (0,6) where the scene has none (every metal Schlick or a Glossy BSDF)."""
+    a = np.asarray(getattr(scene, "mat_metal", np.zeros((0, 6))), np.float64)
+    return np.ascontiguousarray(a) if a.shape == (len(scene.mat_kind), 6) else np.zeros((0, 6))
+
+
 def _energy(scene) -> np.ndarray:
     """rough.energy_tables, kept by the scene while its materials stay the same."""
     key = ("energy_tables",) + tuple(np.asarray(getattr(scene, f)).tobytes() for f in (
         "mat_kind", "mat_fresnel", "mat_roughness", "mat_ior", "mat_color", "mat_reflect_color")) + (
-        distributions(scene).tobytes(),)
+        distributions(scene).tobytes(), metal(scene).tobytes())
     return scene.derived(key, lambda: energy_tables(scene))
 
 
@@ -489,14 +541,13 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     cos_i = np.ascontiguousarray(cos_i, np.float64).reshape(-1)
     f0 = np.ascontiguousarray(np.broadcast_to(np.asarray(f0, np.float64), (len(cos_i), 3)))
     n = len(cos_i)
-    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.ones((n, 3)), np.ones(n),
-            np.zeros(n, np.int64))
-    return _weights_rows(np.arange(n), mats, cos_i)[0]
+    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.ones((n, 3)), np.ones(n))
+    return _weights_rows(np.arange(n), mats, np.zeros((0, 6)), cos_i)[0]
 
 
 def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
     """specular_weights1 per lane: (R, T), each (N,3), of materials mat at incidence cos_i."""
-    return _weights_rows(np.ascontiguousarray(mat, np.int64), _surface_tables(scene),
+    return _weights_rows(np.ascontiguousarray(mat, np.int64), _surface_tables(scene), metal(scene),
                          np.ascontiguousarray(cos_i, np.float64))
 
 

@@ -213,6 +213,16 @@ def _gain(E: np.ndarray, fss: np.ndarray, mu: np.ndarray) -> np.ndarray:
 _cache: dict = {}
 
 
+def _f82_fit_mean(f0, f82) -> np.ndarray:
+    """Cycles' mean Fresnel reflectance of a physical conductor (fresnel_conductor_Fss,
+    kernel/closure/bsdf_util.h): the F82 model fitted to its reflectance at normal incidence (f0)
+    and at cos = 1/7 (f82), whose mean is F0 + (1 - F0) / 21 - B / 126."""
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    b = 7.0 / (f5 * f) * (f0 + (1.0 - f0) * f5 - f82)
+    return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
+
+
 def energy_tables(scene) -> np.ndarray:
     """(M, 2, MU_STEPS + 1, 3): Multiscatter GGX's factor per material, eye outside (0) or inside
     a glass (1), at mu = 0, 1/MU_STEPS, ..., 1 (energy_gain1); ones for the rest (smooth, GGX, a
@@ -239,7 +249,8 @@ def energy_tables(scene) -> np.ndarray:
             albedos = lambda m=m, eta=eta: [glass_albedo(mu, a[m], e) for e in (eta, 1.0 / eta)]  # noqa: E731
         else:
             R, _ = specular_weights(scene, np.full(len(mu), m), mu)
-            fss = _hemisphere_mean(R, mu)
+            fss = _f82_fit_mean(R[-1], specular_weights(scene, np.array([m]), np.array([1.0 / 7.0]))[0][0]) \
+                if fres == S.FRESNEL_CONDUCTOR else _hemisphere_mean(R, mu)
             key = ("mirror", float(a[m]), tuple(np.round(fss, 12)))
             albedos = lambda m=m: [visible_albedo(mu, a[m])]  # noqa: E731  (both sides alike)
         if key not in _cache:

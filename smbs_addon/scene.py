@@ -24,12 +24,15 @@ FORMAT_VERSION = 1
 # Material classes (Scene.mat_kind)
 DIFFUSE, CONDUCTOR, DIELECTRIC, EMITTER = 0, 1, 2, 3
 MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
-# Fresnel models (Scene.mat_fresnel). Conductors: Glossy BSDF (constant colour, NONE) or
-# Principled metallic (Schlick from F0 = base colour towards white). Dielectrics: glass
-# (NONE: the dielectric Fresnel term splits reflection and refraction) or Cycles' Refraction
-# BSDF (REFRACTION_ONLY: transmits its colour with no Fresnel term and no reflection; total
-# internal reflection absorbs).
-FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY = 0, 1, 2
+# Fresnel models (Scene.mat_fresnel). Conductors: Glossy BSDF (constant colour, NONE), Cycles'
+# F82-Tint metal (SCHLICK: Schlick from F0 = mat_color towards white, less B cos (1 - cos)^6 with
+# B = mat_metal[:, :3], zero without; a Principled BSDF's metallic lobe, the Metallic BSDF's F82
+# mode) or a physical conductor (CONDUCTOR: the Fresnel equations of complex index n + ik,
+# mat_metal's n and k per channel; the Metallic BSDF's Physical Conductor mode; mat_color then
+# holds its reflectance at normal incidence). Dielectrics: glass (NONE: the dielectric Fresnel
+# term splits reflection and refraction) or Cycles' Refraction BSDF (REFRACTION_ONLY: transmits
+# its colour with no Fresnel term and no reflection; total internal reflection absorbs).
+FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY, FRESNEL_CONDUCTOR = 0, 1, 2, 3
 
 # Light types (Scene.light_type), as Cycles defines them; WORLD is a world of constant colour
 # (a Background node): radiance light_color from every direction, at infinity; MESH is a mesh
@@ -56,7 +59,7 @@ PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
             "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
-            "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission")
+            "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission", "mat_metal")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -147,7 +150,7 @@ class Scene:
     mat_ior: np.ndarray  # (M,)
     mat_roughness: np.ndarray  # (M,)
     mat_strength: np.ndarray  # (M,) emission strength (radiance, W/m^2/sr)
-    mat_fresnel: np.ndarray  # (M,) Fresnel model (FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY)
+    mat_fresnel: np.ndarray  # (M,) Fresnel model (FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY, FRESNEL_CONDUCTOR)
     # lights
     light_names: list
     light_type: np.ndarray  # (L,) POINT, SPOT, AREA, SUN, WORLD
@@ -228,6 +231,10 @@ class Scene:
     # (M,3): radiance (W/m^2/sr) a material emits beside its own kind (a Principled BSDF's Emission
     # Color x Strength; its faces are then a MESH light too). Empty: none
     mat_emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
+    # (M,6): a metal's Fresnel beyond mat_color: for FRESNEL_SCHLICK the F82-Tint model's B per
+    # channel (then zeros), for FRESNEL_CONDUCTOR the complex index's n then k per channel. Empty:
+    # B = 0 everywhere (plain Schlick) and no physical conductor
+    mat_metal: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
 
     # ------------------------------------------------------------------ derived
     def mesh_light(self, li: int):
@@ -386,6 +393,10 @@ class Scene:
         for name in ("mat_kind", "mat_ior", "mat_roughness", "mat_strength", "mat_fresnel"):
             if getattr(self, name).shape != (M,):
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
+        if not np.isin(self.mat_fresnel, (FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY, FRESNEL_CONDUCTOR)).all():
+            bad = np.flatnonzero(~np.isin(self.mat_fresnel, (0, 1, 2, 3)))
+            raise SceneError(f"material '{self.mat_names[int(bad[0])]}': Fresnel model {int(self.mat_fresnel[bad[0]])} "
+                             f"is none of 0 (none), 1 (F82-Tint), 2 (refraction only), 3 (physical conductor)")
         if self.mat_bump_correction.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
         if self.mat_distribution.shape not in ((0,), (M,)) or not np.isin(self.mat_distribution, (0, 1)).all():
@@ -422,6 +433,20 @@ class Scene:
         if np.any(bad):
             raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': emission must be finite, "
                              f"from 0 to {MAX_POWER:g}")
+        if self.mat_metal.shape not in ((0, 6), (M, 6)):
+            raise SceneError(f"scene array 'mat_metal' must be ({M}, 6) or empty")
+        if self.mat_metal.size and not np.all(np.isfinite(self.mat_metal)):
+            bad = np.flatnonzero(~np.all(np.isfinite(self.mat_metal), axis=1))
+            raise SceneError(f"material '{self.mat_names[int(bad[0])]}': its metal's Fresnel (F82 tint, or index "
+                             f"n + ik) is not finite")
+        phys = np.flatnonzero(self.mat_fresnel == FRESNEL_CONDUCTOR)
+        for m in phys:
+            if self.mat_kind[m] != CONDUCTOR:
+                raise SceneError(f"material '{self.mat_names[int(m)]}': the physical conductor's Fresnel is a "
+                                 f"metal's, the material is not one")
+            if not self.mat_metal.size or np.any(self.mat_metal[m] < 0) or not np.any(self.mat_metal[m] > 0):
+                raise SceneError(f"material '{self.mat_names[int(m)]}': a physical conductor needs its index n and "
+                                 f"extinction k per channel, not negative (scene array 'mat_metal')")
         if self.mat_absorb.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []

@@ -87,6 +87,87 @@ def test_fresnel_schlick_endpoints():
     np.testing.assert_allclose(fresnel_schlick(np.array([0.5]), f0)[0], f0 + (1 - f0) * 0.5**5, rtol=1e-15)
 
 
+def _metal_scene(fresnel, color, metal):
+    from smbs_addon import scene as S
+    from smbs_addon.builder import SceneBuilder
+
+    b = SceneBuilder("metal")
+    b.material("Metal", S.CONDUCTOR, color=color, fresnel=fresnel, metal=metal)
+    b.mesh("Mirror", [[0, 0, 0], [1, 0, 0], [0, 1, 0]], [[0, 1, 2]], 0, caster=True)
+    return b.build()
+
+
+@given(n=st.floats(1.01, 4.0), mu=st.floats(0.0, 1.0))
+@PROFILE
+def test_a_conductor_without_extinction_is_a_dielectric(n, mu):
+    """The physical conductor's Fresnel (optics.fresnel_conductor1, the Metallic BSDF's Physical
+    Conductor) with k = 0 is the dielectric Fresnel of index n, an independent formula."""
+    from smbs_addon import scene as S
+    from smbs_addon.optics import specular_weights
+
+    sc = _metal_scene(S.FRESNEL_CONDUCTOR, (0.5,) * 3, (n, n, n, 0.0, 0.0, 0.0))
+    R, T = specular_weights(sc, np.zeros(1, np.int64), np.array([mu]))
+    assert R[0, 0] == pytest.approx(fresnel_dielectric(np.array([mu]), n)[0], rel=1e-9, abs=1e-12)
+    assert not T.any()
+
+
+def test_conductor_fresnel_at_normal_and_grazing_incidence():
+    """A physical conductor reflects ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2) head on and everything at
+    grazing incidence, from either side, with no NaN where n or k is 0 in a channel; values in [0, 1]."""
+    from smbs_addon import scene as S
+    from smbs_addon.optics import specular_weights
+
+    n, k = np.array([0.2, 1.1, 0.0]), np.array([3.6, 0.0, 2.0])
+    sc = _metal_scene(S.FRESNEL_CONDUCTOR, (0.5,) * 3, np.concatenate([n, k]))
+    mu = np.array([1.0, -1.0, 0.0, 1e-9, 0.3, -0.3])
+    R, _ = specular_weights(sc, np.zeros(len(mu), np.int64), mu)
+    head_on = ((n - 1) ** 2 + k ** 2) / ((n + 1) ** 2 + k ** 2)
+    np.testing.assert_allclose(R[0], head_on, rtol=1e-12)
+    np.testing.assert_array_equal(R[1], R[0])
+    np.testing.assert_allclose(R[2], 1.0, rtol=1e-12)
+    np.testing.assert_array_equal(R[4], R[5])
+    assert np.all(np.isfinite(R)) and np.all((R >= 0) & (R <= 1))
+
+
+def test_f82_tint_matches_its_definition():
+    """Cycles' F82-Tint metal (a Principled metal's Specular Tint, the Metallic BSDF's Edge Tint): F0
+    head on, 1 at grazing incidence, and at cos = 1/7 (about 82 degrees) the tint times Schlick's value
+    there, the model's definition; a white tint is Schlick's F0 towards white everywhere."""
+    from smbs_addon import scene as S
+    from smbs_addon.export import f82_tint_metal
+    from smbs_addon.optics import specular_weights
+
+    f0, tint = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.5, 0.2])
+    sc = _metal_scene(S.FRESNEL_SCHLICK, f0, f82_tint_metal(f0, tint))
+    mu = np.array([1.0, 0.0, 1.0 / 7.0, 0.5])
+    R, _ = specular_weights(sc, np.zeros(4, np.int64), mu)
+    np.testing.assert_allclose(R[0], f0, rtol=1e-12)
+    np.testing.assert_allclose(R[1], 1.0, rtol=1e-12)
+    np.testing.assert_allclose(R[2], tint * fresnel_schlick(np.array([1.0 / 7.0]), f0)[0], rtol=1e-12)
+    assert np.all(R[3] <= fresnel_schlick(np.array([0.5]), f0)[0])
+    assert not f82_tint_metal(f0, np.ones(3)).any()
+
+
+def test_a_rough_conductors_mean_fresnel_is_cycles_f82_fit():
+    """Multiscatter GGX on a rough physical conductor takes Cycles' mean Fresnel (fresnel_conductor_Fss:
+    the F82 model fitted at cos 1 and 1/7): within 1% of the conductor's own hemispherical mean (an
+    independent quadrature), and exact for a Schlick metal, whose fit is itself (F0 + (1 - F0) / 21)."""
+    from smbs_addon import scene as S
+    from smbs_addon.optics import specular_weights
+    from smbs_addon.rough import _f82_fit_mean
+
+    sc = _metal_scene(S.FRESNEL_CONDUCTOR, (0.5,) * 3, (0.27, 0.68, 1.32, 3.61, 2.63, 2.29))
+    mu = (np.arange(20000) + 0.5) / 20000
+    R, _ = specular_weights(sc, np.zeros(len(mu), np.int64), mu)
+    mean = 2.0 * (R * mu[:, None]).mean(axis=0)
+    f0, f82 = specular_weights(sc, np.zeros(2, np.int64), np.array([1.0, 1.0 / 7.0]))[0]
+    fit = _f82_fit_mean(f0, f82)
+    np.testing.assert_allclose(fit, mean, rtol=0.01)
+    f0 = np.array([0.04, 0.5, 0.9])
+    np.testing.assert_allclose(_f82_fit_mean(f0, fresnel_schlick(np.array([1.0 / 7.0]), f0)[0]),
+                               f0 + (1 - f0) / 21.0, rtol=1e-12)
+
+
 # ---------------------------------------------------------------- refraction
 @given(w=vec_st, n=vec_st, eta=eta_st)
 @PROFILE

@@ -20,7 +20,8 @@ def full_scene() -> Scene:
     a non-default camera."""
     b = SceneBuilder("everything")
     floor = b.material("Floor", "diffuse", color=(0.8, 0.7, 0.6), textured=True)
-    metal = b.material("Gold", "conductor", color=(1.0, 0.8, 0.3), fresnel=S.FRESNEL_SCHLICK)
+    metal = b.material("Gold", "conductor", color=(1.0, 0.8, 0.3), fresnel=S.FRESNEL_SCHLICK,
+                       metal=(0.0, 0.4, 1.2, 0.0, 0.0, 0.0))  # an F82-Tint edge tint
     glass = b.material("Glass", "dielectric", color=(0.9, 1.0, 0.95), ior=1.45,
                        reflect_color=(1.0, 0.9, 0.9))
     lamp = b.material("Lamp", "emitter", color=(1.0, 1.0, 0.5), strength=7.5)
@@ -229,6 +230,31 @@ def test_validate_rejects_nan_in_any_float_array(name):
     with pytest.raises(SceneError) as e:
         sc.validate()
     assert str(e.value) == f"scene array '{name}' holds NaN or infinite values"
+
+
+def test_validate_names_the_metal_whose_fresnel_is_wrong():
+    """A physical conductor without its index, a metal's Fresnel not finite, a Fresnel model that is none of
+    ours: each refused, naming the material."""
+    sc = full_scene()
+    assert sc.mat_metal.shape == (4, 6) and sc.mat_metal[1, 2] == 1.2
+    sc.mat_fresnel[1] = S.FRESNEL_CONDUCTOR
+    sc.mat_metal[1] = 0.0
+    with pytest.raises(SceneError, match="material 'Gold': a physical conductor needs its index n and extinction k"):
+        sc.validate()
+    sc.mat_metal[1] = (0.2, 0.9, 1.1, 3.6, 2.6, 2.3)
+    sc.validate()
+    sc.mat_metal[1, 4] = np.inf
+    with pytest.raises(SceneError, match="material 'Gold': its metal's Fresnel .* is not finite"):
+        sc.validate()
+    sc = full_scene()
+    sc.mat_fresnel[2] = 7
+    with pytest.raises(SceneError, match="material 'Glass': Fresnel model 7 is none of"):
+        sc.validate()
+    sc = full_scene()
+    sc.mat_fresnel[2] = S.FRESNEL_CONDUCTOR
+    sc.mat_metal[2] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
+    with pytest.raises(SceneError, match="material 'Glass': the physical conductor's Fresnel is a metal's"):
+        sc.validate()
 
 
 @pytest.mark.parametrize("field,value,message", [
