@@ -405,8 +405,11 @@ def _group_key(kw):
     mirrors, the same index, roughness, Fresnel and microfacet distribution."""
     k = kw["kind"]
     if k in (S.DIELECTRIC, S.CONDUCTOR):
-        return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), int(kw.get("fresnel", S.FRESNEL_NONE)),
-                int(kw.get("distribution", MULTI_GGX)))
+        fresnel = int(kw.get("fresnel", S.FRESNEL_NONE))
+        # physical conductors add up only where their index is the same (F82-Tint's B adds up)
+        index = tuple(np.round(kw["metal"], 9)) if fresnel == S.FRESNEL_CONDUCTOR else ()
+        return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), fresnel,
+                int(kw.get("distribution", MULTI_GGX))) + index
     return (k,)
 
 
@@ -439,6 +442,12 @@ def _mixed(parts, left, mat, warn) -> dict:
     if kind == S.EMITTER:
         kw["color"] = sum(w * np.asarray(p["color"], float) * float(p.get("strength", 1.0)) for w, p, _ in chosen)
         kw["strength"] = 1.0
+    elif kind == S.CONDUCTOR and key[3] in (S.FRESNEL_SCHLICK, S.FRESNEL_CONDUCTOR):
+        # a metal's Fresnel is not scaled by its weight: F0 and B are the weighted means (Schlick and the
+        # F82 term are affine in them), the weights go to the reflection tint (below)
+        total = mass[key] if mass[key] > 0 else 1.0
+        kw["color"] = sum(w * np.asarray(p["color"], float) for w, p, _ in chosen) / total
+        kw["metal"] = sum(w * np.asarray(p.get("metal", np.zeros(6)), float) for w, p, _ in chosen) / total
     else:
         kw["color"] = sum(w * np.asarray(p["color"], float) for w, p, _ in chosen)
     kw.pop("emission", None)
@@ -472,7 +481,7 @@ def _mixed(parts, left, mat, warn) -> dict:
 
 
 # mirrors and glass whose Normal may take a Bump node (bump.py)
-_BUMPABLE = ("BSDF_GLASS", "BSDF_REFRACTION", "BSDF_GLOSSY", "BSDF_ANISOTROPIC")
+_BUMPABLE = ("BSDF_GLASS", "BSDF_REFRACTION", "BSDF_GLOSSY", "BSDF_ANISOTROPIC", "BSDF_METALLIC")
 
 
 def _bump_node(node):
@@ -574,6 +583,65 @@ def _bump_of(mat):
             _bump_flips(tree, b))
 
 
+def f82_tint_metal(f0, tint) -> np.ndarray:
+    """Scene.mat_metal's row of Cycles' F82-Tint metal of F0 f0 and edge tint tint (each (3,) in [0, 1]):
+    B = Schlick(f0, cos = 1/7) x 7 / (f^5 f) x (1 - tint), f = 6/7 (fresnel_f82tint_B, bsdf_util.h),
+    then zeros; all zeros where the tint is white (plain Schlick, as Cycles sets it)."""
+    f0, tint = np.asarray(f0, float), np.asarray(tint, float)
+    if np.all(tint == 1.0):
+        return np.zeros(6)
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    return np.concatenate([(f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint), np.zeros(3)])
+
+
+def conductor_f0(n, k) -> np.ndarray:
+    """A physical conductor's reflectance at normal incidence, ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2)
+    per channel: its Scene.mat_color (what the plan and the guide take for its brightness)."""
+    n, k = np.asarray(n, float), np.asarray(k, float)
+    return ((n - 1.0) ** 2 + k ** 2) / np.maximum((n + 1.0) ** 2 + k ** 2, 1e-300)
+
+
+def _thin_film(node) -> list:
+    """['thin film'] where a node's Thin Film Thickness is linked or above Cycles' cutoff (0.1 nm,
+    THINFILM_THICKNESS_CUTOFF): its iridescence is not baked."""
+    sock = node.inputs.get("Thin Film Thickness")
+    if sock is not None and (_follow(sock) is not None or float(sock.default_value) > 0.1):
+        return ["thin film"]
+    return []
+
+
+def _anisotropy(node, name, roughness) -> list:
+    """['anisotropy'] where a rough node's anisotropy input is linked or not 0 (a perfect mirror has
+    none to show)."""
+    sock = node.inputs.get(name)
+    if sock is None or not (_follow(sock) is not None or float(sock.default_value) != 0.0):
+        return []
+    rough = node.inputs.get("Roughness")
+    return ["anisotropy"] if (rough is not None and _follow(rough) is not None) or float(roughness) > 0 else []
+
+
+def _metallic(node, mat, warn) -> dict:
+    """The Metallic BSDF (Blender 4.3 on): Cycles' F82-Tint metal (Base Color, Edge Tint) or a physical
+    conductor (IOR n and Extinction k per channel), the roughness and distribution of a Glossy BSDF."""
+    r = _const(node, "Roughness")
+    ignored = _thin_film(node) + _anisotropy(node, "Anisotropy", r)
+    if ignored:
+        warn(f"material '{mat.name}': the {' and '.join(ignored)} of Metallic BSDF '{node.name}' ignored")
+    if getattr(node, "fresnel_type", "F82") == "PHYSICAL_CONDUCTOR":
+        n = np.maximum(_const(node, "IOR"), 0.0)
+        k = np.maximum(_const(node, "Extinction"), 0.0)
+        if not np.any(np.concatenate([n, k]) > 0):
+            raise _Unsupported(f"Metallic BSDF '{node.name}' has IOR and Extinction 0 (no conductor)")
+        return dict(kind=S.CONDUCTOR, color=conductor_f0(n, k), roughness=r, fresnel=S.FRESNEL_CONDUCTOR,
+                    reflect_color=np.ones(3), ior=1.0, metal=np.concatenate([n, k]),
+                    distribution=_distribution(node, mat, warn, r))
+    f0 = np.clip(_const(node, "Base Color"), 0.0, 1.0)
+    tint = np.clip(_const(node, "Edge Tint"), 0.0, 1.0)
+    return dict(kind=S.CONDUCTOR, color=f0, roughness=r, fresnel=S.FRESNEL_SCHLICK, reflect_color=np.ones(3),
+                ior=1.0, metal=f82_tint_metal(f0, tint), distribution=_distribution(node, mat, warn, r))
+
+
 def _bsdf(node, mat, warn, direct=False) -> dict:
     """Material keywords for one BSDF node (raises _Unsupported for a node we cannot represent);
     direct: the node is the material's surface (no mix), where a Bump node on its Normal is ours."""
@@ -614,6 +682,14 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         for sock_name, label in (("Sheen Weight", "sheen"), ("Subsurface Weight", "subsurface")):
             if active(sock_name):
                 ignored.append(label)
+        ignored += _thin_film(node) + _anisotropy(node, "Anisotropic", rough)
+        # a metal's Specular Tint is its edge's tint (F82-Tint); a textured one is left white
+        try:
+            edge_tint = np.minimum(_input(node, "Specular Tint", np.ones(3)), 1.0)
+        except _Unsupported:
+            edge_tint = np.ones(3)
+            if metallic >= 0.5:
+                ignored.append("specular tint (textured)")
         a = node.inputs.get("Alpha")
         if a is not None and (_follow(a) is not None or float(a.default_value) < 1.0):
             ignored.append("alpha")
@@ -636,9 +712,12 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
             if metallic < 1.0:
                 warn(f"material '{mat.name}': Principled BSDF Metallic {metallic:g}: the diffuse under "
                      f"its coat ({1 - metallic:.0%} of it) receives no caustics")
-            return dict(kind=S.CONDUCTOR, color=base, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
+            # Cycles' metal lobe: F82-Tint from F0 = the Base Color, its Specular Tint the edge's tint
+            f0 = np.clip(base, 0.0, 1.0)
+            return dict(kind=S.CONDUCTOR, color=f0, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
                         reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0,
-                        distribution=_distribution(node, mat, warn, rough), emission=emission)
+                        distribution=_distribution(node, mat, warn, rough), emission=emission,
+                        metal=f82_tint_metal(f0, edge_tint))
         if trans >= 0.5:
             w_glass = float((1.0 - metallic) * trans)
             if w_glass < 1.0:
@@ -670,6 +749,12 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         warn(f"material '{mat.name}': the Normal of '{node.name}' is driven by nodes the export cannot bake "
              f"(a Bump node below another node, a node group, a mesh attribute, a bump inside a shader mix): its "
              f"caustic is baked from the unbumped surface, where Cycles' follows the bumps")
+    if t == "BSDF_METALLIC":
+        return _metallic(node, mat, warn)
+    if t in ("BSDF_GLASS", "BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
+        film = _thin_film(node)
+        if film:
+            warn(f"material '{mat.name}': the thin film of '{node.name}' ignored")
     if t == "BSDF_GLASS":
         c = _const(node, "Color")
         r = _const(node, "Roughness")

@@ -388,6 +388,109 @@ def test_a_partly_metallic_or_transmissive_principled_weighs_its_lobe():
     assert not T.any()
 
 
+def _metallic_node(name, mode="F82", **inputs):
+    """A material whose Surface is a Metallic BSDF (Blender 4.3 on) of fresnel_type mode."""
+    m = material(name, "ShaderNodeBsdfMetallic")
+    node = next(n for n in m.node_tree.nodes if n.type == "BSDF_METALLIC")
+    node.fresnel_type = mode
+    for k, v in inputs.items():
+        sock = node.inputs[k]
+        sock.default_value = (*v, 1.0) if sock.type == "RGBA" and isinstance(v, tuple) else v
+    return m
+
+
+def test_the_metallic_bsdf_is_an_f82_tint_metal():
+    """The Metallic BSDF's F82 mode: F0 the Base Color, the Edge Tint scales Cycles' F82 term (its
+    reflectance at cos 1/7 is the tint times Schlick's there); its roughness, and nothing warned. It was
+    'not supported; treated as diffuse': a gold ring made with it cast no caustic."""
+    from smbs_addon.optics import fresnel_schlick, specular_weights
+
+    sc, w = one_material(_metallic_node("Gold", **{"Base Color": (0.95, 0.7, 0.3), "Edge Tint": (1.0, 0.6, 0.2),
+                                                   "Roughness": 0.0}))
+    assert sc.mat_kind[0] == S.CONDUCTOR and sc.mat_fresnel[0] == S.FRESNEL_SCHLICK and w == []
+    np.testing.assert_allclose(sc.mat_color[0], [0.95, 0.7, 0.3], rtol=1e-6)
+    R, _ = specular_weights(sc, np.zeros(2, np.int64), np.array([1.0, 1.0 / 7.0]))
+    np.testing.assert_allclose(R[0], sc.mat_color[0], rtol=1e-12)
+    np.testing.assert_allclose(R[1], np.array([1.0, 0.6, 0.2]) * fresnel_schlick(np.array([1.0 / 7.0]),
+                                                                                 sc.mat_color[0])[0], rtol=1e-6)
+    assert sc.mat_roughness[0] == 0.0
+
+
+def test_the_metallic_bsdf_as_a_physical_conductor():
+    """The Metallic BSDF's Physical Conductor mode: the index n + ik per channel (IOR, Extinction) and the
+    Fresnel equations of a conductor; mat_color its head-on reflectance. Its roughness and distribution
+    as the node has them; a thin film and an anisotropy are said to be ignored."""
+    from smbs_addon.optics import specular_weights
+
+    m = _metallic_node("Copper", "PHYSICAL_CONDUCTOR", IOR=(0.27, 0.68, 1.32), Extinction=(3.61, 2.63, 2.29),
+                       Roughness=0.3, Anisotropy=0.5, **{"Thin Film Thickness": 300.0})
+    next(n for n in m.node_tree.nodes if n.type == "BSDF_METALLIC").distribution = "GGX"
+    sc, w = one_material(m)
+    assert sc.mat_kind[0] == S.CONDUCTOR and sc.mat_fresnel[0] == S.FRESNEL_CONDUCTOR
+    n, k = np.array([0.27, 0.68, 1.32]), np.array([3.61, 2.63, 2.29])
+    np.testing.assert_allclose(sc.mat_metal[0], np.concatenate([n, k]), rtol=1e-6)
+    head_on = ((n - 1) ** 2 + k ** 2) / ((n + 1) ** 2 + k ** 2)
+    np.testing.assert_allclose(sc.mat_color[0], head_on, rtol=1e-5)
+    np.testing.assert_allclose(specular_weights(sc, np.zeros(1, np.int64), np.ones(1))[0][0], head_on, rtol=1e-5)
+    assert np.isclose(sc.mat_roughness[0], 0.3) and distributions(sc)[0] == 0  # GGX
+    assert w == ["material 'Copper': the thin film and anisotropy of Metallic BSDF 'Metallic BSDF' ignored"]
+
+
+def test_a_principled_metals_specular_tint_is_its_edge_tint():
+    """Cycles gives a Principled BSDF's metal lobe the F82-Tint Fresnel with the Specular Tint as the edge's
+    tint (it was silently left out: Schlick alone); a Principled thin film and a rough anisotropy are said
+    to be ignored."""
+    from smbs_addon.optics import fresnel_schlick, specular_weights
+
+    sc, w = one_material(material("Tinted", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (0.9, 0.8, 0.5), "Metallic": 1.0, "Roughness": 0.2, "Specular Tint": (0.4, 0.7, 1.0),
+        "Anisotropic": 0.5, "Thin Film Thickness": 250.0}))
+    R, _ = specular_weights(sc, np.zeros(1, np.int64), np.array([1.0 / 7.0]))
+    np.testing.assert_allclose(R[0], np.array([0.4, 0.7, 1.0]) * fresnel_schlick(np.array([1.0 / 7.0]),
+                                                                                 [0.9, 0.8, 0.5])[0], rtol=1e-6)
+    assert w == ["material 'Tinted': Principled BSDF thin film, anisotropy ignored"]
+
+
+def test_a_principled_metals_textured_specular_tint_is_left_white():
+    """A texture on a metal's Specular Tint cannot be baked: the metal stays a metal (plain Schlick), said so;
+    reading the tint must not turn it into a diffuse."""
+    m = material("Brushed", "ShaderNodeBsdfPrincipled", **{"Base Color": (0.9, 0.8, 0.5), "Metallic": 1.0})
+    nt = m.node_tree
+    noise = nt.nodes.new("ShaderNodeTexNoise")
+    nt.links.new(noise.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Specular Tint"])
+    sc, w = one_material(m)
+    assert sc.mat_kind[0] == S.CONDUCTOR and not sc.mat_metal.any()
+    assert w == ["material 'Brushed': Principled BSDF specular tint (textured) ignored"]
+
+
+def test_a_glass_thin_film_is_said_to_be_ignored():
+    sc, w = one_material(material("Soap", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0}))
+    assert sc.mat_kind[0] == S.DIELECTRIC
+    assert w == ["material 'Soap': the thin film of 'Glass BSDF' ignored"]
+
+
+def test_a_metal_mixed_with_a_diffuse_keeps_its_fresnel_at_its_weight():
+    """A Mix Shader of a metal (weight 0.6) and a diffuse: the metal's reflectance is 0.6 x its own
+    Fresnel, F82-Tint or a physical conductor's (its F0 was scaled by the weight too, as a colour is)."""
+    from smbs_addon.optics import fresnel_dielectric, fresnel_schlick, specular_weights
+
+    cos = np.array([1.0, 0.5, 0.1])
+    m = mixed("Half", ("ShaderNodeBsdfMetallic", {"Base Color": (0.9, 0.6, 0.3), "Edge Tint": (1.0, 1.0, 1.0),
+                                                  "Roughness": 0.0}), ("ShaderNodeBsdfDiffuse", {}), factor=0.4)
+    sc, w = one_material(m)
+    R, _ = specular_weights(sc, np.zeros(3, np.int64), cos)
+    np.testing.assert_allclose(R, 0.6 * fresnel_schlick(cos, [0.9, 0.6, 0.3]), rtol=1e-6)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    m = mixed("Half", ("ShaderNodeBsdfMetallic", {"Roughness": 0.0}), ("ShaderNodeBsdfDiffuse", {}), factor=0.4)
+    node = next(n for n in m.node_tree.nodes if n.type == "BSDF_METALLIC")
+    node.fresnel_type = "PHYSICAL_CONDUCTOR"
+    node.inputs["Extinction"].default_value = (0.0, 0.0, 0.0)
+    node.inputs["IOR"].default_value = (1.5, 1.5, 1.5)
+    sc, w = one_material(m)
+    R, _ = specular_weights(sc, np.zeros(3, np.int64), cos)
+    np.testing.assert_allclose(R, 0.6 * fresnel_dielectric(cos, 1.5)[:, None] * np.ones(3), rtol=1e-6)
+
+
 def test_a_partly_transmissive_principled_glass_weighs_both_lobes():
     sc, w = one_material(material("Frost", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.81, 1.0, 0.64), "Metallic": 0.1, "Transmission Weight": 0.9, "Roughness": 0.0}))
