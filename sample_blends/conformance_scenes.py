@@ -174,16 +174,50 @@ def lens_area():
 
 def gold_cylinder():
     """Open Principled-metallic gold cylinder on the floor, disk area light from the side."""
-    scene = _scene("gold_cylinder")
+    return _ring_of("gold_cylinder", lambda: principled("Gold", base=(1.0, 0.766, 0.336), metallic=1.0))
+
+
+def _metallic_bsdf(name, mode, **inputs):
+    """A material whose Surface is a Metallic BSDF (Blender 4.3 on) of fresnel_type mode, Roughness 0."""
+    m = bpy.data.materials.new(name)
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    node = nt.nodes.new("ShaderNodeBsdfMetallic")
+    node.fresnel_type = mode
+    node.inputs["Roughness"].default_value = 0.0
+    for k, v in inputs.items():
+        node.inputs[k].default_value = (*v, 1.0) if node.inputs[k].type == "RGBA" else v
+    nt.links.new(node.outputs[0], out.inputs["Surface"])
+    return m
+
+
+def _ring_of(name, metal):
+    """gold_cylinder's open ring and side light, the ring of material metal() (made once the scene is new)."""
+    scene = _scene(name)
     _floor(scene)
-    gold = principled("Gold", base=(1.0, 0.766, 0.336), metallic=1.0)
     v, f = _open_cylinder(0.6, 0.4)
-    B.mesh_object(scene, "Ring", v, f, gold, smooth=True, caster=True)
+    B.mesh_object(scene, "Ring", v, f, metal(), smooth=True, caster=True)
     # local -Z towards the ring: from (-2.4, 0, 1.4) aimed at the ring's centre
     B.add_light(scene, "Side", "AREA", (-2.4, 0.3, 1.4), (0.0, math.radians(-58), math.radians(7)),
                 energy=300.0, shape="DISK", size=0.5)
     B.add_camera(scene, (0.4, -2.6, 2.6), (0.1, 0, 0.1), lens=35)
     return scene
+
+
+def metallic_edge_ring():
+    """gold_cylinder's ring as a Metallic BSDF in its F82 mode: gold's Base Color, an Edge Tint (0.9, 0.5,
+    0.15) that darkens its grazing reflections (Cycles' F82-Tint; the node was 'not supported, treated as
+    diffuse' before: no caustic)."""
+    return _ring_of("metallic_edge_ring", lambda: _metallic_bsdf("EdgeGold", "F82", **{
+        "Base Color": (1.0, 0.766, 0.336), "Edge Tint": (0.9, 0.5, 0.15)}))
+
+
+def conductor_ring():
+    """gold_cylinder's ring as a Metallic BSDF in its Physical Conductor mode, the node's own index and
+    extinction (IOR 2.757 2.513 2.231, Extinction 3.867 3.404 3.009): the Fresnel equations of a conductor."""
+    return _ring_of("conductor_ring", lambda: _metallic_bsdf("Conductor", "PHYSICAL_CONDUCTOR", **{
+        "IOR": (2.757, 2.513, 2.231), "Extinction": (3.867, 3.404, 3.009)}))
 
 
 def pool_sun4():
@@ -994,6 +1028,10 @@ SCENES = {
                              "receives too)"),
     "mesh_light_mirror": (mesh_light_mirror, "a closed mesh light (an Emission ball) over a standing Glossy BSDF "
                           "mirror"),
+    "metallic_edge_ring": (metallic_edge_ring, "a Metallic BSDF (F82 mode, an Edge Tint) ring under gold_cylinder's "
+                           "side light"),
+    "conductor_ring": (conductor_ring, "a Metallic BSDF (Physical Conductor mode) ring under gold_cylinder's side "
+                       "light"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }
