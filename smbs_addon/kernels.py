@@ -31,7 +31,7 @@ from numba.extending import intrinsic
 
 from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
-from .layer import MU_STEPS
+from .layer import LAMBERT_FLOOR, MU_STEPS
 from .optics import bend1, bump_shadowing1, fresnel_dielectric1, scatter1
 from .rough import SINGULAR_ALPHA2
 
@@ -263,9 +263,11 @@ def _coat_factor(mats, m, n, w_view, w_light, share):
             p_d = sw_d / max(sw_d + (1.0 - one_minus_a), 1e-300)
             s = p_d * pdf_d / max(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300)
     e_d = one_minus_a * mu_i / math.pi
-    k0 = s * (r0 + eval_g / (b0 * e_d)) if b0 > 0 else 1.0
-    k1 = s * (r1 + eval_g / (b1 * e_d)) if b1 > 0 else 1.0
-    k2 = s * (r2 + eval_g / (b2 * e_d)) if b2 > 0 else 1.0
+    # a channel whose Lambert term is below layer.LAMBERT_FLOOR is black (the coat's share over it
+    # would overflow: a colour of 1e-309 made an infinite caustic)
+    k0 = s * (r0 + eval_g / (b0 * e_d)) if b0 * e_d > LAMBERT_FLOOR else 1.0
+    k1 = s * (r1 + eval_g / (b1 * e_d)) if b1 * e_d > LAMBERT_FLOOR else 1.0
+    k2 = s * (r2 + eval_g / (b2 * e_d)) if b2 * e_d > LAMBERT_FLOOR else 1.0
     return k0, k1, k2
 
 

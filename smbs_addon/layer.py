@@ -38,6 +38,9 @@ from .optics import fresnel_dielectric
 from .rough import SINGULAR_ALPHA2
 
 MU_STEPS = 64  # the table's cosines: 0, 1/64, ..., 1
+# coat_factor: a diffuse channel whose Lambert term (albedo x (1 - A) x cos / pi) is at most this is
+# black; the coat's share over it, glossy / Lambert, would overflow (an albedo of 1e-309, fuzzed)
+LAMBERT_FLOOR = 1e-250
 _GRID = 64  # stratified visible-normal samples per axis
 _cache: dict = {}  # (ior, roughness, tint) -> (weights, gains), each (MU_STEPS + 1,)
 
@@ -292,6 +295,7 @@ def coat_factor(scene, mat, color, n, w_view, w_light, share=True) -> np.ndarray
     pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
     pdf_d = np.maximum(mu_i, 0.0) / np.pi
     s = np.where(coated & share, p_d * pdf_d / np.maximum(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300), 1.0)
-    k = np.where(lambert > 0, s[:, None] * (rough + eval_g[:, None] / np.where(lambert > 0, lambert, 1.0)), 1.0)
+    lit = lambert > LAMBERT_FLOOR
+    k = np.where(lit, s[:, None] * (rough + eval_g[:, None] / np.where(lit, lambert, 1.0)), 1.0)
     out[idx] = np.where((ok & (sw_d > 0))[:, None], k, 1.0)
     return out

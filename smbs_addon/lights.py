@@ -565,7 +565,7 @@ def _light_radiance(scene, li, o, d, escaped):
     m = scene.light_matrix[li]
     if typ in (S.POINT, S.SPOT):
         r = float(scene.light_radius[li])
-        if r <= 0:
+        if not r * r > 0:  # a point (a radius whose square underflows is one too)
             return L, t
         t = _sphere_hit(o, d, m[:3, 3], r)
         val = color / (4.0 * math.pi**2 * r * r)
