@@ -24,6 +24,7 @@ from . import scene as S
 from .builder import SceneBuilder
 from .errors import SceneError
 from .layer import principled_layer
+from .optics import conductor_f0, f82_tint_metal
 from .rough import GGX, MULTI_GGX, SINGULAR_ALPHA2
 
 log = logging.getLogger(__name__)
@@ -581,25 +582,6 @@ def _bump_of(mat):
     dist = float(b.inputs["Distance"].default_value)
     return ("height", b.name, -dist if b.invert else dist, float(b.inputs["Strength"].default_value),
             _bump_flips(tree, b))
-
-
-def f82_tint_metal(f0, tint) -> np.ndarray:
-    """Scene.mat_metal's row of Cycles' F82-Tint metal of F0 f0 and edge tint tint (each (3,) in [0, 1]):
-    B = Schlick(f0, cos = 1/7) x 7 / (f^5 f) x (1 - tint), f = 6/7 (fresnel_f82tint_B, bsdf_util.h),
-    then zeros; all zeros where the tint is white (plain Schlick, as Cycles sets it)."""
-    f0, tint = np.asarray(f0, float), np.asarray(tint, float)
-    if np.all(tint == 1.0):
-        return np.zeros(6)
-    f = 6.0 / 7.0
-    f5 = f ** 5
-    return np.concatenate([(f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint), np.zeros(3)])
-
-
-def conductor_f0(n, k) -> np.ndarray:
-    """A physical conductor's reflectance at normal incidence, ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2)
-    per channel: its Scene.mat_color (what the plan and the guide take for its brightness)."""
-    n, k = np.asarray(n, float), np.asarray(k, float)
-    return ((n - 1.0) ** 2 + k ** 2) / np.maximum((n + 1.0) ** 2 + k ** 2, 1e-300)
 
 
 def _thin_film(node) -> list:

@@ -545,6 +545,25 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     return _weights_rows(np.arange(n), mats, np.zeros((0, 6)), cos_i)[0]
 
 
+def f82_tint_metal(f0, tint) -> np.ndarray:
+    """Scene.mat_metal's row of Cycles' F82-Tint metal of F0 f0 and edge tint tint (each (3,) in [0, 1]):
+    B = Schlick(f0, cos = 1/7) x 7 / (f^5 f) x (1 - tint), f = 6/7 (fresnel_f82tint_B, bsdf_util.h),
+    then zeros; all zeros where the tint is white (plain Schlick, as Cycles sets it)."""
+    f0, tint = np.asarray(f0, float), np.asarray(tint, float)
+    if np.all(tint == 1.0):
+        return np.zeros(6)
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    return np.concatenate([(f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint), np.zeros(3)])
+
+
+def conductor_f0(n, k) -> np.ndarray:
+    """A physical conductor's reflectance at normal incidence, ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2)
+    per channel: its Scene.mat_color (what the plan and the guide take for its brightness)."""
+    n, k = np.asarray(n, float), np.asarray(k, float)
+    return ((n - 1.0) ** 2 + k ** 2) / np.maximum((n + 1.0) ** 2 + k ** 2, 1e-300)
+
+
 def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
     """specular_weights1 per lane: (R, T), each (N,3), of materials mat at incidence cos_i."""
     return _weights_rows(np.ascontiguousarray(mat, np.int64), _surface_tables(scene), metal(scene),

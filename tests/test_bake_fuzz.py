@@ -34,6 +34,7 @@ from hypothesis import strategies as st
 from smbs_addon import BakeSettings, bake
 from smbs_addon import scene as S
 from smbs_addon.builder import SceneBuilder
+from smbs_addon.optics import conductor_f0, f82_tint_metal
 
 EXAMPLES = int(os.environ.get("SMBS_BAKE_FUZZ", "24"))
 RES = (24, 18)
@@ -54,8 +55,6 @@ def caster_materials(draw, b, name):
     if kind == "f82":
         f0 = np.array(draw(colour))
         tint = np.array(draw(colour))
-        from smbs_addon.export import f82_tint_metal
-
         return b.material(name, S.CONDUCTOR, color=f0, fresnel=S.FRESNEL_SCHLICK, roughness=rough,
                           distribution=dist, metal=f82_tint_metal(f0, tint)), False
     if kind == "conductor":
@@ -63,8 +62,6 @@ def caster_materials(draw, b, name):
         k = draw(st.tuples(*[st.floats(0.0, 6.0)] * 3))
         if not max(n + k) > 0:
             n = (0.5, 0.5, 0.5)
-        from smbs_addon.export import conductor_f0
-
         return b.material(name, S.CONDUCTOR, color=conductor_f0(n, k), fresnel=S.FRESNEL_CONDUCTOR,
                           roughness=rough, distribution=dist, metal=tuple(n) + tuple(k)), False
     if kind == "principled_metal":

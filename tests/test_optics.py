@@ -134,7 +134,7 @@ def test_f82_tint_matches_its_definition():
     head on, 1 at grazing incidence, and at cos = 1/7 (about 82 degrees) the tint times Schlick's value
     there, the model's definition; a white tint is Schlick's F0 towards white everywhere."""
     from smbs_addon import scene as S
-    from smbs_addon.export import f82_tint_metal
+    from smbs_addon.optics import f82_tint_metal
     from smbs_addon.optics import specular_weights
 
     f0, tint = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.5, 0.2])
