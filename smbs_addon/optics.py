@@ -545,16 +545,24 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     return _weights_rows(np.arange(n), mats, np.zeros((0, 6)), cos_i)[0]
 
 
+def f82_terms(f0):
+    """The F82 model's two numbers for F0 f0 (bsdf_util.h, fresnel_f82_B and fresnel_f82tint_B): Schlick's
+    reflectance at cos = 1/7, f0 + (1 - f0) f^5 with f = 6/7, and the scale 7 / (f^5 f) that turns a
+    shortfall from it there into the term's B."""
+    f = 6.0 / 7.0
+    f5 = f ** 5
+    return f0 + (1.0 - f0) * f5, 7.0 / (f5 * f)
+
+
 def f82_tint_metal(f0, tint) -> np.ndarray:
     """Scene.mat_metal's row of Cycles' F82-Tint metal of F0 f0 and edge tint tint (each (3,) in [0, 1]):
-    B = Schlick(f0, cos = 1/7) x 7 / (f^5 f) x (1 - tint), f = 6/7 (fresnel_f82tint_B, bsdf_util.h),
-    then zeros; all zeros where the tint is white (plain Schlick, as Cycles sets it)."""
+    B = Schlick(f0, cos = 1/7) x 7 / (f^5 f) x (1 - tint) (f82_terms), then zeros; all zeros where the
+    tint is white (plain Schlick, as Cycles sets it)."""
     f0, tint = np.asarray(f0, float), np.asarray(tint, float)
     if np.all(tint == 1.0):
         return np.zeros(6)
-    f = 6.0 / 7.0
-    f5 = f ** 5
-    return np.concatenate([(f0 + (1.0 - f0) * f5) * (7.0 / (f5 * f)) * (1.0 - tint), np.zeros(3)])
+    schlick, scale = f82_terms(f0)
+    return np.concatenate([schlick * scale * (1.0 - tint), np.zeros(3)])
 
 
 def conductor_f0(n, k) -> np.ndarray:

@@ -217,9 +217,10 @@ def _f82_fit_mean(f0, f82) -> np.ndarray:
     """Cycles' mean Fresnel reflectance of a physical conductor (fresnel_conductor_Fss,
     kernel/closure/bsdf_util.h): the F82 model fitted to its reflectance at normal incidence (f0)
     and at cos = 1/7 (f82), whose mean is F0 + (1 - F0) / 21 - B / 126."""
-    f = 6.0 / 7.0
-    f5 = f ** 5
-    b = 7.0 / (f5 * f) * (f0 + (1.0 - f0) * f5 - f82)
+    from .optics import f82_terms
+
+    schlick, scale = f82_terms(f0)
+    b = scale * (schlick - f82)
     return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
 
 

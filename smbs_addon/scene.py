@@ -33,6 +33,7 @@ MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
 # term splits reflection and refraction) or Cycles' Refraction BSDF (REFRACTION_ONLY: transmits
 # its colour with no Fresnel term and no reflection; total internal reflection absorbs).
 FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY, FRESNEL_CONDUCTOR = 0, 1, 2, 3
+FRESNEL_MODELS = ("none", "F82-Tint", "refraction only", "physical conductor")  # by index
 
 # Light types (Scene.light_type), as Cycles defines them; WORLD is a world of constant colour
 # (a Background node): radiance light_color from every direction, at infinity; MESH is a mesh
@@ -393,10 +394,11 @@ class Scene:
         for name in ("mat_kind", "mat_ior", "mat_roughness", "mat_strength", "mat_fresnel"):
             if getattr(self, name).shape != (M,):
                 raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
-        if not np.isin(self.mat_fresnel, (FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY, FRESNEL_CONDUCTOR)).all():
-            bad = np.flatnonzero(~np.isin(self.mat_fresnel, (0, 1, 2, 3)))
+        bad = np.flatnonzero(~np.isin(self.mat_fresnel, range(len(FRESNEL_MODELS))))
+        if bad.size:
+            known = ", ".join(f"{i} ({what})" for i, what in enumerate(FRESNEL_MODELS))
             raise SceneError(f"material '{self.mat_names[int(bad[0])]}': Fresnel model {int(self.mat_fresnel[bad[0]])} "
-                             f"is none of 0 (none), 1 (F82-Tint), 2 (refraction only), 3 (physical conductor)")
+                             f"is none of {known}")
         if self.mat_bump_correction.shape not in ((0,), (M,)):
             raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
         if self.mat_distribution.shape not in ((0,), (M,)) or not np.isin(self.mat_distribution, (0, 1)).all():
