@@ -783,16 +783,43 @@ def _ray_visibility(ob, prefix="visible_") -> int:
     return sum(bit for attr, _, bit in _RAYS if getattr(ob, prefix + attr.removeprefix("visible_"), True))
 
 
-def _say_light_linking(ob, warn, what="light"):
-    """Cycles' Light Linking (Object > Shading > Light Linking: the objects a light lights, the
-    objects that shadow it) is not followed: said once per object that sets it."""
-    link = getattr(ob, "light_linking", None)
-    sets = [f"{label} '{c.name}'" for label, c in (("receiver collection", getattr(link, "receiver_collection", None)),
-                                                  ("blocker collection", getattr(link, "blocker_collection", None)))
-            if c is not None]
-    if sets:
-        warn(f"{what} '{ob.name}': its Light Linking ({', '.join(sets)}) is not followed: the layer lights and "
-             f"shadows every object as if it were unlinked")
+def _say_shadow_linking(ob, warn, what="light"):
+    """Cycles' Shadow Linking (Object > Shading > Light Linking > Blocker Collection: the objects that
+    shadow a light) is not followed: said once per object that sets it. (Its Receiver Collection is:
+    _linked_objects.)"""
+    c = getattr(getattr(ob, "light_linking", None), "blocker_collection", None)
+    if c is not None:
+        warn(f"{what} '{ob.name}': its Light Linking's blocker collection '{c.name}' is not followed: every object "
+             f"shadows its caustics as if it were unlinked")
+
+
+def _link_states(collection, state=None, out=None) -> dict:
+    """The objects of a Light Linking collection, each with its Include / Exclude state, as Blender
+    resolves them (its depsgraph's light linking cache): an object inside a child collection takes
+    that child's state (the first level's, however deep it lies), the collection's own objects theirs;
+    the later one counts where an object is met twice (children first, then objects). Keys: original
+    objects (an instance is its object's)."""
+    out = {} if out is None else out
+    for child, link in zip(collection.children, collection.collection_children):
+        _link_states(child, link.light_linking.link_state if state is None else state, out)
+    for ob, link in zip(collection.objects, collection.collection_objects):
+        out[ob.original if getattr(ob, "original", None) is not None else ob] = \
+            link.light_linking.link_state if state is None else state
+    return out
+
+
+def _linked_objects(ob):
+    """The original objects emitter ob (a light's or an emissive mesh's object) lights by its Light
+    Linking's receiver collection, as a predicate on an original object; None: every object (no
+    collection). Blender: an object set to Include is lit; once any is, only those; else every object
+    but those set to Exclude."""
+    c = getattr(getattr(ob, "light_linking", None), "receiver_collection", None)
+    if c is None:
+        return None
+    states = _link_states(c)
+    if any(v == "INCLUDE" for v in states.values()):
+        return lambda o: states.get(o) == "INCLUDE"
+    return lambda o: states.get(o) != "EXCLUDE"
 
 
 def _say_visibility(ob, warn):
@@ -1376,7 +1403,8 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
     bump_specs = {}  # builder material id -> (kind, node name, Distance, Strength, flips, bpy Material) (_bump_of)
 
     mesh_cache = {}
-    meshes = []  # (name, mesh_cache key, matrix, caster, receiver, Ray Visibility) in the depsgraph's order
+    meshes = []  # (name, mesh_cache key, matrix, caster, receiver, Ray Visibility, original object) in order
+    emitters = []  # (the builder's light entry, its original object): their Light Linking, once every mesh is known
     view_objects = {}  # each mesh's object (or its instancer), in order, by its key: what the view may hold
     names_used = {}
     viewport = getattr(depsgraph, "mode", "VIEWPORT") == "VIEWPORT"
@@ -1402,9 +1430,12 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         if k:
             name = f"{name}.{k}"
         if ob.type == "LIGHT":
+            n_lights = len(b.lights)
             _export_light(b, name, ob, M, _warn)
+            if len(b.lights) > n_lights:
+                emitters.append((b.lights[-1], orig))
             if k == 0 and not inst.is_instance:
-                _say_light_linking(orig, _warn)
+                _say_shadow_linking(orig, _warn)
             continue
 
         key = (orig.name_full, ob.data.as_pointer() if ob.data is not None else 0)
@@ -1436,14 +1467,14 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         if k == 0 and not inst.is_instance:
             _say_visibility(orig, _warn)
             if any(SceneBuilder._radiance(b.materials[int(m)]).max() > 0 for m in np.unique(local["tri_material"])):
-                _say_light_linking(orig, _warn, "mesh light")
+                _say_shadow_linking(orig, _warn, "mesh light")
         view_objects.setdefault(key, {})[inst.parent.original if inst.is_instance and inst.parent is not None
                                         else orig] = None
         visibility = _ray_visibility(orig)
         if inst.is_instance and inst.parent is not None:  # Cycles: an instance inherits what its instancer hides
             visibility &= _ray_visibility(inst.parent.original)
         meshes.append((name, key, M, bool(orig.cycles.is_caustics_caster), bool(orig.cycles.is_caustics_receiver),
-                       visibility))
+                       visibility, orig))
     # bumps are baked once the depsgraph's instances are read (the bake adds a scene of its own)
     bumped = [key for key, local in mesh_cache.items() if local is not None and "bump_source" in local]
     areas = [_area(mesh_cache[key]["verts"], mesh_cache[key]["bump_source"]["matrix"]) for key in bumped]
@@ -1452,12 +1483,24 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         source = local.pop("bump_source")
         specs = {int(m): bump_specs[int(m)] for m in np.unique(local["tri_material"]) if int(m) in bump_specs}
         mesh_cache[key] = _bumped(local, specs, source, int(target), _warn)
+    # Light Linking (the receiver collections of lights and of emissive meshes): the objects each lights
+    lights_of = {}
+    for name, key, M, caster, receiver, visibility, orig in meshes:
+        lights_of.setdefault(orig, []).append(name)
+
+    def lit_names(emitter):
+        lights = _linked_objects(emitter)
+        return None if lights is None else [nm for o, names in lights_of.items() if lights(o) for nm in names]
+
+    for entry, orig in emitters:
+        entry["lit"] = lit_names(orig)
     view_bumped = {}  # the objects with a bumped diffuse (a receiver, by the plan's rules): the view holds them alone
-    for name, key, M, caster, receiver, visibility in meshes:
+    for name, key, M, caster, receiver, visibility, orig in meshes:
         local = mesh_cache[key]
         v, n, uv, back = _to_world(local, M)
         b.mesh_corners(name, v, n, uv, local["tri_material"], caster=caster, receiver=receiver,
-                       smooth=bool(local["smooth"].any()), tri_normals_back=back, visibility=visibility)
+                       smooth=bool(local["smooth"].any()), tri_normals_back=back, visibility=visibility,
+                       lit=lit_names(orig))
         if any(b.materials[int(m)]["view_bump"] for m in np.unique(local["tri_material"])):
             view_bumped.update(view_objects[key])
     maps = None

@@ -92,9 +92,10 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=
     splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=False)
 
 
-def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
+def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats, obj=None):
     """Direct light of light li at diffuse points (one light sample each), as outgoing
-    radiance towards w_eye divided by the albedo: cos * L_e * G / (pi p)."""
+    radiance towards w_eye divided by the albedo: cos * L_e * G / (pi p). obj: the points'
+    objects, none lit where the light's Light Linking leaves the object out (None: all lit)."""
     from .manifold import sample_light
     from .estimators import light_end_at_solution
 
@@ -125,6 +126,8 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats):
     side = np.sign(dot(w_eye, ng))
     cos_x = dot(dirs, ns) * side
     ok = (cos_x > 0) & (dot(dirs, ng) * side > 0) & (g > 0) & (e.max(axis=1) > 0)
+    if obj is not None and scene.light_linked(li):
+        ok &= scene.lit_by(li)[obj]
     idx = np.flatnonzero(ok)
     if idx.size:
         o = tracer.spawn(p[idx], ng[idx], dirs[idx])
@@ -190,6 +193,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         before = cnt.copy()  # the events before the latest
         o = tracer.spawn(f_p[sel], f_ng[sel], d)
         last_caster = np.zeros(len(lane), bool)
+        last_obj = np.full(len(lane), -1)  # the latest specular vertex's object (Light Linking's)
         last_refl = np.zeros(len(lane), bool)  # the latest specular event a reflection (a glossy ray leaves it)
         medium = np.full(len(lane), -1)  # inside a glass (its material) or not
         # the chain since the latest diffuse vertex: its letters (bit 1: R, the first vertex the
@@ -205,7 +209,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
             if others and bounce > 0:
                 _count_others(scene, others, o, d, h, lane, beta, code, on, bounce, (depth >= 1) & lim.fits(before),
-                              radiance, stats)
+                              radiance, stats, last_obj)
             if connect is None and bounce > 0 and len(lights_hit):
                 # Cycles' lights are transparent (shade_light adds the emission and the path
                 # goes on): every light in front of the next surface counts, not the nearest
@@ -213,7 +217,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 seen_l = np.zeros((len(o), 3))
                 for li in lights_hit:
                     L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=last_refl, surf_t=surf_t)
-                    seen_l += np.where((tl < surf_t)[:, None], L, 0.0)
+                    seen_l += np.where(((tl < surf_t) & scene.lit_by(li)[last_obj])[:, None], L, 0.0)
                 count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
                                        & lim.fits(before))
                 np.add.at(radiance, lane[count], beta[count] * seen_l[count])
@@ -232,7 +236,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 for li in lights_direct:
                     if lit.size:
                         rad = direct_light(scene, tracer, li, g["p"][lit], g["ng"][lit], g["ns"][lit], g["w"][lit],
-                                           rng, stats)
+                                           rng, stats, scene.tri_object[prim[diff[lit]]])
                         np.add.at(radiance, g["lane"][lit], g["beta"][lit] * alb[lit] * rad)
                 if connect is not None:
                     rec = np.flatnonzero(plan.receivers[scene.tri_object[prim[diff]]]
@@ -252,7 +256,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             dd, bb, keep = scatter_specular(scene, rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
                                             beta[spec], scale_eta=physical)
             sk = spec[keep]
-            last_caster = plan.casters[scene.tri_object[prim[sk]]]
+            last_obj = scene.tri_object[prim[sk]]
+            last_caster = plan.casters[last_obj]
             kinds = specular_kind(d_in[keep], dd, h.ng[sk])
             last_refl = kinds == 1
             if others:
@@ -269,6 +274,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             if alive.size < len(lane):
                 lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
                 last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
+                last_obj = last_obj[alive]
                 last_refl = last_refl[alive]
                 if others:
                     code, on = code[alive], on[alive]
@@ -283,9 +289,10 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     _splat_gathered(scene, film, rc, radiance, stats)
 
 
-def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats):
+def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats, last_obj):
     """gather's paths no walk takes: the lights of others (light index -> Handoff) seen on the
-    segments (o, d; hits h) after k specular vertices, where ok, added to radiance per lane."""
+    segments (o, d; hits h) after k specular vertices, where ok, added to radiance per lane
+    (last_obj: the object of the vertex each segment leaves, for the lights' Light Linking)."""
     surf_t = np.where(h.hit, h.t, np.inf)
     for li, ho in others.items():
         walked = [c for c in np.unique(code) if _letters(c, k) in ho.types]  # as reference.other_paths
@@ -293,7 +300,7 @@ def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance,
         if not other.any():
             continue
         L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=(code & 1) == 1, surf_t=surf_t)  # the latest vertex's letter
-        seen = np.flatnonzero(other & (tl < surf_t) & (L.max(axis=1) > 0))
+        seen = np.flatnonzero(other & (tl < surf_t) & (L.max(axis=1) > 0) & scene.lit_by(li)[last_obj])
         np.add.at(radiance, lane[seen], beta[seen] * L[seen])
         stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
 
@@ -341,15 +348,17 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
         o, d, surf_t = seg[:, kernels.SEG_O:kernels.SEG_O + 3], seg[:, kernels.SEG_D:kernels.SEG_D + 3], \
             seg[:, kernels.SEG_T]
         beta, refl = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3], seg[:, kernels.SEG_REFL] > 0
+        seg_obj = seg[:, kernels.SEG_OBJ].astype(np.int64)
         for li in hit_lights:
             L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
-            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0))
+            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & scene.lit_by(li)[seg_obj])
             np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
     if len(vx):
         c = lambda k: vx[:, k:k + 3]  # noqa: E731
+        vx_obj = vx[:, kernels.VX_OBJ].astype(np.int64)
         for li in lights_direct:
             rad = direct_light(scene, tracer, li, c(kernels.VX_P), c(kernels.VX_NG), c(kernels.VX_NS),
-                               c(kernels.VX_W), rng, stats)
+                               c(kernels.VX_W), rng, stats, vx_obj)
             np.add.at(radiance, vx_i, c(kernels.VX_BETA) * rad)
     return radiance
 
@@ -518,7 +527,9 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
             L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=hist[row, k, 5] > 0,
                                     surf_t=surf_t)
-            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits)
+            # Light Linking: of the vertex the light leaves last, the segment's own
+            lit = scene.lit_by(li)[scene.tri_object[h_prim[row, k]]] if scene.light_linked(li) else True
+            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits & lit)
             if seen.size == 0:
                 continue
             if ho is None:

@@ -1655,14 +1655,14 @@ def _next_surface(ray, o, d, tv, tng, tns, eps):
 
 
 @njit(**_JIT)
-def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
-                 physical, eps, rec, rec_i, hist, h_prim, tally):
+def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, receivers, mats, lim, max_bounces,
+                 max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
     """photon_lanes' loop over its lanes from lane0, on borrowed arrays (its caller holds them).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; records
     written)."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    o0, d0, w0, soft, receivers, lim, rec, rec_i, hist, h_prim, tally = _borrowed(
-        (o0, d0, w0, soft, receivers, lim, rec, rec_i, hist, h_prim, tally))
+    o0, d0, w0, soft, lit, receivers, lim, rec, rec_i, hist, h_prim, tally = _borrowed(
+        (o0, d0, w0, soft, lit, receivers, lim, rec, rec_i, hist, h_prim, tally))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     mat_color = mats[2]
     counts = ray[6]
@@ -1716,6 +1716,8 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
             m = tri_material[pr]
             kind = mat_kind[m]
             obj = tri_object[pr]
+            if it == 0 and lit.shape[0] > 0 and not lit[obj]:
+                break  # Light Linking: the light does not light the object the camera's path leaves it from
             spec = kind == _CONDUCTOR or kind == _DIELECTRIC
             if not indirect and it == 0:
                 spec = spec and casters[obj]  # a caustic photon's first hit: a planned caster
@@ -1798,8 +1800,8 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receive
 
 @TypedOnce
 @njit(**_JIT)
-def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receivers, mats, lim, max_bounces, max_iter,
-                 physical, eps, rec, rec_i, hist, h_prim, tally):
+def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, receivers, mats, lim, max_bounces,
+                 max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
     """The light tracer's photons (o0, d0: origin and unit direction; w0: flux), each traced from
     its light to its end, every ray cast here, its random numbers keyed_uniform(key, lane,
     event, .): the same path whichever call or thread traces it.
@@ -1813,7 +1815,8 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receiver
     vertex on a caster and a diffuse one. Both keep the scene's Light Paths limits (lim:
     Limits.array(); bounces.py: the photon's first event is free, x0's diffuse bounce counts).
     soft: a soft-falloff light's centre and radius (radius 0: none), applied at the first hit;
-    lvis: the rays that see the light (scene.RAY_* bits): the first event must cast such a ray.
+    lvis: the rays that see the light (scene.RAY_* bits): the first event must cast such a ray; lit:
+    (O,) bool, the objects the light lights (Light Linking: the first event must be on one; empty: any).
 
     Writes splat records (rec: REC_* columns, rec_i: lane, specular bounces before it,
     material) and, for the hand-off, the first K = hist.shape[1] specular vertices of each lane
@@ -1822,7 +1825,7 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receiver
     records would not fit in rec is left whole for the next call; records written; the ray
     counters, embree.ray_state)."""
     ray = ray_state(rt)
-    nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, key, lane0, geo, receivers, mats, lim,
+    nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, receivers, mats, lim,
                              max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally)
     return nxt, nrec, ray[6]
 
@@ -2138,13 +2141,14 @@ def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, m
 # ------------------------------------------------------------------ the light tracer's gathering
 # a segment record of gather_lanes (after a specular vertex on a caster: the caller looks for
 # lights on it): origin, direction, distance to the next surface (inf: none), throughput, 1 if the
-# vertex it leaves reflected (a glossy ray; 0: a refraction, a transmission ray)
-SEG_O, SEG_D, SEG_T, SEG_BETA, SEG_REFL = 0, 3, 6, 7, 10
-SEG_F = 11
+# vertex it leaves reflected (a glossy ray; 0: a refraction, a transmission ray), the object of that
+# vertex (Light Linking's)
+SEG_O, SEG_D, SEG_T, SEG_BETA, SEG_REFL, SEG_OBJ = 0, 3, 6, 7, 10, 11
+SEG_F = 12
 # a vertex record (a diffuse vertex after a specular one on a caster, lit directly by the caller):
-# point, geometric and shading normals, the direction back along the path, throughput x albedo
-VX_P, VX_NG, VX_NS, VX_W, VX_BETA = 0, 3, 6, 9, 12
-VX_F = 15
+# point, geometric and shading normals, the direction back along the path, throughput x albedo, its object
+VX_P, VX_NG, VX_NS, VX_W, VX_BETA, VX_OBJ = 0, 3, 6, 9, 12, 15
+VX_F = 16
 
 
 @njit(**_JIT)
@@ -2186,6 +2190,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
             bd, bg, bt = nd, ngl, nt  # the events before the latest
             o = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn
             last_caster = False
+            last_obj = -1  # the latest specular vertex's object
             last_refl = False  # the latest specular event a reflection
             go_on = False  # a next diffuse vertex to bounce from
             medium = -1
@@ -2202,6 +2207,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                         seg[nseg, SEG_O + c], seg[nseg, SEG_D + c], seg[nseg, SEG_BETA + c] = o[c], d[c], b[c]
                     seg[nseg, SEG_T] = t
                     seg[nseg, SEG_REFL] = 1.0 if last_refl else 0.0
+                    seg[nseg, SEG_OBJ] = last_obj
                     seg_i[nseg] = lane
                     nseg += 1
                 if pr < 0:
@@ -2221,6 +2227,7 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                         for c in range(3):
                             vx[nvx, VX_P + c], vx[nvx, VX_NG + c], vx[nvx, VX_NS + c] = p[c], g[c], n[c]
                             vx[nvx, VX_W + c], vx[nvx, VX_BETA + c] = w[c], b[c] * a[c]
+                        vx[nvx, VX_OBJ] = tri_object[pr]
                         vx_i[nvx] = lane
                         nvx += 1
                     go_on = True
@@ -2232,7 +2239,8 @@ def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mat
                 ev += 1
                 if not ok:
                     break
-                last_caster = casters[tri_object[pr]]
+                last_obj = tri_object[pr]
+                last_caster = casters[last_obj]
                 has_s = has_s or last_caster
                 bd, bg, bt = nd, ngl, nt
                 last_refl = _dot(d, hg) * _dot(dd, hg) < 0  # bounces.specular_kind

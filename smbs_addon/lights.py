@@ -40,6 +40,9 @@ class Photons:
     # the rays that see the light (S.RAY_* bits, its Ray Visibility): the photon's first event, the
     # camera path's last, must cast a ray of such a kind (kernels._photon_rows)
     visibility: int = S.RAY_ALL
+    # (O,) bool: the objects the light lights (Light Linking): the photon's first event, the camera
+    # path's last before the light, must be on one. None: any
+    lit: np.ndarray | None = None
 
 
 def _smoothstep(x):
@@ -414,6 +417,8 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
     ph = _emit(scene, li, targets, n, rng)
     if scene.light_visibility.size:
         ph.visibility = int(scene.light_visibility[li])
+    if scene.light_linked(li):
+        ph.lit = scene.lit_by(li)
     return ph
 
 

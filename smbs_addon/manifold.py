@@ -359,6 +359,8 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     side = np.sign(dot(w_eye, ng0))
     cos0 = dot(d01, ns0) * side
     ok = okg & (dot(d01, ng0) * side > 0) & (cos0 > 0)
+    if scene.light_linked(li):  # Light Linking: Cycles asks it of the vertex the light leaves last
+        ok &= scene.lit_by(li)[verts[k - 1].obj]
     if np.any(scene.mat_view_bump):  # bumped receivers: Cycles' shadowing of their bent normals
         cos0 = cos0 * bump_shadowing(scene, rc.mat[idx], rc.sn[idx], ns0, d01)
     T = chain_throughput(scene, types, x0, verts, le.y, le.directional, ctx.physical)

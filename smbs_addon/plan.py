@@ -194,7 +194,8 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     for o in np.flatnonzero(casters):
         lo, hi = scene.object_bounds(o)
         spheres[o] = _bounding_sphere(lo, hi, scene)
-    rec_spheres = [_bounding_sphere(*scene.object_bounds(o), scene) for o in np.flatnonzero(receivers)]
+    rec_objs = np.flatnonzero(receivers)
+    rec_spheres = [_bounding_sphere(*scene.object_bounds(o), scene) for o in rec_objs]
     use_light_flags = _use_flags(flags, scene.caustic_flags())  # a mesh light has none: it does not count
     for li in range(scene.n_lights):
         name = scene.light_names[li]
@@ -217,7 +218,11 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
             skipped.append(("light", name, "its object is scaled to zero along an axis the light needs "
                                            "(no direction or no area)"))
             continue
-        if scene.light_seen_by(li, S.RAY_DIFFUSE) and any(light_covers(scene, li, sp[:3], sp[3]) for sp in rec_spheres):
+        # Light Linking: Cycles asks it of the object a path leaves last before the light: a caustic's
+        # last mirror or glass, or the diffuse surface the light lit first (the indirect paths)
+        lit = scene.lit_by(li)
+        if scene.light_seen_by(li, S.RAY_DIFFUSE) and any(lit[o] and light_covers(scene, li, sp[:3], sp[3])
+                                                          for o, sp in zip(rec_objs, rec_spheres)):
             plan.indirect_lights.append(li)  # its light on a receiver may go on to a caster
         if not (scene.light_seen_by(li, S.RAY_GLOSSY) or scene.light_seen_by(li, S.RAY_TRANSMISSION)):
             skipped.append(("light", name, "its Ray Visibility is off for glossy and transmission rays: no ray "
@@ -227,12 +232,24 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         if not objs:
             skipped.append(("light", name, "reaches no caster"))
             continue
+        if not any(lit[o] for o in objs):
+            skipped.append(("light", name, "its Light Linking lights none of the casters it reaches ("
+                            + ", ".join(f"'{scene.object_names[o]}'" for o in objs[:4])
+                            + (", ..." if len(objs) > 4 else "") + "): Cycles lights a caustic through the "
+                            "mirror or glass the light meets first"))
+            continue
+        objs = [o for o in objs if lit[o]]  # a light's caustic starts on a caster it lights
         plan.lights.append(LightPlan(li, name, np.array([spheres[o] for o in objs]), objs,
                                      [scene.object_names[o] for o in objs], light_key(name)))
-    if not plan.lights:
-        reasons = "; ".join(f"'{n}': {r}" for k, n, r in skipped if k == "light")
-        plan.nothing = f"no light can cast caustics ({reasons})"
+    if not plan.lights and not plan.indirect_lights:  # (a light that lights a receiver may still light a caster)
+        plan.nothing = _no_light(plan)
     return _finish(plan, scene)
+
+
+def _no_light(plan: Plan) -> str:
+    """Plan.nothing where no light is left, with the reasons each was skipped."""
+    return "no light can cast caustics ({})".format("; ".join(f"'{n}': {r}" for k, n, r in plan.skipped
+                                                             if k == "light"))
 
 
 def _bounds_over(scene: S.Scene, objs):
@@ -606,7 +623,10 @@ def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere,
     h = tracer.intersect(ph.o[lit], ph.d[lit])
     i = np.flatnonzero(h.hit)
     mat = scene.tri_material[h.prim[i]]
-    dif = np.flatnonzero(scene.mat_kind[mat] == S.DIFFUSE)
+    dif = scene.mat_kind[mat] == S.DIFFUSE
+    if ph.lit is not None:  # Light Linking: a diffuse surface the light does not light sends none of it on
+        dif &= ph.lit[scene.tri_object[h.prim[i]]]
+    dif = np.flatnonzero(dif)
     if dif.size == 0:
         return n_ind, lit.size, None
     j = i[dif]
@@ -635,12 +655,15 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
     t0 = time.perf_counter()
     if not indirect:  # the bake leaves out caustics after a diffuse bounce
         plan.indirect_lights = []
+        if not plan.lights and not plan.nothing:  # every light was planned for those alone
+            plan.nothing = _no_light(plan)
+            _finish(plan, scene)
     direct, through, sides, rays, plan.specular_seen = camera_sees(scene, tracer, cam, plan)
     for o in np.flatnonzero(plan.receivers):
         if direct[o] or through[o, 0, 0] <= through[o, 1, 0]:
             plan.seen[scene.object_names[o]] = "directly" if direct[o] else "through mirrors or glass"
     photons = 0
-    if pilots > 0 and plan.lights:
+    if pilots > 0 and (plan.lights or plan.indirect_lights):
         seen = (direct, through, sides)
         # every light's pilots per caster, then each indirect light's (caustics through a diffuse
         # bounce first, light -> diffuse -> caster -> ... -> seen; indirect.py): tasks the threads

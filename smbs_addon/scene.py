@@ -60,7 +60,8 @@ PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays
 # fields a scene file may lack (saved before they were exported): their defaults hold
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
             "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
-            "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission", "mat_metal")
+            "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission", "mat_metal",
+            "light_links")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -236,6 +237,12 @@ class Scene:
     # channel (then zeros), for FRESNEL_CONDUCTOR the complex index's n then k per channel. Empty:
     # B = 0 everywhere (plain Schlick) and no physical conductor
     mat_metal: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    # (L, O) bool: Cycles' Light Linking, the objects each light lights (its receiver collection, as
+    # Blender resolves Include and Exclude). Cycles asks it of the object a path leaves last before
+    # the light: of a caustic, the mirror or glass the light comes through last (or the diffuse surface
+    # it lit, for light that meets more than one), never the receiver the camera sees. Empty: every
+    # light lights every object
+    light_links: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
 
     # ------------------------------------------------------------------ derived
     def mesh_light(self, li: int):
@@ -264,6 +271,16 @@ class Scene:
         has none, and is always baked: light_caustics True), which the AUTO flags mode reads to tell
         whether the user flags lights at all."""
         return self.light_caustics[self.light_type != MESH]
+
+    def lit_by(self, li: int) -> np.ndarray:
+        """(O,) bool: the objects light li lights (Light Linking, light_links; all where it has none)."""
+        if not self.light_links.size:
+            return np.ones(len(self.object_names), bool)
+        return np.asarray(self.light_links[li], bool)
+
+    def light_linked(self, li: int) -> bool:
+        """Does Light Linking keep light li from some object?"""
+        return bool(self.light_links.size) and not bool(np.all(self.light_links[li]))
 
     def light_seen_by(self, li: int, ray: int) -> bool:
         """Do rays of kind ray (RAY_*) meet light li (Cycles' Ray Visibility)?"""
@@ -428,6 +445,9 @@ class Scene:
             if a.shape not in ((0,), (n,)) or (a.size and not np.all((a >= 0) & (a <= RAY_ALL))):
                 raise SceneError(f"scene array '{name}' must have one entry of Ray Visibility bits (0 to "
                                  f"{RAY_ALL}) per {name.split('_')[0]} ({n}) or none")
+        if self.light_links.size and self.light_links.shape != (L, O):
+            raise SceneError(f"scene array 'light_links' must be ({L}, {O}) (Light Linking: the objects each light "
+                             f"lights) or empty, not {self.light_links.shape}")
         if self.mat_emission.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_emission' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_emission) & (self.mat_emission >= 0) & (self.mat_emission <= MAX_POWER),

@@ -8,7 +8,7 @@ Glossy BSDF, an F82-Tint metal, a physical conductor, a Principled metal under i
 random index, tint and absorption, a Refraction BSDF, each perfect or rough of either
 distribution), glowing materials (a mesh light, a receiver's emission) and one or two lamps (point,
 spot, the four area shapes, sun, a constant world or a small map with a bright spot), Ray
-Visibility bits and Shadow Caustics flags, Light Paths limits, a camera anywhere above the floor
+Visibility bits and Shadow Caustics flags, Light Linking, Light Paths limits, a camera anywhere above the floor
 looking at the casters, and the bake's settings (method, estimator, chain types and length, Cycles'
 flags, clamps, guide, a noise rule). Each example bakes one tiny frame. The properties:
 
@@ -175,7 +175,13 @@ def scenes(draw):
         b.light_paths = np.array([draw(st.integers(0, 12)) for _ in range(4)], np.int64)
     cam = (draw(st.floats(-4, 4)), draw(st.floats(-4, -0.5)), draw(st.floats(0.5, 4)))
     b.set_camera(cam, (0.0, 0.0, 0.4), lens=draw(st.floats(20.0, 80.0)), resolution_x=RES[0], resolution_y=RES[1])
-    return b.build()
+    sc = b.build()
+    if draw(st.booleans()) and draw(st.booleans()):  # Light Linking: what each light lights, at random
+        sc.light_links = np.array(draw(st.lists(st.booleans(), min_size=sc.n_lights * len(sc.object_names),
+                                                max_size=sc.n_lights * len(sc.object_names))),
+                                  bool).reshape(sc.n_lights, len(sc.object_names))
+        sc.validate()
+    return sc
 
 
 @st.composite

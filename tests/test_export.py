@@ -578,22 +578,69 @@ def test_an_emission_object_is_a_mesh_light_of_its_own():
     assert not sc.light_seen_by(0, S.RAY_GLOSSY) and sc.light_seen_by(0, S.RAY_TRANSMISSION)
 
 
-def test_light_linking_is_said_not_followed():
-    """Light Linking (a light's receiver or blocker collection) changes what Cycles lights; the layer does
-    not follow it and says so, for a lamp and for a mesh light, not for an unlinked one."""
+def _links(sc, light):
+    """The names of the objects light `light` lights (Scene.light_links), sorted."""
+    li = sc.light_names.index(light)
+    return sorted(n for n, on in zip(sc.object_names, sc.lit_by(li)) if on)
+
+
+def test_light_linking_receivers_are_read_as_blender_resolves_them():
+    """A light's receiver collection (Object > Shading > Light Linking) as Blender's depsgraph resolves it:
+    once any object is set to Include, only those are lit; with Excludes alone, every object but those;
+    an object inside a child collection takes that child's state (the first level's, however deep), the
+    collection's own objects theirs, the later (the object's own) where one is met twice. A mesh light
+    reads its object's; an unlinked light lights every object; a scene without links keeps none."""
+    add_camera()
+    glass = material("Glass", "ShaderNodeBsdfGlass")
+    ball, pane, floor, wall = (mesh_with(glass, n) for n in ("Ball", "Pane", "Floor", "Wall"))
+    add_light("POINT", energy=10.0)
+    sc, warnings = export()
+    assert warnings == [] and sc.light_links.size == 0
+    inc, exc = bpy.data.collections.new("Inc"), bpy.data.collections.new("Exc")
+    inner, deeper = bpy.data.collections.new("Inner"), bpy.data.collections.new("Deeper")
+    inc.objects.link(ball)
+    exc.children.link(inner)
+    inner.children.link(deeper)
+    deeper.objects.link(pane)
+    deeper.objects.link(wall)
+    exc.objects.link(wall)  # its own state (Include) after its child collection's (Exclude)
+    exc.collection_children[0].light_linking.link_state = "EXCLUDE"
+    exc.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    lamp = add_light("SPOT", energy=10.0)
+    lamp.light_linking.receiver_collection = inc
+    sun = add_light("SUN", energy=1.0)
+    sun.light_linking.receiver_collection = exc
+    glow = mesh_with(material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
+    glow.light_linking.receiver_collection = inc
+    sc, warnings = export()
+    assert warnings == []
+    assert _links(sc, "Point") == sorted(sc.object_names)
+    assert _links(sc, "Spot") == ["Ball"] == _links(sc, "Panel")
+    assert _links(sc, "Sun") == ["Ball", "Floor", "Panel"]  # the wall excluded twice: its own state last
+    exc.collection_objects[0].light_linking.link_state = "INCLUDE"
+    sc, _ = export()
+    assert _links(sc, "Sun") == ["Wall"]
+
+
+def test_light_linking_blockers_are_said_not_followed():
+    """Shadow Linking (a light's blocker collection) is not followed and is said, for a lamp and a mesh
+    light; a receiver collection alone is followed and not said."""
     add_camera()
     lamp = add_light("POINT", energy=10.0)
     only = bpy.data.collections.new("OnlyFloor")
+    lamp.light_linking.blocker_collection = only
     lamp.light_linking.receiver_collection = only
     glow = mesh_with(material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
     glow.light_linking.blocker_collection = only
+    bulb = add_light("SPOT", energy=10.0)
+    bulb.light_linking.receiver_collection = only
     mesh_with(material("Glass", "ShaderNodeBsdfGlass"), "Ball")
     _, warnings = export()
     assert sorted(warnings) == [
-        f"light '{lamp.name}': its Light Linking (receiver collection 'OnlyFloor') is not followed: the layer "
-        f"lights and shadows every object as if it were unlinked",
-        "mesh light 'Panel': its Light Linking (blocker collection 'OnlyFloor') is not followed: the layer "
-        "lights and shadows every object as if it were unlinked"]
+        f"light '{lamp.name}': its Light Linking's blocker collection 'OnlyFloor' is not followed: every object "
+        f"shadows its caustics as if it were unlinked",
+        "mesh light 'Panel': its Light Linking's blocker collection 'OnlyFloor' is not followed: every object "
+        "shadows its caustics as if it were unlinked"]
 
 
 def test_unsupported_node_warns_naming_the_material():

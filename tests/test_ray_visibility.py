@@ -61,7 +61,12 @@ def test_plan_leaves_out_what_no_caustic_ray_sees():
     assert plan.casters.tolist() == [False, False, True]
     assert ("caster", "Ball", "its Ray Visibility is off for diffuse rays: Cycles shows no caustic of it") \
         in plan.skipped
+    # its light on the floor still meets the ball (light -> floor -> ball -> floor: the floor's diffuse ray
+    # meets it), which is all it bakes; without that, nothing
     plan = make_plan(_ball_and_mirror(light=S.RAY_ALL & ~S.RAY_GLOSSY & ~S.RAY_TRANSMISSION))
+    assert plan.lights == [] and plan.indirect_lights == [0] and not plan.nothing
+    assert plan.skipped[-1][2].startswith("its Ray Visibility is off for glossy and transmission rays")
+    plan = make_plan(_ball_and_mirror(light=S.RAY_CAMERA | S.RAY_SHADOW))
     assert plan.nothing.startswith("no light can cast caustics") and "glossy and transmission rays" in plan.nothing
     assert make_plan(_ball_and_mirror()).indirect_lights == [0]
     assert make_plan(_ball_and_mirror(light=S.RAY_ALL & ~S.RAY_DIFFUSE)).indirect_lights == []
@@ -88,7 +93,7 @@ def _photons(scene, lvis, key=99):
     rec, rec_i = np.empty((n * 8, kernels.REC_F)), np.empty((n * 8, 3), np.int64)
     hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
     tally = np.zeros(kernels.PH_TALLY, np.int64)
-    _, m, _ = kernels.photon_lanes(tracer.rays(), False, ph.o, ph.d, ph.w, np.zeros(4), lvis, key, 0,
+    _, m, _ = kernels.photon_lanes(tracer.rays(), False, ph.o, ph.d, ph.w, np.zeros(4), lvis, np.zeros(0, bool), key, 0,
                                    tracer.kernel_geometry(plan.casters), plan.receivers, optics.materials(scene),
                                    Limits.of(scene).array(), 32, 33, False, tracer.eps, rec, rec_i, hist, h_prim, tally)
     return rec[:m], rec_i[:m], hist

@@ -29,7 +29,8 @@ def full_scene() -> Scene:
     b.plane("Mirror", (0, 0, 1), 1.5, metal, normal=(1, 0, -1), caster=True)
     b.uv_sphere("Ball", (1, 1, 1), 0.5, glass, segments=12, rings=6, caster=True, receiver=True)
     b.plane("Panel", (0, 0, 4), 0.5, lamp, normal=(0, 0, -1))
-    b.light("Point", "POINT", location=(1, 2, 3), power=500.0, radius=0.1, soft_falloff=True)
+    b.light("Point", "POINT", location=(1, 2, 3), power=500.0, radius=0.1, soft_falloff=True,
+            lit=("Ball", "Floor"))  # Light Linking
     b.light("Spot", "SPOT", location=(-1, 0, 3), target=(0, 0, 0), power=800.0, color=(1, 0.5, 0.25),
             spot_size=math.radians(30), spot_blend=0.3, radius=0.05)
     for shape, size in (("SQUARE", 0.5), ("RECTANGLE", (0.5, 0.25)), ("DISK", 0.4), ("ELLIPSE", (0.4, 0.2))):
@@ -69,6 +70,7 @@ def test_round_trip_every_field(tmp_path):
     assert set(sc.light_shape[sc.light_type == S.AREA].tolist()) == {S.SQUARE, S.RECTANGLE, S.DISK, S.ELLIPSE}
     assert set(sc.mat_kind.tolist()) == {S.DIFFUSE, S.CONDUCTOR, S.DIELECTRIC, S.EMITTER}
     assert sc.mat_textured.tolist() == [True, False, False, False]
+    assert sc.light_links.shape == (8, 4) and sc.lit_by(0).tolist() == [True, False, True, False]
     path = tmp_path / "scene.npz"
     sc.save(path)
     back = Scene.load(path)
