@@ -432,6 +432,30 @@ def _mirror_under_bulb(name, mirror=None):
     return scene
 
 
+def linked_lamps():
+    """Light Linking: _standing_mirror with a Glass BSDF ball (IOR 1.5) between the camera and the mirror,
+    lit by two lamps. The ball's lamp overhead lights the ball alone (a receiver collection with the ball set
+    to Include): the ball's caustic stays, the floor gets no direct light from it (and so none of its light
+    comes back through the ball), and none of its light reflects off the mirror, which Cycles asks of the
+    mirror, not of the floor. The mirror's lamp, low beside the ball, lights every object but the ball (a
+    receiver collection with the ball set to Exclude): its caustic off the mirror stays, the one through
+    the ball goes, and its light that the floor sends through the ball stays."""
+    scene = _standing_mirror("linked_lamps")
+    ball = _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.4, (-0.2, 0.1, 0.75))
+    over = B.add_light(scene, "BallLamp", "POINT", (0.2, -0.1, 2.8), energy=500.0, shadow_soft_size=0.2,
+                       use_soft_falloff=False)
+    low = B.add_light(scene, "MirrorLamp", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
+                      use_soft_falloff=False)
+    only_ball, not_ball = bpy.data.collections.new("OnlyBall"), bpy.data.collections.new("NotBall")
+    only_ball.objects.link(ball)
+    not_ball.objects.link(ball)
+    not_ball.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    over.light_linking.receiver_collection = only_ball
+    low.light_linking.receiver_collection = not_ball
+    B.add_camera(scene, (-2.6, -1.3, 1.7), (0.8, 0.1, 0.3), lens=30)
+    return scene
+
+
 def mirror_alloy():
     """mirror_point_hard with a Principled mirror of Metallic 0.7 (Base Color 0.9, Roughness 0): Cycles
     weighs its metal lobe by 0.7 and the dielectric rest, a coat (in our mirror's reflection) over a diffuse
@@ -960,6 +984,8 @@ SCENES = {
     "sphere_refraction_spot": (sphere_refraction_spot, "Refraction BSDF 1.33, spot light"),
     "mirror_point_hard": (mirror_point_hard, "Glossy BSDF flat mirror, point light without soft "
                           "falloff, receiver seen in the mirror"),
+    "linked_lamps": (linked_lamps, "Light Linking: a lamp lighting the ball alone and a lamp lighting all but the "
+                     "ball, over _standing_mirror and a glass ball (Cycles asks it of the last mirror or glass)"),
     "mirror_alloy": (mirror_alloy, "mirror_point_hard's mirror as Principled Metallic 0.7 (a partly metallic "
                      "lobe)"),
     "mirror_spread30": (mirror_spread30, "Glossy BSDF flat mirror, square area light of spread 30 "

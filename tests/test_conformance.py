@@ -28,6 +28,9 @@ CASES = [
     ("mirror_point_hard", "reference", 64),
     ("mirror_point_hard", "sms", 4),
     ("mirror_point_hard", "smbs", 4),
+    # Light Linking: a lamp lighting a glass ball alone, one lighting all but the ball: 1.81 of Cycles when ignored
+    ("linked_lamps", "reference", 256),
+    ("linked_lamps", "sms", 4),
     ("lens_area", "reference", 32),
     ("sphere_refraction_spot", "reference", 32),
     ("sphere_refraction_spot", "smbs", 4),
