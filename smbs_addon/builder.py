@@ -81,14 +81,16 @@ class SceneBuilder:
 
     # --------------------------------------------------------------- meshes
     def mesh(self, name, vertices, faces, material, normals=None, smooth=None, uvs=None,
-             caster=False, receiver=False, face_materials=None, visibility=S.RAY_ALL, lit=None) -> int:
+             caster=False, receiver=False, face_materials=None, visibility=S.RAY_ALL, lit=None,
+             blockers=None) -> int:
         """Add a mesh. faces: (F,3) triangles or (F,4) quads (split 0-1-2, 0-2-3).
 
         normals: per-vertex normals (V,3) for smooth shading; None means flat.
         material: a material index, or a name already defined.
         visibility: the rays that meet it (S.RAY_* bits, Cycles' Ray Visibility).
         lit: where its faces shine (a mesh light), the names of the objects its light lights (Light
-        Linking, Scene.light_links); None: every object.
+        Linking, Scene.light_links); None: every object. blockers: likewise, the objects that shadow it
+        (Shadow Linking, Scene.light_blockers).
         """
         V = np.asarray(vertices, float).reshape(-1, 3)
         F = np.asarray(faces, np.int64)
@@ -116,7 +118,7 @@ class SceneBuilder:
         oid = len(self.objects)
         self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
                                  smooth=bool(normals is not None if smooth is None else smooth),
-                                 visibility=int(visibility), lit=_names(lit)))
+                                 visibility=int(visibility), lit=_names(lit), blockers=_names(blockers)))
         self._tris.append(tv)
         self._normals.append(tn)
         self._back.append(None)
@@ -129,14 +131,14 @@ class SceneBuilder:
 
     def mesh_corners(self, name, tri_vertices, tri_normals, tri_uvs, tri_material,
                      caster=False, receiver=False, smooth=False, tri_normals_back=None, visibility=S.RAY_ALL,
-                     lit=None) -> int:
+                     lit=None, blockers=None) -> int:
         """Add an object from per-triangle arrays (the Blender export's entry point).
 
         tri_vertices, tri_normals: (T,3,3) world positions and unit shading normals per
         corner; tri_uvs: (T,3,2) or None; tri_material: (T,) material indices (already
         defined with ``material``); smooth: whether any face is smooth shaded;
         tri_normals_back: (T,3,3) the normals a ray meets from behind (Scene.tri_normals_back),
-        None: tri_normals; visibility: the rays that meet it (S.RAY_* bits); lit: as mesh's.
+        None: tri_normals; visibility: the rays that meet it (S.RAY_* bits); lit, blockers: as mesh's.
         """
         tv = np.asarray(tri_vertices, float).reshape(-1, 3, 3)
         T = len(tv)
@@ -157,7 +159,8 @@ class SceneBuilder:
             raise SceneError(f"object '{name}': {len(tb)} back normal triples for {T} triangles")
         oid = len(self.objects)
         self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
-                                 smooth=bool(smooth), visibility=int(visibility), lit=_names(lit)))
+                                 smooth=bool(smooth), visibility=int(visibility), lit=_names(lit),
+                                 blockers=_names(blockers)))
         self._tris.append(tv)
         self._normals.append(tn)
         self._back.append(tb)
@@ -199,10 +202,11 @@ class SceneBuilder:
     def light(self, name, type, matrix=None, location=None, target=None, power=1000.0,
               color=(1.0, 1.0, 1.0), radius=0.0, soft_falloff=False, spot_size=math.radians(45),
               spot_blend=0.15, shape="SQUARE", size=(1.0, 1.0), spread=math.pi, angle=0.0,
-              caustics=True, visibility=S.RAY_ALL, lit=None) -> int:
+              caustics=True, visibility=S.RAY_ALL, lit=None, blockers=None) -> int:
         """power: watts (point/spot/area) or irradiance W/m^2 (sun); a world: see world().
         visibility: the rays that meet it (S.RAY_* bits, Cycles' Ray Visibility); lit: the names of
-        the objects it lights (Light Linking, Scene.light_links), None: every object."""
+        the objects it lights (Light Linking, Scene.light_links), None: every object; blockers: the names
+        of the objects that shadow it (Shadow Linking, Scene.light_blockers), None: every object."""
         if matrix is None:
             loc = np.zeros(3) if location is None else location
             tgt = np.asarray(loc, float) - np.array([0, 0, 1.0]) if target is None else target
@@ -214,7 +218,7 @@ class SceneBuilder:
             soft_falloff=bool(soft_falloff), spot_size=float(spot_size),
             spot_blend=float(spot_blend), shape=S.AREA_SHAPES.index(shape),
             size=np.asarray(size, float), spread=float(spread), angle=float(angle),
-            caustics=bool(caustics), visibility=int(visibility), lit=_names(lit)))
+            caustics=bool(caustics), visibility=int(visibility), lit=_names(lit), blockers=_names(blockers)))
         return len(self.lights) - 1
 
     def world(self, color, strength=1.0, name="World", caustics=True, image=None, rotation=None,
@@ -302,27 +306,28 @@ class SceneBuilder:
             light_visibility=np.array([x["visibility"] for x in lt], np.int64)
             if any(x["visibility"] != S.RAY_ALL for x in lt) else np.zeros(0, np.int64),
             tri_light=tri_light,
-            light_links=self._links(lt),
+            light_links=self._links(lt, "lit"), light_blockers=self._links(lt, "blockers"),
         )
         sc.validate()
         return sc
 
-    def _links(self, lt) -> np.ndarray:
-        """Scene.light_links of the lights lt: per light, the objects its `lit` names (all where it has
-        none); empty where no light has one."""
-        if all(x.get("lit") is None for x in lt):
+    def _links(self, lt, key) -> np.ndarray:
+        """Scene.light_links (key "lit") or light_blockers ("blockers") of the lights lt: per light, the
+        objects its list names (all where it has none); empty where no light has one."""
+        what = "Light Linking" if key == "lit" else "Shadow Linking"
+        if all(x.get(key) is None for x in lt):
             return np.zeros((0, 0), bool)
         index = {}
         for o, ob in enumerate(self.objects):
             index.setdefault(ob["name"], o)
         links = np.ones((len(lt), len(self.objects)), bool)
         for li, x in enumerate(lt):
-            if x.get("lit") is None:
+            if x.get(key) is None:
                 continue
             links[li] = False
-            for name in x["lit"]:
+            for name in x[key]:
                 if name not in index:
-                    raise SceneError(f"light '{x['name']}': its Light Linking names object '{name}', which the scene "
+                    raise SceneError(f"light '{x['name']}': its {what} names object '{name}', which the scene "
                                      "does not hold")
                 links[li, index[name]] = True
         return links
@@ -366,5 +371,6 @@ class SceneBuilder:
                 matrix=matrix, color=glow[int(j)],
                 radius=float(np.sqrt(np.max(np.sum((v - c) ** 2, axis=2)))), soft_falloff=False,
                 spot_size=0.0, spot_blend=0.0, shape=S.SQUARE, size=np.zeros(2), spread=math.pi, angle=0.0,
-                caustics=True, visibility=int(obj.get("visibility", S.RAY_ALL)), lit=obj.get("lit")))
+                caustics=True, visibility=int(obj.get("visibility", S.RAY_ALL)), lit=obj.get("lit"),
+                blockers=obj.get("blockers")))
         return lt, tri_light

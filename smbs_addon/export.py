@@ -783,16 +783,6 @@ def _ray_visibility(ob, prefix="visible_") -> int:
     return sum(bit for attr, _, bit in _RAYS if getattr(ob, prefix + attr.removeprefix("visible_"), True))
 
 
-def _say_shadow_linking(ob, warn, what="light"):
-    """Cycles' Shadow Linking (Object > Shading > Light Linking > Blocker Collection: the objects that
-    shadow a light) is not followed: said once per object that sets it. (Its Receiver Collection is:
-    _linked_objects.)"""
-    c = getattr(getattr(ob, "light_linking", None), "blocker_collection", None)
-    if c is not None:
-        warn(f"{what} '{ob.name}': its Light Linking's blocker collection '{c.name}' is not followed: every object "
-             f"shadows its caustics as if it were unlinked")
-
-
 def _link_states(collection, state=None, out=None) -> dict:
     """The objects of a Light Linking collection, each with its Include / Exclude state, as Blender
     resolves them (its depsgraph's light linking cache): an object inside a child collection takes
@@ -808,12 +798,12 @@ def _link_states(collection, state=None, out=None) -> dict:
     return out
 
 
-def _linked_objects(ob):
+def _linked_objects(ob, which="receiver_collection"):
     """The original objects emitter ob (a light's or an emissive mesh's object) lights by its Light
-    Linking's receiver collection, as a predicate on an original object; None: every object (no
-    collection). Blender: an object set to Include is lit; once any is, only those; else every object
-    but those set to Exclude."""
-    c = getattr(getattr(ob, "light_linking", None), "receiver_collection", None)
+    Linking's receiver collection (which="blocker_collection": that shadow it, Shadow Linking), as a
+    predicate on an original object; None: every object (no collection). Blender, for both: an object
+    set to Include is in; once any is, only those; else every object but those set to Exclude."""
+    c = getattr(getattr(ob, "light_linking", None), which, None)
     if c is None:
         return None
     states = _link_states(c)
@@ -1434,8 +1424,6 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             _export_light(b, name, ob, M, _warn)
             if len(b.lights) > n_lights:
                 emitters.append((b.lights[-1], orig))
-            if k == 0 and not inst.is_instance:
-                _say_shadow_linking(orig, _warn)
             continue
 
         key = (orig.name_full, ob.data.as_pointer() if ob.data is not None else 0)
@@ -1466,8 +1454,6 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             continue
         if k == 0 and not inst.is_instance:
             _say_visibility(orig, _warn)
-            if any(SceneBuilder._radiance(b.materials[int(m)]).max() > 0 for m in np.unique(local["tri_material"])):
-                _say_shadow_linking(orig, _warn, "mesh light")
         view_objects.setdefault(key, {})[inst.parent.original if inst.is_instance and inst.parent is not None
                                         else orig] = None
         visibility = _ray_visibility(orig)
@@ -1483,24 +1469,25 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
         source = local.pop("bump_source")
         specs = {int(m): bump_specs[int(m)] for m in np.unique(local["tri_material"]) if int(m) in bump_specs}
         mesh_cache[key] = _bumped(local, specs, source, int(target), _warn)
-    # Light Linking (the receiver collections of lights and of emissive meshes): the objects each lights
-    lights_of = {}
+    # Light and Shadow Linking (the receiver and blocker collections of lights and of emissive meshes):
+    # the objects each lights, and those that shadow it
+    names_of = {}
     for name, key, M, caster, receiver, visibility, orig in meshes:
-        lights_of.setdefault(orig, []).append(name)
+        names_of.setdefault(orig, []).append(name)
 
-    def lit_names(emitter):
-        lights = _linked_objects(emitter)
-        return None if lights is None else [nm for o, names in lights_of.items() if lights(o) for nm in names]
+    def linked(emitter, which="receiver_collection"):
+        member = _linked_objects(emitter, which)
+        return None if member is None else [nm for o, names in names_of.items() if member(o) for nm in names]
 
     for entry, orig in emitters:
-        entry["lit"] = lit_names(orig)
+        entry["lit"], entry["blockers"] = linked(orig), linked(orig, "blocker_collection")
     view_bumped = {}  # the objects with a bumped diffuse (a receiver, by the plan's rules): the view holds them alone
     for name, key, M, caster, receiver, visibility, orig in meshes:
         local = mesh_cache[key]
         v, n, uv, back = _to_world(local, M)
         b.mesh_corners(name, v, n, uv, local["tri_material"], caster=caster, receiver=receiver,
                        smooth=bool(local["smooth"].any()), tri_normals_back=back, visibility=visibility,
-                       lit=lit_names(orig))
+                       lit=linked(orig), blockers=linked(orig, "blocker_collection"))
         if any(b.materials[int(m)]["view_bump"] for m in np.unique(local["tri_material"])):
             view_bumped.update(view_objects[key])
     maps = None

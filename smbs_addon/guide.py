@@ -172,7 +172,9 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
             check()
         if len(o) == 0:
             break
-        h = tracer.intersect(o, d)
+        # the first segment passes what does not shadow the light (Shadow Linking)
+        h = tracer.intersect(o, d) if bounce or ph.unshadowing is None else tracer.intersect_past(o, d, 0,
+                                                                                                  ph.unshadowing)
         rays += len(o)
         idx = np.flatnonzero(h.hit)
         o, d, beta, sig, length, via_rough = o[idx], d[idx], beta[idx], sig[idx], length[idx], via_rough[idx]
@@ -186,8 +188,8 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         kind = scene.mat_kind[mat]
         obj = scene.tri_object[prim]
         spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
-        if bounce == 0:
-            spec &= plan.casters[obj]
+        if bounce == 0:  # a planned caster the light lights (Light Linking)
+            spec &= plan.casters[obj] & (True if ph.lit is None else ph.lit[obj])
         diff = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj] & (bounce > 0))
         if diff.size:
             rx, ry, _, _, _, valid = cam.project(h.p[idx][diff])

@@ -133,11 +133,30 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats, obj=None):
         o = tracer.spawn(p[idx], ng[idx], dirs[idx])
         tmax = np.full(idx.size, np.inf) if light.directional else \
             shadow_tmax(scene, li, light.y[idx], light.ys[idx], light.yt[idx], o, dirs[idx], dist[idx], tracer.eps)
-        blocked = tracer.occluded(o, dirs[idx], tmax)
+        blocked = tracer.occluded_past(o, dirs[idx], tmax, S.RAY_SHADOW, scene.unshadowing(li))  # Shadow Linking
         stats["rays_direct"] = stats.get("rays_direct", 0) + int(idx.size)
         idx = idx[~blocked]
         out[idx] = (cos_x[idx] * g[idx] / math.pi)[:, None] * e[idx]
     return out
+
+
+def seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl):
+    """Where segments o + t d (leaving a reflection where refl, a refraction elsewhere; their next surface
+    at surf_t) see light li, which light_radiance found at distance tl with radiance L: before that
+    surface. Under Shadow Linking, past the surfaces of the objects that do not shadow the light as well
+    (Cycles' dedicated light rays): the light is found again beyond the surfaces and the segments that
+    meet it are traced again, passing those objects. Returns (seen, L)."""
+    passable = scene.unshadowing(li)
+    if passable is None:
+        return tl < surf_t, L
+    refl = np.broadcast_to(np.asarray(refl, bool), (len(o),))
+    L, tl = light_radiance(scene, li, o, d, refl=refl, beyond=True)
+    seen = L.max(axis=1) > 0
+    for r, kind in ((True, S.RAY_GLOSSY), (False, S.RAY_TRANSMISSION)):
+        j = np.flatnonzero(seen & (refl == r))
+        if j.size:  # short of the light itself (a mesh light's triangles are surfaces)
+            seen[j] = ~tracer.occluded_past(o[j], d[j], tl[j] * (1.0 - 1e-6), kind, passable)
+    return seen, L
 
 
 def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
@@ -208,8 +227,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                                       np.where(last_refl, S.RAY_GLOSSY, S.RAY_TRANSMISSION))
             stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
             if others and bounce > 0:
-                _count_others(scene, others, o, d, h, lane, beta, code, on, bounce, (depth >= 1) & lim.fits(before),
-                              radiance, stats, last_obj)
+                _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, bounce,
+                              (depth >= 1) & lim.fits(before), radiance, stats, last_obj)
             if connect is None and bounce > 0 and len(lights_hit):
                 # Cycles' lights are transparent (shade_light adds the emission and the path
                 # goes on): every light in front of the next surface counts, not the nearest
@@ -217,7 +236,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 seen_l = np.zeros((len(o), 3))
                 for li in lights_hit:
                     L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=last_refl, surf_t=surf_t)
-                    seen_l += np.where(((tl < surf_t) & scene.lit_by(li)[last_obj])[:, None], L, 0.0)
+                    seen, L = seen_light(scene, tracer, li, o, d, last_refl, surf_t, L, tl)
+                    seen_l += np.where((seen & scene.lit_by(li)[last_obj])[:, None], L, 0.0)
                 count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
                                        & lim.fits(before))
                 np.add.at(radiance, lane[count], beta[count] * seen_l[count])
@@ -289,7 +309,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     _splat_gathered(scene, film, rc, radiance, stats)
 
 
-def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats, last_obj):
+def _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats, last_obj):
     """gather's paths no walk takes: the lights of others (light index -> Handoff) seen on the
     segments (o, d; hits h) after k specular vertices, where ok, added to radiance per lane
     (last_obj: the object of the vertex each segment leaves, for the lights' Light Linking)."""
@@ -299,8 +319,10 @@ def _count_others(scene, others, o, d, h, lane, beta, code, on, k, ok, radiance,
         other = ok & (~on | ~np.isin(code, walked))
         if not other.any():
             continue
-        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=(code & 1) == 1, surf_t=surf_t)  # the latest vertex's letter
-        seen = np.flatnonzero(other & (tl < surf_t) & (L.max(axis=1) > 0) & scene.lit_by(li)[last_obj])
+        refl = (code & 1) == 1  # the latest vertex's letter
+        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=refl, surf_t=surf_t)
+        seen, L = seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl)
+        seen = np.flatnonzero(other & seen & (L.max(axis=1) > 0) & scene.lit_by(li)[last_obj])
         np.add.at(radiance, lane[seen], beta[seen] * L[seen])
         stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
 
@@ -351,7 +373,8 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
         seg_obj = seg[:, kernels.SEG_OBJ].astype(np.int64)
         for li in hit_lights:
             L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
-            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & scene.lit_by(li)[seg_obj])
+            seen, L = seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl)
+            seen = np.flatnonzero(seen & (L.max(axis=1) > 0) & scene.lit_by(li)[seg_obj])
             np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
     if len(vx):
         c = lambda k: vx[:, k:k + 3]  # noqa: E731
@@ -525,11 +548,12 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
         # bent paths are bent_gather's alone (handoff_gather's docstring)
         fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
-            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=hist[row, k, 5] > 0,
-                                    surf_t=surf_t)
+            refl = hist[row, k, 5] > 0
+            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
+            seen, L = seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl)
             # Light Linking: of the vertex the light leaves last, the segment's own
             lit = scene.lit_by(li)[scene.tri_object[h_prim[row, k]]] if scene.light_linked(li) else True
-            seen = np.flatnonzero((tl < surf_t) & (L.max(axis=1) > 0) & fits & lit)
+            seen = np.flatnonzero(seen & (L.max(axis=1) > 0) & fits & lit)
             if seen.size == 0:
                 continue
             if ho is None:

@@ -1655,14 +1655,14 @@ def _next_surface(ray, o, d, tv, tng, tns, eps):
 
 
 @njit(**_JIT)
-def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, receivers, mats, lim, max_bounces,
-                 max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
+def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, unshadowing, key, lane0, geo, receivers, mats, lim,
+                 max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
     """photon_lanes' loop over its lanes from lane0, on borrowed arrays (its caller holds them).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; records
     written)."""
     ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    o0, d0, w0, soft, lit, receivers, lim, rec, rec_i, hist, h_prim, tally = _borrowed(
-        (o0, d0, w0, soft, lit, receivers, lim, rec, rec_i, hist, h_prim, tally))
+    o0, d0, w0, soft, lit, unshadowing, receivers, lim, rec, rec_i, hist, h_prim, tally = _borrowed(
+        (o0, d0, w0, soft, lit, unshadowing, receivers, lim, rec, rec_i, hist, h_prim, tally))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     mat_color = mats[2]
     counts = ray[6]
@@ -1687,12 +1687,30 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, re
         # light's, lvis, at first), those the surfaces passed since meet (a ray of such a kind would have
         # stopped there), and how many were passed
         prev_vis, passed, n_pass = lvis, 0, 0
+        n_unshadow = 0  # objects that do not shadow the light passed on the first segment (Shadow Linking)
         it = 0  # the path's vertices so far (the photon's events)
         while it < max_iter:
             pr, t, p, g, n, b1, b2 = _next_surface(ray, o, d, tv, tng, tns, eps)
             if pr < 0:
                 break
             b = _absorbed(mats[0], mats[10], medium, tri_material[pr], d, g, t, b)
+            if it == 0 and unshadowing.shape[0] > 0 and unshadowing[tri_object[pr]]:
+                # Shadow Linking: Cycles' rays to the light pass an object that does not shadow it, and a path
+                # that meets the object goes on from it too: where it could (the object lit, and a caster, or
+                # any surface for the indirect photons), either, at random, weighted 2; else passed
+                ob0, k0 = tri_object[pr], mat_kind[tri_material[pr]]
+                go_on = (lit.shape[0] == 0 or lit[ob0]) and (indirect or ((k0 == _CONDUCTOR or k0 == _DIELECTRIC)
+                                                                           and casters[ob0]))
+                go_past = True
+                if go_on:
+                    go_past = keyed_uniform(key, lane, it, 4 + HIDDEN_PASSES + n_unshadow) < 0.5
+                    b = _mul(2.0, b)
+                if go_past:
+                    if n_unshadow == HIDDEN_PASSES:
+                        break
+                    n_unshadow += 1
+                    o = _add(p, _mul(eps if _dot(d, g) >= 0 else -eps, g))  # tracer.spawn, on along d
+                    continue
             h = hid[tri_object[pr]] & _PATH_RAYS if hid.shape[0] > 0 else 0
             if h != 0:
                 # a surface some kinds of ray do not meet: the path may pass it or meet it, as the kind of
@@ -1800,8 +1818,8 @@ def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, re
 
 @TypedOnce
 @njit(**_JIT)
-def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, receivers, mats, lim, max_bounces,
-                 max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
+def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, lit, unshadowing, key, lane0, geo, receivers, mats, lim,
+                 max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
     """The light tracer's photons (o0, d0: origin and unit direction; w0: flux), each traced from
     its light to its end, every ray cast here, its random numbers keyed_uniform(key, lane,
     event, .): the same path whichever call or thread traces it.
@@ -1816,7 +1834,9 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, rec
     Limits.array(); bounces.py: the photon's first event is free, x0's diffuse bounce counts).
     soft: a soft-falloff light's centre and radius (radius 0: none), applied at the first hit;
     lvis: the rays that see the light (scene.RAY_* bits): the first event must cast such a ray; lit:
-    (O,) bool, the objects the light lights (Light Linking: the first event must be on one; empty: any).
+    (O,) bool, the objects the light lights (Light Linking: the first event must be on one; empty: any);
+    unshadowing: (O,) bool, the objects that do not shadow it (Shadow Linking: the first segment passes
+    them, or where the path could go on from one, passes it or meets it at random; empty: none).
 
     Writes splat records (rec: REC_* columns, rec_i: lane, specular bounces before it,
     material) and, for the hand-off, the first K = hist.shape[1] specular vertices of each lane
@@ -1825,8 +1845,8 @@ def photon_lanes(rt, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, rec
     records would not fit in rec is left whole for the next call; records written; the ray
     counters, embree.ray_state)."""
     ray = ray_state(rt)
-    nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, key, lane0, geo, receivers, mats, lim,
-                             max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally)
+    nxt, nrec = _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, unshadowing, key, lane0, geo, receivers,
+                             mats, lim, max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally)
     return nxt, nrec, ray[6]
 
 

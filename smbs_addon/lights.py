@@ -43,6 +43,9 @@ class Photons:
     # (O,) bool: the objects the light lights (Light Linking): the photon's first event, the camera
     # path's last before the light, must be on one. None: any
     lit: np.ndarray | None = None
+    # (O,) bool: the objects that do not shadow the light (Shadow Linking): the photon's first segment
+    # passes them (or meets one at random, where its path could go on from it). None: none
+    unshadowing: np.ndarray | None = None
 
 
 def _smoothstep(x):
@@ -419,6 +422,7 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
         ph.visibility = int(scene.light_visibility[li])
     if scene.light_linked(li):
         ph.lit = scene.lit_by(li)
+    ph.unshadowing = scene.unshadowing(li)
     return ph
 
 
@@ -516,16 +520,20 @@ def _sphere_hit(o, d, c, r):
 
 
 def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.ndarray | None = None,
-                   refl: np.ndarray | None = None, surf_t: np.ndarray | None = None):
+                   refl: np.ndarray | None = None, surf_t: np.ndarray | None = None, beyond: bool = False):
     """Radiance a ray o + t d sees from light li, and the distance (inf if the ray
     misses it). escaped marks rays that left the scene (needed for a sun or the world).
     Point lights of radius 0 cannot be hit (delta lights). refl: per ray, whether it leaves a
     reflection (a glossy ray) or a refraction (a transmission ray): where the light's Ray Visibility
     leaves that kind out, the ray passes it (None: every ray sees it). surf_t: where each ray meets
     the scene's first surface (inf: none), which a mesh light needs: its triangles are that surface
-    or none of the ray's."""
+    or none of the ray's. beyond: the light as if no surface hid it (every ray escaped; a mesh light's
+    triangles wherever they lie, t their distance), for rays whose shadows are found apart (Shadow
+    Linking's)."""
+    if beyond:
+        escaped, surf_t = np.ones(len(o), bool), None
     if scene.light_type[li] == S.MESH:
-        L, t = _mesh_light_radiance(scene, li, o, d, surf_t)
+        L, t = _mesh_light_radiance(scene, li, o, d, surf_t, beyond)
     else:
         L, t = _light_radiance(scene, li, o, d, escaped)
     if refl is not None and scene.light_visibility.size:
@@ -536,18 +544,21 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
     return L, t
 
 
-def _mesh_light_radiance(scene, li, o, d, surf_t):
+def _mesh_light_radiance(scene, li, o, d, surf_t, beyond=False):
     """A mesh light's radiance where a ray's first surface (at surf_t) is one of its triangles: met
     again in an embree scene of its triangles alone, no farther than that surface (within float32's
-    error); t is then just before that surface, as the callers count a light before it."""
+    error); t is then just before that surface, as the callers count a light before it. beyond: where
+    the ray meets its triangles at all, t their distance."""
     from . import embree
 
-    if surf_t is None:
+    if beyond:
+        surf_t = np.full(len(o), np.inf)
+    elif surf_t is None:
         raise ValueError(f"light '{scene.light_names[li]}': a mesh light is met as a surface: give surf_t")
     n = len(o)
     L, t = np.zeros((n, 3)), np.full(n, np.inf)
     surf_t = np.asarray(surf_t, np.float64)
-    idx = np.flatnonzero(np.isfinite(surf_t))
+    idx = np.arange(n) if beyond else np.flatnonzero(np.isfinite(surf_t))
     if idx.size == 0:
         return L, t
     own = scene.derived(("mesh_light_embree", int(li)), lambda: embree.Scene(scene.mesh_light(li)[1]))
@@ -557,7 +568,7 @@ def _mesh_light_radiance(scene, li, o, d, surf_t):
                      surf_t[idx] * (1.0 + 1e-5) + S.offset_eps(*scene.bounds()), False, prim, tl)
     hit = idx[prim >= 0]
     L[hit] = scene.light_color[li]
-    t[hit] = surf_t[hit] * (1.0 - 1e-12)
+    t[hit] = tl[prim >= 0] if beyond else surf_t[hit] * (1.0 - 1e-12)
     return L, t
 
 

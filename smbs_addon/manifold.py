@@ -379,12 +379,14 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     vis_idx = np.flatnonzero(ok)
     if vis_idx.size:
         o = tracer.spawn(xk[vis_idx], verts[k - 1].ng[vis_idx], dirs[vis_idx])
-        # the ray leaving the last vertex, glossy or transmission: it passes what its kind does not meet
+        # the ray leaving the last vertex, glossy or transmission: it passes what its kind does not meet,
+        # and what does not shadow the light (Shadow Linking)
         t_far = tmax[vis_idx] - tracer.eps if le.directional else \
             shadow_tmax(scene, li, le.y[vis_idx], le.ys[vis_idx], le.yt[vis_idx], o, dirs[vis_idx],
                         dist[vis_idx], tracer.eps)
         blocked = tracer.occluded_past(o, dirs[vis_idx], t_far,
-                                       S.RAY_GLOSSY if types[-1] == "R" else S.RAY_TRANSMISSION)
+                                       S.RAY_GLOSSY if types[-1] == "R" else S.RAY_TRANSMISSION,
+                                       scene.unshadowing(li))
         ctx.count("rays_shadow", vis_idx.size)
         ctx.stats["occluded"] = ctx.stats.get("occluded", 0) + int(blocked.sum())
         ok[vis_idx[blocked]] = False

@@ -292,10 +292,11 @@ def _rng(seed, *key):
     return np.random.default_rng(np.random.SeedSequence([int(seed), *[int(k) for k in key]]))
 
 
-def _surfaces(scene, tracer, o, d, camera=False):
-    """Trace rays (camera: the camera's own, Tracer.camera_intersect): (hits, indices of the rays that
-    hit, their object, material and kind)."""
-    h = tracer.camera_intersect(o, d) if camera else tracer.intersect(o, d)
+def _surfaces(scene, tracer, o, d, camera=False, passable=None):
+    """Trace rays (camera: the camera's own, Tracer.camera_intersect; passable: past the objects it marks,
+    Tracer.intersect_past): (hits, indices of the rays that hit, their object, material and kind)."""
+    h = tracer.camera_intersect(o, d) if camera else \
+        tracer.intersect(o, d) if passable is None else tracer.intersect_past(o, d, 0, passable)
     i = np.flatnonzero(h.hit)
     mat = scene.tri_material[h.prim[i]]
     return h, i, scene.tri_object[h.prim[i]], mat, scene.mat_kind[mat]
@@ -457,7 +458,8 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
     for depth in range(max_bounces + 1):
         if len(o) == 0:
             break
-        h, i, obj, mat, kind = _surfaces(scene, tracer, o, d)
+        # a photon's first segment passes what does not shadow its light (Shadow Linking)
+        h, i, obj, mat, kind = _surfaces(scene, tracer, o, d, passable=ph.unshadowing if depth == 0 else None)
         rays += len(o)
         land = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj] & (depth > 0))
         if land.size:
@@ -620,7 +622,8 @@ def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere,
     rng = _rng(seed, 8, light_key(scene.light_names[li]))
     ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng)  # onto the diffuse surfaces
     lit = np.flatnonzero(ph.w.max(axis=1) > 0)
-    h = tracer.intersect(ph.o[lit], ph.d[lit])
+    h = tracer.intersect(ph.o[lit], ph.d[lit]) if ph.unshadowing is None else \
+        tracer.intersect_past(ph.o[lit], ph.d[lit], 0, ph.unshadowing)  # past what does not shadow it
     i = np.flatnonzero(h.hit)
     mat = scene.tri_material[h.prim[i]]
     dif = scene.mat_kind[mat] == S.DIFFUSE

@@ -174,6 +174,8 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     soft = np.zeros(4) if photons.soft_center is None else np.append(photons.soft_center, photons.soft_radius)
     lvis = int(photons.visibility)
     lit = np.zeros(0, bool) if photons.lit is None else np.ascontiguousarray(photons.lit, bool)
+    unshadowing = np.zeros(0, bool) if photons.unshadowing is None else np.ascontiguousarray(photons.unshadowing,
+                                                                                             bool)
     hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
     tally = np.zeros(kernels.PH_TALLY, np.int64)
     # a record is a photon's diffuse vertex the camera may see directly (splat_records): none on an object
@@ -190,7 +192,8 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
         while lane < b:
             rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
             rt = tracer.rays()
-            lane, m, counts = kernels.photon_lanes(rt, bool(indirect), o0[:b], d0[:b], w0[:b], soft, lvis, lit, key, lane,
+            lane, m, counts = kernels.photon_lanes(rt, bool(indirect), o0[:b], d0[:b], w0[:b], soft, lvis, lit,
+                                                   unshadowing, key, lane,
                                                    *args, rec, rec_i, hist[:b], h_prim[:b], tally_p)
             tracer.cast_by_kernel(rt, counts)
             rays += int(counts[embree.KINDS:].sum())

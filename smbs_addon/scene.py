@@ -61,7 +61,7 @@ PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
             "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
             "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission", "mat_metal",
-            "light_links")
+            "light_links", "light_blockers")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -243,6 +243,11 @@ class Scene:
     # it lit, for light that meets more than one), never the receiver the camera sees. Empty: every
     # light lights every object
     light_links: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
+    # (L, O) bool: Cycles' Shadow Linking, the objects that shadow each light (its blocker collection).
+    # Cycles asks it of the rays that reach the light: the path's last segment, from the object it leaves
+    # last, passes the objects that do not shadow the light (its "dedicated light" rays), and the path
+    # that meets such an object goes on from it as well. Empty: every object shadows every light
+    light_blockers: np.ndarray = field(default_factory=lambda: np.zeros((0, 0), bool))
 
     # ------------------------------------------------------------------ derived
     def mesh_light(self, li: int):
@@ -277,6 +282,13 @@ class Scene:
         if not self.light_links.size:
             return np.ones(len(self.object_names), bool)
         return np.asarray(self.light_links[li], bool)
+
+    def unshadowing(self, li: int) -> np.ndarray | None:
+        """(O,) bool: the objects that do not shadow light li (Shadow Linking, light_blockers), which the
+        segment reaching it passes; None where every object does."""
+        if not self.light_blockers.size or bool(np.all(self.light_blockers[li])):
+            return None
+        return ~np.asarray(self.light_blockers[li], bool)
 
     def light_linked(self, li: int) -> bool:
         """Does Light Linking keep light li from some object?"""
@@ -445,9 +457,11 @@ class Scene:
             if a.shape not in ((0,), (n,)) or (a.size and not np.all((a >= 0) & (a <= RAY_ALL))):
                 raise SceneError(f"scene array '{name}' must have one entry of Ray Visibility bits (0 to "
                                  f"{RAY_ALL}) per {name.split('_')[0]} ({n}) or none")
-        if self.light_links.size and self.light_links.shape != (L, O):
-            raise SceneError(f"scene array 'light_links' must be ({L}, {O}) (Light Linking: the objects each light "
-                             f"lights) or empty, not {self.light_links.shape}")
+        for name, what in (("light_links", "Light Linking: the objects each light lights"),
+                           ("light_blockers", "Shadow Linking: the objects that shadow each light")):
+            a = getattr(self, name)
+            if a.size and a.shape != (L, O):
+                raise SceneError(f"scene array '{name}' must be ({L}, {O}) ({what}) or empty, not {a.shape}")
         if self.mat_emission.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_emission' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_emission) & (self.mat_emission >= 0) & (self.mat_emission <= MAX_POWER),

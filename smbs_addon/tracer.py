@@ -158,20 +158,22 @@ class Tracer:
             lanes.run(job, n, self.threads, _MIN_SPLIT)
         return Hits(hit=prim >= 0, prim=prim, t=t, p=p, ng=ng, ns=ns, b=b)
 
-    def intersect_past(self, o: np.ndarray, d: np.ndarray, kind) -> Hits:
+    def intersect_past(self, o: np.ndarray, d: np.ndarray, kind, passable: np.ndarray | None = None) -> Hits:
         """intersect for rays of kind `kind` (a scene.RAY_* bit, or one per ray): past the surfaces of
-        the objects such rays do not meet (self.hid, Cycles' Ray Visibility), up to
-        kernels.HIDDEN_PASSES of them (then a miss), each next hit on the ray's own line, as the kernels'
-        rays (kernels._hit_or_miss_past)."""
+        the objects such rays do not meet (self.hid, Cycles' Ray Visibility) and of the objects passable
+        marks ((O,) bool, or None), up to kernels.HIDDEN_PASSES of them (then a miss), each next hit on
+        the ray's own line, as the kernels' rays (kernels._hit_or_miss_past)."""
         from .kernels import HIDDEN_PASSES
 
         h = self.intersect(o, d)
-        if not self.hid.size:
+        if not self.hid.size and passable is None:
             return h
         kind = np.broadcast_to(kind, (len(o),))
         obj = self.scene.tri_object
+        hid = self.hid if self.hid.size else np.zeros(len(self.scene.object_names), np.int64)
         for k in range(HIDDEN_PASSES + 1):
-            j = np.flatnonzero(h.hit & (self.hid[obj[np.maximum(h.prim, 0)]] & kind != 0))
+            on = obj[np.maximum(h.prim, 0)]
+            j = np.flatnonzero(h.hit & ((hid[on] & kind != 0) | (passable[on] if passable is not None else False)))
             if j.size == 0:
                 break
             if k == HIDDEN_PASSES:
@@ -186,10 +188,15 @@ class Tracer:
         """intersect_past for the camera's own rays."""
         return self.intersect_past(o, d, S.RAY_CAMERA)
 
-    def occluded_past(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, kind: int) -> np.ndarray:
+    def occluded_past(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, kind: int,
+                      passable: np.ndarray | None = None) -> np.ndarray:
         """occluded for rays of kind `kind` (a scene.RAY_* bit): the surfaces of the objects such rays do
-        not meet are passed (kernels._camera_clear for the camera's)."""
-        if not self.hid.size or not (self.hid & kind).any():
+        not meet are passed (kernels._camera_clear for the camera's), and those of the objects passable
+        ((O,) bool: Shadow Linking's, the objects that do not shadow the light the rays go to) marks."""
+        hidden = self.hid & kind != 0 if self.hid.size and (self.hid & kind).any() else None
+        if passable is not None:
+            hidden = passable if hidden is None else hidden | passable
+        if hidden is None:
             return self.occluded(o, d, tmax)
         from .kernels import HIDDEN_PASSES
 
@@ -197,7 +204,7 @@ class Tracer:
         blocked, todo = np.zeros(len(o), bool), np.arange(len(o))
         for _ in range(HIDDEN_PASSES + 1):
             h = self.intersect(o[todo], d[todo], tmax[todo])
-            passed = h.hit & (self.hid[self.scene.tri_object[np.maximum(h.prim, 0)]] & kind != 0)
+            passed = h.hit & hidden[self.scene.tri_object[np.maximum(h.prim, 0)]]
             blocked[todo[h.hit & ~passed]] = True
             go = np.flatnonzero(passed)  # on past the hidden surface, what is left of the segment
             if go.size == 0:

@@ -622,25 +622,27 @@ def test_light_linking_receivers_are_read_as_blender_resolves_them():
     assert _links(sc, "Sun") == ["Wall"]
 
 
-def test_light_linking_blockers_are_said_not_followed():
-    """Shadow Linking (a light's blocker collection) is not followed and is said, for a lamp and a mesh
-    light; a receiver collection alone is followed and not said."""
+def test_shadow_linking_blockers_are_read_as_the_receivers_are():
+    """A light's blocker collection (Shadow Linking) resolves as a receiver collection does, into
+    Scene.light_blockers: with the wall set to Include, only the wall shadows the lamp; a mesh light reads
+    its object's; nothing is said about either."""
     add_camera()
+    glass = material("Glass", "ShaderNodeBsdfGlass")
+    ball, wall = mesh_with(glass, "Ball"), mesh_with(glass, "Wall")
     lamp = add_light("POINT", energy=10.0)
-    only = bpy.data.collections.new("OnlyFloor")
+    only = bpy.data.collections.new("OnlyWall")
+    only.objects.link(wall)
     lamp.light_linking.blocker_collection = only
-    lamp.light_linking.receiver_collection = only
     glow = mesh_with(material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
     glow.light_linking.blocker_collection = only
-    bulb = add_light("SPOT", energy=10.0)
-    bulb.light_linking.receiver_collection = only
-    mesh_with(material("Glass", "ShaderNodeBsdfGlass"), "Ball")
-    _, warnings = export()
-    assert sorted(warnings) == [
-        f"light '{lamp.name}': its Light Linking's blocker collection 'OnlyFloor' is not followed: every object "
-        f"shadows its caustics as if it were unlinked",
-        "mesh light 'Panel': its Light Linking's blocker collection 'OnlyFloor' is not followed: every object "
-        "shadows its caustics as if it were unlinked"]
+    glow.light_linking.receiver_collection = only
+    sc, warnings = export()
+    assert warnings == []
+    for light in ("Point", "Panel"):
+        li = sc.light_names.index(light)
+        assert sorted(n for n, on in zip(sc.object_names, sc.unshadowing(li)) if not on) == ["Wall"]
+    assert _links(sc, "Point") == ["Ball", "Panel", "Wall"] and _links(sc, "Panel") == ["Wall"]
+    assert ball.name == "Ball"
 
 
 def test_unsupported_node_warns_naming_the_material():

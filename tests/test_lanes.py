@@ -229,7 +229,7 @@ def test_one_chunks_photons_split_over_threads_give_the_records_of_one_call(monk
         run = reference.kernels.photon_lanes
 
         def spy(*a):
-            calls.append(a[7])  # the first lane of the call
+            calls.append(a[10])  # the first lane of the call
             return run(*a)
 
         monkeypatch.setattr(reference.kernels, "photon_lanes", spy)

@@ -105,7 +105,7 @@ def _trace(scene, plan, tracer, ph, key, indirect, cap, max_iter):
     while lane < n:
         rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
         lane, m, counts = kernels.photon_lanes(tracer.rays(), indirect, ph.o, ph.d, ph.w, np.zeros(4), ph.visibility,
-                                               np.zeros(0, bool), key, lane, tracer.kernel_geometry(plan.casters), plan.receivers,
+                                               np.zeros(0, bool), np.zeros(0, bool), key, lane, tracer.kernel_geometry(plan.casters), plan.receivers,
                                                optics.materials(scene), Limits.of(scene).array(), 32, max_iter, False,
                                                tracer.eps, rec, rec_i, hist, h_prim, tally)
         recs.append(rec[:m])

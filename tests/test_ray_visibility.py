@@ -93,7 +93,7 @@ def _photons(scene, lvis, key=99):
     rec, rec_i = np.empty((n * 8, kernels.REC_F)), np.empty((n * 8, 3), np.int64)
     hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
     tally = np.zeros(kernels.PH_TALLY, np.int64)
-    _, m, _ = kernels.photon_lanes(tracer.rays(), False, ph.o, ph.d, ph.w, np.zeros(4), lvis, np.zeros(0, bool), key, 0,
+    _, m, _ = kernels.photon_lanes(tracer.rays(), False, ph.o, ph.d, ph.w, np.zeros(4), lvis, np.zeros(0, bool), np.zeros(0, bool), key, 0,
                                    tracer.kernel_geometry(plan.casters), plan.receivers, optics.materials(scene),
                                    Limits.of(scene).array(), 32, 33, False, tracer.eps, rec, rec_i, hist, h_prim, tally)
     return rec[:m], rec_i[:m], hist
