@@ -456,6 +456,28 @@ def linked_lamps():
     return scene
 
 
+def shadow_linked_ball():
+    """Shadow Linking: a Glass BSDF ball (IOR 1.5) under sphere_point_soft's bulb with a grey plate between
+    them that does not shadow the bulb (its blocker collection has the plate set to Exclude): Cycles' rays
+    to the bulb pass the plate (its "dedicated light" rays), so the ball's caustic and the floor's light
+    that comes back through the ball are those without the plate, while the plate still stands in every
+    other path."""
+    scene = _scene("shadow_linked_ball")
+    _floor(scene)
+    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    v, f = B.grid(1.4, 1.4)
+    shade = B.mesh_object(scene, "Shade", v, f, B.material("Grey", "diffuse", (0.5, 0.5, 0.5)),
+                          location=(0.28, -0.14, 2.3))
+    bulb = B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
+                       use_soft_falloff=True)
+    blockers = bpy.data.collections.new("NotTheShade")
+    blockers.objects.link(shade)
+    blockers.collection_objects[0].light_linking.link_state = "EXCLUDE"
+    bulb.light_linking.blocker_collection = blockers
+    B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
+    return scene
+
+
 def mirror_alloy():
     """mirror_point_hard with a Principled mirror of Metallic 0.7 (Base Color 0.9, Roughness 0): Cycles
     weighs its metal lobe by 0.7 and the dielectric rest, a coat (in our mirror's reflection) over a diffuse
@@ -986,6 +1008,8 @@ SCENES = {
                           "falloff, receiver seen in the mirror"),
     "linked_lamps": (linked_lamps, "Light Linking: a lamp lighting the ball alone and a lamp lighting all but the "
                      "ball, over _standing_mirror and a glass ball (Cycles asks it of the last mirror or glass)"),
+    "shadow_linked_ball": (shadow_linked_ball, "Shadow Linking: a plate between a bulb and a glass ball that does not "
+                           "shadow the bulb (its blocker collection excludes it)"),
     "mirror_alloy": (mirror_alloy, "mirror_point_hard's mirror as Principled Metallic 0.7 (a partly metallic "
                      "lobe)"),
     "mirror_spread30": (mirror_spread30, "Glossy BSDF flat mirror, square area light of spread 30 "

@@ -31,6 +31,9 @@ CASES = [
     # Light Linking: a lamp lighting a glass ball alone, one lighting all but the ball: 1.81 of Cycles when ignored
     ("linked_lamps", "reference", 256),
     ("linked_lamps", "sms", 4),
+    # Shadow Linking: a plate between the bulb and the ball that does not shadow the bulb: 0.002 of Cycles when ignored
+    ("shadow_linked_ball", "reference", 256),
+    ("shadow_linked_ball", "smbs", 4),
     ("lens_area", "reference", 32),
     ("sphere_refraction_spot", "reference", 32),
     ("sphere_refraction_spot", "smbs", 4),
