@@ -449,6 +449,8 @@ def _mixed(parts, left, mat, warn) -> dict:
         total = mass[key] if mass[key] > 0 else 1.0
         kw["color"] = sum(w * np.asarray(p["color"], float) for w, p, _ in chosen) / total
         kw["metal"] = sum(w * np.asarray(p.get("metal", np.zeros(6)), float) for w, p, _ in chosen) / total
+        if key[3] == S.FRESNEL_SCHLICK:  # a Principled metal's coat, (1 - Metallic) x its weight (Scene.mat_metal)
+            kw["metal"][3:] = 1.0 - mass[key]
     else:
         kw["color"] = sum(w * np.asarray(p["color"], float) for w, p, _ in chosen)
     kw.pop("emission", None)

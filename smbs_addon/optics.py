@@ -196,7 +196,8 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, cos_i):
     - conductor: R = colour (Glossy BSDF), or Cycles' F82-Tint from F0 = colour and B = metal[:3]
       (Schlick where B is 0), or a physical conductor's Fresnel of index metal[:3] + i metal[3:]
       (Metallic BSDF), times the reflection tint (Principled metallic: its Metallic weight m),
-      plus (1 - m) x the dielectric Fresnel of index eta (the coat over the rest); T = 0;
+      plus (1 - m - metal[3:]) x the dielectric Fresnel of index eta (the coat over the rest; in a
+      shader mix of weight w, F82-Tint's metal[3:] = 1 - w and the tint w m, so (1 - m) w); T = 0;
     - glass: R = F * reflection tint, T = (1 - F) * transmission tint, F the dielectric
       Fresnel term (1 under total internal reflection);
     - Refraction BSDF: R = 0, T = colour, and T = 0 under total internal reflection.
@@ -220,7 +221,9 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, cos_i):
             r = (f[0] * rcolor[0], f[1] * rcolor[1], f[2] * rcolor[2])
             if rcolor[0] < 1.0:
                 fc = fresnel_dielectric1(abs(cos_i), eta)
-                r = (r[0] + (1.0 - rcolor[0]) * fc, r[1] + (1.0 - rcolor[1]) * fc, r[2] + (1.0 - rcolor[2]) * fc)
+                lost = (metal[3], metal[4], metal[5]) if fres == _SCHLICK else zero  # a mix's other parts' weight
+                r = (r[0] + (1.0 - rcolor[0] - lost[0]) * fc, r[1] + (1.0 - rcolor[1] - lost[1]) * fc,
+                     r[2] + (1.0 - rcolor[2] - lost[2]) * fc)
             return r, zero
         return color, zero
     if kind == _DIELECTRIC:

@@ -234,8 +234,10 @@ class Scene:
     # Color x Strength; its faces are then a MESH light too). Empty: none
     mat_emission: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))
     # (M,6): a metal's Fresnel beyond mat_color: for FRESNEL_SCHLICK the F82-Tint model's B per
-    # channel (then zeros), for FRESNEL_CONDUCTOR the complex index's n then k per channel. Empty:
-    # B = 0 everywhere (plain Schlick) and no physical conductor
+    # channel, then what a shader mix's other parts weigh (1 - w: a Principled metal's dielectric coat
+    # covers (1 - Metallic) w of it, not 1 - Metallic w; zeros unmixed), for FRESNEL_CONDUCTOR the
+    # complex index's n then k per channel. Empty: B = 0 everywhere (plain Schlick), no mix and no
+    # physical conductor
     mat_metal: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     # (L, O) bool: Cycles' Light Linking, the objects each light lights (its receiver collection, as
     # Blender resolves Include and Exclude). Cycles asks it of the object a path leaves last before

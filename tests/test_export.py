@@ -491,6 +491,24 @@ def test_a_metal_mixed_with_a_diffuse_keeps_its_fresnel_at_its_weight():
     np.testing.assert_allclose(R, 0.6 * fresnel_dielectric(cos, 1.5)[:, None] * np.ones(3), rtol=1e-6)
 
 
+def test_a_principled_metal_in_a_mix_weighs_its_coat_by_its_weight():
+    """A Principled BSDF of Metallic 0.8 is 0.8 of F82-Tint metal and 0.2 of a dielectric coat; mixed at
+    0.6 with a diffuse, Cycles weighs both by 0.6: its reflectance is 0.6 x the unmixed one's at every
+    angle (the coat was 1 - 0.8 x 0.6 = 0.52 of the dielectric Fresnel, not 0.2 x 0.6 = 0.12: 2.6 x too
+    much at grazing angles)."""
+    from smbs_addon.optics import specular_weights
+
+    cos = np.array([1.0, 0.5, 0.1, 0.02])
+    metal = {"Base Color": (0.9, 0.6, 0.3, 1.0), "Metallic": 0.8, "Roughness": 0.0, "IOR": 1.6}
+    sc, _ = one_material(material("Alone", "ShaderNodeBsdfPrincipled", **metal))
+    alone, _ = specular_weights(sc, np.zeros(4, np.int64), cos)
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc, _ = one_material(mixed("Mixed", ("ShaderNodeBsdfPrincipled", metal), ("ShaderNodeBsdfDiffuse", {}),
+                               factor=0.4))
+    R, _ = specular_weights(sc, np.zeros(4, np.int64), cos)
+    np.testing.assert_allclose(R, 0.6 * alone, rtol=1e-6)  # (the Factor is a float32)
+
+
 def test_a_partly_transmissive_principled_glass_weighs_both_lobes():
     sc, w = one_material(material("Frost", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.81, 1.0, 0.64), "Metallic": 0.1, "Transmission Weight": 0.9, "Roughness": 0.0}))
