@@ -757,6 +757,16 @@ def mix_frosted_ball():
         ("ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0), "IOR": 1.5, "Roughness": 0.0}), 0.75))
 
 
+def mix_alloy_mirror():
+    """mirror_point_hard's mirror as a Mix Shader (Factor 0.5) of a Principled BSDF of Metallic 0.5 (Base Color
+    0.9, Roughness 0) and a dark Diffuse BSDF (0.05): Cycles weighs the metal lobe and its dielectric coat
+    alike by the mix's 0.5, so the coat reflects 0.25 of the dielectric Fresnel, not the 0.75 that
+    1 - Metallic x 0.5 would give."""
+    return _mirror_under_bulb("mix_alloy_mirror", lambda: _mix(
+        "MixAlloy", ("ShaderNodeBsdfPrincipled", {"Base Color": (0.9, 0.9, 0.9), "Metallic": 0.5, "Roughness": 0.0}),
+        ("ShaderNodeBsdfDiffuse", {"Color": (0.05, 0.05, 0.05)}), 0.5))
+
+
 def mix_floor():
     """The slanted glass ball over a floor of Mix Shader(Diffuse BSDF 0.8, Glossy BSDF white of
     Roughness 0.3) at Factor 0.25, the old way to make a glossy floor: its diffuse weighs 0.75, and
@@ -1045,6 +1055,8 @@ SCENES = {
                           "and the bulb's together"),
     "mix_frosted_ball": (mix_frosted_ball, "a Mix Shader of Diffuse and Glass BSDF (Factor 0.75) on a ball: the "
                          "glass casts with its weight"),
+    "mix_alloy_mirror": (mix_alloy_mirror, "a Mix Shader (0.5) of a Principled mirror of Metallic 0.5 and a dark "
+                         "diffuse: the coat weighed by the mix too"),
     "mix_floor": (mix_floor, "a Mix Shader of Diffuse and Glossy BSDF (Factor 0.25) on the floor, seen at a "
                   "slant under a glass ball"),
     "fresnel_glass_ball": (fresnel_glass_ball, "the old glass: Refraction and Glossy BSDF mixed by a Fresnel "
