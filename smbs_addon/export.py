@@ -1477,9 +1477,14 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
     for name, key, M, caster, receiver, visibility, orig in meshes:
         names_of.setdefault(orig, []).append(name)
 
+    memo = {}  # (original, which) -> its names: an emitter's instances share them
+
     def linked(emitter, which="receiver_collection"):
-        member = _linked_objects(emitter, which)
-        return None if member is None else [nm for o, names in names_of.items() if member(o) for nm in names]
+        if (emitter, which) not in memo:
+            member = _linked_objects(emitter, which)
+            memo[emitter, which] = None if member is None else \
+                [nm for o, names in names_of.items() if member(o) for nm in names]
+        return memo[emitter, which]
 
     for entry, orig in emitters:
         entry["lit"], entry["blockers"] = linked(orig), linked(orig, "blocker_collection")

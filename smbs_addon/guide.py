@@ -173,8 +173,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
         if len(o) == 0:
             break
         # the first segment passes what does not shadow the light (Shadow Linking)
-        h = tracer.intersect(o, d) if bounce or ph.unshadowing is None else tracer.intersect_past(o, d, 0,
-                                                                                                  ph.unshadowing)
+        h = tracer.intersect_past(o, d, 0, None if bounce else ph.unshadowing)
         rays += len(o)
         idx = np.flatnonzero(h.hit)
         o, d, beta, sig, length, via_rough = o[idx], d[idx], beta[idx], sig[idx], length[idx], via_rough[idx]

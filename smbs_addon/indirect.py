@@ -140,23 +140,31 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats, obj=None):
     return out
 
 
-def seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl):
+def seen_light(scene, tracer, li, o, d, refl, surf_t, obj):
     """Where segments o + t d (leaving a reflection where refl, a refraction elsewhere; their next surface
-    at surf_t) see light li, which light_radiance found at distance tl with radiance L: before that
-    surface. Under Shadow Linking, past the surfaces of the objects that do not shadow the light as well
-    (Cycles' dedicated light rays): the light is found again beyond the surfaces and the segments that
-    meet it are traced again, passing those objects. Returns (seen, L)."""
+    at surf_t, inf where none) see light li before that surface, its radiance and distance: (seen, L, tl).
+    Cycles' lights are transparent (shade_light adds the emission and the path goes on): a light counts
+    wherever it lies in front of the next surface, not only the nearest. Under Shadow Linking, past the
+    surfaces of the objects that do not shadow the light as well (Cycles' dedicated light rays): the light
+    is found beyond the surfaces (tl its distance there) and the segments that meet it are traced again,
+    passing those objects. Light Linking: where the light lights obj, the object of the vertex each segment
+    leaves."""
+    refl = np.broadcast_to(np.asarray(refl, bool), (len(o),))
     passable = scene.unshadowing(li)
     if passable is None:
-        return tl < surf_t, L
-    refl = np.broadcast_to(np.asarray(refl, bool), (len(o),))
-    L, tl = light_radiance(scene, li, o, d, refl=refl, beyond=True)
-    seen = L.max(axis=1) > 0
-    for r, kind in ((True, S.RAY_GLOSSY), (False, S.RAY_TRANSMISSION)):
-        j = np.flatnonzero(seen & (refl == r))
-        if j.size:  # short of the light itself (a mesh light's triangles are surfaces)
-            seen[j] = ~tracer.occluded_past(o[j], d[j], tl[j] * (1.0 - 1e-6), kind, passable)
-    return seen, L
+        L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
+        seen = tl < surf_t
+    else:
+        L, tl = light_radiance(scene, li, o, d, refl=refl, beyond=True)
+        seen = L.max(axis=1) > 0
+        for r, kind in ((True, S.RAY_GLOSSY), (False, S.RAY_TRANSMISSION)):
+            j = np.flatnonzero(seen & (refl == r))
+            if j.size:  # short of the light itself (a mesh light's triangles are surfaces)
+                seen[j] = ~tracer.occluded_past(o[j], d[j], tl[j] * (1.0 - 1e-6), kind, passable)
+    seen &= L.max(axis=1) > 0
+    if scene.light_linked(li):
+        seen &= scene.lit_by(li)[obj]
+    return seen, L, tl
 
 
 def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
@@ -235,9 +243,8 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
                 surf_t = np.where(h.hit, h.t, np.inf)
                 seen_l = np.zeros((len(o), 3))
                 for li in lights_hit:
-                    L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=last_refl, surf_t=surf_t)
-                    seen, L = seen_light(scene, tracer, li, o, d, last_refl, surf_t, L, tl)
-                    seen_l += np.where((seen & scene.lit_by(li)[last_obj])[:, None], L, 0.0)
+                    seen, L, tl = seen_light(scene, tracer, li, o, d, last_refl, surf_t, last_obj)
+                    seen_l += np.where(seen[:, None], L, 0.0)
                 count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
                                        & lim.fits(before))
                 np.add.at(radiance, lane[count], beta[count] * seen_l[count])
@@ -320,9 +327,8 @@ def _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, k, ok, r
         if not other.any():
             continue
         refl = (code & 1) == 1  # the latest vertex's letter
-        L, tl = light_radiance(scene, li, o, d, escaped=~h.hit, refl=refl, surf_t=surf_t)
-        seen, L = seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl)
-        seen = np.flatnonzero(other & seen & (L.max(axis=1) > 0) & scene.lit_by(li)[last_obj])
+        seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, last_obj)
+        seen = np.flatnonzero(other & seen)
         np.add.at(radiance, lane[seen], beta[seen] * L[seen])
         stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
 
@@ -365,16 +371,13 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
     seg, seg_i, vx, vx_i = (np.concatenate([p[k] for p in parts]) for k in range(4))
     radiance = np.zeros((n, 3))
     if len(seg):
-        # Cycles' lights are transparent (shade_light adds the emission and the path goes on):
-        # every light in front of the next surface counts, not the nearest
         o, d, surf_t = seg[:, kernels.SEG_O:kernels.SEG_O + 3], seg[:, kernels.SEG_D:kernels.SEG_D + 3], \
             seg[:, kernels.SEG_T]
         beta, refl = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3], seg[:, kernels.SEG_REFL] > 0
         seg_obj = seg[:, kernels.SEG_OBJ].astype(np.int64)
-        for li in hit_lights:
-            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
-            seen, L = seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl)
-            seen = np.flatnonzero(seen & (L.max(axis=1) > 0) & scene.lit_by(li)[seg_obj])
+        for li in hit_lights:  # every light in front of the next surface (seen_light)
+            seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, seg_obj)
+            seen = np.flatnonzero(seen)
             np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
     if len(vx):
         c = lambda k: vx[:, k:k + 3]  # noqa: E731
@@ -549,11 +552,9 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
         fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
             refl = hist[row, k, 5] > 0
-            L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
-            seen, L = seen_light(scene, tracer, li, o, d, refl, surf_t, L, tl)
             # Light Linking: of the vertex the light leaves last, the segment's own
-            lit = scene.lit_by(li)[scene.tri_object[h_prim[row, k]]] if scene.light_linked(li) else True
-            seen = np.flatnonzero(seen & (L.max(axis=1) > 0) & fits & lit)
+            seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, scene.tri_object[h_prim[row, k]])
+            seen = np.flatnonzero(seen & fits)
             if seen.size == 0:
                 continue
             if ho is None:

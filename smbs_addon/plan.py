@@ -232,15 +232,15 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         if not objs:
             skipped.append(("light", name, "reaches no caster"))
             continue
-        if not any(lit[o] for o in objs):
+        lit_objs = [o for o in objs if lit[o]]  # a light's caustic starts on a caster it lights
+        if not lit_objs:
             skipped.append(("light", name, "its Light Linking lights none of the casters it reaches ("
                             + ", ".join(f"'{scene.object_names[o]}'" for o in objs[:4])
                             + (", ..." if len(objs) > 4 else "") + "): Cycles lights a caustic through the "
                             "mirror or glass the light meets first"))
             continue
-        objs = [o for o in objs if lit[o]]  # a light's caustic starts on a caster it lights
-        plan.lights.append(LightPlan(li, name, np.array([spheres[o] for o in objs]), objs,
-                                     [scene.object_names[o] for o in objs], light_key(name)))
+        plan.lights.append(LightPlan(li, name, np.array([spheres[o] for o in lit_objs]), lit_objs,
+                                     [scene.object_names[o] for o in lit_objs], light_key(name)))
     if not plan.lights and not plan.indirect_lights:  # (a light that lights a receiver may still light a caster)
         plan.nothing = _no_light(plan)
     return _finish(plan, scene)
@@ -295,8 +295,7 @@ def _rng(seed, *key):
 def _surfaces(scene, tracer, o, d, camera=False, passable=None):
     """Trace rays (camera: the camera's own, Tracer.camera_intersect; passable: past the objects it marks,
     Tracer.intersect_past): (hits, indices of the rays that hit, their object, material and kind)."""
-    h = tracer.camera_intersect(o, d) if camera else \
-        tracer.intersect(o, d) if passable is None else tracer.intersect_past(o, d, 0, passable)
+    h = tracer.camera_intersect(o, d) if camera else tracer.intersect_past(o, d, 0, passable)
     i = np.flatnonzero(h.hit)
     mat = scene.tri_material[h.prim[i]]
     return h, i, scene.tri_object[h.prim[i]], mat, scene.mat_kind[mat]
@@ -622,8 +621,7 @@ def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere,
     rng = _rng(seed, 8, light_key(scene.light_names[li]))
     ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng)  # onto the diffuse surfaces
     lit = np.flatnonzero(ph.w.max(axis=1) > 0)
-    h = tracer.intersect(ph.o[lit], ph.d[lit]) if ph.unshadowing is None else \
-        tracer.intersect_past(ph.o[lit], ph.d[lit], 0, ph.unshadowing)  # past what does not shadow it
+    h = tracer.intersect_past(ph.o[lit], ph.d[lit], 0, ph.unshadowing)  # past what does not shadow it
     i = np.flatnonzero(h.hit)
     mat = scene.tri_material[h.prim[i]]
     dif = scene.mat_kind[mat] == S.DIFFUSE

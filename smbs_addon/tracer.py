@@ -166,8 +166,8 @@ class Tracer:
         from .kernels import HIDDEN_PASSES
 
         h = self.intersect(o, d)
-        if not self.hid.size and passable is None:
-            return h
+        if passable is None and not (self.hid.size and (self.hid & np.bitwise_or.reduce(np.ravel(kind))).any()):
+            return h  # nothing these rays pass: plain intersect
         kind = np.broadcast_to(kind, (len(o),))
         obj = self.scene.tri_object
         hid = self.hid if self.hid.size else np.zeros(len(self.scene.object_names), np.int64)

@@ -158,3 +158,39 @@ def test_an_object_that_does_not_shadow_the_light_is_passed_by_its_light(method)
     shaded = _total(bake(_shaded_ball(), s))
     assert abs(passed[0] - free[0]) < 4.5 * np.hypot(passed[1], free[1]), (passed, free)
     assert free[1] < 0.05 * free[0] and shaded[0] < 0.05 * free[0], (free, shaded)
+
+
+@pytest.mark.parametrize("shadows", [False, True])
+def test_a_mesh_light_behind_an_object_that_does_not_shadow_it_is_seen_at_its_own_distance(shadows):
+    """indirect.seen_light, the gathers' light test: segments rising from (x, 0, 0) meet a plate at
+    z = 1, then a 1 m square panel (radiance 5) at z = 3. When the plate does not shadow the panel, every
+    segment sees it, at distance 3 exactly (its distance from the point where the path leaves: the
+    hand-off places the light's vertex there), with radiance 5; when it does, none does. The panel's
+    Light Linking, asked of the object the segments leave, keeps it from a second such object."""
+    from smbs_addon import indirect
+    from smbs_addon.tracer import Tracer
+
+    b = SceneBuilder("seen")
+    glow = b.material("Glow", "emitter", color=(1.0, 1.0, 1.0), strength=5.0)
+    grey = b.material("Grey", "diffuse")
+    b.plane("Plate", (0, 0, 1.0), 4.0, grey)
+    b.plane("Floor", (0, 0, -1.0), 4.0, grey)
+    b.plane("Other", (0, 0, -2.0), 4.0, grey)
+    b.plane("Panel", (0, 0, 3.0), 1.0, glow, normal=(0, 0, -1), lit=["Floor", "Plate", "Panel"],
+            blockers=["Plate"] if shadows else ["Floor"])
+    sc = b.build()
+    tracer = Tracer(sc)
+    n = 7
+    o = np.stack([np.linspace(-0.4, 0.4, n), np.zeros(n), np.zeros(n)], axis=1)
+    d = np.tile([0.0, 0.0, 1.0], (n, 1))
+    surf_t = tracer.intersect(o, d).t
+    assert np.allclose(surf_t, 1.0)
+    floor, other = sc.object_names.index("Floor"), sc.object_names.index("Other")
+    li = 0
+    seen, L, tl = indirect.seen_light(sc, tracer, li, o, d, np.zeros(n, bool), surf_t, np.full(n, floor))
+    if shadows:
+        assert not seen.any()
+    else:
+        assert seen.all() and np.allclose(tl, 3.0) and np.allclose(L, 5.0)
+        seen, _, _ = indirect.seen_light(sc, tracer, li, o, d, np.zeros(n, bool), surf_t, np.full(n, other))
+        assert not seen.any()
