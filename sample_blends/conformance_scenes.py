@@ -220,6 +220,47 @@ def conductor_ring():
         "IOR": (2.757, 2.513, 2.231), "Extinction": (3.867, 3.404, 3.009)}))
 
 
+def film_ring():
+    """metallic_edge_ring's ring as a pale Metallic BSDF (F82 mode, Base Color 0.95/0.93/0.88, Edge Tint white)
+    under a thin film of 350 nm and index 1.5: Cycles' iridescence (the film over the metal's n and k, which it
+    estimates from F0 and F82) colours the ring's caustic."""
+    return _ring_of("film_ring", lambda: _metallic_bsdf("FilmMetal", "F82", **{
+        "Base Color": (0.95, 0.93, 0.88), "Edge Tint": (1.0, 1.0, 1.0), "Thin Film Thickness": 350.0,
+        "Thin Film IOR": 1.5}))
+
+
+def _filmed(m, thickness, ior):
+    """Material m (its one BSDF node a Principled, Glass or Metallic BSDF) under a thin film."""
+    node = next(n for n in m.node_tree.nodes if "Thin Film Thickness" in n.inputs)
+    node.inputs["Thin Film Thickness"].default_value = thickness
+    node.inputs["Thin Film IOR"].default_value = ior
+    return m
+
+
+def anodized_ring():
+    """gold_cylinder's ring as a Metallic BSDF in its Physical Conductor mode (IOR 2.5/2.3/2.1, Extinction
+    3.3/3.0/2.7: a grey metal reflecting about half) under a film of 180 nm and index 2.2, as anodised titanium:
+    the film turns its reflection violet at normal incidence, other colours towards grazing."""
+    return _ring_of("anodized_ring", lambda: _metallic_bsdf("Anodized", "PHYSICAL_CONDUCTOR", **{
+        "IOR": (2.5, 2.3, 2.1), "Extinction": (3.3, 3.0, 2.7), "Thin Film Thickness": 180.0, "Thin Film IOR": 2.2}))
+
+
+def film_alloy_mirror():
+    """mirror_alloy's Principled mirror (Metallic 0.7, Base Color 0.9) under a film of 400 nm and index 1.4:
+    Cycles puts the film over its metal lobe (F82-Tint) and over the dielectric coat of the rest alike."""
+    return _mirror_under_bulb("film_alloy_mirror", lambda: _filmed(
+        principled("FilmAlloy", base=(0.9, 0.9, 0.9), metallic=0.7), 400.0, 1.4))
+
+
+def film_ball():
+    """sphere_point_soft's bulb over a Glass BSDF ball (IOR 1.5) coated by a thin film of 280 nm and index 2.2
+    (a titania-like coat): the film reflects several times the bare glass's share, per channel, at both
+    faces (from inside, Cycles takes the film and the air relative to the glass), so less and coloured light
+    comes through."""
+    return _ball_under_bulb("film_ball", lambda: _filmed(B.material("FilmGlass", "glass", (1.0, 1.0, 1.0), ior=1.5),
+                                                          280.0, 2.2))
+
+
 def pool_sun4():
     """Wavy water (Glass BSDF, IOR 1.33, smooth 120 x 120 grid of 6 x 6 m) 1 m above the
     floor, sun of strength 3 and angle 4 deg; the camera looks down through the water."""
@@ -1094,6 +1135,14 @@ SCENES = {
                            "side light"),
     "conductor_ring": (conductor_ring, "a Metallic BSDF (Physical Conductor mode) ring under gold_cylinder's side "
                        "light"),
+    "film_ring": (film_ring, "a pale Metallic BSDF (F82 mode) ring under a thin film (350 nm, index 1.5), under "
+                  "gold_cylinder's side light"),
+    "anodized_ring": (anodized_ring, "a Metallic BSDF (Physical Conductor mode) ring under a thin film (180 nm, "
+                      "index 2.2), under gold_cylinder's side light"),
+    "film_alloy_mirror": (film_alloy_mirror, "mirror_alloy's Principled mirror (Metallic 0.7) under a thin film "
+                          "(400 nm, index 1.4)"),
+    "film_ball": (film_ball, "a Glass BSDF ball under a thin film (280 nm, index 2.2), under sphere_point_soft's "
+                  "bulb"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

@@ -59,11 +59,13 @@ class SceneBuilder:
     def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
                  bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0),
-                 distribution=1, view_bump=False, emission=(0.0, 0.0, 0.0), metal=(0.0,) * 6) -> int:
+                 distribution=1, view_bump=False, emission=(0.0, 0.0, 0.0), metal=(0.0,) * 6,
+                 film=(0.0, 1.33)) -> int:
         """emission: radiance (W/m^2/sr) its surface emits beside its own kind (a Principled BSDF's
         Emission); an emitter's is color x strength. Either makes a mesh light of its faces (build).
         metal: a metal's Fresnel beyond its colour (Scene.mat_metal): F82-Tint's B per channel
-        (fresnel FRESNEL_SCHLICK), or n then k per channel (FRESNEL_CONDUCTOR)."""
+        (fresnel FRESNEL_SCHLICK), or n then k per channel (FRESNEL_CONDUCTOR). film: a thin film's
+        (thickness nm, index) over it (Scene.mat_film; thickness 0: none)."""
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
@@ -76,7 +78,8 @@ class SceneBuilder:
                                    absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy(),
                                    distribution=int(distribution), view_bump=bool(view_bump),
                                    emission=np.broadcast_to(np.asarray(emission, float), (3,)).copy(),
-                                   metal=np.broadcast_to(np.asarray(metal, float), (6,)).copy()))
+                                   metal=np.broadcast_to(np.asarray(metal, float), (6,)).copy(),
+                                   film=np.asarray(film, float).reshape(2).copy()))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
@@ -299,6 +302,8 @@ class SceneBuilder:
             if any(x["emission"].max() > 0 for x in m) else np.zeros((0, 3)),
             mat_metal=np.array([x["metal"] for x in m], float).reshape(-1, 6)
             if any(np.any(x["metal"] != 0) for x in m) else np.zeros((0, 6)),
+            mat_film=np.array([x["film"] for x in m], float).reshape(-1, 2)
+            if any(x["film"][0] != 0 for x in m) else np.zeros((0, 2)),
             view_normals=np.asarray(self.view_normals, np.float32),
             view_points=np.asarray(self.view_points, np.float32),
             object_visibility=np.array([o["visibility"] for o in ob], np.int64)

@@ -19,7 +19,7 @@ import math
 import bpy
 import numpy as np
 
-from . import bump
+from . import bump, thinfilm
 from . import scene as S
 from .builder import SceneBuilder
 from .errors import SceneError
@@ -409,8 +409,10 @@ def _group_key(kw):
         fresnel = int(kw.get("fresnel", S.FRESNEL_NONE))
         # physical conductors add up only where their index is the same (F82-Tint's B adds up)
         index = tuple(np.round(kw["metal"], 9)) if fresnel == S.FRESNEL_CONDUCTOR else ()
+        # nor do parts under different thin films
+        film = tuple(np.round(kw.get("film", NO_FILM), 9)) if kw.get("film", NO_FILM)[0] > 0 else ()
         return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), fresnel,
-                int(kw.get("distribution", MULTI_GGX))) + index
+                int(kw.get("distribution", MULTI_GGX))) + index + film
     return (k,)
 
 
@@ -588,11 +590,28 @@ def _bump_of(mat):
 
 def _thin_film(node) -> list:
     """['thin film'] where a node's Thin Film Thickness is linked or above Cycles' cutoff (0.1 nm,
-    THINFILM_THICKNESS_CUTOFF): its iridescence is not baked."""
+    THINFILM_THICKNESS_CUTOFF, compared in float32 as Cycles does)."""
     sock = node.inputs.get("Thin Film Thickness")
-    if sock is not None and (_follow(sock) is not None or float(sock.default_value) > 0.1):
+    if sock is not None and (_follow(sock) is not None or np.float32(sock.default_value) > np.float32(thinfilm.CUTOFF)):
         return ["thin film"]
     return []
+
+
+NO_FILM = (0.0, 1.33)
+
+
+def _film(node, mat, warn) -> tuple:
+    """A node's thin film as Scene.mat_film holds it: (Thin Film Thickness in nm, Thin Film IOR), NO_FILM
+    where it is Cycles' cutoff thin or less. A thickness or index driven by nodes is not read (warned
+    about): no film."""
+    sock = node.inputs.get("Thin Film Thickness")
+    if not _thin_film(node):
+        return NO_FILM
+    if _follow(sock) is not None or _linked(node, "Thin Film IOR"):
+        warn(f"material '{mat.name}': the thin film of '{node.name}' is driven by nodes (a textured thickness or "
+             f"index): its iridescence is not baked")
+        return NO_FILM
+    return float(sock.default_value), max(float(node.inputs["Thin Film IOR"].default_value), 1e-5)
 
 
 def _anisotropy(node, name, roughness) -> list:
@@ -609,7 +628,8 @@ def _metallic(node, mat, warn) -> dict:
     """The Metallic BSDF (Blender 4.3 on): Cycles' F82-Tint metal (Base Color, Edge Tint) or a physical
     conductor (IOR n and Extinction k per channel), the roughness and distribution of a Glossy BSDF."""
     r = _const(node, "Roughness")
-    ignored = _thin_film(node) + _anisotropy(node, "Anisotropy", r)
+    film = _film(node, mat, warn)
+    ignored = _anisotropy(node, "Anisotropy", r)
     if ignored:
         warn(f"material '{mat.name}': the {' and '.join(ignored)} of Metallic BSDF '{node.name}' ignored")
     if getattr(node, "fresnel_type", "F82") == "PHYSICAL_CONDUCTOR":
@@ -619,11 +639,11 @@ def _metallic(node, mat, warn) -> dict:
             raise _Unsupported(f"Metallic BSDF '{node.name}' has IOR and Extinction 0 (no conductor)")
         return dict(kind=S.CONDUCTOR, color=conductor_f0(n, k), roughness=r, fresnel=S.FRESNEL_CONDUCTOR,
                     reflect_color=np.ones(3), ior=1.0, metal=np.concatenate([n, k]),
-                    distribution=_distribution(node, mat, warn, r))
+                    distribution=_distribution(node, mat, warn, r), film=film)
     f0 = np.clip(_const(node, "Base Color"), 0.0, 1.0)
     tint = np.clip(_const(node, "Edge Tint"), 0.0, 1.0)
     return dict(kind=S.CONDUCTOR, color=f0, roughness=r, fresnel=S.FRESNEL_SCHLICK, reflect_color=np.ones(3),
-                ior=1.0, metal=f82_tint_metal(f0, tint), distribution=_distribution(node, mat, warn, r))
+                ior=1.0, metal=f82_tint_metal(f0, tint), distribution=_distribution(node, mat, warn, r), film=film)
 
 
 def _bsdf(node, mat, warn, direct=False) -> dict:
@@ -666,7 +686,12 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
         for sock_name, label in (("Sheen Weight", "sheen"), ("Subsurface Weight", "subsurface")):
             if active(sock_name):
                 ignored.append(label)
-        ignored += _thin_film(node) + _anisotropy(node, "Anisotropic", rough)
+        # a thin film: over a metal's or a glass's Fresnel (and the metal's coat), baked; over a diffuse's
+        # coat, Cycles' share of the diffuse under it (the coat's reflectance with the film) is not ours
+        film = _film(node, mat, warn)
+        if film[0] > 0 and not (metallic >= 0.5 or trans >= 0.5):
+            ignored.append("thin film (over a diffuse)")
+        ignored += _anisotropy(node, "Anisotropic", rough)
         # a metal's Specular Tint is its edge's tint (F82-Tint); a textured one is left white
         try:
             edge_tint = np.minimum(_input(node, "Specular Tint", np.ones(3)), 1.0)
@@ -701,7 +726,7 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
             return dict(kind=S.CONDUCTOR, color=f0, roughness=rough, fresnel=S.FRESNEL_SCHLICK,
                         reflect_color=np.full(3, float(metallic)), ior=eta if eta > 1.0 else 1.0,
                         distribution=_distribution(node, mat, warn, rough), emission=emission,
-                        metal=f82_tint_metal(f0, edge_tint))
+                        metal=f82_tint_metal(f0, edge_tint), film=film)
         if trans >= 0.5:
             w_glass = float((1.0 - metallic) * trans)
             if w_glass < 1.0:
@@ -714,7 +739,7 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
                 warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
             return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
                         reflect_color=np.full(3, w_glass), ior=ior, roughness=rough,
-                        distribution=_distribution(node, mat, warn, rough), emission=emission)
+                        distribution=_distribution(node, mat, warn, rough), emission=emission, film=film)
         # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
         # dielectric glossy layer that takes its share towards the eye (layer.py)
         level = _input(node, "Specular IOR Level", 0.5)
@@ -735,15 +760,13 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
              f"caustic is baked from the unbumped surface, where Cycles' follows the bumps")
     if t == "BSDF_METALLIC":
         return _metallic(node, mat, warn)
-    if t in ("BSDF_GLASS", "BSDF_GLOSSY", "BSDF_ANISOTROPIC"):
-        film = _thin_film(node)
-        if film:
-            warn(f"material '{mat.name}': the thin film of '{node.name}' ignored")
+    if t in ("BSDF_GLOSSY", "BSDF_ANISOTROPIC") and _thin_film(node):
+        warn(f"material '{mat.name}': the thin film of '{node.name}' ignored")
     if t == "BSDF_GLASS":
         c = _const(node, "Color")
         r = _const(node, "Roughness")
         return dict(kind=S.DIELECTRIC, color=c, reflect_color=c.copy(), ior=_const(node, "IOR"), roughness=r,
-                    distribution=_distribution(node, mat, warn, r))
+                    distribution=_distribution(node, mat, warn, r), film=_film(node, mat, warn))
     if t == "BSDF_REFRACTION":  # Cycles: transmits Color, no Fresnel term, no reflection
         r = _const(node, "Roughness")
         return dict(kind=S.DIELECTRIC, color=_const(node, "Color"), reflect_color=np.zeros(3),

@@ -18,10 +18,13 @@ from numba import njit
 from . import scene as S
 from .jit import JIT
 from .rough import alphas, distributions, energy_gain1, energy_tables, lambda1, visible_normal1
+from .thinfilm import CUTOFF as _FILM_CUTOFF
+from .thinfilm import conductor_film1, dielectric_film1, f82_film1
 
 _CONDUCTOR, _DIELECTRIC = S.CONDUCTOR, S.DIELECTRIC
 _SCHLICK, _REFRACTION_ONLY, _PHYSICAL = S.FRESNEL_SCHLICK, S.REFRACTION_ONLY, S.FRESNEL_CONDUCTOR
 _NO_METAL = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
+_NO_FILM = (0.0, 0.0)
 
 
 # ------------------------------------------------------------------ per lane
@@ -189,7 +192,7 @@ def fresnel_conductor1(mu, n, k):
 
 
 @njit(inline="always", **JIT)
-def specular_weights1(kind, fres, color, rcolor, eta, metal, cos_i):
+def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
     """Weights (R, T) (3-tuples) of the mirror and refraction lobes of a material for
     incidence cos_i = w_i . n (its sign tells the side; Cycles' conventions):
 
@@ -202,13 +205,21 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, cos_i):
       Fresnel term (1 under total internal reflection);
     - Refraction BSDF: R = 0, T = colour, and T = 0 under total internal reflection.
 
+    film = (thickness nm, index) of a thin film over the surface (thinfilm.py; thickness 0: none):
+    where thicker than Cycles' cutoff, the Fresnel terms above (a metal's, its coat's, a glass's) are
+    the film's iridescent reflectance per channel instead, as Cycles makes them.
+
     Radiance is not scaled by eta^2 here (Cycles does not); callers that need the
     physical convention scale refractions themselves."""
     zero = (0.0, 0.0, 0.0)
+    filmed = film[0] > _FILM_CUTOFF
     if kind == _CONDUCTOR:
         if fres == _SCHLICK or fres == _PHYSICAL:
             mu = min(abs(cos_i), 1.0)
-            if fres == _SCHLICK:
+            if filmed:
+                f = f82_film1(film[0], film[1], mu, color, metal) if fres == _SCHLICK else \
+                    conductor_film1(film[0], film[1], mu, metal)
+            elif fres == _SCHLICK:
                 s = _clip01(1.0 - abs(cos_i))
                 m5 = math.pow(s, 5.0)
                 f = (_f82(m5, s, mu, color[0], metal[0]), _f82(m5, s, mu, color[1], metal[1]),
@@ -221,9 +232,10 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, cos_i):
             r = (f[0] * rcolor[0], f[1] * rcolor[1], f[2] * rcolor[2])
             if rcolor[0] < 1.0:
                 fc = fresnel_dielectric1(abs(cos_i), eta)
+                fcs = dielectric_film1(film[0], film[1], abs(cos_i), eta) if filmed else (fc, fc, fc)
                 lost = (metal[3], metal[4], metal[5]) if fres == _SCHLICK else zero  # a mix's other parts' weight
-                r = (r[0] + (1.0 - rcolor[0] - lost[0]) * fc, r[1] + (1.0 - rcolor[1] - lost[1]) * fc,
-                     r[2] + (1.0 - rcolor[2] - lost[2]) * fc)
+                r = (r[0] + (1.0 - rcolor[0] - lost[0]) * fcs[0], r[1] + (1.0 - rcolor[1] - lost[1]) * fcs[1],
+                     r[2] + (1.0 - rcolor[2] - lost[2]) * fcs[2])
             return r, zero
         return color, zero
     if kind == _DIELECTRIC:
@@ -231,6 +243,10 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, cos_i):
         if fres == _REFRACTION_ONLY:
             t = 1.0 if F < 1.0 else 0.0
             return (0.0 * rcolor[0], 0.0 * rcolor[1], 0.0 * rcolor[2]), (t * color[0], t * color[1], t * color[2])
+        if filmed:
+            f = dielectric_film1(film[0], film[1], cos_i, eta)
+            return (f[0] * rcolor[0], f[1] * rcolor[1], f[2] * rcolor[2]), \
+                ((1.0 - f[0]) * color[0], (1.0 - f[1]) * color[1], (1.0 - f[2]) * color[2])
         t = 1.0 - F
         return (F * rcolor[0], F * rcolor[1], F * rcolor[2]), (t * color[0], t * color[1], t * color[2])
     return zero, zero
@@ -247,6 +263,14 @@ def _metal1(metal, m):
     if metal.shape[0] == 0:
         return _NO_METAL
     return (metal[m, 0], metal[m, 1], metal[m, 2], metal[m, 3], metal[m, 4], metal[m, 5])
+
+
+@njit(inline="always", **JIT)
+def _film1(films, m):
+    """Material m's thin film (Scene.mat_film: thickness nm, index; none: an empty table) as a 2-tuple."""
+    if films.shape[0] == 0:
+        return _NO_FILM
+    return (films[m, 0], films[m, 1])
 
 
 @njit(inline="always", **JIT)
@@ -292,7 +316,7 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
         nf = (sgn * h[0], sgn * h[1], sgn * h[2])  # on ng's side, as ns
         cf = _dot(w_in, nf)
         front = cf * sgn > 0
-    R, T = specular_weights1(kind, fres, color, rcolor, eta, _metal1(mats[13], m), cf)
+    R, T = specular_weights1(kind, fres, color, rcolor, eta, _metal1(mats[13], m), _film1(mats[14], m), cf)
     r_lum, t_lum = R[0] + R[1] + R[2], T[0] + T[1] + T[2]
     tot = r_lum + t_lum
     p_r = r_lum / tot if tot > 0 else 0.0
@@ -390,13 +414,14 @@ def bent(wi: np.ndarray, ns: np.ndarray, ng: np.ndarray) -> np.ndarray:
 
 
 @njit(**JIT)
-def _weights_rows(mat, mats, metal, cos_i):
+def _weights_rows(mat, mats, metal, films, cos_i):
     n = mat.shape[0]
     R = np.zeros((n, 3))
     T = np.zeros((n, 3))
     for i in range(n):
         kind, fres, color, rcolor, eta = _material(mats, mat[i])
-        r, t = specular_weights1(kind, fres, color, rcolor, eta, _metal1(metal, mat[i]), cos_i[i])
+        r, t = specular_weights1(kind, fres, color, rcolor, eta, _metal1(metal, mat[i]), _film1(films, mat[i]),
+                                 cos_i[i])
         for c in range(3):
             R[i, c], T[i, c] = r[c], t[c]
     return R, T
@@ -433,13 +458,14 @@ def materials(scene) -> tuple:
     the diffuse's weight and the coat's multiple-scattering gain by the eye's cosine, and the
     coats (Scene.mat_layer), the diffuse's weight under its glossy coat alone (kernels._tab_weight,
     kernels._coat_factor), each glass's absorption; then the rough mirrors' and glass's GGX alpha (0:
-    a perfect one) and Multiscatter GGX's factors (rough.py); last the metals' Fresnel beyond their
-    colour (metal(): mats[13])."""
+    a perfect one) and Multiscatter GGX's factors (rough.py); then the metals' Fresnel beyond their
+    colour (metal(): mats[13]), last the thin films (film(): mats[14])."""
     from .layer import coat, gain_table, spec_table, table
 
     spec = spec_table(scene)
     return _surface_tables(scene) + (bump_correction(scene).astype(np.int64), table(scene, spec), gain_table(scene),
-                                     coat(scene), spec, absorption(scene), alphas(scene), _energy(scene), metal(scene))
+                                     coat(scene), spec, absorption(scene), alphas(scene), _energy(scene), metal(scene),
+                                     film(scene))
 
 
 def _surface_tables(scene) -> tuple:
@@ -456,11 +482,17 @@ def metal(scene) -> np.ndarray:
     return np.ascontiguousarray(a) if a.shape == (len(scene.mat_kind), 6) else np.zeros((0, 6))
 
 
+def film(scene) -> np.ndarray:
+    """(M,2) Scene.mat_film, or (0,2) where the scene has none."""
+    a = np.asarray(getattr(scene, "mat_film", np.zeros((0, 2))), np.float64)
+    return np.ascontiguousarray(a) if a.shape == (len(scene.mat_kind), 2) else np.zeros((0, 2))
+
+
 def _energy(scene) -> np.ndarray:
     """rough.energy_tables, kept by the scene while its materials stay the same."""
     key = ("energy_tables",) + tuple(np.asarray(getattr(scene, f)).tobytes() for f in (
         "mat_kind", "mat_fresnel", "mat_roughness", "mat_ior", "mat_color", "mat_reflect_color")) + (
-        distributions(scene).tobytes(), metal(scene).tobytes())
+        distributions(scene).tobytes(), metal(scene).tobytes(), film(scene).tobytes())
     return scene.derived(key, lambda: energy_tables(scene))
 
 
@@ -545,7 +577,7 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     f0 = np.ascontiguousarray(np.broadcast_to(np.asarray(f0, np.float64), (len(cos_i), 3)))
     n = len(cos_i)
     mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.ones((n, 3)), np.ones(n))
-    return _weights_rows(np.arange(n), mats, np.zeros((0, 6)), cos_i)[0]
+    return _weights_rows(np.arange(n), mats, np.zeros((0, 6)), np.zeros((0, 2)), cos_i)[0]
 
 
 def f82_terms(f0):
@@ -577,7 +609,7 @@ def conductor_f0(n, k) -> np.ndarray:
 
 def specular_weights(scene, mat: np.ndarray, cos_i: np.ndarray):
     """specular_weights1 per lane: (R, T), each (N,3), of materials mat at incidence cos_i."""
-    return _weights_rows(np.ascontiguousarray(mat, np.int64), _surface_tables(scene), metal(scene),
+    return _weights_rows(np.ascontiguousarray(mat, np.int64), _surface_tables(scene), metal(scene), film(scene),
                          np.ascontiguousarray(cos_i, np.float64))
 
 

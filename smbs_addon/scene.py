@@ -61,7 +61,7 @@ PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays
 OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
             "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
             "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission", "mat_metal",
-            "light_links", "light_blockers")
+            "light_links", "light_blockers", "mat_film")
 SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
@@ -239,6 +239,10 @@ class Scene:
     # complex index's n then k per channel. Empty: B = 0 everywhere (plain Schlick), no mix and no
     # physical conductor
     mat_metal: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    # (M,2): a thin film over a glass, a metal or a Principled BSDF's dielectric coat (Thin Film Thickness
+    # in nm, Thin Film IOR), whose iridescence Cycles computes per channel (thinfilm.py); a thickness of
+    # thinfilm.CUTOFF or less is none. Empty: none anywhere
+    mat_film: np.ndarray = field(default_factory=lambda: np.zeros((0, 2)))
     # (L, O) bool: Cycles' Light Linking, the objects each light lights (its receiver collection, as
     # Blender resolves Include and Exclude). Cycles asks it of the object a path leaves last before
     # the light: of a caustic, the mirror or glass the light comes through last (or the diffuse surface
@@ -485,6 +489,13 @@ class Scene:
             if not self.mat_metal.size or np.any(self.mat_metal[m] < 0) or not np.any(self.mat_metal[m] > 0):
                 raise SceneError(f"material '{self.mat_names[int(m)]}': a physical conductor needs its index n and "
                                  f"extinction k per channel, not negative (scene array 'mat_metal')")
+        if self.mat_film.shape not in ((0, 2), (M, 2)):
+            raise SceneError(f"scene array 'mat_film' must be ({M}, 2) or empty")
+        bad = ~(np.all(np.isfinite(self.mat_film), axis=1) & (self.mat_film[:, 0] >= 0) & (self.mat_film[:, 0] <= 1e6)
+                & (self.mat_film[:, 1] > 0)) if self.mat_film.size else []
+        if np.any(bad):
+            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': a thin film needs a thickness "
+                             f"from 0 to 1e6 nm and an index above 0")
         if self.mat_absorb.shape not in ((0, 3), (M, 3)):
             raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
         bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []

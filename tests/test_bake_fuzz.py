@@ -6,7 +6,7 @@ vocabulary an artist's scene exports to (builder.SceneBuilder): a floor of a ran
 tilted pane, a box, an open ring, a wavy sheet; smooth or flat) of random mirrors and glass (a
 Glossy BSDF, an F82-Tint metal, a physical conductor, a Principled metal under its coat, glass of
 random index, tint and absorption, a Refraction BSDF, each perfect or rough of either
-distribution), glowing materials (a mesh light, a receiver's emission) and one or two lamps (point,
+distribution; metals and glass under a thin film or none), glowing materials (a mesh light, a receiver's emission) and one or two lamps (point,
 spot, the four area shapes, sun, a constant world or a small map with a bright spot), Ray
 Visibility bits and Shadow Caustics flags, Light Linking, Light Paths limits, a camera anywhere above the floor
 looking at the casters, and the bake's settings (method, estimator, chain types and length, Cycles'
@@ -52,31 +52,32 @@ def caster_materials(draw, b, name):
                                  "absorbing"]))
     rough = draw(st.sampled_from([0.0, 0.0, 0.05, 0.3]))
     dist = draw(st.integers(0, 1))
+    film = draw(st.one_of(st.just((0.0, 1.33)), st.tuples(st.floats(0.0, 1500.0), st.floats(1.0, 3.0))))
     if kind == "glossy":
         return b.material(name, S.CONDUCTOR, color=draw(colour), roughness=rough, distribution=dist), False
     if kind == "f82":
         f0 = np.array(draw(colour))
         tint = np.array(draw(colour))
         return b.material(name, S.CONDUCTOR, color=f0, fresnel=S.FRESNEL_SCHLICK, roughness=rough,
-                          distribution=dist, metal=f82_tint_metal(f0, tint)), False
+                          distribution=dist, metal=f82_tint_metal(f0, tint), film=film), False
     if kind == "conductor":
         n = draw(st.tuples(*[st.floats(0.0, 4.0)] * 3))
         k = draw(st.tuples(*[st.floats(0.0, 6.0)] * 3))
         if not max(n + k) > 0:
             n = (0.5, 0.5, 0.5)
         return b.material(name, S.CONDUCTOR, color=conductor_f0(n, k), fresnel=S.FRESNEL_CONDUCTOR,
-                          roughness=rough, distribution=dist, metal=tuple(n) + tuple(k)), False
+                          roughness=rough, distribution=dist, metal=tuple(n) + tuple(k), film=film), False
     if kind == "principled_metal":
         m = draw(st.floats(0.5, 1.0))
         return b.material(name, S.CONDUCTOR, color=draw(colour), fresnel=S.FRESNEL_SCHLICK, roughness=rough,
-                          reflect_color=(m, m, m), ior=draw(st.floats(1.0, 2.0)), distribution=dist), False
+                          reflect_color=(m, m, m), ior=draw(st.floats(1.0, 2.0)), distribution=dist, film=film), False
     ior = draw(st.floats(1.001, 2.6))
     if kind == "refraction":
         return b.material(name, S.DIELECTRIC, color=draw(colour), ior=ior, fresnel=S.REFRACTION_ONLY,
                           reflect_color=(0.0, 0.0, 0.0), roughness=rough, distribution=dist), True
     absorb = draw(st.tuples(*[st.floats(0.0, 3.0)] * 3)) if kind == "absorbing" else (0.0, 0.0, 0.0)
     return b.material(name, S.DIELECTRIC, color=draw(colour), reflect_color=draw(colour), ior=ior, roughness=rough,
-                      distribution=dist, absorb=absorb), True
+                      distribution=dist, absorb=absorb, film=film), True
 
 
 def _box(b, name, centre, half, mat, **kw):

@@ -419,8 +419,11 @@ def test_the_metallic_bsdf_is_an_f82_tint_metal():
 def test_the_metallic_bsdf_as_a_physical_conductor():
     """The Metallic BSDF's Physical Conductor mode: the index n + ik per channel (IOR, Extinction) and the
     Fresnel equations of a conductor; mat_color its head-on reflectance. Its roughness and distribution
-    as the node has them; a thin film and an anisotropy are said to be ignored."""
+    as the node has them; its thin film read (Scene.mat_film), an anisotropy said to be ignored."""
+    import dataclasses
+
     from smbs_addon.optics import specular_weights
+    from smbs_addon.thinfilm import conductor_film1
 
     m = _metallic_node("Copper", "PHYSICAL_CONDUCTOR", IOR=(0.27, 0.68, 1.32), Extinction=(3.61, 2.63, 2.29),
                        Roughness=0.3, Anisotropy=0.5, **{"Thin Film Thickness": 300.0})
@@ -431,24 +434,32 @@ def test_the_metallic_bsdf_as_a_physical_conductor():
     np.testing.assert_allclose(sc.mat_metal[0], np.concatenate([n, k]), rtol=1e-6)
     head_on = ((n - 1) ** 2 + k ** 2) / ((n + 1) ** 2 + k ** 2)
     np.testing.assert_allclose(sc.mat_color[0], head_on, rtol=1e-5)
-    np.testing.assert_allclose(specular_weights(sc, np.zeros(1, np.int64), np.ones(1))[0][0], head_on, rtol=1e-5)
+    bare = dataclasses.replace(sc, mat_film=np.zeros((0, 2)))
+    np.testing.assert_allclose(specular_weights(bare, np.zeros(1, np.int64), np.ones(1))[0][0], head_on, rtol=1e-5)
+    np.testing.assert_allclose(sc.mat_film[0], [300.0, 1.33], rtol=1e-6)
+    np.testing.assert_allclose(specular_weights(sc, np.zeros(1, np.int64), np.ones(1))[0][0],
+                               conductor_film1(300.0, sc.mat_film[0, 1], 1.0, tuple(sc.mat_metal[0])), rtol=1e-12)
     assert np.isclose(sc.mat_roughness[0], 0.3) and distributions(sc)[0] == 0  # GGX
-    assert w == ["material 'Copper': the thin film and anisotropy of Metallic BSDF 'Metallic BSDF' ignored"]
+    assert w == ["material 'Copper': the anisotropy of Metallic BSDF 'Metallic BSDF' ignored"]
 
 
 def test_a_principled_metals_specular_tint_is_its_edge_tint():
     """Cycles gives a Principled BSDF's metal lobe the F82-Tint Fresnel with the Specular Tint as the edge's
-    tint (it was silently left out: Schlick alone); a Principled thin film and a rough anisotropy are said
-    to be ignored."""
+    tint (it was silently left out: Schlick alone); its thin film is read, a rough anisotropy said to be
+    ignored."""
+    import dataclasses
+
     from smbs_addon.optics import fresnel_schlick, specular_weights
 
     sc, w = one_material(material("Tinted", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 0.8, 0.5), "Metallic": 1.0, "Roughness": 0.2, "Specular Tint": (0.4, 0.7, 1.0),
         "Anisotropic": 0.5, "Thin Film Thickness": 250.0}))
-    R, _ = specular_weights(sc, np.zeros(1, np.int64), np.array([1.0 / 7.0]))
+    assert sc.mat_film[0, 0] == 250.0
+    R, _ = specular_weights(dataclasses.replace(sc, mat_film=np.zeros((0, 2))), np.zeros(1, np.int64),
+                            np.array([1.0 / 7.0]))
     np.testing.assert_allclose(R[0], np.array([0.4, 0.7, 1.0]) * fresnel_schlick(np.array([1.0 / 7.0]),
                                                                                  [0.9, 0.8, 0.5])[0], rtol=1e-6)
-    assert w == ["material 'Tinted': Principled BSDF thin film, anisotropy ignored"]
+    assert w == ["material 'Tinted': Principled BSDF anisotropy ignored"]
 
 
 def test_a_principled_metals_textured_specular_tint_is_left_white():
@@ -463,10 +474,32 @@ def test_a_principled_metals_textured_specular_tint_is_left_white():
     assert w == ["material 'Brushed': Principled BSDF specular tint (textured) ignored"]
 
 
-def test_a_glass_thin_film_is_said_to_be_ignored():
-    sc, w = one_material(material("Soap", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0}))
-    assert sc.mat_kind[0] == S.DIELECTRIC
-    assert w == ["material 'Soap': the thin film of 'Glass BSDF' ignored"]
+def _streaky_glass():
+    m = material("Streaky", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0})
+    nt = m.node_tree
+    nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], nt.nodes["Glass BSDF"].inputs["Thin Film Thickness"])
+    return m
+
+
+@pytest.mark.parametrize("make,film,warnings", [
+    (lambda: material("Soap", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0, "Thin Film IOR": 1.4}),
+     (400.0, 1.4), []),
+    (lambda: material("Thin", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 0.1}), None, []),
+    (_streaky_glass, None, ["material 'Streaky': the thin film of 'Glass BSDF' is driven by nodes (a textured "
+                            "thickness or index): its iridescence is not baked"]),
+    (lambda: material("Plastic", "ShaderNodeBsdfPrincipled", **{"Thin Film Thickness": 300.0}), None,
+     ["material 'Plastic': Principled BSDF thin film (over a diffuse) ignored"])],
+    ids=["glass", "at_the_cutoff", "textured", "over_a_diffuse"])
+def test_a_thin_film_is_read_where_it_is_baked_and_said_to_be_ignored_elsewhere(make, film, warnings):
+    """A Glass BSDF's thin film (Thickness, IOR) goes to Scene.mat_film; one at Cycles' cutoff (0.1 nm) or
+    below is none; a textured thickness is not read (no film), and a film over a diffuse Principled's coat
+    is said to be ignored."""
+    sc, w = one_material(make())
+    if film is None:
+        assert sc.mat_film.size == 0
+    else:
+        np.testing.assert_allclose(sc.mat_film[0], film, rtol=1e-6)
+    assert w == warnings
 
 
 def test_a_metal_mixed_with_a_diffuse_keeps_its_fresnel_at_its_weight():
