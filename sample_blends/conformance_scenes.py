@@ -503,14 +503,31 @@ def shadow_linked_ball():
     to the bulb pass the plate (its "dedicated light" rays), so the ball's caustic and the floor's light
     that comes back through the ball are those without the plate, while the plate still stands in every
     other path."""
-    scene = _scene("shadow_linked_ball")
+    return _unshadowed_ball("shadow_linked_ball", lambda scene: B.add_light(
+        scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, use_soft_falloff=True))
+
+
+def shadow_linked_glow():
+    """shadow_linked_ball with a mesh light for its bulb: a smooth Emission ball of radius 0.25 (Strength 250)
+    whose blocker collection leaves the plate out. The rays that reach a mesh light meet its triangles as
+    surfaces: past the plate, the light is found again where they lie."""
+    def glow(scene):
+        v, f = B.uv_sphere(0.25, 32, 16)
+        return B.mesh_object(scene, "Glow", v, f, _emission("Lamp", (1.0, 1.0, 1.0), 250.0), smooth=True,
+                             location=(0.4, -0.2, 3.0))
+    return _unshadowed_ball("shadow_linked_glow", glow)
+
+
+def _unshadowed_ball(name, lamp):
+    """A Glass BSDF ball (IOR 1.5) under the emitter lamp(scene) makes, a grey plate between them that does
+    not shadow it (its blocker collection sets the plate to Exclude)."""
+    scene = _scene(name)
     _floor(scene)
     _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     v, f = B.grid(1.4, 1.4)
     shade = B.mesh_object(scene, "Shade", v, f, B.material("Grey", "diffuse", (0.5, 0.5, 0.5)),
                           location=(0.28, -0.14, 2.3))
-    bulb = B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
-                       use_soft_falloff=True)
+    bulb = lamp(scene)
     blockers = bpy.data.collections.new("NotTheShade")
     blockers.objects.link(shade)
     blockers.collection_objects[0].light_linking.link_state = "EXCLUDE"
@@ -1135,6 +1152,8 @@ SCENES = {
                            "side light"),
     "conductor_ring": (conductor_ring, "a Metallic BSDF (Physical Conductor mode) ring under gold_cylinder's side "
                        "light"),
+    "shadow_linked_glow": (shadow_linked_glow, "Shadow Linking of a mesh light: shadow_linked_ball's plate "
+                           "between an Emission ball and the glass ball, not shadowing the glow"),
     "film_ring": (film_ring, "a pale Metallic BSDF (F82 mode) ring under a thin film (350 nm, index 1.5), under "
                   "gold_cylinder's side light"),
     "anodized_ring": (anodized_ring, "a Metallic BSDF (Physical Conductor mode) ring under a thin film (180 nm, "

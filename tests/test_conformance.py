@@ -34,6 +34,8 @@ CASES = [
     # Shadow Linking: a plate between the bulb and the ball that does not shadow the bulb: 0.002 of Cycles when ignored
     ("shadow_linked_ball", "reference", 256),
     ("shadow_linked_ball", "smbs", 4),
+    # the same with a mesh light: 0.89 of Cycles when a shadow ray past the plate met the light's own triangles
+    ("shadow_linked_glow", "smbs", 16),
     # a Principled mirror of Metallic 0.5 mixed at 0.5 with a diffuse: 1.12 of Cycles with its coat at 1 - 0.5 x 0.5
     ("mix_alloy_mirror", "reference", 256),
     # thin films: a glass ball's (1.31 of Cycles with the film ignored), a Principled mirror's (1.03)
