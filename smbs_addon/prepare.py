@@ -26,6 +26,8 @@ import sys
 import threading
 import time
 
+import numpy as np
+
 from .compiles import CompileWatch, counted
 
 # (scene, settings) of the bakes, in the order one process makes them; part i of n takes every
@@ -79,7 +81,8 @@ def ready() -> bool | None:
 def scene(name: str):
     """A small scene that uses what bakes use: a floor seen by the camera, a mirror and an absorbing
     glass ball (smooth shaded, with Cycles' Bump Map Correction) over it, a point, a spot, an area
-    and a sun light; 'textured': the floor's colour a texture's, under a Principled glossy coat."""
+    and a sun light; 'textured': the floor's colour a texture's, under a Principled glossy coat, and a world
+    of an image."""
     from .builder import SceneBuilder
 
     b = SceneBuilder(f"prepare_{name}")
@@ -95,6 +98,10 @@ def scene(name: str):
     b.light("Spot", "SPOT", location=(1.5, 0.5, 2.0), target=(0, 0, 0.5), power=300.0, radius=0.05)
     b.light("Area", "AREA", location=(-0.5, 1.0, 2.5), target=(0, 0, 0), power=200.0, size=0.3)
     b.light("Sun", "SUN", location=(0, 0, 5), target=(0.3, 0.2, 0), power=2.0, angle=math.radians(2))
+    if name == "textured":  # a world of an image (an HDRI's): its photons leave along the map's directions
+        sky = np.full((8, 16, 3), 0.02, np.float32)
+        sky[1, 3] = 40.0  # a small sun in it
+        b.world((1.0, 1.0, 1.0), image=sky)
     b.set_camera(location=(0.0, -3.0, 2.5), target=(0, 0, 0.3), resolution_x=24, resolution_y=18)
     return b.build()
 

@@ -23,11 +23,17 @@ def test_parts_share_out_every_bake_once():
 
 
 def test_the_scenes_have_caustics_from_every_light():
-    """The scenes use what bakes use: all four light types, a mirror and a glass each casting, and
-    the bakes find a caustic (so the walks, photons and their kernels do run)."""
+    """The scenes use what bakes use: all four light types (and a world of an image, whose photons
+    leave along the map's directions: lights._emit_along, which the sample scene hdri_glass compiled
+    after prepare), a mirror and a glass each casting, and the bakes find a caustic (so the walks,
+    photons and their kernels do run)."""
+    from smbs_addon import scene as S
+
     for name in ("plain", "textured"):
         sc = prepare.scene(name)
-        assert sorted(sc.light_type.tolist()) == [0, 1, 2, 3]
+        world = [S.WORLD] if name == "textured" else []
+        assert sorted(sc.light_type.tolist()) == [0, 1, 2, 3] + world
+        assert (sc.world_map.size > 0) == (name == "textured")
         assert (sc.mat_textured.any() if sc.mat_textured.size else False) == (name == "textured")
         res = bake(sc, BakeSettings(method="smbs", spp=1, batches=2, seed=1, pilots=256))
         assert res.stats["walks"] > 0 and res.stats["successes"] > 0
