@@ -614,10 +614,10 @@ def _light_radiance(scene, li, o, d, escaped):
         t = np.where(escaped, 1e30, np.inf)
     elif typ in S.DISTANT and escaped is not None:
         axis, half, strength = distant_cone(scene, li)
-        if half <= 0:
+        omega = 2.0 * math.pi * (1.0 - math.cos(half))
+        if half <= 0 or omega <= 0:  # a cone too narrow for float64 (cos(half) is 1): a delta light, never met
             return L, t
         inside = escaped & ((half >= math.pi) | (dot(-d, axis) >= math.cos(half)))
-        omega = 2.0 * math.pi * (1.0 - math.cos(half))
         L = np.where(inside[:, None], strength / omega, 0.0)
         t = np.where(inside, 1e30, np.inf)
     return L, t

@@ -745,7 +745,8 @@ def light_can_be_hit(scene, li) -> bool:
         return True
     if typ == S.MESH:  # as a surface (lights.light_radiance)
         return True
-    if typ in S.DISTANT:
-        return bool(distant_cone(scene, li)[1] > 0)
+    if typ in S.DISTANT:  # a cone too narrow for float64 (cos(half) is 1) is a delta light (light_radiance)
+        half = distant_cone(scene, li)[1]
+        return bool(half > 0 and math.cos(half) < 1.0)
     return bool(scene.light_radius[li] > 0)
 

@@ -595,3 +595,23 @@ def test_trial_cap_reports_at_least_what_it_leaves_out():
     assert tl["capped"] > 50
     assert 0 < tl["capped_energy_min"] < loss
     assert tl["capped_share_min"] == pytest.approx(tl["capped_energy_min"] / layer, rel=1e-6)
+
+
+def test_a_sun_too_narrow_for_float64_is_a_delta_light():
+    """A sun of angle 1e-9 rad: cos(half) is 1 in float64, its cone's solid angle 0. The rays that leave
+    the scene along its axis meet no light (it is a delta light, as at angle 0), with no division by zero
+    (the bake fuzz drew such a sun: strength / 0, a warning there, inf where a ray ran exactly along the
+    axis); the walks still bake its caustic, finite."""
+    from smbs_addon.lights import light_radiance
+
+    b = SceneBuilder("narrow sun")
+    b.plane("Floor", (0, 0, 0), 4, b.material("floor", "diffuse"), receiver=True)
+    b.uv_sphere("Ball", (0, 0, 0.6), 0.4, b.material("glass", "dielectric", ior=1.5), caster=True)
+    b.light("Sun", "SUN", location=(0, 0, 5), target=(0, 0, 0), power=3.0, angle=1e-9)
+    b.set_camera((0, -3, 2.5), (0, 0, 0.3), resolution_x=24, resolution_y=18)
+    sc = b.build()
+    with np.errstate(all="raise"):
+        L, t = light_radiance(sc, 0, np.zeros((2, 3)), np.array([[0, 0, 1.0], [0, 0.6, 0.8]]), escaped=np.ones(2, bool))
+    assert np.all(L == 0) and np.all(np.isinf(t))
+    r = bake(sc, BakeSettings(method="smbs", spp=2, seed=1))
+    assert np.isfinite(r.image).all() and r.image.max() > 0
