@@ -60,7 +60,7 @@ class SceneBuilder:
                  strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
                  bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0),
                  distribution=1, view_bump=False, emission=(0.0, 0.0, 0.0), metal=(0.0,) * 6,
-                 film=(0.0, 1.33)) -> int:
+                 film=S.NO_FILM) -> int:
         """emission: radiance (W/m^2/sr) its surface emits beside its own kind (a Principled BSDF's
         Emission); an emitter's is color x strength. Either makes a mesh light of its faces (build).
         metal: a metal's Fresnel beyond its colour (Scene.mat_metal): F82-Tint's B per channel

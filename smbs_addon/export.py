@@ -410,7 +410,7 @@ def _group_key(kw):
         # physical conductors add up only where their index is the same (F82-Tint's B adds up)
         index = tuple(np.round(kw["metal"], 9)) if fresnel == S.FRESNEL_CONDUCTOR else ()
         # nor do parts under different thin films
-        film = tuple(np.round(kw.get("film", NO_FILM), 9)) if kw.get("film", NO_FILM)[0] > 0 else ()
+        film = tuple(np.round(kw.get("film", S.NO_FILM), 9)) if kw.get("film", S.NO_FILM)[0] > 0 else ()
         return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), fresnel,
                 int(kw.get("distribution", MULTI_GGX))) + index + film
     return (k,)
@@ -597,20 +597,18 @@ def _thin_film(node) -> list:
     return []
 
 
-NO_FILM = (0.0, 1.33)
-
 
 def _film(node, mat, warn) -> tuple:
-    """A node's thin film as Scene.mat_film holds it: (Thin Film Thickness in nm, Thin Film IOR), NO_FILM
+    """A node's thin film as Scene.mat_film holds it: (Thin Film Thickness in nm, Thin Film IOR), S.NO_FILM
     where it is Cycles' cutoff thin or less. A thickness or index driven by nodes is not read (warned
     about): no film."""
     sock = node.inputs.get("Thin Film Thickness")
     if not _thin_film(node):
-        return NO_FILM
+        return S.NO_FILM
     if _follow(sock) is not None or _linked(node, "Thin Film IOR"):
         warn(f"material '{mat.name}': the thin film of '{node.name}' is driven by nodes (a textured thickness or "
              f"index): its iridescence is not baked")
-        return NO_FILM
+        return S.NO_FILM
     return float(sock.default_value), max(float(node.inputs["Thin Film IOR"].default_value), 1e-5)
 
 

@@ -143,6 +143,12 @@ def distant_cone(scene, li: int):
     return light_axis(scene, li), 0.5 * float(scene.light_angle[li]), color
 
 
+def cone_solid_angle(half: float) -> float:
+    """The solid angle 2 pi (1 - cos half) of a cone of half-angle half (distant_cone's); 0 where the
+    cone is too narrow for float64 (cos(half) is 1): a delta light, which no ray meets."""
+    return 2.0 * math.pi * (1.0 - math.cos(half)) if half > 0 else 0.0
+
+
 def spot_mask(scene, li: int, d: np.ndarray) -> np.ndarray:
     """Cycles 4.x spot attenuation of directions d leaving the light."""
     axis = light_axis(scene, li)
@@ -614,8 +620,8 @@ def _light_radiance(scene, li, o, d, escaped):
         t = np.where(escaped, 1e30, np.inf)
     elif typ in S.DISTANT and escaped is not None:
         axis, half, strength = distant_cone(scene, li)
-        omega = 2.0 * math.pi * (1.0 - math.cos(half))
-        if half <= 0 or omega <= 0:  # a cone too narrow for float64 (cos(half) is 1): a delta light, never met
+        omega = cone_solid_angle(half)
+        if omega <= 0:  # a delta light, never met
             return L, t
         inside = escaped & ((half >= math.pi) | (dot(-d, axis) >= math.cos(half)))
         L = np.where(inside[:, None], strength / omega, 0.0)

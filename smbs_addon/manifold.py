@@ -24,7 +24,7 @@ from .estimators import chain_throughput, concentration, geometric_term, light_e
 from .eye import direct_albedo, eye_receivers
 from .geometry import area_points, triangle_areas
 from .layer import coat_factor, has_layers
-from .lights import area_light_points, distant_cone, env_map, mesh_light_points, shadow_tmax
+from .lights import area_light_points, cone_solid_angle, distant_cone, env_map, mesh_light_points, shadow_tmax
 from .optics import bump_shadowing, has_reflection
 from .rough import rough_casters, walk_casters
 from .trials import bernoulli_trials
@@ -709,7 +709,7 @@ def handoff_hits(scene, li, casters=()) -> float:
     if typ == S.WORLD:
         return math.inf
     if typ == S.SUN:
-        omega = 2.0 * math.pi * (1.0 - math.cos(distant_cone(scene, li)[1]))
+        omega = cone_solid_angle(distant_cone(scene, li)[1])
     else:
         pos = np.asarray(scene.light_matrix[li], float)[:3, 3]
         d2 = math.inf
@@ -745,8 +745,7 @@ def light_can_be_hit(scene, li) -> bool:
         return True
     if typ == S.MESH:  # as a surface (lights.light_radiance)
         return True
-    if typ in S.DISTANT:  # a cone too narrow for float64 (cos(half) is 1) is a delta light (light_radiance)
-        half = distant_cone(scene, li)[1]
-        return bool(half > 0 and math.cos(half) < 1.0)
+    if typ in S.DISTANT:  # a cone too narrow for float64 is a delta light (light_radiance)
+        return cone_solid_angle(distant_cone(scene, li)[1]) > 0
     return bool(scene.light_radius[li] > 0)
 

@@ -19,7 +19,9 @@ from . import scene as S
 from .jit import JIT
 from .rough import alphas, distributions, energy_gain1, energy_tables, lambda1, visible_normal1
 from .thinfilm import CUTOFF as _FILM_CUTOFF
+from .thinfilm import clip01 as _clip01
 from .thinfilm import conductor_film1, dielectric_film1, f82_film1
+from .thinfilm import f82 as _f82
 
 _CONDUCTOR, _DIELECTRIC = S.CONDUCTOR, S.DIELECTRIC
 _SCHLICK, _REFRACTION_ONLY, _PHYSICAL = S.FRESNEL_SCHLICK, S.REFRACTION_ONLY, S.FRESNEL_CONDUCTOR
@@ -149,29 +151,6 @@ def fresnel_dielectric1(cos_i, eta):
 
 
 @njit(inline="always", **JIT)
-def _clip01(x):
-    """np.clip(x, 0, 1): NaN stays NaN."""
-    if x < 0.0:
-        return 0.0
-    if x > 1.0:
-        return 1.0
-    return x
-
-
-@njit(inline="always", **JIT)
-def _schlick(m5, f0):
-    return f0 + (1.0 - f0) * m5
-
-
-@njit(inline="always", **JIT)
-def _f82(m5, s, mu, f0, b):
-    """Cycles' F82-Tint metal (fresnel_f82, kernel/closure/bsdf_util.h; Kutz et al., "Novel aspects
-    of the Adobe Standard Material"): Schlick from f0 less b mu s^6, s = 1 - mu, m5 = s^5, kept in
-    [0, 1]; Schlick's own value where b is 0 (f0 in [0, 1])."""
-    return _clip01(_schlick(m5, f0) - b * mu * m5 * s)
-
-
-@njit(inline="always", **JIT)
 def fresnel_conductor1(mu, n, k):
     """Unpolarised reflectance of a conductor of complex index n + ik under a medium of index 1 at
     incidence cosine mu in [0, 1] (Cycles' fresnel_conductor_polarized, from Born and Wolf 14.4.1):
@@ -231,8 +210,11 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
             # is under a dielectric coat of index eta, a mirror too
             r = (f[0] * rcolor[0], f[1] * rcolor[1], f[2] * rcolor[2])
             if rcolor[0] < 1.0:
-                fc = fresnel_dielectric1(abs(cos_i), eta)
-                fcs = dielectric_film1(film[0], film[1], abs(cos_i), eta) if filmed else (fc, fc, fc)
+                if filmed:
+                    fcs = dielectric_film1(film[0], film[1], abs(cos_i), eta)
+                else:
+                    fc = fresnel_dielectric1(abs(cos_i), eta)
+                    fcs = (fc, fc, fc)
                 lost = (metal[3], metal[4], metal[5]) if fres == _SCHLICK else zero  # a mix's other parts' weight
                 r = (r[0] + (1.0 - rcolor[0] - lost[0]) * fcs[0], r[1] + (1.0 - rcolor[1] - lost[1]) * fcs[1],
                      r[2] + (1.0 - rcolor[2] - lost[2]) * fcs[2])

@@ -66,6 +66,7 @@ SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
 MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
 MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
 MAX_POWER = 1e20  # a light's power (W) or a sun's strength: past it a caustic overflows float32
+NO_FILM = (0.0, 1.33)  # a material's mat_film row without a film (Blender's default Thin Film IOR)
 MAX_COLOR = 1e6  # a material's colour channel (an albedo, 1 at most in a physical scene)
 
 

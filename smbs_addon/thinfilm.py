@@ -108,10 +108,33 @@ def _dielectric_polarized(cos_i, eta):
 
 
 @njit(inline="always", **JIT)
+def clip01(x):
+    """np.clip(x, 0, 1): NaN stays NaN."""
+    if x < 0.0:
+        return 0.0
+    if x > 1.0:
+        return 1.0
+    return x
+
+
+@njit(inline="always", **JIT)
+def schlick(m5, f0):
+    return f0 + (1.0 - f0) * m5
+
+
+@njit(inline="always", **JIT)
+def f82(m5, s, mu, f0, b):
+    """Cycles' F82-Tint metal (fresnel_f82, kernel/closure/bsdf_util.h; Kutz et al., "Novel aspects
+    of the Adobe Standard Material"): Schlick from f0 less b mu s^6, s = 1 - mu, m5 = s^5, kept in
+    [0, 1]; Schlick's own value where b is 0 (f0 in [0, 1]). Here for the film's conductor; optics
+    calls it too (it imports this module, not the other way round)."""
+    return clip01(schlick(m5, f0) - b * mu * m5 * s)
+
+
+@njit(inline="always", **JIT)
 def _f82(mu, f0, b):
-    s = min(max(1.0 - mu, 0.0), 1.0)
-    s5 = s * s * s * s * s
-    return min(max(f0 + (1.0 - f0) * s5 - b * mu * s5 * s, 0.0), 1.0)
+    s = clip01(1.0 - mu)
+    return f82(s * s * s * s * s, s, mu, f0, b)
 
 
 @njit(inline="always", **JIT)

@@ -17,7 +17,7 @@ import numpy as np
 from . import embree, lanes
 from . import scene as S
 from .kernels import barycentric_rows, intersect_rays, shading_normal_rows
-from .vec import cross, dot, normalize
+from .vec import cross, dot, norm, normalize
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
 
@@ -220,8 +220,8 @@ class Tracer:
             finite = np.isfinite(tmax[todo])
             f = todo[finite]
             to = end[f] - o[f]
-            ahead = np.einsum("ij,ij->i", to, d[f]) > 0  # else the surface lay at the end: nothing is left
-            tmax[f] = np.where(ahead, np.sqrt(np.einsum("ij,ij->i", to, to)), 0.0)
+            ahead = dot(to, d[f]) > 0  # else the surface lay at the end: nothing is left
+            tmax[f] = np.where(ahead, norm(to), 0.0)
             d[f] = np.where(ahead[:, None], to / np.maximum(tmax[f], 1e-300)[:, None], d[f])
             todo = np.concatenate([f[ahead], todo[~finite]])
         blocked[todo] = True
