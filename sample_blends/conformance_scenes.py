@@ -261,6 +261,17 @@ def film_ball():
                                                           280.0, 2.2))
 
 
+def spec_tint_ball():
+    """sphere_point_soft's bulb over a Principled glass ball (IOR 1.5, white) of Specular Tint 4 / 1 / 0: Cycles
+    scales the Fresnel term's value at normal incidence by the tint (0.16 / 0.04 / 0 for red / green / blue,
+    towards 1 at grazing), so the ball reflects more red and lets less of it through."""
+    def ball():
+        m = principled("TintGlass", transmission=1.0, ior=1.5)
+        m.node_tree.nodes["Principled BSDF"].inputs["Specular Tint"].default_value = (4.0, 1.0, 0.0, 1.0)
+        return m
+    return _ball_under_bulb("spec_tint_ball", ball)
+
+
 def pool_sun4():
     """Wavy water (Glass BSDF, IOR 1.33, smooth 120 x 120 grid of 6 x 6 m) 1 m above the
     floor, sun of strength 3 and angle 4 deg; the camera looks down through the water."""
@@ -1162,6 +1173,8 @@ SCENES = {
                           "(400 nm, index 1.4)"),
     "film_ball": (film_ball, "a Glass BSDF ball under a thin film (280 nm, index 2.2), under sphere_point_soft's "
                   "bulb"),
+    "spec_tint_ball": (spec_tint_ball, "a Principled glass ball of Specular Tint 4 / 1 / 0, under "
+                       "sphere_point_soft's bulb"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
 }

@@ -64,8 +64,8 @@ class SceneBuilder:
         """emission: radiance (W/m^2/sr) its surface emits beside its own kind (a Principled BSDF's
         Emission); an emitter's is color x strength. Either makes a mesh light of its faces (build).
         metal: a metal's Fresnel beyond its colour (Scene.mat_metal): F82-Tint's B per channel
-        (fresnel FRESNEL_SCHLICK), or n then k per channel (FRESNEL_CONDUCTOR). film: a thin film's
-        (thickness nm, index) over it (Scene.mat_film; thickness 0: none)."""
+        (fresnel FRESNEL_SCHLICK), or n then k per channel (FRESNEL_CONDUCTOR), or a glass's Specular
+        Tint less 1. film: a thin film's (thickness nm, index) over it (Scene.mat_film; thickness 0: none)."""
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i

@@ -408,7 +408,9 @@ def _group_key(kw):
     if k in (S.DIELECTRIC, S.CONDUCTOR):
         fresnel = int(kw.get("fresnel", S.FRESNEL_NONE))
         # physical conductors add up only where their index is the same (F82-Tint's B adds up)
-        index = tuple(np.round(kw["metal"], 9)) if fresnel == S.FRESNEL_CONDUCTOR else ()
+        # (nor do glasses under different Specular Tints: Scene.mat_metal of a glass)
+        index = tuple(np.round(kw["metal"], 9)) if fresnel == S.FRESNEL_CONDUCTOR or (
+            k == S.DIELECTRIC and np.any(kw.get("metal", np.zeros(6)) != 0)) else ()
         # nor do parts under different thin films
         film = tuple(np.round(kw.get("film", S.NO_FILM), 9)) if kw.get("film", S.NO_FILM)[0] > 0 else ()
         return (k, float(kw.get("ior", 1.5)), float(kw.get("roughness", 0.0)), fresnel,
@@ -731,13 +733,18 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
                 warn(f"material '{mat.name}': Principled BSDF glass of weight {w_glass:.2f} ((1 - Metallic) x "
                      f"Transmission); the rest neither casts nor receives caustics")
             # Cycles' Principled glass tints transmission by sqrt(base colour) at every
-            # refraction and leaves reflection white (its Specular Tint scales f0 instead)
-            tint = _input(node, "Specular Tint", np.ones(3))
-            if not np.allclose(tint, 1.0):
-                warn(f"material '{mat.name}': Principled BSDF Specular Tint on glass ignored")
+            # refraction and leaves reflection white; its Specular Tint scales the Fresnel term's
+            # value at normal incidence (Scene.mat_metal[:3] = tint - 1; optics._tinted_glass)
+            try:
+                spec_tint = np.maximum(_input(node, "Specular Tint", np.ones(3)), 0.0)
+            except _Unsupported:
+                spec_tint = np.ones(3)
+                warn(f"material '{mat.name}': Principled BSDF Specular Tint driven by nodes (textured) on glass "
+                     f"ignored")
             return dict(kind=S.DIELECTRIC, color=np.sqrt(np.clip(base, 0.0, 1.0)) * w_glass,
                         reflect_color=np.full(3, w_glass), ior=ior, roughness=rough,
-                        distribution=_distribution(node, mat, warn, rough), emission=emission, film=film)
+                        distribution=_distribution(node, mat, warn, rough), emission=emission, film=film,
+                        metal=np.concatenate([spec_tint - 1.0, np.zeros(3)]))
         # the diffuse under Cycles' layers: what metallic and transmission leave, beneath a
         # dielectric glossy layer that takes its share towards the eye (layer.py)
         level = _input(node, "Specular IOR Level", 0.5)

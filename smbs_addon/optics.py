@@ -181,7 +181,9 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
       plus (1 - m - metal[3:]) x the dielectric Fresnel of index eta (the coat over the rest; in a
       shader mix of weight w, F82-Tint's metal[3:] = 1 - w and the tint w m, so (1 - m) w); T = 0;
     - glass: R = F * reflection tint, T = (1 - F) * transmission tint, F the dielectric
-      Fresnel term (1 under total internal reflection);
+      Fresnel term (1 under total internal reflection); a Principled glass's Specular Tint c
+      (metal[:3] = c - 1, zeros: white) scales F's value at normal incidence, as Cycles' generalized
+      Schlick term does (_tinted_glass);
     - Refraction BSDF: R = 0, T = colour, and T = 0 under total internal reflection.
 
     film = (thickness nm, index) of a thin film over the surface (thinfilm.py; thickness 0: none):
@@ -225,13 +227,37 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
         if fres == _REFRACTION_ONLY:
             t = 1.0 if F < 1.0 else 0.0
             return (0.0 * rcolor[0], 0.0 * rcolor[1], 0.0 * rcolor[2]), (t * color[0], t * color[1], t * color[2])
-        if filmed:
-            f = dielectric_film1(film[0], film[1], cos_i, eta)
+        tinted = metal[0] != 0.0 or metal[1] != 0.0 or metal[2] != 0.0
+        if filmed or tinted:
+            f = dielectric_film1(film[0], film[1], cos_i, eta) if filmed else (F, F, F)
+            if tinted:
+                f = _tinted_glass(f, eta, metal, filmed)
             return (f[0] * rcolor[0], f[1] * rcolor[1], f[2] * rcolor[2]), \
                 ((1.0 - f[0]) * color[0], (1.0 - f[1]) * color[1], (1.0 - f[2]) * color[2])
         t = 1.0 - F
         return (F * rcolor[0], F * rcolor[1], F * rcolor[2]), (t * color[0], t * color[1], t * color[2])
     return zero, zero
+
+
+@njit(**JIT)
+def _tinted_glass(f, eta, metal, filmed):
+    """A Principled glass's reflectance per channel under its Specular Tint c = 1 + metal[:3]
+    (Cycles' generalized_schlick_fresnel with a negative exponent, bsdf_microfacet.h): f0 = F0 c (kept
+    in [0, 1]), F0 the glass's reflectance at normal incidence; the plain Fresnel f is mapped from
+    [F0, 1] onto [f0, 1]. Under a thin film (filmed), whose f may fall below F0, Cycles scales f by
+    f0 / F0 instead, the more the nearer f is to F0."""
+    F0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+    out = [f[0], f[1], f[2]]
+    for c in range(3):
+        f0 = _clip01(F0 * max(1.0 + metal[c], 0.0))
+        if filmed:
+            if F0 > 1e-5 and not (f[0] == 1.0 and f[1] == 1.0 and f[2] == 1.0):
+                s = _clip01((f[c] - 1.0) / (F0 - 1.0))
+                out[c] = f[c] * (1.0 + (f0 / F0 - 1.0) * s)
+        else:
+            s = _clip01((f[c] - F0) / (1.0 - F0)) if F0 < 1.0 else 1.0
+            out[c] = f0 + (1.0 - f0) * s
+    return out[0], out[1], out[2]
 
 
 @njit(inline="always", **JIT)

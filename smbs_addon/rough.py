@@ -229,7 +229,7 @@ def energy_tables(scene) -> np.ndarray:
     a glass (1), at mu = 0, 1/MU_STEPS, ..., 1 (energy_gain1); ones for the rest (smooth, GGX, a
     Refraction BSDF: Cycles compensates none of these)."""
     from .layer import MU_STEPS
-    from .optics import fresnel_dielectric, specular_weights
+    from .optics import fresnel_dielectric, metal, specular_weights
 
     M = len(scene.mat_kind)
     out = np.ones((M, 2, MU_STEPS + 1, 3))
@@ -245,7 +245,14 @@ def energy_tables(scene) -> np.ndarray:
             # side), or where that is black its reflection tint times the mean Fresnel reflectance
             fss = np.asarray(scene.mat_color[m], np.float64)
             if not fss.any():
-                fss = _hemisphere_mean(fresnel_dielectric(mu, eta), mu) * scene.mat_reflect_color[m]
+                f_mean = _hemisphere_mean(fresnel_dielectric(mu, eta), mu)
+                fss = f_mean * scene.mat_reflect_color[m]
+                tint = 1.0 + metal(scene)[m, :3] if metal(scene).size else np.ones(3)
+                if np.any(tint != 1.0):  # a Principled glass's Specular Tint: F's mean mapped as F is
+                    f0 = ((eta - 1.0) / (eta + 1.0)) ** 2
+                    s = float(np.clip((f_mean - f0) / (1.0 - f0), 0.0, 1.0)) if f0 < 1.0 else 1.0
+                    f0t = np.clip(f0 * np.maximum(tint, 0.0), 0.0, 1.0)
+                    fss = (f0t + (1.0 - f0t) * s) * scene.mat_reflect_color[m]
             key = ("glass", float(a[m]), eta, tuple(np.round(fss, 12)))
             albedos = lambda m=m, eta=eta: [glass_albedo(mu, a[m], e) for e in (eta, 1.0 / eta)]  # noqa: E731
         else:

@@ -30,7 +30,8 @@ MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
 # mode) or a physical conductor (CONDUCTOR: the Fresnel equations of complex index n + ik,
 # mat_metal's n and k per channel; the Metallic BSDF's Physical Conductor mode; mat_color then
 # holds its reflectance at normal incidence). Dielectrics: glass (NONE: the dielectric Fresnel
-# term splits reflection and refraction) or Cycles' Refraction BSDF (REFRACTION_ONLY: transmits
+# term splits reflection and refraction; a Principled glass's Specular Tint c scales its value at
+# normal incidence, mat_metal[:, :3] = c - 1, zero without) or Cycles' Refraction BSDF (REFRACTION_ONLY: transmits
 # its colour with no Fresnel term and no reflection; total internal reflection absorbs).
 FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY, FRESNEL_CONDUCTOR = 0, 1, 2, 3
 FRESNEL_MODELS = ("none", "F82-Tint", "refraction only", "physical conductor")  # by index
@@ -237,8 +238,8 @@ class Scene:
     # (M,6): a metal's Fresnel beyond mat_color: for FRESNEL_SCHLICK the F82-Tint model's B per
     # channel, then what a shader mix's other parts weigh (1 - w: a Principled metal's dielectric coat
     # covers (1 - Metallic) w of it, not 1 - Metallic w; zeros unmixed), for FRESNEL_CONDUCTOR the
-    # complex index's n then k per channel. Empty: B = 0 everywhere (plain Schlick), no mix and no
-    # physical conductor
+    # complex index's n then k per channel; for a glass, its Specular Tint less 1 (then zeros). Empty:
+    # B = 0 everywhere (plain Schlick), no mix, no physical conductor and no tinted glass
     mat_metal: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     # (M,2): a thin film over a glass, a metal or a Principled BSDF's dielectric coat (Thin Film Thickness
     # in nm, Thin Film IOR), whose iridescence Cycles computes per channel (thinfilm.py); a thickness of
@@ -490,6 +491,11 @@ class Scene:
             if not self.mat_metal.size or np.any(self.mat_metal[m] < 0) or not np.any(self.mat_metal[m] > 0):
                 raise SceneError(f"material '{self.mat_names[int(m)]}': a physical conductor needs its index n and "
                                  f"extinction k per channel, not negative (scene array 'mat_metal')")
+        if self.mat_metal.size:
+            bad = np.flatnonzero((self.mat_kind == DIELECTRIC) & np.any(self.mat_metal[:, :3] < -1.0, axis=1))
+            if bad.size:
+                raise SceneError(f"material '{self.mat_names[int(bad[0])]}': a glass's Specular Tint must not be "
+                                 f"negative (scene array 'mat_metal' holds it less 1)")
         if self.mat_film.shape not in ((0, 2), (M, 2)):
             raise SceneError(f"scene array 'mat_film' must be ({M}, 2) or empty")
         bad = ~(np.all(np.isfinite(self.mat_film), axis=1) & (self.mat_film[:, 0] >= 0) & (self.mat_film[:, 0] <= 1e6)

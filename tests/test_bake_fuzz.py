@@ -6,7 +6,8 @@ vocabulary an artist's scene exports to (builder.SceneBuilder): a floor of a ran
 tilted pane, a box, an open ring, a wavy sheet; smooth or flat) of random mirrors and glass (a
 Glossy BSDF, an F82-Tint metal, a physical conductor, a Principled metal under its coat, glass of
 random index, tint and absorption, a Refraction BSDF, each perfect or rough of either
-distribution; metals and glass under a thin film or none), glowing materials (a mesh light, a receiver's emission) and one or two lamps (point,
+distribution; metals and glass under a thin film or none, glass of a Specular Tint or none), glowing
+materials (a mesh light, a receiver's emission) and one or two lamps (point,
 spot, the four area shapes, sun, a constant world or a small map with a bright spot), Ray
 Visibility bits and Shadow Caustics flags, Light Linking, Light Paths limits, a camera anywhere above the floor
 looking at the casters, and the bake's settings (method, estimator, chain types and length, Cycles'
@@ -76,8 +77,10 @@ def caster_materials(draw, b, name):
         return b.material(name, S.DIELECTRIC, color=draw(colour), ior=ior, fresnel=S.REFRACTION_ONLY,
                           reflect_color=(0.0, 0.0, 0.0), roughness=rough, distribution=dist), True
     absorb = draw(st.tuples(*[st.floats(0.0, 3.0)] * 3)) if kind == "absorbing" else (0.0, 0.0, 0.0)
+    # a Principled glass's Specular Tint (less 1), from black to far above white, or none
+    tint = draw(st.one_of(st.just((0.0,) * 3), st.tuples(*[st.floats(-1.0, 30.0)] * 3)))
     return b.material(name, S.DIELECTRIC, color=draw(colour), reflect_color=draw(colour), ior=ior, roughness=rough,
-                      distribution=dist, absorb=absorb, film=film), True
+                      distribution=dist, absorb=absorb, film=film, metal=tint + (0.0,) * 3), True
 
 
 def _box(b, name, centre, half, mat, **kw):

@@ -551,6 +551,72 @@ def test_a_partly_transmissive_principled_glass_weighs_both_lobes():
     assert len(w) == 1 and "glass of weight 0.81" in w[0]
 
 
+def test_a_principled_glass_specular_tint_scales_its_fresnel_at_normal_incidence():
+    """Cycles' Principled glass (generalized_schlick_fresnel, negative exponent): f0 = F0 x Specular Tint (kept
+    in [0, 1]) and the dielectric Fresnel F mapped from [F0, 1] onto [f0, 1]: R = f0 at normal incidence,
+    1 under total internal reflection, T = (1 - R) sqrt(base). It was ignored (and said so)."""
+    from smbs_addon.optics import fresnel_dielectric, specular_weights
+
+    sc, w = one_material(material("Tinted", "ShaderNodeBsdfPrincipled", **{
+        "Base Color": (0.64, 1.0, 0.81), "Transmission Weight": 1.0, "IOR": 1.5, "Roughness": 0.0,
+        "Specular Tint": (2.5, 1.0, 0.2, 1.0)}))
+    assert w == [] and sc.mat_kind[0] == S.DIELECTRIC
+    np.testing.assert_allclose(sc.mat_metal[0], [1.5, 0.0, -0.8, 0, 0, 0], atol=1e-6)
+    F0 = 0.04
+    f0 = F0 * np.array([2.5, 1.0, 0.2])
+    cos = np.array([1.0, 0.6, 0.05, -0.5])  # the last from inside beyond the critical angle (sin 0.866 x 1.5 > 1)
+    R, T = specular_weights(sc, np.zeros(4, np.int64), cos)
+    F = fresnel_dielectric(cos, 1.5)
+    want = f0 + (1.0 - f0) * np.clip((F[:, None] - F0) / (1.0 - F0), 0.0, 1.0)
+    np.testing.assert_allclose(R[0], f0, rtol=1e-5)  # (the tint is a float32)
+    np.testing.assert_allclose(R, want, rtol=1e-5)
+    np.testing.assert_allclose(R[3], 1.0) and np.testing.assert_allclose(T[3], 0.0)
+    np.testing.assert_allclose(T, (1.0 - want) * np.sqrt([0.64, 1.0, 0.81]), rtol=1e-5)
+    assert R[1, 1] == F[1]  # a white channel is the plain Fresnel term
+
+
+def test_a_principled_glass_specular_tint_under_a_thin_film():
+    """Under a thin film Cycles scales the film's reflectance f by f0 / F0, the more the nearer f is to F0
+    (s = (1 - f) / (1 - F0)); a white tint leaves the film's colours as they are."""
+    from smbs_addon.optics import specular_weights
+    from smbs_addon.thinfilm import dielectric_film1
+
+    tint = np.array([0.3, 1.0, 3.0])
+    sc, _ = one_material(material("FilmTint", "ShaderNodeBsdfPrincipled", **{
+        "Transmission Weight": 1.0, "IOR": 1.5, "Specular Tint": (*tint, 1.0), "Thin Film Thickness": 300.0,
+        "Thin Film IOR": 1.8}))
+    F0 = 0.04
+    for cos in (1.0, 0.4, -0.9):
+        f = np.array(dielectric_film1(300.0, sc.mat_film[0, 1], cos, 1.5))
+        s = np.clip((1.0 - f) / (1.0 - F0), 0.0, 1.0)
+        R, T = specular_weights(sc, np.zeros(1, np.int64), np.array([cos]))
+        np.testing.assert_allclose(R[0], f * (1.0 + (np.float32(tint) * F0 / F0 - 1.0) * s), rtol=1e-6)
+        np.testing.assert_allclose(T[0], (1.0 - R[0]) * sc.mat_color[0], rtol=1e-12)  # sqrt(Base Color 0.8)
+
+
+@pytest.mark.parametrize("second,same", [((2.0, 1.0, 1.0), True), ((1.0, 1.0, 1.0), False)])
+def test_glasses_under_different_specular_tints_do_not_add_up(second, same):
+    """Two Principled glasses mixed 0.6 / 0.4: under the same tint they are one material (colours summed),
+    under different tints the heavier is taken and the other said to be left out."""
+    m = bpy.data.materials.new("TwoGlass")
+    nt = m.node_tree
+    nt.nodes.clear()
+    out = nt.nodes.new("ShaderNodeOutputMaterial")
+    mix = nt.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.4
+    for i, tint in enumerate(((2.0, 1.0, 1.0), second)):
+        node = nt.nodes.new("ShaderNodeBsdfPrincipled")
+        node.inputs["Transmission Weight"].default_value = 1.0
+        node.inputs["Specular Tint"].default_value = (*tint, 1.0)
+        nt.links.new(node.outputs[0], mix.inputs[1 + i])
+    nt.links.new(mix.outputs[0], out.inputs["Surface"])
+    sc, w = one_material(m)
+    assert sc.mat_kind[0] == S.DIELECTRIC
+    np.testing.assert_allclose(sc.mat_metal[0, :3], [1.0, 0.0, 0.0])
+    np.testing.assert_allclose(sc.mat_reflect_color[0], 1.0 if same else 0.6, rtol=1e-6)
+    assert (w == []) == same, w
+
+
 def test_principled_transmission_is_a_dielectric():
     sc, _ = one_material(material("PGlass", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 1.0, 0.95), "Transmission Weight": 1.0, "IOR": 1.33,

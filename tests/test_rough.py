@@ -220,6 +220,17 @@ def test_multiscatter_glass_gain_takes_its_colour():
     e_avg = 2 * (getattr(np, "trapezoid", None) or np.trapz)(E * mu, mu)
     fms = f_avg * e_avg / (1 - f_avg * (1 - e_avg))
     np.testing.assert_allclose(rough.energy_tables(black)[m, 0, :, 1], 1 + fms * (1 - E) / E, rtol=3e-3)
+    # under a Specular Tint (Principled glass) the mean maps as F does (Cycles' generalized Schlick F_ss):
+    # f0 x tint + (1 - f0 x tint) (f_avg - f0) / (1 - f0), f0 = 0.04; a white channel keeps f_avg
+    import dataclasses
+    tint = np.array([3.0, 1.0, 0.0])
+    metal = np.zeros((len(black.mat_kind), 6))
+    metal[m, :3] = tint - 1.0
+    f0t = 0.04 * tint
+    f_tint = f0t + (1 - f0t) * (f_avg - 0.04) / 0.96
+    fms = f_tint * e_avg / (1 - f_tint * (1 - e_avg))
+    np.testing.assert_allclose(rough.energy_tables(dataclasses.replace(black, mat_metal=metal))[m, 0],
+                               1 + fms[None, :] * ((1 - E) / E)[:, None], rtol=3e-3)
 
 
 def test_smooth_below_the_threshold():

@@ -257,6 +257,12 @@ def test_validate_names_the_metal_whose_fresnel_is_wrong():
     sc.mat_metal[2] = (1.0, 1.0, 1.0, 1.0, 1.0, 1.0)
     with pytest.raises(SceneError, match="material 'Glass': the physical conductor's Fresnel is a metal's"):
         sc.validate()
+    sc = full_scene()  # a glass's Specular Tint (less 1): from black up, never negative
+    sc.mat_metal[2] = (-1.0, 0.0, 30.0, 0.0, 0.0, 0.0)
+    sc.validate()
+    sc.mat_metal[2, 1] = -1.5
+    with pytest.raises(SceneError, match="material 'Glass': a glass's Specular Tint must not be negative"):
+        sc.validate()
 
 
 @pytest.mark.parametrize("field,value,message", [
