@@ -843,7 +843,7 @@ def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tn
     return True, _add(p, _mul(eps * side, g)), wn, p
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
     """walk.propagate for chain row `lane`: the ray from x0 (its offset origin o, direction d;
     3-tuples) and its reflections and refractions through the chain's vertices, each ray cast

@@ -290,7 +290,7 @@ def _material(mats, m):
     return kind[m], fres[m], _row3(color, m), _row3(rcolor, m), ior[m]
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     """One specular interaction, as Cycles makes it (reference.scatter_specular): returns (ok, the
     new direction (unit), the new weight, bent). u: three uniform numbers, the first picks the
