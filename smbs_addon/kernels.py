@@ -849,7 +849,9 @@ def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
     3-tuples) and its reflections and refractions through the chain's vertices, each ray cast
     here (embree.intersect1, counted as `kind`). The row of F, I, status (walk outcome, OK
     where every vertex is valid) and out (the direction leaving the last vertex) is written
-    from scratch. geo: (tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior)."""
+    from scratch. geo: (tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior).
+    Called, not inlined (compiled once for the seeds and the walks): its callers pass kind and
+    lane as int64, as numba compiles a function once per value of a constant argument."""
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior, hid = geo
     k = kinds.shape[0]
     for j in range(k):
@@ -918,7 +920,8 @@ def _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out)
     di = _v(d, i, 0)
     g = _v(ng0, i, 0)
     side = 1.0 if _dot(di, g) >= 0 else -1.0
-    _trace_lane(ray, RAYS_SEED, i, xi, _add(xi, _mul(eps * side, g)), di, kinds, geo, eps, F, I, status, out)
+    # (np.int64: a constant argument would compile _trace_lane once per value, see its docstring)
+    _trace_lane(ray, np.int64(RAYS_SEED), i, xi, _add(xi, _mul(eps * side, g)), di, kinds, geo, eps, F, I, status, out)
     if want_obj[i] >= 0 and status[i] == _OK and I[i, 0, OBJ] != want_obj[i]:
         status[i] = _SEED_OBJECT
 
@@ -1192,7 +1195,7 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
             return
         mutations[i] += 1
         on, w = _spawn_aim1(xi, gi, d, p, eps)
-        _trace_lane(ray, RAYS_WALK, 0, xi, on, w, kinds, geo, eps, nF, nI, nstatus, nout)
+        _trace_lane(ray, np.int64(RAYS_WALK), np.int64(0), xi, on, w, kinds, geo, eps, nF, nI, nstatus, nout)
 
 
 @njit(inline="always", **_JIT)

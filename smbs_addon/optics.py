@@ -239,6 +239,28 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
     return zero, zero
 
 
+def dielectric_f0(eta):
+    """A dielectric's Fresnel reflectance at normal incidence, ((eta - 1) / (eta + 1))^2 (Cycles'
+    F0_from_ior; the same for eta and 1 / eta)."""
+    return ((eta - 1.0) / (eta + 1.0)) ** 2
+
+
+_dielectric_f0 = njit(inline="always", **JIT)(dielectric_f0)
+
+
+@njit(inline="always", **JIT)
+def _tinted1(f, F0, tint, filmed, all_one):
+    """_tinted_glass of one channel: f its reflectance, tint its Specular Tint, all_one whether every
+    channel's f is 1."""
+    f0 = _clip01(F0 * max(tint, 0.0))
+    if filmed:
+        if F0 > 1e-5 and not all_one:
+            return f * (1.0 + (f0 / F0 - 1.0) * _clip01((f - 1.0) / (F0 - 1.0)))
+        return f
+    s = _clip01((f - F0) / (1.0 - F0)) if F0 < 1.0 else 1.0
+    return f0 + (1.0 - f0) * s
+
+
 @njit(**JIT)
 def _tinted_glass(f, eta, metal, filmed):
     """A Principled glass's reflectance per channel under its Specular Tint c = 1 + metal[:3]
@@ -246,18 +268,10 @@ def _tinted_glass(f, eta, metal, filmed):
     in [0, 1]), F0 the glass's reflectance at normal incidence; the plain Fresnel f is mapped from
     [F0, 1] onto [f0, 1]. Under a thin film (filmed), whose f may fall below F0, Cycles scales f by
     f0 / F0 instead, the more the nearer f is to F0."""
-    F0 = ((eta - 1.0) / (eta + 1.0)) ** 2
-    out = [f[0], f[1], f[2]]
-    for c in range(3):
-        f0 = _clip01(F0 * max(1.0 + metal[c], 0.0))
-        if filmed:
-            if F0 > 1e-5 and not (f[0] == 1.0 and f[1] == 1.0 and f[2] == 1.0):
-                s = _clip01((f[c] - 1.0) / (F0 - 1.0))
-                out[c] = f[c] * (1.0 + (f0 / F0 - 1.0) * s)
-        else:
-            s = _clip01((f[c] - F0) / (1.0 - F0)) if F0 < 1.0 else 1.0
-            out[c] = f0 + (1.0 - f0) * s
-    return out[0], out[1], out[2]
+    F0 = _dielectric_f0(eta)
+    one = f[0] == 1.0 and f[1] == 1.0 and f[2] == 1.0
+    return (_tinted1(f[0], F0, 1.0 + metal[0], filmed, one), _tinted1(f[1], F0, 1.0 + metal[1], filmed, one),
+            _tinted1(f[2], F0, 1.0 + metal[2], filmed, one))
 
 
 @njit(inline="always", **JIT)

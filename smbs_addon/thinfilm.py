@@ -231,10 +231,10 @@ def dielectric_film1(thickness, film_ior, cos_i, eta):
     if cos_i < 0.0:
         film_ior, eta = film_ior / eta, 1.0 / eta
     ci = min(abs(cos_i), 1.0)
-    out = [0.0, 0.0, 0.0]
-    for c in range(3):  # (a channel's constant index would compile iridescence1 once per channel)
-        out[c] = iridescence1(TABLE, c, thickness, film_ior, ci, eta, 0.0, -1.0, False)
-    return out[0], out[1], out[2]
+    # the channel as an int64: a constant would compile iridescence1 once per channel
+    return (iridescence1(TABLE, np.int64(0), thickness, film_ior, ci, eta, 0.0, -1.0, False),
+            iridescence1(TABLE, np.int64(1), thickness, film_ior, ci, eta, 0.0, -1.0, False),
+            iridescence1(TABLE, np.int64(2), thickness, film_ior, ci, eta, 0.0, -1.0, False))
 
 
 @njit(inline="always", **JIT)
@@ -265,7 +265,6 @@ def f82_film1(thickness, film_ior, mu, f0, b):
 def conductor_film1(thickness, film_ior, mu, nk):
     """The RGB reflectance of a physical conductor (index nk[c] + i nk[c + 3]) under a film, at incidence
     cosine mu in [0, 1]."""
-    out = [0.0, 0.0, 0.0]
-    for c in range(3):
-        out[c] = iridescence1(TABLE, c, thickness, film_ior, mu, nk[c], nk[c + 3], -1.0, True)
-    return out[0], out[1], out[2]
+    return (iridescence1(TABLE, np.int64(0), thickness, film_ior, mu, nk[0], nk[3], -1.0, True),
+            iridescence1(TABLE, np.int64(1), thickness, film_ior, mu, nk[1], nk[4], -1.0, True),
+            iridescence1(TABLE, np.int64(2), thickness, film_ior, mu, nk[2], nk[5], -1.0, True))
