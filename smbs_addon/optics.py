@@ -255,7 +255,9 @@ def _tinted1(f, F0, tint, filmed, all_one):
     f0 = _clip01(F0 * max(tint, 0.0))
     if filmed:
         if F0 > 1e-5 and not all_one:
-            return f * (1.0 + (f0 / F0 - 1.0) * _clip01((f - 1.0) / (F0 - 1.0)))
+            # kept at 1 at most: a tint far above white can scale f past 1, where Cycles' transmission
+            # (1 - F) turns negative
+            return _clip01(f * (1.0 + (f0 / F0 - 1.0) * _clip01((f - 1.0) / (F0 - 1.0))))
         return f
     s = _clip01((f - F0) / (1.0 - F0)) if F0 < 1.0 else 1.0
     return f0 + (1.0 - f0) * s
@@ -267,7 +269,7 @@ def _tinted_glass(f, eta, metal, filmed):
     (Cycles' generalized_schlick_fresnel with a negative exponent, bsdf_microfacet.h): f0 = F0 c (kept
     in [0, 1]), F0 the glass's reflectance at normal incidence; the plain Fresnel f is mapped from
     [F0, 1] onto [f0, 1]. Under a thin film (filmed), whose f may fall below F0, Cycles scales f by
-    f0 / F0 instead, the more the nearer f is to F0."""
+    f0 / F0 instead, the more the nearer f is to F0 (kept at 1 at most here: Cycles lets it pass 1)."""
     F0 = _dielectric_f0(eta)
     one = f[0] == 1.0 and f[1] == 1.0 and f[2] == 1.0
     return (_tinted1(f[0], F0, 1.0 + metal[0], filmed, one), _tinted1(f[1], F0, 1.0 + metal[1], filmed, one),

@@ -255,3 +255,25 @@ def test_reflect_is_an_involution_and_mirrors(w, n):
     np.testing.assert_allclose(r - (r @ n) * n, -(w - (w @ n) * n), atol=1e-14)
     # the normal's sign does not matter
     np.testing.assert_allclose(reflect(w[None], -n[None])[0], r, atol=1e-15)
+
+
+def test_a_far_tinted_glass_under_a_film_keeps_its_weights_in_range():
+    """A Specular Tint far above white under a thin film: Cycles scales the film's reflectance by up to
+    f0 / F0 (here 31), past 1, and its transmission 1 - F turns negative; ours keeps R in [0, 1] and
+    T >= 0 (the bake fuzz found it: glass of index near 1, a film of 1 nm and index 1, tint 31)."""
+    from smbs_addon import scene as S
+    from smbs_addon.builder import SceneBuilder
+    from smbs_addon.optics import specular_weights
+
+    b = SceneBuilder("tint")
+    m = b.material("glass", S.DIELECTRIC, color=(1.0, 1.0, 1.0), ior=1.02, metal=(30.0, 0.0, 30.0, 0, 0, 0),
+                   film=(1.0, 1.0))
+    b.plane("Pane", (0, 0, 1), 1, m, caster=True)
+    b.light("Bulb", "POINT", location=(0, 0, 3), power=10.0)
+    b.set_camera((0, -3, 2), (0, 0, 0), resolution_x=4, resolution_y=4)
+    sc = b.build()
+    cos = np.concatenate([np.linspace(-1.0, 1.0, 401), [1e-9, -1e-9]])
+    R, T = specular_weights(sc, np.full(len(cos), m), cos)
+    assert np.all((R >= 0) & (R <= 1)) and np.all(T >= 0) and np.all(np.isfinite(R + T))
+    inner = cos > 0.05  # from outside (inside, past the critical angle, and at grazing every channel reflects all)
+    assert R[inner, 0].max() == 1.0 and R[inner, 1].max() < 1.0  # the tinted channels reach the bound, the white not
