@@ -271,7 +271,7 @@ def _tinted_glass(f, eta, metal, filmed):
     [F0, 1] onto [f0, 1]. Under a thin film (filmed), whose f may fall below F0, Cycles scales f by
     f0 / F0 instead, the more the nearer f is to F0 (kept at 1 at most here: Cycles lets it pass 1)."""
     F0 = _dielectric_f0(eta)
-    one = f[0] == 1.0 and f[1] == 1.0 and f[2] == 1.0
+    one = filmed and f[0] == 1.0 and f[1] == 1.0 and f[2] == 1.0
     return (_tinted1(f[0], F0, 1.0 + metal[0], filmed, one), _tinted1(f[1], F0, 1.0 + metal[1], filmed, one),
             _tinted1(f[2], F0, 1.0 + metal[2], filmed, one))
 

@@ -229,7 +229,7 @@ def energy_tables(scene) -> np.ndarray:
     a glass (1), at mu = 0, 1/MU_STEPS, ..., 1 (energy_gain1); ones for the rest (smooth, GGX, a
     Refraction BSDF: Cycles compensates none of these)."""
     from .layer import MU_STEPS
-    from .optics import dielectric_f0, fresnel_dielectric, metal, specular_weights
+    from .optics import _tinted_glass, fresnel_dielectric, metal, specular_weights
 
     M = len(scene.mat_kind)
     out = np.ones((M, 2, MU_STEPS + 1, 3))
@@ -247,12 +247,11 @@ def energy_tables(scene) -> np.ndarray:
             if not fss.any():
                 f_mean = _hemisphere_mean(fresnel_dielectric(mu, eta), mu)
                 fss = f_mean * scene.mat_reflect_color[m]
-                tint = 1.0 + metal(scene)[m, :3] if metal(scene).size else np.ones(3)
-                if np.any(tint != 1.0):  # a Principled glass's Specular Tint: F's mean mapped as F is
-                    f0 = dielectric_f0(eta)
-                    s = float(np.clip((f_mean - f0) / (1.0 - f0), 0.0, 1.0)) if f0 < 1.0 else 1.0
-                    f0t = np.clip(f0 * np.maximum(tint, 0.0), 0.0, 1.0)
-                    fss = (f0t + (1.0 - f0t) * s) * scene.mat_reflect_color[m]
+                row = metal(scene)[m] if metal(scene).size else np.zeros(6)
+                if np.any(row[:3] != 0.0):  # a Principled glass's Specular Tint: F's mean mapped as F is
+                    f = float(f_mean)
+                    fss = np.array(_tinted_glass((f, f, f), eta, tuple(float(v) for v in row), False)) \
+                        * scene.mat_reflect_color[m]
             key = ("glass", float(a[m]), eta, tuple(np.round(fss, 12)))
             albedos = lambda m=m, eta=eta: [glass_albedo(mu, a[m], e) for e in (eta, 1.0 / eta)]  # noqa: E731
         else:
