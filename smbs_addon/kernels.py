@@ -572,6 +572,13 @@ def _lane_solve(A, B, D, rhs, Li, Y, X):
     return ok
 
 
+# chain_solve's copies of the two, called rather than inlined (compiled once, ~10 s, where inlined in
+# chain_solve they took ~25 s more of a first bake's compile); the walk keeps them inlined (called
+# there too, the walks compiled ~35 s less, but the hammered mirror's bakes took 8-15% longer)
+_lane_blocks_called = njit(**_JIT)(_lane_blocks.py_func)
+_lane_solve_called = njit(**_JIT)(_lane_solve.py_func)
+
+
 @njit(**_JIT)
 def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
     """Per lane, the constraints' blocks and the block-tridiagonal solve of the first vertex:
@@ -584,7 +591,7 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
     oks = np.zeros(N, np.bool_)
     C, A, B, D, rhs, Li, Y, X = _lane_scratch(k)
     for i in range(N):
-        ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
+        ok = _lane_blocks_called(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
         _zero_rhs(rhs, k)
         if mode == 0:
             for j in range(k):
@@ -593,7 +600,7 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
             for r in range(2):
                 for c in range(2):
                     rhs[k - 1, r, c] = -D[k - 1, r, c]
-        oks_ = _lane_solve(A, B, D, rhs, Li, Y, X)
+        oks_ = _lane_solve_called(A, B, D, rhs, Li, Y, X)
         ok = ok and oks_
         if ok:
             _copy_rows(out, i, X, 0)
