@@ -1,6 +1,6 @@
 """How the package's kernels compile with numba: the settings they share and their disk cache.
 
-Kernels (kernels.py, embree.py, optics.py, lights.py, thinfilm.py) compile on first use and are cached on disk (cache=True; numba
+Kernels (kernels.py, embree.py, optics.py, lights.py, thinfilm.py, rough.py) compile on first use and are cached on disk (cache=True; numba
 falls back to a user cache folder when the package folder is read-only). nogil: threads run
 them side by side. error_model="numpy": x / 0 is inf or NaN as in numpy, never an exception.
 
@@ -23,7 +23,7 @@ JIT = dict(cache=True, nogil=True, error_model="numpy")
 
 _PACKAGE = __name__.rpartition(".")[0]
 _FILES = [os.path.join(os.path.dirname(os.path.abspath(__file__)), f)
-          for f in ("jit.py", "embree.py", "optics.py", "kernels.py", "lights.py", "thinfilm.py")]
+          for f in ("jit.py", "embree.py", "optics.py", "kernels.py", "lights.py", "thinfilm.py", "rough.py")]
 
 
 def _stamp():

@@ -215,6 +215,21 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
     assert hits() == 0 and hits() == 1
 
 
+def test_cache_stamp_covers_every_file_with_kernels():
+    """Every module of the package that compiles with numba (imports jit.JIT) is in jit.py's stamp:
+    a kernel inlines or links helpers of other files (optics.scatter1 the rough lobes of rough.py),
+    so a file left out of it would let an edit load stale kernels (rough.py was, until stop 52)."""
+    import os
+    from pathlib import Path
+
+    from smbs_addon import jit
+
+    pkg = Path(jit.__file__).resolve().parent
+    with_kernels = {f.name for f in pkg.glob("*.py") if "from .jit import" in f.read_text()}
+    assert "rough.py" in with_kernels and "kernels.py" in with_kernels
+    assert with_kernels | {"jit.py"} == {os.path.basename(f) for f in jit._FILES}
+
+
 def test_typed_once_types_a_long_tuple_once(monkeypatch):
     """kernels.TypedOnce: numba's dispatcher types a tuple of more than 4 items in Python on
     every call; through TypedOnce the compiled code is found once per argument key and then
