@@ -239,13 +239,11 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
     return zero, zero
 
 
-def dielectric_f0(eta):
+@njit(inline="always", **JIT)
+def _dielectric_f0(eta):
     """A dielectric's Fresnel reflectance at normal incidence, ((eta - 1) / (eta + 1))^2 (Cycles'
     F0_from_ior; the same for eta and 1 / eta)."""
     return ((eta - 1.0) / (eta + 1.0)) ** 2
-
-
-_dielectric_f0 = njit(inline="always", **JIT)(dielectric_f0)
 
 
 @njit(inline="always", **JIT)
