@@ -1,0 +1,125 @@
+"""This tree against another revision, timed in one process: walks or whole bakes, interleaved.
+
+    python bench/ab.py --base REV [--scenes sphere:512,ring:512,hammered:48] [--reps 12]
+        [--bakes sms,smbs,reference] [--spp 1]
+
+Timings of separate processes on a shared 2-core machine drift by 20-50% within minutes (the
+same walks of the glass sphere took 13 and 20 us each half an hour apart), which hides the few
+percent a change to the kernels makes. Here both trees live in one process: REV's
+``smbs_addon`` is extracted (``git archive``) into a folder of its own under the temporary
+directory and imported as ``smbs_base`` (its numba cache kept there per revision, so a second
+run loads it), each tree builds the scenes of its own ``tests/scenes.py`` and records its own
+primary walks of a one-sample SMBS bake (as bench/walk_steps.py), and the two trees' walks then
+run in turn, one thread, ``--reps`` times, the order swapped every round. Printed per scene and
+chain type: microseconds per walk (minimum and median) and the median of the rounds' ratios
+this / base, which cancels the drift both share. ``--bakes``: whole bakes of those methods
+instead (``spp`` samples, both threads), timed the same way.
+"""
+from __future__ import annotations
+
+import argparse
+import importlib
+import io
+import subprocess
+import sys
+import tarfile
+import tempfile
+import time
+import types
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = {"sphere": "glass_sphere_scene", "ring": "ring_scene", "hammered": "hammered_mirror_scene"}
+
+
+def extract(rev: str) -> tuple[Path, str]:
+    """REV's smbs_addon as smbs_base in <tmp>/smbs_ab/<sha>/, and REV's tests/scenes.py source."""
+    sha = subprocess.check_output(["git", "rev-parse", rev], cwd=ROOT, text=True).strip()
+    home = Path(tempfile.gettempdir()) / "smbs_ab" / sha[:12]
+    if not (home / "smbs_base" / "__init__.py").exists():
+        data = subprocess.check_output(["git", "archive", sha, "smbs_addon"], cwd=ROOT)
+        with tarfile.open(fileobj=io.BytesIO(data)) as tar:
+            tar.extractall(home / "unpack")
+        (home / "unpack" / "smbs_addon").rename(home / "smbs_base")
+    scenes = subprocess.check_output(["git", "show", f"{sha}:tests/scenes.py"], cwd=ROOT, text=True)
+    return home, scenes
+
+
+def scenes_module(source: str, package: str):
+    m = types.ModuleType(f"scenes_{package}")
+    exec(compile(source.replace("from smbs_addon.", f"from {package}."), f"scenes ({package})", "exec"), m.__dict__)
+    return m
+
+
+def captured(P, scene) -> list:
+    """The primary walks' arguments of a one-sample SMBS bake, one per chain type."""
+    seen, orig = [], P.walk.newton_walk
+
+    def rec(ctx, cfg, chain_types, x0, ng0, light, chain=None, large_ok=None, seed=None):
+        if seed is not None and chain_types not in [c[2] for c in seen]:
+            seen.append((ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed))
+        return orig(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
+
+    P.manifold.newton_walk = rec
+    try:
+        P.bake(scene, P.BakeSettings(method="smbs", spp=1, batches=1, seed=1))
+    finally:
+        P.manifold.newton_walk = orig
+    for c in seen:
+        c[0].tracer.threads = 1
+    return seen
+
+
+def report(label: str, base: list, this: list) -> None:
+    b, a = np.array(base), np.array(this)
+    print(f"{label:24s} base {b.min():8.3f} {np.median(b):8.3f} | this {a.min():8.3f} {np.median(a):8.3f} | "
+          f"this / base {np.median(a / b):.3f}", flush=True)
+
+
+def main(argv=None) -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--base", required=True, help="the revision to compare with (git rev)")
+    ap.add_argument("--scenes", default="sphere:512,ring:512,hammered:48")
+    ap.add_argument("--reps", type=int, default=12)
+    ap.add_argument("--bakes", default="", help="methods: time whole bakes instead of the walks")
+    ap.add_argument("--spp", type=int, default=1)
+    a = ap.parse_args(argv)
+    home, base_scenes = extract(a.base)
+    sys.path.insert(0, str(home))
+    sys.path.insert(0, str(ROOT))
+    pk = {n: importlib.import_module(n) for n in ("smbs_base", "smbs_addon")}
+    for P in pk.values():
+        importlib.import_module(P.__name__ + ".walk")
+        importlib.import_module(P.__name__ + ".manifold")
+    src = {"smbs_base": base_scenes, "smbs_addon": (ROOT / "tests" / "scenes.py").read_text()}
+    unit = "s per bake" if a.bakes else "us per walk"
+    print(f"this: {ROOT}, base: {a.base} ({home}); min and median {unit}, {a.reps} rounds")
+    for item in a.scenes.split(","):
+        name, _, size = item.partition(":")
+        made = {n: getattr(scenes_module(src[n], n), SCENES[name])(resolution=(int(size or 256),) * 2) for n in pk}
+        times = {}
+        if a.bakes:
+            for r in range(a.reps + 1):  # round 0 warms up (loads the kernels)
+                for n in (("smbs_base", "smbs_addon") if r % 2 == 0 else ("smbs_addon", "smbs_base")):
+                    P = pk[n]
+                    for m in a.bakes.split(","):
+                        t = time.perf_counter()
+                        P.bake(made[n], P.BakeSettings(method=m, spp=a.spp, batches=min(a.spp, 2), seed=1))
+                        if r:
+                            times.setdefault((m, n), []).append(time.perf_counter() - t)
+        else:
+            caps = {n: captured(P, made[n]) for n, P in pk.items()}
+            for r in range(a.reps):
+                for n in (("smbs_base", "smbs_addon") if r % 2 == 0 else ("smbs_addon", "smbs_base")):
+                    for ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed in caps[n]:
+                        t = time.perf_counter()
+                        pk[n].walk.newton_walk(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
+                        times.setdefault((chain_types, n), []).append((time.perf_counter() - t) / len(x0) * 1e6)
+        for key in dict.fromkeys(k[0] for k in times):
+            report(f"{item} {key}", times[(key, "smbs_base")], times[(key, "smbs_addon")])
+
+
+if __name__ == "__main__":
+    main()
