@@ -20,6 +20,12 @@ import hashlib
 import os
 
 JIT = dict(cache=True, nogil=True, error_model="numpy")
+# Helpers are plain njit, called: LLVM inlines a small one into each caller's machine code anyway,
+# while numba's own inline="always" types it again at every call site (a first compile of the walks
+# took 191 s with the helpers so marked, 71 s without: bench/results/first_bake.md). A helper keeps
+# inline="always" where LLVM would leave a call in a hot kernel (bench/inlined_calls.py lists the
+# calls left), or where it is the Newton step itself (kernels._lane_blocks, _lane_solve, _lane_newton:
+# called, a hammered mirror's bakes were 8-15% slower).
 
 _PACKAGE = __name__.rpartition(".")[0]
 _FILES = [os.path.join(os.path.dirname(os.path.abspath(__file__)), f)

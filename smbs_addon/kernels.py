@@ -140,9 +140,7 @@ def _borrowed(typingctx, tup):
 
 
 # ------------------------------------------------------------------ 3-vectors as tuples
-# These and the keyed random numbers are called, not inline="always": numba's own inlining types a
-# helper again at every call site (hundreds here; a first bake's walks compiled 154 -> 86 s without
-# it), while LLVM still inlines such small functions into their callers' machine code (no call left).
+# These and the keyed random numbers are called, not inline="always" (jit.py: LLVM inlines them)
 @njit(**_JIT)
 def _v(a, i, off):
     return (a[i, off], a[i, off + 1], a[i, off + 2])
@@ -299,7 +297,7 @@ def _absorbed(kinds, a, medium, m_hit, d, g_hit, t, b):
             b[2] * math.exp(-a[medium, 2] * t))
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _medium_after(m, kind, dd, g):
     """The medium a path is in leaving a vertex of material m along dd (optics.inside)."""
     return m if kind == _DIELECTRIC and _dot(dd, g) < 0 else -1
@@ -324,7 +322,7 @@ def _max(a, b):
     return a if a >= b else b
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _frame(n):
     """vec.frame."""
     sign = 1.0 if n[2] >= 0 else -1.0
@@ -336,7 +334,7 @@ def _frame(n):
 
 
 # ------------------------------------------------------------------ reflection / refraction
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _orient(w, n, eta):
     if _dot(w, n) >= 0:
         return n, 1.0 / eta, 1.0
@@ -394,7 +392,7 @@ def smap_d_w(refract, w, pre, dw):
     return _sub(_mul(-eta_r, _sub(dw, _mul(dc, no))), _mul(dr, no))
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _unit_d(u, length, a):
     return _div(_sub(a, _mul(_dot(u, a), u)), length)
 
@@ -499,22 +497,22 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
 # 2x2 matrices as tuples (m00, m01, m10, m11): held in registers. A view of a (k, 2, 2) array
 # (A[j]) takes a reference to the array's memory (an atomic increment and decrement in numba's
 # runtime) each time it is made, a tenth of a Newton iteration's time when made per lane.
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _m2(M, j):
     return (M[j, 0, 0], M[j, 0, 1], M[j, 1, 0], M[j, 1, 1])
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _put2(M, j, v):
     M[j, 0, 0], M[j, 0, 1], M[j, 1, 0], M[j, 1, 1] = v
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _sub2(X, Y):
     return (X[0] - Y[0], X[1] - Y[1], X[2] - Y[2], X[3] - Y[3])
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _inv2(M):
     """constraints.inv2 of one 2x2: (inverse, ok)."""
     a, b, c, d = M
@@ -525,13 +523,13 @@ def _inv2(M):
     return (d * inv_det, -b * inv_det, -c * inv_det, a * inv_det), ok
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _mm(X, Y):
     return (X[0] * Y[0] + X[1] * Y[2], X[0] * Y[1] + X[1] * Y[3],
             X[2] * Y[0] + X[3] * Y[2], X[2] * Y[1] + X[3] * Y[3])
 
 
-@njit(inline="always", **_JIT)
+@njit(inline="always", **_JIT)  # inlined: as a plain njit, LLVM left a call to it in the walk (jit.py)
 def _copy_rows(dst, i, src, m):
     """dst[i] = src[m] for (N, a, b) arrays, element by element: numba's slice assignment costs
     ~50-100 ns per call on these small rows (views and a generic loop), more than the copy."""
@@ -540,7 +538,7 @@ def _copy_rows(dst, i, src, m):
             dst[i, j, c] = src[m, j, c]
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _zero_rhs(rhs, k):
     for j in range(k):
         for r in range(2):
@@ -659,7 +657,7 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
 
 
 # ------------------------------------------------------------------ a ray's hit in float64
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _hit_point(o, d, xo, exact, t32, pr, tv, tng, eps):
     """tracer.intersect's float64 hit of the ray o + t d (the offset origin embree traced from;
     xo, where it really starts when exact, else o) on primitive pr at embree's float32 distance
@@ -679,7 +677,7 @@ def _hit_point(o, d, xo, exact, t32, pr, tv, tng, eps):
     return ti, _add(xo, _mul(ti, d)), g, v0, _sub(v1, v0), _sub(v2, v0)
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _barycentric(e1, e2, q):
     """Barycentrics (b1, b2) of corners 1 and 2 for q = p - v0 on the triangle of edges e1, e2
     (1/3 each where the triangle is degenerate), and the edges' dot products d11, d12, d22."""
@@ -692,7 +690,7 @@ def _barycentric(e1, e2, q):
     return 1.0 / 3.0, 1.0 / 3.0, d11, d12, d22
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _corners(tns, pr, d, g):
     """The corner normals of triangle pr a ray of direction d meets (g: its geometric normal): in
     tns[pr, 3:] where it comes from behind and tns holds the normals met from there (Tracer.ns_corner
@@ -704,7 +702,7 @@ def _corners(tns, pr, d, g):
             (tns[pr, 2, 0], tns[pr, 2, 1], tns[pr, 2, 2]))
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _shading_normal(tns, pr, b1, b2, g, d):
     """tracer.shading_normal: the corner normals interpolated and normalised (not flipped towards
     the geometric normal g, as Cycles' triangle_smooth_normal), g where they give none; those a ray
@@ -1066,7 +1064,7 @@ def backlit_lanes(kinds, backlit_at, x0, F, ly, directional):
     return out
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _spawn_aim1(x0, g, d, target, eps):
     """tracer.spawn of x0 (normal g) towards d, and the unit direction from there to target."""
     side = 1.0 if _dot(d, g) >= 0 else -1.0
@@ -1363,7 +1361,7 @@ def bernoulli_lanes(rt, samples, seeds, trials, cfg, geo, directional, obj_lo, o
 
 
 # ------------------------------------------------------------------ the film
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _blackman_harris(x, r):
     """film.blackman_harris of one offset (r already at least 0.5)."""
     if not abs(x) <= r:
@@ -1482,7 +1480,7 @@ def _hit_or_miss(ray, o, d, tv, tng, eps):
     return pr, t, p, g, v0, e1, e2
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def cdf_pick(cdf, guide, u):
     """min(np.searchsorted(cdf, u * cdf[-1], side="right"), len(cdf) - 1), the same index, through
     a guide table (Chen and Asau 1974; guide_table): a step or two from guide[int(u G)] instead of a
@@ -1649,7 +1647,7 @@ REC_F = 15
 _DIFFUSE = 0
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _fits(lim, d, g, t):
     """bounces.Limits.allowed of event counts d, g, t; lim = Limits.array()."""
     return d <= lim[0] and g <= lim[1] and t <= lim[2] and d + g + t <= lim[3]

@@ -30,19 +30,19 @@ _NO_FILM = (0.0, 0.0)
 
 
 # ------------------------------------------------------------------ per lane
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def reflect1(w, n):
     """Mirror w about n: 2 (w.n) n - w."""
     c = 2.0 * _dot(w, n)
     return (c * n[0] - w[0], c * n[1] - w[1], c * n[2] - w[2])
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def refract1(w, n, eta):
     """Refract w through an interface with relative IOR eta = n_inside / n_outside, where n
     points to the outside: (direction, ok); ok False on total internal reflection (the
@@ -60,7 +60,7 @@ def refract1(w, n, eta):
             -eta_r * (w[2] - c * nn[2]) - r * nn[2]), True
 
 
-@njit(inline="always", **JIT)
+@njit(inline="always", **JIT)  # inlined: as a plain njit, LLVM left a call to it in scatter1 (jit.py)
 def valid_reflection1(ng, wi, n):
     """Cycles' Bump Map Correction for mirrors and glass (ensure_valid_specular_reflection,
     kernel/closure/bsdf_util.h; Material > Settings > Bump Map Correction, on by default): where
@@ -129,7 +129,7 @@ def bump_shadowing1(sn, n, wi, correction):
     return 2.0 / (1.0 + math.sqrt(1.0 + alpha2 * max(1.0 / (cos_i * cos_i) - 1.0, 0.0)))
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def fresnel_dielectric1(cos_i, eta):
     """Unpolarised Fresnel reflectance. cos_i = w.n (its sign tells the side); eta =
     n_inside / n_outside with n pointing outside. 1 on total internal reflection."""
@@ -274,12 +274,12 @@ def _tinted_glass(f, eta, metal, filmed):
             _tinted1(f[2], F0, 1.0 + metal[2], filmed, one))
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _row3(a, i):
     return (a[i, 0], a[i, 1], a[i, 2])
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _metal1(metal, m):
     """Material m's row of a metal's Fresnel (Scene.mat_metal; none: an empty table) as a 6-tuple."""
     if metal.shape[0] == 0:
@@ -287,7 +287,7 @@ def _metal1(metal, m):
     return (metal[m, 0], metal[m, 1], metal[m, 2], metal[m, 3], metal[m, 4], metal[m, 5])
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _film1(films, m):
     """Material m's thin film (Scene.mat_film: thickness nm, index; none: an empty table) as a 2-tuple."""
     if films.shape[0] == 0:

@@ -41,12 +41,12 @@ GGX, MULTI_GGX = 0, 1  # Scene.mat_distribution (a scene without it: Multiscatte
 _TAU = 2.0 * math.pi
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _dot(a, b):
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def lambda1(cos, a2):
     """Smith's Lambda of GGX (alpha^2 = a2) for a direction of cosine cos with the normal (either
     sign)."""
@@ -57,7 +57,7 @@ def lambda1(cos, a2):
     return 0.5 * (math.sqrt(1.0 + (t if t > 0.0 else 0.0)) - 1.0)
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def frame1(n):
     """Two unit tangents completing the unit n to an orthonormal frame (Duff et al. 2017)."""
     s = 1.0 if n[2] >= 0.0 else -1.0

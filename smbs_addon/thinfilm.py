@@ -107,7 +107,7 @@ def _dielectric_polarized(cos_i, eta):
     return rs * rs, rp * rp, ct, 1.0 if rs >= 0.0 else -1.0, 1.0 if rp >= 0.0 else -1.0
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def clip01(x):
     """np.clip(x, 0, 1): NaN stays NaN."""
     if x < 0.0:
@@ -117,7 +117,7 @@ def clip01(x):
     return x
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def schlick(m5, f0):
     return f0 + (1.0 - f0) * m5
 
