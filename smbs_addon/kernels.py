@@ -280,7 +280,7 @@ def _normalize(a):
     return (a[0] * inv, a[1] * inv, a[2] * inv)
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _absorbed(kinds, a, medium, m_hit, d, g_hit, t, b):
     """b after a segment of length t along d inside a glass: medium (the glass it left into, -1:
     none), else the glass of material m_hit if d arrives at its back (the segment began inside it:
@@ -1912,7 +1912,7 @@ def view_normal_rows(vn, vp, t, px, py, p, ng, ns, to_cam, foot, out):
         out[i, 0], out[i, 1], out[i, 2] = n[0], n[1], n[2]
 
 
-@njit(inline="always", **_JIT)
+@njit(**_JIT)
 def _cam_mat(cam, a, v):
     """The 3x3 matrix kept row by row at cam[a:a + 9] (CAM_AXES, CAM_INV) times v."""
     return (cam[a] * v[0] + cam[a + 1] * v[1] + cam[a + 2] * v[2],

@@ -230,7 +230,7 @@ def shadow_tmax(scene, li: int, y, ys, yt, o, d, dist, eps):
 
 
 # ------------------------------------------------------------------ emission, per photon
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _frame1(n):
     """vec.frame of one unit vector."""
     sign = 1.0 if n[2] >= 0 else -1.0
@@ -246,7 +246,7 @@ def _around(x, y, z, axis):
     return (x * s[0] + y * t[0] + z * axis[0], x * s[1] + y * t[1] + z * axis[1], x * s[2] + y * t[2] + z * axis[2])
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _in_cone(u1, u2, cos_max, axis):
     """vec.uniform_cone about axis."""
     z = 1.0 - u1 * (1.0 - cos_max)
@@ -255,7 +255,7 @@ def _in_cone(u1, u2, cos_max, axis):
     return _around(r * math.cos(phi), r * math.sin(phi), z, axis)
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _disk1(u1, u2):
     """vec.concentric_disk of one pair."""
     a, b = 2.0 * u1 - 1.0, 2.0 * u2 - 1.0
@@ -268,13 +268,13 @@ def _disk1(u1, u2):
     return r * math.cos(phi), r * math.sin(phi)
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _pick(cdf, u):
     """The mixture component u picks (cdf: cumulative probabilities)."""
     return min(np.searchsorted(cdf, u * cdf[-1], side="right"), cdf.shape[0] - 1)
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _cone(o, targets, j, grow):
     """Light leaving o towards target sphere j (grown by grow): (unit axis, cos of the cone's
     half-angle (-1: o inside the sphere), its solid angle)."""

@@ -105,7 +105,7 @@ def bend1(w, ns, ng):
     return ((s * nb[0], s * nb[1], s * nb[2]) if bent else ns), bent
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def bump_shadowing1(sn, n, wi, correction):
     """Cycles' bump_shadowing_term (kernel/closure/bsdf.h) of a diffuse closure whose normal n
     (unit) a bump or normal map bent away from the smooth shading normal sn (sd->N), for light
@@ -150,7 +150,7 @@ def fresnel_dielectric1(cos_i, eta):
     return _clip01(0.5 * (rs * rs + rp * rp))
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def fresnel_conductor1(mu, n, k):
     """Unpolarised reflectance of a conductor of complex index n + ik under a medium of index 1 at
     incidence cosine mu in [0, 1] (Cycles' fresnel_conductor_polarized, from Born and Wolf 14.4.1):
@@ -246,7 +246,7 @@ def _dielectric_f0(eta):
     return ((eta - 1.0) / (eta + 1.0)) ** 2
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _tinted1(f, F0, tint, filmed, all_one):
     """_tinted_glass of one channel: f its reflectance, tint its Specular Tint, all_one whether every
     channel's f is 1."""
@@ -295,7 +295,7 @@ def _film1(films, m):
     return (films[m, 0], films[m, 1])
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _material(mats, m):
     """Material m's (kind, Fresnel model, colour, reflection tint, IOR) from the scene's tables
     mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior, bump correction, then

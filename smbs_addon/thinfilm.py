@@ -91,7 +91,7 @@ def _lookup(table, row, x):
     return (1.0 - t) * table[row, i] + t * table[row, i + 1]
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _dielectric_polarized(cos_i, eta):
     """Fresnel reflectances (Rs, Rp) of light at incidence cosine cos_i onto a medium of relative index
     eta, the cosine of the refracted direction (negative: relative to the normal on the incident side)
@@ -131,7 +131,7 @@ def f82(m5, s, mu, f0, b):
     return clip01(schlick(m5, f0) - b * mu * m5 * s)
 
 
-@njit(inline="always", **JIT)
+@njit(**JIT)
 def _f82(mu, f0, b):
     s = clip01(1.0 - mu)
     return f82(s * s * s * s * s, s, mu, f0, b)
