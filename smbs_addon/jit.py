@@ -21,8 +21,8 @@ import os
 
 JIT = dict(cache=True, nogil=True, error_model="numpy")
 # Helpers are plain njit, called: LLVM inlines a small one into each caller's machine code anyway,
-# while numba's own inline="always" types it again at every call site (a first compile of the walks
-# took 191 s with the helpers so marked, 71 s without: bench/results/first_bake.md). A helper keeps
+# while numba's own inline="always" types it again at every call site (the walks' first compile took
+# 154 s with the small helpers so marked, 71 s without: bench/results/first_bake.md). A helper keeps
 # inline="always" where LLVM would leave a call in a hot kernel (bench/inlined_calls.py lists the
 # calls left), or where it is the Newton step itself (kernels._lane_blocks, _lane_solve, _lane_newton:
 # called, a hammered mirror's bakes were 8-15% slower).
