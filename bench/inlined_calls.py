@@ -41,7 +41,7 @@ else:
 
 
 def dotted(symbol):
-    """_ZN10smbs_addon7kernels6_frameB... -> smbs_addon.kernels._frame (Itanium-style names)."""
+    """_ZN10smbs_addon7kernels10_hit_pointB... -> smbs_addon.kernels._hit_point (Itanium-style names)."""
     s, parts = symbol[3:], []
     while s[:1].isdigit():
         k = re.match(r"\d+", s).group()

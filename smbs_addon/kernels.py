@@ -33,7 +33,8 @@ from .embree import KINDS, intersect1, occluded1, ray_state
 from .jit import JIT
 from .layer import LAMBERT_FLOOR, MU_STEPS
 from .optics import bend1, bump_shadowing1, fresnel_dielectric1, scatter1
-from .rough import SINGULAR_ALPHA2
+from .rough import SINGULAR_ALPHA2, frame1
+from .rough import dot1 as _dot
 
 # packed vertex columns
 P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
@@ -149,11 +150,6 @@ def _v(a, i, off):
 @njit(**_JIT)
 def _vk(F, i, j, off):
     return (F[i, j, off], F[i, j, off + 1], F[i, j, off + 2])
-
-
-@njit(**_JIT)
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @njit(**_JIT)
@@ -322,17 +318,6 @@ def _max(a, b):
     return a if a >= b else b
 
 
-@njit(**_JIT)
-def _frame(n):
-    """vec.frame."""
-    sign = 1.0 if n[2] >= 0 else -1.0
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    s = (1.0 + sign * n[0] ** 2 * a, sign * b, -sign * n[0])
-    t = (b, sign + n[1] ** 2 * a, -n[1])
-    return s, t
-
-
 # ------------------------------------------------------------------ reflection / refraction
 @njit(**_JIT)
 def _orient(w, n, eta):
@@ -441,7 +426,7 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
         if not hv:
             wo_p, okm = smap(refract, wi, n, eta)
             ok = ok and okm
-            e1, e2 = _frame(wo)
+            e1, e2 = frame1(wo)
             diff = _sub(wo_p, wo)
             C[j, 0], C[j, 1] = _dot(e1, diff), _dot(e2, diff)
         else:
@@ -1420,7 +1405,7 @@ def _cosine_bounce(u1, u2, w, g, n):
     w's side of the geometric normal g (vec.frame, vec.cosine_hemisphere); also that side."""
     side = 1.0 if _dot(w, g) >= 0 else -1.0
     nn = _mul(side, n)
-    s, t = _frame(nn)
+    s, t = frame1(nn)
     r = math.sqrt(u1)
     phi = 2.0 * np.pi * u2
     x, y, z = r * math.cos(phi), r * math.sin(phi), math.sqrt(max(0.0, 1.0 - u1))

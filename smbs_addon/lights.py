@@ -27,6 +27,7 @@ from numba import njit
 from . import scene as S
 from .geometry import area_points
 from .jit import JIT
+from .rough import frame1
 from .vec import concentric_disk, dot
 
 
@@ -230,19 +231,10 @@ def shadow_tmax(scene, li: int, y, ys, yt, o, d, dist, eps):
 
 
 # ------------------------------------------------------------------ emission, per photon
-@njit(**JIT)
-def _frame1(n):
-    """vec.frame of one unit vector."""
-    sign = 1.0 if n[2] >= 0 else -1.0
-    a = -1.0 / (sign + n[2])
-    b = n[0] * n[1] * a
-    return (1.0 + sign * n[0] ** 2 * a, sign * b, -sign * n[0]), (b, sign + n[1] ** 2 * a, -n[1])
-
-
 @njit(inline="always", **JIT)
 def _around(x, y, z, axis):
     """The local direction (x, y, z) about a unit axis (vec.to_world in vec.frame's frame)."""
-    s, t = _frame1(axis)
+    s, t = frame1(axis)
     return (x * s[0] + y * t[0] + z * axis[0], x * s[1] + y * t[1] + z * axis[1], x * s[2] + y * t[2] + z * axis[2])
 
 
@@ -311,7 +303,7 @@ def _emit_sphere(u, c, r, intensity, targets, cdf, probs, o, d, w):
         oi = (c[0], c[1], c[2])
         di, pdf = _cone_mixture1(u[i, 0], u[i, 1], u[i, 2], oi, targets, cdf, probs, r)
         if r > 0:
-            s, t = _frame1(di)
+            s, t = frame1(di)
             a, b = _disk1(u[i, 3], u[i, 4])
             h = math.sqrt(max(0.0, 1.0 - a * a - b * b))
             oi = (c[0] + r * (a * s[0] + b * t[0] + h * di[0]), c[1] + r * (a * s[1] + b * t[1] + h * di[1]),
@@ -395,7 +387,7 @@ def _across_targets(u2, u3, u4, di, targets, cdf, probs):
     """A point on a disc across one target sphere, facing di (picked by u2 in proportion to the
     discs' areas), and its density per unit area, counting every disc that holds it."""
     j = _pick(cdf, u2)
-    s, t = _frame1(di)
+    s, t = frame1(di)
     a, b = _disk1(u3, u4)
     rk = targets[j, 3]
     p = (targets[j, 0] + rk * (a * s[0] + b * t[0]), targets[j, 1] + rk * (a * s[1] + b * t[1]),

@@ -18,6 +18,7 @@ from numba import njit
 from . import scene as S
 from .jit import JIT
 from .rough import alphas, distributions, energy_gain1, energy_tables, lambda1, visible_normal1
+from .rough import dot1 as _dot
 from .thinfilm import CUTOFF as _FILM_CUTOFF
 from .thinfilm import clip01 as _clip01
 from .thinfilm import conductor_film1, dielectric_film1, f82_film1
@@ -30,11 +31,6 @@ _NO_FILM = (0.0, 0.0)
 
 
 # ------------------------------------------------------------------ per lane
-@njit(**JIT)
-def _dot(a, b):
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-
-
 @njit(**JIT)
 def reflect1(w, n):
     """Mirror w about n: 2 (w.n) n - w."""

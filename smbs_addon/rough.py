@@ -42,7 +42,8 @@ _TAU = 2.0 * math.pi
 
 
 @njit(**JIT)
-def _dot(a, b):
+def dot1(a, b):
+    """The dot product of two 3-tuples (optics and kernels call this one: LLVM inlines it)."""
     return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
@@ -71,7 +72,7 @@ def visible_normal1(w, n, alpha, u1, u2):
     """A microfacet normal of GGX (alpha) about the unit n, drawn from the normals visible from the
     unit w (w.n > 0) with the uniform numbers u1, u2 (Heitz 2018): a unit vector on n's side."""
     t, bt = frame1(n)
-    vx, vy, vz = alpha * _dot(w, t), alpha * _dot(w, bt), _dot(w, n)
+    vx, vy, vz = alpha * dot1(w, t), alpha * dot1(w, bt), dot1(w, n)
     lv = math.sqrt(vx * vx + vy * vy + vz * vz)
     vx, vy, vz = vx / lv, vy / lv, vz / lv
     lensq = vx * vx + vy * vy
