@@ -11,7 +11,9 @@ and signature, the package's functions its machine code still calls (numba's lar
 calls through a register: ``movabsq $<symbol>, %reg`` then ``callq *%reg``). A function's machine
 code includes the helpers it calls that were not inlined, so a call shows under every caller above
 it. A small helper that shows up here under a hot kernel costs a call per use: mark it
-``inline="always"``; one that never shows up is inlined by LLVM and needs no mark. ``--json``
+``inline="always"``; one that never shows up is inlined by LLVM and needs no mark. Listed too:
+numba's reference counts (``NRT_incref``, ``NRT_decref``), none in a kernel compiled with
+jit.LANES, a few where a kernel allocates and returns its arrays. ``--json``
 writes {function and signature: {callee: references}} to compare two trees.
 """
 from __future__ import annotations
@@ -64,6 +66,13 @@ for mod in ("kernels", "optics", "lights", "thinfilm", "rough", "embree"):
                 callee = dotted(m.group(1))
                 if callee.startswith("smbs_addon.") and callee != own:
                     calls[callee] = calls.get(callee, 0) + 1
+            wrapper = False  # numba's Python wrapper of a function releases its arguments: not counted
+            for line in cres.library.get_asm_str().splitlines():
+                if re.match(r"[_A-Za-z][0-9A-Za-z_$.]*:", line):
+                    wrapper = line.startswith("_ZN7cpython")
+                m = re.search(r"movabsq\s+\$(NRT_incref|NRT_decref),", line)
+                if m and not wrapper:
+                    calls[m.group(1)] = calls.get(m.group(1), 0) + 1
             found[f"{own} {sig}"] = calls
 for key in sorted(found):
     name = key.split(" ", 1)[0]

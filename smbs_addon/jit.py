@@ -19,7 +19,19 @@ from __future__ import annotations
 import hashlib
 import os
 
-JIT = dict(cache=True, nogil=True, error_model="numpy")
+JIT = dict(cache=True, nogil=True, error_model="numpy", _nrt=True)
+# The loops over lanes (kernels' *_rows, the walk of one lane and its ray chain, and the per-event
+# helpers they call with arrays: optics.scatter1, kernels._coat_factor, thinfilm.f82_film1) compile
+# without numba's reference counting. There numba calls NRT_incref and NRT_decref for every array a
+# variable takes, a tuple gives up or an inlined helper receives, per lane and Newton step (a call
+# each, most of them on arrays whose count need not change), and its pruning pass leaves them where
+# the code branches: those two functions were the hottest addresses of a walk's perf
+# profile (10% of its samples); without them the walks take 0.64-0.90 of the time (bench/ab.py).
+# Such a kernel may not allocate (numba refuses to compile it) nor receive a new array from a call
+# (never freed: tests/test_kernels.py counts numba's blocks over whole bakes): the kernel that calls
+# it allocates, holds the arrays and returns them. Everything else sets _nrt=True: numba would
+# otherwise give a helper the setting of whichever kernel compiled it first.
+LANES = dict(JIT, _nrt=False)
 # Helpers are plain njit, called: LLVM inlines a small one into each caller's machine code anyway,
 # while numba's own inline="always" types it again at every call site (the walks' first compile took
 # 154 s with the small helpers so marked, 71 s without: bench/results/first_bake.md). A helper keeps

@@ -25,12 +25,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+from numba import njit
 
 from .embree import KINDS, intersect1, occluded1, ray_state
-from .jit import JIT
+from .jit import JIT, LANES
 from .layer import LAMBERT_FLOOR, MU_STEPS
 from .optics import bend1, bump_shadowing1, fresnel_dielectric1, scatter1
 from .rough import SINGULAR_ALPHA2, frame1
@@ -62,6 +60,7 @@ HIDDEN_PASSES = 16
 RAYS_SEED, RAYS_WALK = 0, 1
 
 _JIT = JIT
+_LANES = LANES
 
 # numpy's flag bits that change an array's numba type: C_CONTIGUOUS, F_CONTIGUOUS, ALIGNED, WRITEABLE
 _TYPE_FLAGS = 0x1 | 0x2 | 0x100 | 0x400
@@ -105,39 +104,6 @@ class TypedOnce:
             self._entries[key] = cres.entry_point if cres is not None else self.dispatcher
         return out
 
-
-
-# ------------------------------------------------------------------ borrowed arrays
-@intrinsic
-def _borrowed(typingctx, tup):
-    """The arrays of a tuple (or one array) without their reference to the memory they view
-    (numba's meminfo set to NULL; other items as they are). numba counts references to an array
-    each time a variable takes it, a tuple is unpacked or an inlined per-lane helper receives it
-    (an atomic increment and decrement per array and lane, which its pruning pass leaves where
-    the helper branches): a third of a Newton iteration's time before it was used.
-    A borrowed array's counts do nothing. Only for arrays owned by someone else for as long as
-    the borrowed ones are used: the arguments of the (not inlined) kernel that borrows them,
-    which its caller holds; never returned or stored."""
-    items = tup.types if isinstance(tup, types.BaseTuple) else (tup,)
-    if not all(isinstance(t, (types.Array, types.Number, types.Boolean)) for t in items):
-        return None  # anything else counted by reference would be released once too often
-
-    def one(context, builder, ty, v):
-        if not isinstance(ty, types.Array):
-            return v
-        a = context.make_array(ty)(context, builder, value=v)
-        a.meminfo = cgutils.get_null_value(a.meminfo.type)
-        a.parent = cgutils.get_null_value(a.parent.type)
-        return a._getvalue()
-
-    def codegen(context, builder, sig, args):
-        ty, v = sig.args[0], args[0]
-        if isinstance(ty, types.BaseTuple):
-            return context.make_tuple(builder, sig.return_type, [
-                one(context, builder, t, builder.extract_value(v, i)) for i, t in enumerate(ty.types)])
-        return one(context, builder, ty, v)
-
-    return tup(tup), codegen
 
 
 # ------------------------------------------------------------------ 3-vectors as tuples
@@ -215,7 +181,7 @@ def _on_ratio(sigma, alb, nv, nl, lv):
     return math.pi * (a + b * t + e_ms * (1.0 - e_v) * (1.0 - e_l))
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _coat_factor(mats, m, n, w_view, w_light, share):
     """layer.coat_factor for one path (mats: optics.materials): what Cycles' caustics on-minus-off
     keeps of a path leaving material m's diffuse towards w_light, relative to a Lambert diffuse;
@@ -602,7 +568,7 @@ def _lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max
     """The small mutation of lane i (see newton_proposal): (ok, proposed x1, direction). The
     work arrays (_lane_scratch) come one by one, unpacked by the caller before its loop over
     lanes (a tuple of arrays unpacked per lane costs reference counts per array and lane: see
-    _borrowed)."""
+    jit.LANES)."""
     k = kinds.shape[0]
     ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
     _zero_rhs(rhs, k)
@@ -698,12 +664,9 @@ def _shading_normal(tns, pr, b1, b2, g, d):
     return g if _dot(n, n) < 0.5 else n
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b):
-    """intersect_rays' loop over its rays, on borrowed arrays (its caller holds them)."""
-    ray = _borrowed(ray)
-    o, d, tmax, xo, tv, tng, tns = _borrowed((o, d, tmax, xo, tv, tng, tns))
-    prim, t, p, ng, ns, b = _borrowed((prim, t, p, ng, ns, b))
+    """intersect_rays' loop over its rays, (its caller holds the arrays)."""
     for i in range(o.shape[0]):
         oi, di = _v(o, i, 0), _v(d, i, 0)
         pr, t32 = intersect1(ray, oi, di, tmax[i] if tmax.shape[0] else np.inf, 0)
@@ -836,7 +799,7 @@ def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tn
     return True, _add(p, _mul(eps * side, g)), wn, p
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
     """walk.propagate for chain row `lane`: the ray from x0 (its offset origin o, direction d;
     3-tuples) and its reflections and refractions through the chain's vertices, each ray cast
@@ -883,11 +846,9 @@ def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
             return
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _seed_rows(ray, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
-    """trace_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
-    ray, geo = _borrowed(ray), _borrowed(geo)
-    x0, ng0, d, want_obj, F, I, status, out = _borrowed((x0, ng0, d, want_obj, F, I, status, out))
+    """trace_lanes' loop over its lanes, (its caller holds the arrays)."""
     for i in range(x0.shape[0]):
         _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out)
 
@@ -904,7 +865,7 @@ def trace_lanes(rt, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
     return ray[6]
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out):
     """The seed chain of lane i (trace_lanes), its rays counted as seeds. Not inlined: one call
     per walk, and one compiled copy of _trace_lane for every kernel that seeds (inlined into
@@ -1103,7 +1064,7 @@ def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, t
     return True
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
     """walk.newton_walk of lane i (row i of lane and state) from the seed chain in its row of
     state (F, I, out_dir, and its walk outcome in outcome): the set-up (etas of the seed's
@@ -1112,7 +1073,7 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
     convergence test, MAX_ITER at the last iteration, the small mutation (_lane_newton), SMBS's
     trigger and large mutation (_lane_trigger, _lane_large; large[trigger] counts them), the
     singular test, and the proposal's chain (_trace_lane into row 0 of proposal). Not inlined:
-    one call per walk (its arguments are borrowed by the kernel that calls it, see _borrowed)."""
+    one call per walk."""
     (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, backlit_at, tau, slow_run, min_beta, threshold,
      max_step, eps, max_halvings, max_iterations, beta0, stall_window, stall_factor, stall_from) = cfg
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
@@ -1199,13 +1160,9 @@ def _walk_scratch(k, stall_window):
                               np.zeros((1, 3)), np.zeros(max(stall_window, 1)))
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _walk_rows(seeded, d, want_obj, cfg, geo, lane, state, scratch, proposal, ray, large):
-    """walk_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
-    d, want_obj = _borrowed((d, want_obj))
-    cfg, ray = _borrowed(cfg), _borrowed(ray)
-    geo, lane, state, scratch, proposal = _borrowed(geo), _borrowed(lane), _borrowed(state), _borrowed(scratch), \
-        _borrowed(proposal)
+    """walk_lanes' loop over its lanes, (its caller holds the arrays)."""
     F, I, out_dir, outcome = state[0], state[1], state[2], state[10]
     for i in range(lane[0].shape[0]):
         if not seeded:
@@ -1273,15 +1230,12 @@ def keyed_uniform3(key, a, b, dim):
     return keyed_uniform(key, a, b, dim), lo, hi
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first, tally, d, want):
-    """bernoulli_lanes' loop over its samples, on borrowed arrays (its caller holds them)."""
-    sx0, sng, sly, d1, obj1 = _borrowed(samples)
-    cdf, tv, tobj = _borrowed(seeds)
-    cfg, ray, d, want = _borrowed(cfg), _borrowed(ray), _borrowed(d), _borrowed(want)
+    """bernoulli_lanes' loop over its samples (its caller holds the arrays)."""
+    sx0, sng, sly, d1, obj1 = samples
+    cdf, tv, tobj = seeds
     total, key, p0, max_trials, defensive, uniqueness = trials
-    geo, lane, state, scratch, proposal = _borrowed(geo), _borrowed(lane), _borrowed(state), _borrowed(scratch), \
-        _borrowed(proposal)
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
     F, I, out_dir, outcome, converged, mutations = state[0], state[1], state[2], state[10], state[11], state[12]
     kinds, smbs, eps = cfg[1], cfg[2], cfg[13]
@@ -1522,13 +1476,10 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
     return True, d, (beta[0] * a[0] * f, beta[1] * a[1] * f, beta[2] * a[2] * f), pr, _add(x, q), b1, b2
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
                   seg_n, hist, h_prim, cand, cdf, guide):
-    """handoff_lanes' loop over its lanes, on borrowed arrays (its caller holds them)."""
-    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    x0, ng0, ns0, sn0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide = _borrowed(
-        (x0, ng0, ns0, sn0, w0, beta0, alb, mat0, seg, seg_n, hist, h_prim, cand, cdf, guide))
+    """handoff_lanes' loop over its lanes, (its caller holds the arrays)."""
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     targeted = cand.shape[0] > 0
     for lane in range(x0.shape[0] * samples):
@@ -1650,15 +1601,12 @@ def _next_surface(ray, o, d, tv, tng, tns, eps):
     return pr, t, p, g, _shading_normal(tns, pr, b1, b2, g, d), b1, b2
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, unshadowing, key, lane0, geo, receivers, mats, lim,
                  max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
-    """photon_lanes' loop over its lanes from lane0, on borrowed arrays (its caller holds them).
+    """photon_lanes' loop over its lanes from lane0, (its caller holds the arrays).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; records
     written)."""
-    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    o0, d0, w0, soft, lit, unshadowing, receivers, lim, rec, rec_i, hist, h_prim, tally = _borrowed(
-        (o0, d0, w0, soft, lit, unshadowing, receivers, lim, rec, rec_i, hist, h_prim, tally))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     mat_color = mats[2]
     counts = ray[6]
@@ -1988,14 +1936,10 @@ def _camera_clear(ray, o, d, tmax, tng, tri_object, hid, eps):
     return False
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry, val, alb):
-    """camera_splats' loop, on borrowed arrays (its caller holds them). Returns (rays cast, splats
+    """camera_splats' loop, (its caller holds the arrays). Returns (rays cast, splats
     written)."""
-    ray = _borrowed(ray)
-    mats, view = _borrowed(mats), _borrowed(view)
-    cam, rec, mat, rx, ry, val = _borrowed((cam, rec, mat, rx, ry, val))
-    textured, alb = _borrowed((textured, alb))
     v_flag, v_n, v_p, v_t = view
     tng, tri_object, hid = hide
     mat_color = mats[2]
@@ -2084,13 +2028,11 @@ def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, v
     return rays, n, ray[6]
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
               rec_i, prior):
-    """eye_lanes' loop over its lanes, on borrowed arrays (its caller holds them). Returns the
+    """eye_lanes' loop over its lanes, (its caller holds the arrays). Returns the
     records written."""
-    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    cam, rx, ry, sample, receivers, rec, rec_i, prior = _borrowed((cam, rx, ry, sample, receivers, rec, rec_i, prior))
     tv, tng, tns, tri_material, mat_kind, tri_object, _, _, hid = geo
     nrec = 0
     for lane in range(rx.shape[0]):
@@ -2167,15 +2109,12 @@ VX_P, VX_NG, VX_NS, VX_W, VX_BETA, VX_OBJ = 0, 3, 6, 9, 12, 15
 VX_F = 16
 
 
-@njit(**_JIT)
+@njit(**_LANES)
 def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mats, lim, max_specular, physical,
                  count_first, want_seg, want_vx, eps, seg, seg_i, vx, vx_i):
-    """gather_lanes' loop over its lanes from lane0, on borrowed arrays (its caller holds them).
+    """gather_lanes' loop over its lanes from lane0, (its caller holds the arrays).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; segment
     records written; vertex records written)."""
-    ray, geo, mats = _borrowed(ray), _borrowed(geo), _borrowed(mats)
-    x0, ng0, ns0, w0, beta0, mat0, prior, lim, seg, seg_i, vx, vx_i = _borrowed(
-        (x0, ng0, ns0, w0, beta0, mat0, prior, lim, seg, seg_i, vx, vx_i))
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     mat_color = mats[2]
     counts = ray[6]

@@ -16,7 +16,7 @@ import numpy as np
 from numba import njit
 
 from . import scene as S
-from .jit import JIT
+from .jit import JIT, LANES
 from .rough import alphas, distributions, energy_gain1, energy_tables, lambda1, visible_normal1
 from .rough import dot1 as _dot
 from .thinfilm import CUTOFF as _FILM_CUTOFF
@@ -300,7 +300,7 @@ def _material(mats, m):
     return kind[m], fres[m], _row3(color, m), _row3(rcolor, m), ior[m]
 
 
-@njit(**JIT)
+@njit(**LANES)
 def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     """One specular interaction, as Cycles makes it (reference.scatter_specular): returns (ok, the
     new direction (unit), the new weight, bent). u: three uniform numbers, the first picks the

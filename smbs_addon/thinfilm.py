@@ -26,7 +26,7 @@ import math
 import numpy as np
 from numba import njit
 
-from .jit import JIT
+from .jit import JIT, LANES
 
 # The functions a caller's kernel reaches (dielectric_film1, f82_film1, conductor_film1, iridescence1) are
 # compiled apart and called, not inlined: optics.specular_weights1 is inlined into every path kernel, and
@@ -248,17 +248,22 @@ def _gulbrandsen(f0, g):
     return n, math.sqrt(x) if x > 0.0 else 0.0
 
 
-@njit(**JIT)
+@njit(**LANES)
 def f82_film1(thickness, film_ior, mu, f0, b):
     """The RGB reflectance of Cycles' F82-Tint metal (F0 f0, B b, 3-tuples) under a film, at incidence
     cosine mu in [0, 1]: its n and k estimated from F0 and its reflectance at cos 1/7, the film over that
     conductor with the F82 model's reflectances."""
-    out = [0.0, 0.0, 0.0]
-    for c in range(3):
-        g = _f82(1.0 / 7.0, f0[c], b[c])
-        n, k = _gulbrandsen(f0[c], g)
-        out[c] = iridescence1(TABLE, c, thickness, film_ior, mu, n, k, g, True)
-    return out[0], out[1], out[2]
+    return (_f82_film_channel(np.int64(0), thickness, film_ior, mu, f0[0], b[0]),
+            _f82_film_channel(np.int64(1), thickness, film_ior, mu, f0[1], b[1]),
+            _f82_film_channel(np.int64(2), thickness, film_ior, mu, f0[2], b[2]))
+
+
+@njit(**JIT)
+def _f82_film_channel(c, thickness, film_ior, mu, f0, b):
+    """f82_film1's reflectance in colour channel c (F0 f0, B b: that channel's)."""
+    g = _f82(1.0 / 7.0, f0, b)
+    n, k = _gulbrandsen(f0, g)
+    return iridescence1(TABLE, c, thickness, film_ior, mu, n, k, g, True)
 
 
 @njit(**JIT)

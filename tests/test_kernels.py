@@ -274,19 +274,34 @@ def test_typed_once_types_a_long_tuple_once(monkeypatch):
     assert h(3.0) == 1.5 and h._entries[K._arg_key((3.0,))] is not half
 
 
-def test_borrowed_arrays_view_the_same_memory_and_leave_their_owners_counts_alone():
-    """kernels._borrowed: a kernel writes through borrowed arrays into its arguments' memory,
-    reads them back, and the arrays' owners keep exactly the references they had (numba's runtime
-    neither releases nor keeps anything for a borrowed array); a tuple holding something other
-    than arrays and numbers is refused at compile time."""
+def _nrt_outstanding():
+    """numba's runtime memory blocks allocated and not yet freed (its counters on from the first call)."""
+    import gc
+
+    from numba.core.runtime import _nrt_python, rtsys
+
+    if not _nrt_python.memsys_stats_enabled():
+        _nrt_python.memsys_enable_stats()
+    gc.collect()
+    st = rtsys.get_allocation_stats()
+    return st.mi_alloc - st.mi_free, st.alloc - st.free
+
+
+def test_lane_kernels_count_no_references_refuse_to_allocate_and_the_counters_see_a_leak():
+    """jit.LANES: a kernel so compiled writes through its argument arrays and leaves their owners'
+    references as they were; one that allocates is refused at compile time; and one that receives
+    a new array from a call never frees it, which numba's runtime counters show (the failure
+    test_bakes_leave_no_runtime_memory_behind looks for)."""
     import sys
 
     from numba import njit
     from numba.core.errors import TypingError
 
-    @njit
+    from smbs_addon.jit import JIT, LANES
+
+    @njit(**dict(LANES, cache=False))
     def through(t, scale):
-        a, b, n = K._borrowed(t)
+        a, b, n = t
         for i in range(a.shape[0]):
             b[i] = a[i] * scale + n
         return b.sum()
@@ -299,13 +314,48 @@ def test_borrowed_arrays_view_the_same_memory_and_leave_their_owners_counts_alon
     assert np.array_equal(b, 2.0 * np.arange(5.0) + 1)
     assert (sys.getrefcount(a), sys.getrefcount(b)) == before
 
-    @njit
-    def refused(t):
-        x, y = K._borrowed(t)
-        return x[0]
+    @njit(**dict(LANES, cache=False))
+    def allocates(k):
+        return np.zeros(k)[0]
 
     with pytest.raises(TypingError):
-        refused((np.zeros(2), [1.0]))
+        allocates(3)
+
+    @njit(**dict(JIT, cache=False))
+    def make(k):
+        return np.zeros(k)
+
+    @njit(**dict(LANES, cache=False))
+    def receives(out, k):
+        out[0] = make(k).sum() + 1.0
+
+    out = np.zeros(1)
+    receives(out, 3)  # compiled
+    m0, _ = _nrt_outstanding()
+    for _ in range(4):
+        receives(out, 3)
+    assert out[0] == 1.0
+    assert _nrt_outstanding()[0] - m0 == 4
+
+
+@pytest.mark.parametrize("method", ["sms", "smbs", "mnee", "reference"])
+def test_bakes_leave_no_runtime_memory_behind(method):
+    """Every kernel a bake of the glass sphere runs (seeds, walks, Bernoulli trials, the hand-off,
+    photons, gathering, the eye pass) frees what numba's runtime allocated: the loops over lanes
+    compiled without reference counting (jit.LANES) neither leak nor free an array twice. The
+    second of two equal bakes leaves the runtime's outstanding blocks exactly as it found them."""
+    from scenes import glass_sphere_scene
+
+    from smbs_addon import BakeSettings, bake
+
+    scene = glass_sphere_scene(resolution=(32, 24))
+    settings = BakeSettings(method=method, spp=2, seed=5)
+    bake(scene, settings)  # compiles, fills whatever a first bake caches
+    before = _nrt_outstanding()
+    result = bake(scene, settings)
+    assert np.isfinite(np.asarray(result.image)).all()
+    del result
+    assert _nrt_outstanding() == before
 
 
 def test_packed_floats_is_the_chain_itself_or_packs_a_copy():
