@@ -1064,7 +1064,7 @@ def _lane_update(m, i, nF, nI, nstatus, nout, e, f, ul, smbs, tir_on, slow_on, t
     return True
 
 
-@njit(**_LANES)
+@njit(inline="always", **_LANES)
 def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
     """walk.newton_walk of lane i (row i of lane and state) from the seed chain in its row of
     state (F, I, out_dir, and its walk outcome in outcome): the set-up (etas of the seed's
@@ -1072,8 +1072,9 @@ def _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large):
     mutation), then per iteration the acceptance of the last proposal (_lane_update), the
     convergence test, MAX_ITER at the last iteration, the small mutation (_lane_newton), SMBS's
     trigger and large mutation (_lane_trigger, _lane_large; large[trigger] counts them), the
-    singular test, and the proposal's chain (_trace_lane into row 0 of proposal). Not inlined:
-    one call per walk."""
+    singular test, and the proposal's chain (_trace_lane into row 0 of proposal). Inlined, at
+    its one call in _walk_jobs: a call per walk passed some 50 arrays field by field (7-8% of a
+    ring's walk time in pushes onto the stack)."""
     (hv, kinds, smbs, tir_on, backlit_on, slow_on, tir_rejected, backlit_at, tau, slow_run, min_beta, threshold,
      max_step, eps, max_halvings, max_iterations, beta0, stall_window, stall_factor, stall_from) = cfg
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
@@ -1160,16 +1161,6 @@ def _walk_scratch(k, stall_window):
                               np.zeros((1, 3)), np.zeros(max(stall_window, 1)))
 
 
-@njit(**_LANES)
-def _walk_rows(seeded, d, want_obj, cfg, geo, lane, state, scratch, proposal, ray, large):
-    """walk_lanes' loop over its lanes, (its caller holds the arrays)."""
-    F, I, out_dir, outcome = state[0], state[1], state[2], state[10]
-    for i in range(lane[0].shape[0]):
-        if not seeded:
-            _seed_lane(ray, i, lane[0], lane[1], d, want_obj, cfg[1], geo, cfg[13], F, I, outcome, out_dir)
-        _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large)
-
-
 @TypedOnce
 @njit(**_JIT)
 def walk_lanes(rt, seeded, d, want_obj, cfg, geo, lane, state):
@@ -1182,7 +1173,11 @@ def walk_lanes(rt, seeded, d, want_obj, cfg, geo, lane, state):
     ray = ray_state(rt)
     scratch, proposal = _walk_scratch(cfg[1].shape[0], cfg[17])
     large = np.zeros(4, np.int64)
-    _walk_rows(seeded, d, want_obj, cfg, geo, lane, state, scratch, proposal, ray, large)
+    z3, zi = np.zeros((0, 3)), np.zeros(0, np.int64)  # bernoulli_lanes' arguments, unused here
+    # (np.bool_: a literal True or False would compile _walk_jobs once per value)
+    _walk_jobs(np.bool_(False), seeded, (z3, z3, z3, z3, zi), (np.zeros(0), np.zeros((0, 3, 3)), zi),
+               (0.0, np.int64(0), np.int64(0), np.int64(0), 0.0, 0.0), cfg, geo, lane, state, scratch, proposal,
+               ray, large, zi, np.zeros(2, np.int64), d, want_obj)
     return large, ray[6]
 
 
@@ -1231,19 +1226,31 @@ def keyed_uniform3(key, a, b, dim):
 
 
 @njit(**_LANES)
-def _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first, tally, d, want):
-    """bernoulli_lanes' loop over its samples (its caller holds the arrays)."""
-    sx0, sng, sly, d1, obj1 = samples
-    cdf, tv, tobj = seeds
-    total, key, p0, max_trials, defensive, uniqueness = trials
+def _walk_jobs(trial, seeded, samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first,
+               tally, d, want):
+    """The walks of walk_lanes (trial False: every lane of lane and state, from its seed chain
+    where seeded, else from a seed ray in direction d[i], want[i] its object; samples, seeds,
+    trials, first and tally unused) and of bernoulli_lanes (trial True: its samples' trials in
+    the one row of lane and state, d and want that row's seed ray) in one loop, so that the walk
+    (_walk_lane) is inlined at one call and compiled once. The caller holds the arrays."""
     x0, ng0, ly, lys, lyt, directional, etas, large_ok, obj_lo, obj_hi = lane
     F, I, out_dir, outcome, converged, mutations = state[0], state[1], state[2], state[10], state[11], state[12]
     kinds, smbs, eps = cfg[1], cfg[2], cfg[13]
-    row = x0.shape[0] - 1  # the one row of lane and state (0, but not a literal 0: one compiled _walk_lane)
-    for p in range(sx0.shape[0]):
-        for c in range(3):
-            x0[row, c], ng0[row, c], ly[row, c] = sx0[p, c], sng[p, c], sly[p, c]
-        for t in range(max_trials):
+    sx0, sng, sly, d1, obj1 = samples
+    cdf, tv, tobj = seeds
+    total, key, p0, max_trials, defensive, uniqueness = trials
+    row = x0.shape[0] - 1  # trial: the one row of lane and state (not a literal 0: one compiled walk)
+    n = sx0.shape[0] if trial else x0.shape[0]
+    if trial and max_trials <= 0:
+        return
+    p = t = 0  # the lane (trial: the sample) and its trial
+    while p < n:
+        i = p
+        if trial:
+            i = row
+            if t == 0:
+                for c in range(3):
+                    x0[row, c], ng0[row, c], ly[row, c] = sx0[p, c], sng[p, c], sly[p, c]
             # trial t of sample p: a seed aimed at a uniform point on the casters (manifold.Seeder
             # for SMS), its random numbers keyed by (key, p0 + p, t)
             u0 = keyed_uniform(key, p0 + p, t, 0)
@@ -1259,15 +1266,24 @@ def _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal
             d[row, 0], d[row, 1], d[row, 2] = dq
             want[row] = tobj[tri]
             large_ok[row] = keyed_uniform(key, p0 + p, t, 3) >= defensive if smbs else True
-            _seed_lane(ray, row, x0, ng0, d, want, kinds, geo, eps, F, I, outcome, out_dir)
-            _walk_lane(row, cfg, geo, lane, state, scratch, proposal, ray, large)
-            tally[0] += 1
-            tally[1] += mutations[row]
-            if converged[row]:
-                d2 = _normalize(_sub(_vk(F, row, 0, P), _v(x0, row, 0)))
-                if abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[row, 0, OBJ] == obj1[p]:
-                    first[p] = t
-                    break
+        if trial or not seeded:
+            _seed_lane(ray, i, x0, ng0, d, want, kinds, geo, eps, F, I, outcome, out_dir)
+        _walk_lane(i, cfg, geo, lane, state, scratch, proposal, ray, large)
+        if not trial:
+            p += 1
+            continue
+        tally[0] += 1
+        tally[1] += mutations[row]
+        found = False
+        if converged[row]:
+            d2 = _normalize(_sub(_vk(F, row, 0, P), _v(x0, row, 0)))
+            found = abs(_dot(d2, _v(d1, p, 0)) - 1.0) < uniqueness and I[row, 0, OBJ] == obj1[p]
+        if found:
+            first[p] = t
+        t += 1
+        if found or t == max_trials:
+            p += 1
+            t = 0
 
 
 @TypedOnce
@@ -1294,8 +1310,8 @@ def bernoulli_lanes(rt, samples, seeds, trials, cfg, geo, directional, obj_lo, o
     large = np.zeros(4, np.int64)
     first = np.full(samples[0].shape[0], trials[3], np.int64)
     tally = np.zeros(2, np.int64)
-    _trial_rows(samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first, tally,
-                np.zeros((1, 3)), np.zeros(1, np.int64))
+    _walk_jobs(np.bool_(True), np.bool_(True), samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first,
+               tally, np.zeros((1, 3)), np.zeros(1, np.int64))
     return first, tally[0], tally[1], ray[6]
 
 
