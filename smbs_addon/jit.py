@@ -20,7 +20,7 @@ import hashlib
 import os
 
 JIT = dict(cache=True, nogil=True, error_model="numpy", _nrt=True)
-# The loops over lanes (kernels' *_rows, the walk of one lane and its ray chain, and the per-event
+# The loops over lanes (kernels' *_rows and _walk_jobs, a lane's seed and ray chain, and the per-event
 # helpers they call with arrays: optics.scatter1, kernels._coat_factor, thinfilm.f82_film1) compile
 # without numba's reference counting. There numba calls NRT_incref and NRT_decref for every array a
 # variable takes, a tuple gives up or an inlined helper receives, per lane and Newton step (a call
