@@ -61,13 +61,13 @@ for mod in ("kernels", "optics", "lights", "thinfilm", "rough", "embree"):
         seen.add(id(v))
         own = f"{v.py_func.__module__}.{v.py_func.__name__}"
         for sig, cres in v.overloads.items():
-            calls = {}
-            for m in re.finditer(r"movabsq\s+\$(_ZN\d[0-9A-Za-z_$.]+),", cres.library.get_asm_str()):
+            calls, asm = {}, cres.library.get_asm_str()
+            for m in re.finditer(r"movabsq\s+\$(_ZN\d[0-9A-Za-z_$.]+),", asm):
                 callee = dotted(m.group(1))
                 if callee.startswith("smbs_addon.") and callee != own:
                     calls[callee] = calls.get(callee, 0) + 1
             wrapper = False  # numba's Python wrapper of a function releases its arguments: not counted
-            for line in cres.library.get_asm_str().splitlines():
+            for line in asm.splitlines():
                 if re.match(r"[_A-Za-z][0-9A-Za-z_$.]*:", line):
                     wrapper = line.startswith("_ZN7cpython")
                 m = re.search(r"movabsq\s+\$(NRT_incref|NRT_decref),", line)

@@ -666,7 +666,7 @@ def _shading_normal(tns, pr, b1, b2, g, d):
 
 @njit(**_LANES)
 def _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b):
-    """intersect_rays' loop over its rays, (its caller holds the arrays)."""
+    """intersect_rays' loop over its rays (its caller holds the arrays)."""
     for i in range(o.shape[0]):
         oi, di = _v(o, i, 0), _v(d, i, 0)
         pr, t32 = intersect1(ray, oi, di, tmax[i] if tmax.shape[0] else np.inf, 0)
@@ -848,7 +848,7 @@ def _trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
 
 @njit(**_LANES)
 def _seed_rows(ray, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
-    """trace_lanes' loop over its lanes, (its caller holds the arrays)."""
+    """trace_lanes' loop over its lanes (its caller holds the arrays)."""
     for i in range(x0.shape[0]):
         _seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out)
 
@@ -1310,8 +1310,8 @@ def bernoulli_lanes(rt, samples, seeds, trials, cfg, geo, directional, obj_lo, o
     large = np.zeros(4, np.int64)
     first = np.full(samples[0].shape[0], trials[3], np.int64)
     tally = np.zeros(2, np.int64)
-    _walk_jobs(np.bool_(True), np.bool_(True), samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray, large, first,
-               tally, np.zeros((1, 3)), np.zeros(1, np.int64))
+    _walk_jobs(np.bool_(True), np.bool_(True), samples, seeds, trials, cfg, geo, lane, state, scratch, proposal, ray,
+               large, first, tally, np.zeros((1, 3)), np.zeros(1, np.int64))
     return first, tally[0], tally[1], ray[6]
 
 
@@ -1495,7 +1495,7 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
 @njit(**_LANES)
 def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
                   seg_n, hist, h_prim, cand, cdf, guide):
-    """handoff_lanes' loop over its lanes, (its caller holds the arrays)."""
+    """handoff_lanes' loop over its lanes (its caller holds the arrays)."""
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
     targeted = cand.shape[0] > 0
     for lane in range(x0.shape[0] * samples):
@@ -1620,7 +1620,7 @@ def _next_surface(ray, o, d, tv, tng, tns, eps):
 @njit(**_LANES)
 def _photon_rows(ray, indirect, o0, d0, w0, soft, lvis, lit, unshadowing, key, lane0, geo, receivers, mats, lim,
                  max_bounces, max_iter, physical, eps, rec, rec_i, hist, h_prim, tally):
-    """photon_lanes' loop over its lanes from lane0, (its caller holds the arrays).
+    """photon_lanes' loop over its lanes from lane0 (its caller holds the arrays).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; records
     written)."""
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
@@ -1954,7 +1954,7 @@ def _camera_clear(ray, o, d, tmax, tng, tri_object, hid, eps):
 
 @njit(**_LANES)
 def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry, val, alb):
-    """camera_splats' loop, (its caller holds the arrays). Returns (rays cast, splats
+    """camera_splats' loop (its caller holds the arrays). Returns (rays cast, splats
     written)."""
     v_flag, v_n, v_p, v_t = view
     tng, tri_object, hid = hide
@@ -2047,7 +2047,7 @@ def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, v
 @njit(**_LANES)
 def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
               rec_i, prior):
-    """eye_lanes' loop over its lanes, (its caller holds the arrays). Returns the
+    """eye_lanes' loop over its lanes (its caller holds the arrays). Returns the
     records written."""
     tv, tng, tns, tri_material, mat_kind, tri_object, _, _, hid = geo
     nrec = 0
@@ -2128,7 +2128,7 @@ VX_F = 16
 @njit(**_LANES)
 def _gather_rows(ray, key, lane0, x0, ng0, ns0, w0, beta0, mat0, prior, geo, mats, lim, max_specular, physical,
                  count_first, want_seg, want_vx, eps, seg, seg_i, vx, vx_i):
-    """gather_lanes' loop over its lanes from lane0, (its caller holds the arrays).
+    """gather_lanes' loop over its lanes from lane0 (its caller holds the arrays).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; segment
     records written; vertex records written)."""
     tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
