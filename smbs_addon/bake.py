@@ -11,6 +11,7 @@ import dataclasses
 import math
 import time
 from collections import defaultdict
+from concurrent.futures import wait
 from dataclasses import asdict, dataclass, field
 
 import numpy as np
@@ -433,14 +434,19 @@ def _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, pe
         prog.step(f"{settings.method}, batch {b + 1}/{settings.batches}")
 
 
+def _hands_off(scene, plan, opts, types) -> bool:
+    """Whether a manifold bake has a photon hand-off: paths through a rough mirror or glass are the
+    photons' whatever opts.handoff (no walk takes them); otherwise where opts.handoff > 0 and
+    some chain type is walked."""
+    return bool(rough_casters(scene, plan.casters).any()) or (opts.handoff > 0 and bool(types))
+
+
 def _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
                    guide=None, factors=None):
     """The photons' share of a manifold bake: the paths focusing more than opts.handoff,
     and every path of a chain type the guide found too weak to be worth walks; factors:
     {light index: photons per walk sample} (auto's share of the time, default 1)."""
-    # paths through a rough mirror or glass are the photons' whatever opts.handoff (no walk takes them)
-    rough = bool(rough_casters(scene, plan.casters).any())
-    if not rough and (opts.handoff <= 0 or not types):
+    if not _hands_off(scene, plan, opts, types):
         return
     tau0 = opts.handoff if opts.handoff > 0 else math.inf
     for lp in plan.lights:
@@ -824,11 +830,32 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
             guide.weak = frozenset(guide.weak) | photon_lights
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
 
+        factors = {li: c.photon_factor for li, c in choices.items() if c.photons_direct}
+
         def run_batch(b):
-            _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
-                            eye_stats, prog, guide, opts_by_light)
-            _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats, prog,
-                           guide, {li: c.photon_factor for li, c in choices.items() if c.photons_direct})
+            if tracer.threads < 2 or lanes.nested() or not _hands_off(scene, plan, opts, types):
+                _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
+                                eye_stats, prog, guide, opts_by_light)
+                _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats,
+                               prog, guide, factors)
+            else:
+                # the photon hand-off beside the walks (lanes.beside): at a few spp a batch's photons are one
+                # chunk, whose emission and selection ran on one thread while the others waited. Its splats
+                # are made after the walks' and its counters added then: the image and the statistics are
+                # those of the two passes in turn
+                late, own = _DeferredFilm(film), {lp.name: {"time_s": 0.0} for lp in plan.lights}
+                photons = lanes.beside(lambda: _handoff_batch(b, scene, tracer, cam, late, plan, settings, opts,
+                                                              types, per_light, own, prog, guide, factors))
+                try:
+                    _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch,
+                                    light_stats, eye_stats, prog, guide, opts_by_light)
+                finally:
+                    wait([photons])
+                photons.result()
+                for args in late.splats:
+                    film.splat(*args)
+                for name, st in own.items():
+                    lanes.add_stats(light_stats[name], st)
             _indirect_batch(b, scene, tracer, cam, film, plan, settings, per_light, indirect_stats, prog)
 
         b, stop, t_first = _bake_batches(settings, film, t0, prog, run_batch, watch)

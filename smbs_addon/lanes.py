@@ -32,10 +32,23 @@ def _pool(workers: int) -> ThreadPoolExecutor:
     return pool
 
 
+_BESIDE: list = []  # the one thread of beside(), made on first use
+
+
 @atexit.register
 def _shutdown():
-    for pool in _POOLS.values():
+    for pool in list(_POOLS.values()) + _BESIDE:
         pool.shutdown(wait=False)
+
+
+def beside(fn):
+    """fn() on a thread of its own, one more than the pool's: a pass that would run alone on the
+    calling thread (its work too small to split) runs beside the split work of another, in the
+    gaps its parts leave. Its own calls do not split (nested). Returns the Future."""
+    with LOCK:
+        if not _BESIDE:
+            _BESIDE.append(ThreadPoolExecutor(max_workers=1, thread_name_prefix="smbs-beside"))
+    return _BESIDE[0].submit(_part, lambda _a, _b: fn(), 0, 0)
 
 
 def nested() -> bool:

@@ -217,10 +217,11 @@ def test_one_chunks_photons_split_over_threads_give_the_records_of_one_call(monk
     """A light-tracing chunk that runs alone (a low-spp batch is one chunk) splits its photons and
     then its records over the threads (reference.run_photons, splat_records: parts of the lanes,
     random numbers keyed by lane, records and splats joined in lane order): the image and the
-    counts of one call, bit for bit, with the photon hand-off of a manifold bake too."""
+    counts of one call, bit for bit. (A manifold bake's photon hand-off runs beside its walks
+    instead, unsplit: the next test.)"""
     reference = importlib.import_module("smbs_addon.reference")
     ball = lambda: scenes.glass_sphere_scene(resolution=(32, 24))  # noqa: E731
-    for method in ("reference", "sms"):
+    for method in ("reference",):
         s = dict(method=method, spp=2, batches=1, seed=6)
         monkeypatch.setattr(reference, "PHOTON_SPLIT", 10**9)
         whole = bake(ball(), BakeSettings(**s, threads=2))
@@ -282,3 +283,30 @@ def test_a_bakes_rays_are_every_ray_its_tracers_cast(make, methods, monkeypatch)
             assert len(made) > 1 and res.stats["auto"]["rays"] > 0
         if res.stats["scene"] == "cube_grey_reflect":  # every method's bent pass in the eye pass's "bent" part
             assert res.stats["eye_pass"]["bent"]["rays_bent"] > 0 and "rays_bent" not in res.stats["eye_pass"]
+
+
+def test_the_photon_hand_off_runs_beside_the_walks_with_the_image_and_counts_of_one_thread(monkeypatch):
+    """With two threads a manifold bake's photon hand-off runs on a thread of its own beside each
+    batch's walks (lanes.beside: at low spp a batch's photons are one chunk, whose numpy ran on one
+    thread while the other waited), its splats made after the walks' and its counters added then:
+    the image, the rays and the hand-off's counts of one thread, bit for bit."""
+    lanes = importlib.import_module("smbs_addon.lanes")
+    calls, beside = [], lanes.beside
+
+    def spy(fn):
+        calls.append(threading.current_thread().name)
+        return beside(fn)
+
+    monkeypatch.setattr(lanes, "beside", spy)
+    for make, method in ((lambda: scenes.glass_sphere_scene(resolution=(32, 24)), "sms"),
+                         (lambda: scenes.ring_scene(resolution=(32, 24)), "smbs")):
+        s = dict(method=method, spp=2, batches=2, seed=6)
+        a = bake(make(), BakeSettings(**s, threads=1))
+        assert not calls
+        b = bake(make(), BakeSettings(**s, threads=2))
+        assert len(calls) == 2  # one per batch
+        calls.clear()
+        assert _same(a, b) and a.image.max() > 0
+        assert a.stats["rays"] == b.stats["rays"]
+        ha, hb = ([L["handoff"] for L in r.stats["lights"].values()] for r in (a, b))
+        assert ha == hb and sum(h["photons"] for h in ha) > 0
