@@ -6,7 +6,7 @@ Per scene (tests/scenes.py, ``name:size:method``): one bake of one sample per pi
 ray it casts (bench/throughput.py's RayRecorder), and the recorded rays are cast again, on one
 thread, through embree scenes built from the same triangles with each variant's flags and build
 quality (smbs_addon/embree.py builds with RTC_SCENE_FLAG_ROBUST at the default, medium, quality).
-Printed: each variant's rays per second (the best of --reps), its commit time, and how many rays
+Printed: each variant's rays per second (the best of --reps), its build time, and how many rays
 meet another triangle than the robust scene's (an edge both triangles share: the same point) or
 miss where it hits. Then the edge test: from inside a closed UV sphere (64 x 32), rays aimed at
 points on its triangles' edges and at its vertices, which every ray must hit; the robust scene
@@ -14,7 +14,6 @@ lets none of the edge rays through (bench/results/throughput.md, 2026-11-29)."""
 from __future__ import annotations
 
 import argparse
-import ctypes
 import sys
 import time
 from pathlib import Path
@@ -30,51 +29,30 @@ import throughput  # noqa: E402
 from smbs_addon import BakeSettings, bake, embree  # noqa: E402
 from smbs_addon.builder import SceneBuilder  # noqa: E402
 
-ROBUST = 1 << 2
-LOW, MEDIUM, HIGH = 0, 1, 2
-VARIANTS = {"robust, medium (ours)": (ROBUST, MEDIUM), "robust, high": (ROBUST, HIGH), "robust, low": (ROBUST, LOW),
-            "fast, medium": (0, MEDIUM), "fast, high": (0, HIGH)}
-
-_quality = embree._LIB.rtcSetSceneBuildQuality
-_quality.restype, _quality.argtypes = None, [ctypes.c_void_p, ctypes.c_int]
+ROBUST = embree._SCENE_FLAG_ROBUST
+VARIANTS = {"robust, medium (ours)": (ROBUST, embree.BUILD_MEDIUM), "robust, high": (ROBUST, embree.BUILD_HIGH),
+            "robust, low": (ROBUST, embree.BUILD_LOW), "fast, medium": (0, embree.BUILD_MEDIUM),
+            "fast, high": (0, embree.BUILD_HIGH)}
 
 
-class Variant:
-    """An embree scene of tri_vertices as embree.Scene builds it, with other flags and quality."""
+def build(tri_vertices, flags, quality):
+    """(embree.Scene with these flags and build quality, seconds its build took)."""
+    t = time.perf_counter()
+    sc = embree.Scene(tri_vertices, flags, quality)
+    return sc, time.perf_counter() - t
 
-    def __init__(self, tri_vertices, flags, quality):
-        lib, dev = embree._LIB, embree._device()
-        v = np.ascontiguousarray(tri_vertices, dtype=np.float32).reshape(-1, 3)
-        nt = len(v) // 3
-        self.ptr = lib.rtcNewScene(dev)
-        lib.rtcSetSceneFlags(self.ptr, flags)
-        _quality(self.ptr, quality)
-        geom = lib.rtcNewGeometry(dev, embree._GEOMETRY_TYPE_TRIANGLE)
-        vb = lib.rtcSetNewGeometryBuffer(geom, embree._BUFFER_TYPE_VERTEX, 0, embree._FORMAT_FLOAT3, 16, 3 * nt)
-        ib = lib.rtcSetNewGeometryBuffer(geom, embree._BUFFER_TYPE_INDEX, 0, embree._FORMAT_UINT3, 12, nt)
-        embree._as_array(vb, ctypes.c_float, (3 * nt, 4))[:, :3] = v
-        embree._as_array(ib, ctypes.c_uint, (nt, 3))[:] = np.arange(3 * nt, dtype=np.uint32).reshape(nt, 3)
-        lib.rtcCommitGeometry(geom)
-        lib.rtcAttachGeometry(self.ptr, geom)
-        lib.rtcReleaseGeometry(geom)
-        t = time.perf_counter()
-        lib.rtcCommitScene(self.ptr)
-        self.commit_s = time.perf_counter() - t
 
-    def cast(self, o, d, tmax, occl):
-        """(primitive or -1 per ray (occlusion: 0 where blocked), seconds), one thread."""
-        rt = (int(self.ptr), np.zeros((0, embree.LOG_COLUMNS), np.float32), 1)
-        prim = np.zeros(len(o), np.int64)
-        t0 = time.perf_counter()
-        for kind in (False, True):
-            sel = np.flatnonzero(occl == kind)
-            p, tt = np.zeros(sel.size, np.int64), np.zeros(sel.size)
-            embree.cast_rays(rt, o[sel], d[sel], tmax[sel], kind, p, tt)
-            prim[sel] = p
-        return prim, time.perf_counter() - t0
-
-    def __del__(self):
-        embree._LIB.rtcReleaseScene(self.ptr)
+def cast(scene, o, d, tmax, occl):
+    """(primitive or -1 per ray (occlusion: 0 where blocked), seconds), one thread."""
+    rt = embree.rays(scene)
+    prim = np.zeros(len(o), np.int64)
+    t0 = time.perf_counter()
+    for kind in (False, True):
+        sel = np.flatnonzero(occl == kind)
+        p, tt = np.zeros(sel.size, np.int64), np.zeros(sel.size)
+        embree.cast_rays(rt, o[sel], d[sel], tmax[sel], kind, p, tt)
+        prim[sel] = p
+    return prim, time.perf_counter() - t0
 
 
 def recorded_rays(name: str, size: int, method: str):
@@ -116,23 +94,23 @@ def main(argv=None) -> None:
         print(f"{name} {size}^2 {method}: {len(sc.tri_vertices):,} triangles, {len(o):,} recorded rays", flush=True)
         ref = None
         for label, (flags, quality) in VARIANTS.items():
-            v = Variant(sc.tri_vertices, flags, quality)
+            v, build_s = build(sc.tri_vertices, flags, quality)
             best, prim = np.inf, None
             for _ in range(args.reps):
-                prim, dt = v.cast(o, d, tmax, occl)
+                prim, dt = cast(v, o, d, tmax, occl)
                 best = min(best, dt)
             ref = prim if ref is None else ref
             other = prim != ref
-            print(f"  {label:22s} {len(o) / best / 1e6:6.2f} M rays/s, commit {v.commit_s * 1e3:6.1f} ms, "
+            print(f"  {label:22s} {len(o) / best / 1e6:6.2f} M rays/s, build {build_s * 1e3:6.1f} ms, "
                   f"other triangle {int((other & (prim >= 0) & (ref >= 0)).sum())}, "
                   f"missed {int((other & (prim < 0)).sum())}, hit instead {int((other & (ref < 0)).sum())}", flush=True)
     tv, rays = edge_rays()
     print("edge test (closed UV sphere 64 x 32, rays from inside; every one should hit):")
     for label, (flags, quality) in VARIANTS.items():
-        v = Variant(tv, flags, quality)
+        v, _ = build(tv, flags, quality)
         lost = []
         for (src, tgt), (o, d) in rays.items():
-            prim, _ = v.cast(o, d, np.full(len(o), np.inf), np.zeros(len(o), bool))
+            prim, _ = cast(v, o, d, np.full(len(o), np.inf), np.zeros(len(o), bool))
             lost.append(f"{src} at {tgt} {int((prim < 0).sum())} of {len(o):,}")
         print(f"  {label:22s} missed: " + ", ".join(lost))
 

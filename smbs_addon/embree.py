@@ -37,6 +37,7 @@ from .jit import JIT as _JIT
 # (bench/embree_flags.py), but rays aimed at a closed mesh's shared edges pass through it (6% of them from
 # inside a UV sphere; tests/test_tracer.py), and the walks aim at points on the casters
 _SCENE_FLAG_ROBUST = 1 << 2
+BUILD_LOW, BUILD_MEDIUM, BUILD_HIGH = 0, 1, 2  # RTCBuildQuality; medium is embree's default
 _GEOMETRY_TYPE_TRIANGLE = 0
 _BUFFER_TYPE_INDEX, _BUFFER_TYPE_VERTEX = 0, 1
 _FORMAT_UINT3, _FORMAT_FLOAT3 = 0x5003, 0x9003
@@ -76,6 +77,7 @@ def _load():
     for name, res, args in (
             ("rtcNewDevice", vp, [ctypes.c_char_p]), ("rtcReleaseDevice", None, [vp]),
             ("rtcGetDeviceError", i, [vp]), ("rtcNewScene", vp, [vp]), ("rtcSetSceneFlags", None, [vp, i]),
+            ("rtcSetSceneBuildQuality", None, [vp, i]),
             ("rtcCommitScene", None, [vp]), ("rtcReleaseScene", None, [vp]), ("rtcNewGeometry", vp, [vp, i]),
             ("rtcSetNewGeometryBuffer", vp, [vp, i, u, i, sz, sz]), ("rtcCommitGeometry", None, [vp]),
             ("rtcAttachGeometry", u, [vp, vp]), ("rtcReleaseGeometry", None, [vp])):
@@ -108,14 +110,16 @@ def _device():
 class Scene:
     """An embree scene of triangles (N, 3, 3), each with its own three vertices (as embreex's
     TriangleMesh makes them from such an array), committed; ``ptr`` is the handle the kernels
-    take. Released when the object is."""
+    take. Released when the object is. flags and quality: what the bake uses (robust, medium);
+    others only for bench/embree_flags.py's comparison."""
 
-    def __init__(self, tri_vertices: np.ndarray):
+    def __init__(self, tri_vertices: np.ndarray, flags: int = _SCENE_FLAG_ROBUST, quality: int = BUILD_MEDIUM):
         v = np.ascontiguousarray(tri_vertices, dtype=np.float32).reshape(-1, 3)
         nt = len(v) // 3
         dev = _device()
         scene = _LIB.rtcNewScene(dev)
-        _LIB.rtcSetSceneFlags(scene, _SCENE_FLAG_ROBUST)
+        _LIB.rtcSetSceneFlags(scene, flags)
+        _LIB.rtcSetSceneBuildQuality(scene, quality)
         self._finalizer = weakref.finalize(self, _LIB.rtcReleaseScene, scene)
         geom = _LIB.rtcNewGeometry(dev, _GEOMETRY_TYPE_TRIANGLE)
         vb = _LIB.rtcSetNewGeometryBuffer(geom, _BUFFER_TYPE_VERTEX, 0, _FORMAT_FLOAT3, 16, 3 * nt)
