@@ -831,9 +831,10 @@ def _bake(scene, settings, progress, cancel, on_plan, watch) -> BakeResult:
         prog = _Progress(settings.batches * math.ceil(per_batch / WALK_CHUNK), progress, cancel)
 
         factors = {li: c.photon_factor for li, c in choices.items() if c.photons_direct}
+        beside = tracer.threads > 1 and not lanes.nested() and _hands_off(scene, plan, opts, types)
 
         def run_batch(b):
-            if tracer.threads < 2 or lanes.nested() or not _hands_off(scene, plan, opts, types):
+            if not beside:
                 _manifold_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_batch, light_stats,
                                 eye_stats, prog, guide, opts_by_light)
                 _handoff_batch(b, scene, tracer, cam, film, plan, settings, opts, types, per_light, light_stats,

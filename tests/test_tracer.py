@@ -291,7 +291,6 @@ def test_embree_from_the_kernels_answers_as_embreex_does():
     assert tr.rays_cast == 3 * N
 
 
-
 def test_rays_aimed_at_the_edges_of_a_closed_mesh_do_not_pass_through():
     """embree.Scene keeps RTC_SCENE_FLAG_ROBUST: from inside a closed UV sphere, rays aimed at
     points on its triangles' shared edges all hit it. Built without the flag, embree lets 6% of
@@ -311,6 +310,7 @@ def test_rays_aimed_at_the_edges_of_a_closed_mesh_do_not_pass_through():
         o = np.broadcast_to(np.array(src), q.shape)
         prim, _ = tr.cast(o, unit(q - o))
         assert (prim < 0).sum() == 0
+
 
 # ------------------------------------------------------------- degenerates
 def test_degenerate_triangles_and_zero_normals_give_no_nan():
