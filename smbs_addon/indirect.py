@@ -442,6 +442,31 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
         film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))
 
 
+def _light_shapes(scene, lights: tuple, eps: float):
+    """kernels.segments_near's rows for these lights, spheres widened by a millionth and eps (the
+    tracer's offset); None where one of them lies at infinity (every segment can meet it)."""
+    rows = np.zeros((len(lights), kernels.NEAR_F))
+    for row, li in zip(rows, lights):
+        typ, m = scene.light_type[li], scene.light_matrix[li]
+        if typ in S.DISTANT:
+            return None
+        if typ in (S.POINT, S.SPOT):
+            r = float(scene.light_radius[li])
+            if r * r > 0:
+                row[:5] = (kernels.NEAR_SPHERE, *m[:3, 3], r * (1 + 1e-6) + eps)
+            else:
+                row[0] = kernels.NEAR_NONE  # lights.light_radiance: never met
+        elif typ == S.AREA:
+            cen, ex, ey, nrm, hx, hy, _ = area_light_shape(scene, li)
+            disk = scene.light_shape[li] in (S.DISK, S.ELLIPSE)
+            row[:] = (kernels.NEAR_DISK if disk else kernels.NEAR_RECT, *cen, *ex, *ey, *nrm, hx, hy)
+        else:  # a mesh light: the sphere about its triangles' box
+            tv = scene.mesh_light(li)[1].reshape(-1, 3)
+            lo, hi = tv.min(axis=0), tv.max(axis=0)
+            row[:5] = (kernels.NEAR_SPHERE, *(0.5 * (lo + hi)), 0.5 * np.linalg.norm(hi - lo) * (1 + 1e-6) + eps)
+    return rows
+
+
 def _handoff_depth(handoffs: dict) -> int:
     """Specular vertices handoff_gather follows: the longest walked chain, or OTHERS_DEPTH where
     it takes the paths no walk takes (Handoff.others), BENT_DEPTH for the bent ones (None)."""
@@ -537,10 +562,21 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     stats["rays_" + name] = stats.get("rays_" + name, 0) + int(counts[embree.KINDS:].sum())
     radiance = np.zeros((n, 3))
     lim = Limits.of(scene)
+    # the segments that can meet one of the lights at all, ahead of the exact tests below (which
+    # took a third of the hand-off's time): 1 in 1,300 on the floor seen in a gold ring, 1 in 420
+    # on a disk seen through a pane, 1 in 23-26 under a glass ball lit by a lamp or a mesh panel
+    shapes = _light_shapes(scene, tuple(handoffs), tracer.eps)
+    near = None
+    if shapes is not None:
+        near = lanes.scratch("handoff_near", (m, K), np.bool_)
+        kernels.segments_near(seg, seg_n, shapes, near)
     for k in range(K):  # the segments after bounce = k + 1 specular vertices
-        row = np.flatnonzero(seg_n > k)
-        if row.size == 0:
+        has = seg_n > k
+        if not has.any():
             break
+        row = np.flatnonzero(has if near is None else near[:, k])
+        if row.size == 0:
+            continue
         bounce = k + 1
         sk = seg[row, k]
         o, d, surf_t, beta = sk[:, 0:3], sk[:, 3:6], sk[:, 6], sk[:, 7:10]

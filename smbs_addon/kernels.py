@@ -1587,6 +1587,58 @@ def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, ma
                   seg_n, hist, h_prim, cand, cdf, guide)
     return ray[6]
 
+# the shapes segments_near tests (a row of NEAR_F numbers per light)
+NEAR_ALL, NEAR_NONE, NEAR_SPHERE, NEAR_RECT, NEAR_DISK = 0, 1, 2, 3, 4
+NEAR_F = 15
+
+
+@njit(**_JIT)
+def segments_near(seg, seg_n, shapes, near):
+    """indirect._handoff_block's lights, ahead of their exact test (lights.light_radiance): near[i, k]
+    (i < seg's lanes, k < its K) is set where lane i's k-th segment (k < seg_n[i]; seg[i, k]: origin,
+    unit direction) could meet one of the lights shapes describes, a row each: NEAR_ALL (any segment:
+    a light at infinity), NEAR_NONE (none: a point), NEAR_SPHERE (centre, radius: any ray that
+    passes within it ahead of its origin, or starts inside), NEAR_RECT and NEAR_DISK (an area light:
+    centre, x and y axes, normal, half sizes, as lights.area_light_shape: its plane met ahead, in
+    front, within 1 + 1e-6 of its half sizes; a ray within 1e-6 of its plane's direction, whose
+    distance there the two tests could disagree on, counts). Conservative: every segment the exact
+    test finds is set; the callers widen the spheres."""
+    m, K = near.shape
+    for i in range(m):
+        for k in range(K):
+            near[i, k] = False
+        for k in range(min(seg_n[i], K)):
+            o = (seg[i, k, 0], seg[i, k, 1], seg[i, k, 2])
+            d = (seg[i, k, 3], seg[i, k, 4], seg[i, k, 5])
+            for j in range(shapes.shape[0]):
+                kind = int(shapes[j, 0])
+                if kind == NEAR_ALL:
+                    near[i, k] = True
+                elif kind == NEAR_SPHERE:
+                    oc = _sub(o, (shapes[j, 1], shapes[j, 2], shapes[j, 3]))
+                    r = shapes[j, 4]
+                    b = _dot(oc, d)
+                    cc = _dot(oc, oc) - r * r
+                    near[i, k] = cc <= 0.0 or (b < 0.0 and b * b >= cc)
+                elif kind == NEAR_RECT or kind == NEAR_DISK:
+                    cen = (shapes[j, 1], shapes[j, 2], shapes[j, 3])
+                    nrm = (shapes[j, 10], shapes[j, 11], shapes[j, 12])
+                    den = _dot(d, nrm)
+                    if den > -1e-6:
+                        near[i, k] = den < 1e-6  # behind the light, or along its plane
+                    else:
+                        tt = _dot(_sub(cen, o), nrm) / den
+                        if tt > 0.0:
+                            q = _sub(_add(o, _mul(tt, d)), cen)
+                            a = _dot(q, (shapes[j, 4], shapes[j, 5], shapes[j, 6])) / shapes[j, 13]
+                            c = _dot(q, (shapes[j, 7], shapes[j, 8], shapes[j, 9])) / shapes[j, 14]
+                            lim = 1.0 + 1e-6
+                            near[i, k] = a * a + c * c <= lim * lim if kind == NEAR_DISK else \
+                                (abs(a) <= lim and abs(c) <= lim)
+                if near[i, k]:
+                    break
+
+
 # ------------------------------------------------------------------ the light tracer's photons
 # tally entries of photon_lanes: photons with flux, specular paths cut at max_bounces, lanes a
 # shading normal stopped (scatter1 said no), paths whose events left Cycles' Light Paths limits

@@ -144,3 +144,74 @@ def test_gather_lanes_leaves_a_lane_whole_when_its_records_do_not_fit():
     assert rays_parts == rays
     for a, b in zip(whole, parts):
         np.testing.assert_array_equal(a, b)
+
+
+def test_segments_near_keeps_every_segment_that_meets_a_light():
+    """kernels.segments_near, the hand-off's pre-test (indirect._light_shapes): every segment that
+    lights.light_radiance finds meeting a light (beyond: wherever it lies) is kept, for a point of
+    radius 0.1 with soft falloff, a spot, a square, a rectangle whose axes are sheared (the light
+    test reads them as they are), a disk, an ellipse and a mesh light (the sphere about its box); a
+    point of radius 0 is met by none, and keeps none. Segments from random origins in the room,
+    three in four aimed at points scattered 0.3 about a light (on it, past its edges), one in four in
+    random directions: the exact test finds 20 or more per light, and the pre-test keeps no more
+    than 5 times those that meet the light at all (a spot's beyond its cone), under half of all.
+    A light at infinity keeps them all (None)."""
+    from smbs_addon import lights as L
+    from smbs_addon import scene as S
+    from smbs_addon.builder import SceneBuilder, look_at
+
+    b = SceneBuilder("lights")
+    grey = b.material("Grey", "diffuse", color=(0.8, 0.8, 0.8))
+    glow = b.material("Glow", "emitter", color=(1, 1, 1), strength=5.0)
+    b.plane("Floor", (0, 0, 0), 8, grey, receiver=True)
+    b.plane("Panel", (1.0, -1.0, 2.5), 0.6, glow, normal=(0.3, 0, -1))
+    b.light("Bulb", "POINT", location=(-1, 1, 2), radius=0.1, soft_falloff=True)
+    b.light("Dot", "POINT", location=(0, 0, 2), radius=0.0)
+    b.light("Spot", "SPOT", location=(1, 1, 2.2), target=(0, 0, 0), radius=0.2)
+    b.light("Square", "AREA", location=(-1, -1, 2.5), target=(0, 0, 0), size=0.5)
+    m = look_at((0.5, 0.0, 3.0), (0.0, 0.2, 0.0))
+    m[:3, 0] = 1.3 * m[:3, 0] + 0.6 * m[:3, 1]  # x axis leaning towards y
+    b.light("Rect", "AREA", matrix=m, shape="RECTANGLE", size=(0.8, 0.3))
+    b.light("Disk", "AREA", location=(-2, 0, 1.5), target=(0, 0, 1.5), shape="DISK", size=0.4)
+    b.light("Ellipse", "AREA", location=(2, 0, 1.5), target=(0, 0.3, 0.5), shape="ELLIPSE", size=(0.7, 0.2))
+    b.set_camera((0, -4, 2), (0, 0, 0.5), resolution_x=16, resolution_y=12)
+    b.light("Sun", "SUN", angle=0.1)
+    scene = b.build()
+    sun = int(np.flatnonzero(scene.light_type == S.SUN)[0])
+    assert indirect._light_shapes(scene, (0, sun), 1e-6) is None
+    rng = np.random.default_rng(11)
+    lights = tuple(li for li in range(len(scene.light_type)) if li != sun)
+    assert sorted(scene.light_type[list(lights)].tolist()) == sorted([S.POINT, S.POINT, S.SPOT] + [S.AREA] * 4 + [S.MESH])
+    shapes = indirect._light_shapes(scene, lights, 1e-6)
+    n, K = 40_000, 2
+    o = rng.uniform((-3, -3, 0.05), (3, 3, 3.5), (n * K, 3))
+    aim = np.empty_like(o)
+    for j, li in enumerate(np.asarray(lights)[np.arange(n * K) % len(lights)]):
+        c = scene.light_matrix[li][:3, 3] if scene.light_type[li] != S.MESH else np.array([1.0, -1.0, 2.5])
+        aim[j] = c + rng.normal(0, 0.3, 3)
+    d = aim - o
+    d[::4] = rng.normal(size=(len(d[::4]), 3))  # a quarter in random directions
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    seg = np.zeros((n, K, 10))
+    seg[:, :, 0:3], seg[:, :, 3:6] = o.reshape(n, K, 3), d.reshape(n, K, 3)
+    seg_n = rng.integers(0, K + 1, n)
+    near = np.zeros((n, K), bool)
+    kernels.segments_near(seg, seg_n, shapes, near)
+    met_any = np.zeros((n, K), bool)
+    for j, li in enumerate(lights):
+        met, geom = np.zeros((n, K), bool), np.zeros((n, K), bool)  # lit, and met at all (a spot's cone)
+        for k in range(K):
+            Lk, t = L.light_radiance(scene, li, seg[:, k, 0:3], seg[:, k, 3:6], beyond=True)
+            geom[:, k] = np.isfinite(t) & (seg_n > k)
+            met[:, k] = geom[:, k] & (Lk.max(axis=1) > 0)
+        alone = np.zeros((n, K), bool)
+        kernels.segments_near(seg, seg_n, shapes[j:j + 1], alone)
+        assert not (met & ~alone).any(), scene.light_names[li]
+        name = scene.light_names[li]
+        if name == "Dot":
+            assert met.sum() == 0 and alone.sum() == 0
+        else:  # found by the exact test, and not many more kept than it finds
+            assert met.sum() > 20 and alone.sum() < 5 * geom.sum() + 200, (name, met.sum(), geom.sum(), alone.sum())
+        met_any |= met
+    assert not (met_any & ~near).any() and near.sum() < 0.5 * (seg_n[:, None] > np.arange(K)).sum()
+    assert not near[seg_n[:, None] <= np.arange(K)].any()  # nothing past a lane's segments
