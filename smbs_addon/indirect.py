@@ -444,13 +444,13 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
 def _light_shapes(scene, lights: tuple, eps: float):
     """kernels.segments_near's rows for these lights, spheres widened by a millionth and eps (the
-    tracer's offset); None where one of them lies at infinity (every segment can meet it)."""
+    tracer's offset); a light at infinity keeps every segment (NEAR_ALL)."""
     rows = np.zeros((len(lights), kernels.NEAR_F))
     for row, li in zip(rows, lights):
         typ, m = scene.light_type[li], scene.light_matrix[li]
         if typ in S.DISTANT:
-            return None
-        if typ in (S.POINT, S.SPOT):
+            row[0] = kernels.NEAR_ALL
+        elif typ in (S.POINT, S.SPOT):
             r = float(scene.light_radius[li])
             if r * r > 0:
                 row[:5] = (kernels.NEAR_SPHERE, *m[:3, 3], r * (1 + 1e-6) + eps)
@@ -565,16 +565,12 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     # the segments that can meet one of the lights at all, ahead of the exact tests below (which
     # took a third of the hand-off's time): 1 in 1,300 on the floor seen in a gold ring, 1 in 420
     # on a disk seen through a pane, 1 in 23-26 under a glass ball lit by a lamp or a mesh panel
-    shapes = _light_shapes(scene, tuple(handoffs), tracer.eps)
-    near = None
-    if shapes is not None:
-        near = lanes.scratch("handoff_near", (m, K), np.bool_)
-        kernels.segments_near(seg, seg_n, shapes, near)
+    near = lanes.scratch("handoff_near", (m, K), np.bool_)
+    kernels.segments_near(seg, seg_n, _light_shapes(scene, tuple(handoffs), tracer.eps), near)
     for k in range(K):  # the segments after bounce = k + 1 specular vertices
-        has = seg_n > k
-        if not has.any():
+        if not (seg_n > k).any():
             break
-        row = np.flatnonzero(has if near is None else near[:, k])
+        row = np.flatnonzero(near[:, k])
         if row.size == 0:
             continue
         bounce = k + 1

@@ -1602,7 +1602,7 @@ def segments_near(seg, seg_n, shapes, near):
     centre, x and y axes, normal, half sizes, as lights.area_light_shape: its plane met ahead, in
     front, within 1 + 1e-6 of its half sizes; a ray within 1e-6 of its plane's direction, whose
     distance there the two tests could disagree on, counts). Conservative: every segment the exact
-    test finds is set; the callers widen the spheres."""
+    test finds is set; the callers widen the spheres. seg, shapes: float64; seg_n: int64."""
     m, K = near.shape
     for i in range(m):
         for k in range(K):

@@ -52,8 +52,8 @@ _BAKE_LINE = "bake "  # run()'s line per bake
 
 # the kernels a bake calls from Python (each compiles the helpers it calls inside it): ready()
 # looks for them in the disk cache
-KERNELS = ("walk_lanes", "bernoulli_lanes", "chain_solve", "handoff_lanes", "photon_lanes", "eye_lanes",
-           "gather_lanes", "camera_splats", "splat")
+KERNELS = ("walk_lanes", "bernoulli_lanes", "chain_solve", "handoff_lanes", "segments_near", "photon_lanes",
+           "eye_lanes", "gather_lanes", "camera_splats", "splat")
 
 
 def ready() -> bool | None:

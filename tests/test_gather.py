@@ -155,7 +155,7 @@ def test_segments_near_keeps_every_segment_that_meets_a_light():
     three in four aimed at points scattered 0.3 about a light (on it, past its edges), one in four in
     random directions: the exact test finds 20 or more per light, and the pre-test keeps no more
     than 5 times those that meet the light at all (a spot's beyond its cone), under half of all.
-    A light at infinity keeps them all (None)."""
+    A light at infinity keeps them all."""
     from smbs_addon import lights as L
     from smbs_addon import scene as S
     from smbs_addon.builder import SceneBuilder, look_at
@@ -178,7 +178,10 @@ def test_segments_near_keeps_every_segment_that_meets_a_light():
     b.light("Sun", "SUN", angle=0.1)
     scene = b.build()
     sun = int(np.flatnonzero(scene.light_type == S.SUN)[0])
-    assert indirect._light_shapes(scene, (0, sun), 1e-6) is None
+    everything = np.zeros((50, 2), bool)
+    seg_n = np.array([0, 1, 2, 2, 1] * 10)
+    kernels.segments_near(np.ones((50, 2, 10)), seg_n, indirect._light_shapes(scene, (1, sun), 1e-6), everything)
+    assert np.array_equal(everything, seg_n[:, None] > np.arange(2))  # a sun: every segment, none past them
     rng = np.random.default_rng(11)
     lights = tuple(li for li in range(len(scene.light_type)) if li != sun)
     assert sorted(scene.light_type[list(lights)].tolist()) == sorted([S.POINT, S.POINT, S.SPOT] + [S.AREA] * 4 + [S.MESH])
