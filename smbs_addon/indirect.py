@@ -567,9 +567,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     # on a disk seen through a pane, 1 in 23-26 under a glass ball lit by a lamp or a mesh panel
     near = lanes.scratch("handoff_near", (m, K), np.bool_)
     kernels.segments_near(seg, seg_n, _light_shapes(scene, tuple(handoffs), tracer.eps), near)
-    for k in range(K):  # the segments after bounce = k + 1 specular vertices
-        if not (seg_n > k).any():
-            break
+    for k in range(K):  # the segments after bounce = k + 1 specular vertices (near: only those a lane has)
         row = np.flatnonzero(near[:, k])
         if row.size == 0:
             continue
