@@ -45,7 +45,7 @@ sys.path.insert(0, str(ROOT))
 
 import conformance as conf  # noqa: E402
 from smbs_addon import BakeSettings, bake  # noqa: E402
-from smbs_addon.convergence import caustic_region  # noqa: E402
+from smbs_addon.baking.convergence import caustic_region  # noqa: E402
 
 METHODS = {
     "reference": dict(method="reference"),

@@ -48,7 +48,8 @@ class Times(event.Listener):
 
 
 event.register("numba:compile", Times())
-from smbs_addon import BakeSettings, bake, prepare
+from smbs_addon import BakeSettings, bake
+from smbs_addon.baking import prepare
 
 method, top = sys.argv[1], int(sys.argv[2])
 kw = prepare.WALKS_ONLY if method == "walks" else dict(method=method)

@@ -26,8 +26,9 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
 import throughput  # noqa: E402
-from smbs_addon import BakeSettings, bake, embree  # noqa: E402
-from smbs_addon.builder import SceneBuilder  # noqa: E402
+from smbs_addon import BakeSettings, bake
+from smbs_addon.kernels import embree  # noqa: E402
+from smbs_addon.scene.builder import SceneBuilder  # noqa: E402
 
 ROBUST = embree._SCENE_FLAG_ROBUST
 VARIANTS = {"robust, medium (ours)": (ROBUST, embree.BUILD_MEDIUM), "robust, high": (ROBUST, embree.BUILD_HIGH),

@@ -23,7 +23,7 @@ sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "sample_blends"), str(ROOT)]
 import conformance as conf  # noqa: E402
 from smbs_addon import BakeSettings, bake  # noqa: E402
 
-indirect = importlib.import_module("smbs_addon.indirect")
+indirect = importlib.import_module("smbs_addon.paths.gather")
 
 
 def main(scene: str, method: str, budget: float, counts: list[int]) -> None:

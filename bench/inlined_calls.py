@@ -32,7 +32,8 @@ CHILD = r'''
 import importlib, json, re, sys
 sys.path.insert(0, ".")
 from numba.core.registry import CPUDispatcher
-from smbs_addon import BakeSettings, bake, prepare
+from smbs_addon import BakeSettings, bake
+from smbs_addon.baking import prepare
 
 method, out = sys.argv[1], sys.argv[2]
 if method == "prepare":
@@ -43,7 +44,7 @@ else:
 
 
 def dotted(symbol):
-    """_ZN10smbs_addon7kernels10_hit_pointB... -> smbs_addon.kernels._hit_point (Itanium-style names)."""
+    """_ZN10smbs_addon7kernels10_hit_pointB... -> smbs_addon.kernels.compiled._hit_point (Itanium-style names)."""
     s, parts = symbol[3:], []
     while s[:1].isdigit():
         k = re.match(r"\d+", s).group()

@@ -49,8 +49,8 @@ sys.path.insert(0, str(ROOT))
 
 import scenes  # noqa: E402
 from smbs_addon import BakeSettings, bake  # noqa: E402
-import smbs_addon.tracer as tracer_mod  # noqa: E402
-from smbs_addon.tracer import default_threads  # noqa: E402
+import smbs_addon.trace.tracer as tracer_mod  # noqa: E402
+from smbs_addon.trace.tracer import default_threads  # noqa: E402
 
 SCENES = {
     "sphere": lambda res: scenes.glass_sphere_scene(resolution=res),

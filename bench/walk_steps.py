@@ -26,7 +26,8 @@ sys.path.insert(0, str(ROOT / "tests"))
 sys.path.insert(0, str(ROOT))
 
 import scenes  # noqa: E402
-from smbs_addon import BakeSettings, bake, walk  # noqa: E402
+from smbs_addon import BakeSettings, bake
+from smbs_addon.walks import walk  # noqa: E402
 
 SCENES = {"sphere": scenes.glass_sphere_scene, "ring": scenes.ring_scene, "hammered": scenes.hammered_mirror_scene}
 
@@ -41,7 +42,7 @@ def _variant(text: str) -> dict:
 
 def captured_walks(scene, method: str) -> list:
     """The primary walks' arguments of a one-sample bake, one per chain type (its first call)."""
-    from smbs_addon import manifold  # it calls newton_walk by the name it imported
+    from smbs_addon.walks import manifold  # it calls newton_walk by the name it imported
 
     seen, orig = [], walk.newton_walk
 

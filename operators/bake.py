@@ -34,10 +34,12 @@ def _core():
     """The render core's entry points (imported on first use)."""
     from types import SimpleNamespace
 
-    from ..smbs_addon import composite, export, imageio, plan
-    from ..smbs_addon.__main__ import exr_channels, exr_metadata
-    from ..smbs_addon.bake import BakeSettings, bake
-    from ..smbs_addon.errors import BakeCancelled, SceneError
+    from ..smbs_addon.blender import composite, export
+    from ..smbs_addon.io import exr as imageio
+    from ..smbs_addon.baking import plan
+    from ..smbs_addon.cli.main import exr_channels, exr_metadata
+    from ..smbs_addon.baking.bake import BakeSettings, bake
+    from ..smbs_addon.core.errors import BakeCancelled, SceneError
 
     return SimpleNamespace(BakeSettings=BakeSettings, bake=bake, BakeCancelled=BakeCancelled,
                            SceneError=SceneError, export_scene=export.export_scene,
@@ -539,7 +541,7 @@ class SMBS_OT_remove_caustic_layer(bpy.types.Operator):
         return _idle(context)
 
     def execute(self, context):
-        from ..smbs_addon.composite import remove_layer
+        from ..smbs_addon.blender.composite import remove_layer
 
         scene = context.scene
         props = scene.smbs_caustics
@@ -565,7 +567,7 @@ class SMBS_OT_show_plan(bpy.types.Operator):
         return _idle(context)
 
     def execute(self, context):
-        from ..smbs_addon.bake import plan_words
+        from ..smbs_addon.baking.bake import plan_words
 
         scene = context.scene
         props = scene.smbs_caustics

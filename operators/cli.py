@@ -19,7 +19,7 @@ _handle = None
 
 def smbs_bake(argv) -> int:
     """The command's handler: ``argv`` is everything after ``-c smbs_bake``."""
-    from ..smbs_addon.__main__ import main
+    from ..smbs_addon.cli.main import main
 
     args = [str(a) for a in argv]
     if not args or args[0] not in ("bake", "export"):

@@ -1,6 +1,6 @@
 """Compare Methods: the equal-time table of the open scene, in the panel.
 
-Each chosen method bakes the scene for the same seconds (``smbs_addon.compare``, the core of
+Each chosen method bakes the scene for the same seconds (``smbs_addon.baking.compare``, the core of
 ``python -m smbs_addon compare``); the panel then shows, per method, its noise and the time
 it needs for the same noise as the fastest. Nothing of the scene changes but the stored
 report: no EXR is written, the compositor and Cycles' switches stay as they are.
@@ -33,14 +33,14 @@ class CompareTask:
         return dataclasses.replace(settings, spp=settings.batches, time_budget=0.0, noise_target=0.0)
 
     def run(self, data, settings, progress=None, cancel=None) -> dict:
-        from ..smbs_addon.compare import compare, json_report
+        from ..smbs_addon.baking.compare import compare, json_report
 
         return json_report(compare(data, list(self.methods), self.seconds, settings, cancel=cancel,
                                    bake_progress=progress))
 
     def finish(self, scene, prep, report: dict, core, say) -> bool:
         """Store the report on the scene (the panel draws it) and say who was fastest."""
-        from ..smbs_addon.compare import table_lines
+        from ..smbs_addon.baking.compare import table_lines
 
         scene.smbs_caustics.compare_report = json.dumps(report, default=B._json_default)
         for message in prep.warnings:

@@ -3,7 +3,7 @@
 The kernels compile with numba on their first use after installing or updating the extension
 and load from a disk cache afterwards (smbs_addon/jit.py); the first bake otherwise spends a
 few minutes compiling (its statistics say how long: "Of Which Compiling"). This operator makes
-the tiny bakes of ``smbs_addon.prepare`` in one process of Blender's Python per core, each
+the tiny bakes of ``smbs_addon.baking.prepare`` in one process of Blender's Python per core, each
 importing the core under the name Blender imports the extension by, so that Blender's bakes find
 them (numba's cache is kept per name: the CLI's ``python -m smbs_addon prepare`` compiles those of
 the command line). Nothing of the scene is read or changed.
@@ -26,11 +26,11 @@ _state = {"at": -1e9, "ready": None}
 
 
 def state() -> bool | None:
-    """Whether the kernels are compiled for this machine (smbs_addon.prepare.ready: True, False, None
+    """Whether the kernels are compiled for this machine (smbs_addon.baking.prepare.ready: True, False, None
     for no telling), read afresh at most every STATE_RECHECK_S seconds and after Prepare Kernels."""
     now = time.monotonic()
     if now - _state["at"] > STATE_RECHECK_S:
-        from ..smbs_addon import prepare
+        from ..smbs_addon.baking import prepare
 
         _state["ready"], _state["at"] = prepare.ready(), now
     return _state["ready"]
@@ -48,7 +48,7 @@ class PrepareTask:
 
     @staticmethod
     def run(data, settings, progress=None, cancel=None) -> dict:
-        from ..smbs_addon import prepare
+        from ..smbs_addon.baking import prepare
 
         # one process per core, each of Blender's Python importing the core under this name: the
         # interface stays free while they compile (the worker thread only waits for them)
@@ -64,7 +64,7 @@ class PrepareTask:
 
 
 def message(result: dict) -> str:
-    from ..smbs_addon.compiles import counted
+    from ..smbs_addon.core.compiles import counted
 
     if not result["kernels"]:
         return "SMBS Caustics: the kernels were compiled already; bakes load them from the cache"

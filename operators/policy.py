@@ -61,8 +61,8 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
     layer): its caustics are named as rendered by neither once Cycles' are off, as before the
     layer had a world light (keeping Cycles' on for it would count every lamp's caustic twice).
     """
-    from ..smbs_addon import scene as S
-    from ..smbs_addon.plan import FAINT
+    from ..smbs_addon.scene import arrays as S
+    from ..smbs_addon.baking.plan import FAINT
 
     O = len(data.object_names)
     kind = data.mat_kind[data.tri_material] if data.n_tris else np.zeros(0, np.int32)
@@ -112,8 +112,8 @@ def _world(data, li, faint, layer_mean, left, dropped):
     through them sends at most that); where that is at most WORLD_NEGLIGIBLE of layer_mean
     (Blender's default grey world under a lamp), it is dropped rather than keeping Cycles'
     caustics on, which would count the layer's twice."""
-    from ..smbs_addon import scene as S
-    from ..smbs_addon.plan import FAINT
+    from ..smbs_addon.scene import arrays as S
+    from ..smbs_addon.baking.plan import FAINT
 
     name = data.light_names[li]
     if faint is not None:  # "its caustic is too faint to show (at most 0.4% of the lamps' caustic)"

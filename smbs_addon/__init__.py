@@ -10,9 +10,9 @@ Public API::
 Nothing here imports bpy; only ``export`` (bpy -> Scene) and ``composite``
 (image -> Blender) do, and they are imported on demand.
 """
-from .bake import BakeResult, BakeSettings, bake
-from .errors import BakeCancelled, SceneError
-from .scene import Camera, Scene
+from .baking.bake import BakeResult, BakeSettings, bake
+from .core.errors import BakeCancelled, SceneError
+from .scene.arrays import Camera, Scene
 
 __all__ = ["Scene", "Camera", "BakeSettings", "BakeResult", "bake", "SceneError", "BakeCancelled"]
 __version__ = "0.1.0"

@@ -5,7 +5,7 @@ import math
 
 import numpy as np
 
-from smbs_addon.builder import SceneBuilder
+from smbs_addon.scene.builder import SceneBuilder
 
 MIRROR_RHO, FLOOR_ALBEDO = 0.9, 0.8
 
@@ -227,9 +227,9 @@ def pane_scene(thickness=0.1, resolution=(32, 24)):
 def seed_chains(scene, types: str, x0, rng):
     """Plain SMS seed chains of one chain type from floor points x0 (normal +z), as a bake seeds
     its walks: (ctx, ng0, light, chain), the light's points and the seeds drawn from rng."""
-    from smbs_addon.manifold import Ctx, Seeder, sample_light
-    from smbs_addon.plan import make_plan
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.walks.manifold import Ctx, Seeder, sample_light
+    from smbs_addon.baking.plan import make_plan
+    from smbs_addon.trace.tracer import Tracer
 
     plan = make_plan(scene, "OFF")
     ctx = Ctx(scene, Tracer(scene, threads=2), plan, {})

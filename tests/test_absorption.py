@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon import scene as S
-from smbs_addon.builder import SceneBuilder
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.builder import SceneBuilder
 
 SIGMA = np.array([0.5, 2.0, 5.0])  # per metre
 THICK = 0.2
@@ -52,7 +52,7 @@ def _region_ratio(scene, a, b):
     caustic region; expected from each pixel's floor point: exp(-absorb THICK / cos theta_t) for
     the light's way through the slab, and for the eye's where its ray crosses the slab, weighted
     by the clear bake's pixels."""
-    from smbs_addon.camera import CameraModel
+    from smbs_addon.trace.camera import CameraModel
 
     lum = a.image.mean(axis=2)
     H, W = lum.shape
@@ -106,7 +106,7 @@ def _pool(absorb, light="point", above=False, resolution=24):
     """scenes.water_scene (flat water at z = 1 over the floor, its normal up) with absorbing
     water; the camera under the surface (its rays never cross it) or 3 m above it, looking
     straight down through it; a small bulb 3 m above the water, or a 2 m square area light."""
-    from smbs_addon import scene as S_
+    from smbs_addon.scene import arrays as S_
 
     sc = scenes_water(light, resolution)
     if absorb is not None:
@@ -142,7 +142,7 @@ def _water_expected(scene, image, eye_crossing):
     1 m of water, lit through it by the bulb 3 m above the surface (the angle in the water from
     Snell's law, solved along the horizontal distance), and seen through it from above (straight
     down: 1 m more), weighted by the clear layer."""
-    from smbs_addon.camera import CameraModel
+    from smbs_addon.trace.camera import CameraModel
 
     H, W = image.shape[:2]
     ys, xs = np.mgrid[0:H, 0:W]

@@ -41,7 +41,7 @@ def cli(addon):
 
 
 def _read(path):
-    imageio = importlib.import_module("smbs_caustics.smbs_addon.imageio")
+    imageio = importlib.import_module("smbs_caustics.smbs_addon.io.exr")
     return imageio.read_exr(path)
 
 

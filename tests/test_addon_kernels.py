@@ -38,10 +38,10 @@ def test_the_processes_compile_under_the_extensions_name(ops):
     in Blender bl_ext.<repo>.smbs_caustics.smbs_addon), from the same folder, without running the
     extension's __init__ (it imports bpy): numba's disk cache is kept per name, so kernels compiled
     under another name would not serve the bakes."""
-    prep = importlib.import_module(ops[0].__name__.rpartition(".")[0].rpartition(".")[0] + ".smbs_addon.prepare")
+    prep = importlib.import_module(ops[0].__name__.rpartition(".")[0].rpartition(".")[0] + ".smbs_addon.baking.prepare")
     said = []
     out = prep.prepare(jobs=2, say=said.append)
-    assert out["jobs"] == 2 and out["as"] == "smbs_caustics.smbs_addon.prepare"
+    assert out["jobs"] == 2 and out["as"] == "smbs_caustics.smbs_addon.baking.prepare"
     assert len([x for x in said if x.startswith(("[1/2] bake ", "[2/2] bake "))]) == len(prep.BAKES), said
 
 
@@ -77,7 +77,7 @@ def test_the_panel_says_whether_the_kernels_are_compiled(ops, addon, monkeypatch
 
     kernels, _ = ops
     panels = addon.ui.panels
-    prep = importlib.import_module(addon.__name__ + ".smbs_addon.prepare")
+    prep = importlib.import_module(addon.__name__ + ".smbs_addon.baking.prepare")
     labels = {panels.KERNELS_READY, panels.KERNELS_NOT_READY}
     kernels.state()  # an answer kept from before ...
     assert bpy.ops.smbs.prepare_kernels() == {'FINISHED'}  # ... forgotten here

@@ -52,7 +52,7 @@ s.method, s.spp, s.batches, s.seed, s.output_path = "reference", 1, 2, 1, out
 assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
 import embreex, OpenImageIO, numba, llvmlite
 print("MODULES", json.dumps({m.__name__: m.__file__ for m in (embreex, OpenImageIO, numba, llvmlite)}))
-print("CORE", sys.modules[ext + ".smbs_addon.bake"].__file__)
+print("CORE", sys.modules[ext + ".smbs_addon.baking.bake"].__file__)
 print("PACKAGE-OK")
 '''
 
@@ -87,7 +87,7 @@ def test_built_linux_zip_installs_and_bakes(tmp_path):
         assert all("manylinux" in w and "cp311" in w for w in wheels)
         assert 'platforms = ["linux-x64"]' in manifest and 'blender_version_max = "5.1.0"' in manifest
     assert not any("numpy" in n for n in names)
-    assert "operators/bake.py" in names and "smbs_addon/bake.py" in names
+    assert "operators/bake.py" in names and "smbs_addon/baking/bake.py" in names
 
     user = tmp_path / "user"
     out = tmp_path / "baked.exr"

@@ -106,7 +106,7 @@ def test_ui_settings_are_the_core_settings(empty_bpy, addon):
     import dataclasses
 
     bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
-    core = importlib.import_module(addon.__name__ + ".smbs_addon.bake")
+    core = importlib.import_module(addon.__name__ + ".smbs_addon.baking.bake")
     fields = {f.name: f.default for f in dataclasses.fields(core.BakeSettings)}
     props = bpy.context.scene.smbs_caustics
     names = addon.ui.properties.BAKE_FIELDS
@@ -168,7 +168,7 @@ def test_statistics_summary(addon):
 
 
 def test_statistics_of_a_manifold_bake(addon):
-    """The per-light statistics the core writes for SMBS (see smbs_addon.bake) all reach the panel."""
+    """The per-light statistics the core writes for SMBS (see smbs_addon.baking.bake) all reach the panel."""
     panels = importlib.import_module("smbs_caustics.ui.panels")
     light = {"time_s": 5.13, "walks": 65202, "successes": 21703, "success_rate": 0.3329,
              "mutations_per_path": 11.16, "mutations_per_success": 33.52, "large_mutations": {"tir": 0, "backlit": 3, "slow": 72753},
@@ -337,7 +337,7 @@ def test_participants_list_shows_cycles_flags(empty_bpy, addon):
 
 @pytest.fixture
 def composite(empty_bpy):
-    return importlib.import_module(load_extension().__name__ + ".smbs_addon.composite")
+    return importlib.import_module(load_extension().__name__ + ".smbs_addon.blender.composite")
 
 
 def _layer_images():
@@ -415,7 +415,7 @@ def test_apply_layer_feeds_an_unlinked_output_from_render_layers(composite):
 
 
 def test_apply_layer_reads_the_written_exr(composite, tmp_path):
-    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.imageio")
+    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.io.exr")
     path = tmp_path / "caustics.exr"
     layer = _layer(value=5.0)
     imageio.write_exr(path, layer, {"method": "test"})
@@ -445,7 +445,7 @@ def test_cycles_render_shows_the_layer(composite, tmp_path):
     scene.render.image_settings.color_depth = '32'
     scene.render.filepath = str(tmp_path / "render.exr")
     bpy.ops.render.render(write_still=True)
-    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.imageio")
+    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.io.exr")
     rendered, _ = imageio.read_exr(tmp_path / "render.exr")
     assert np.allclose(rendered[..., :3], layer, atol=1e-4)
 
@@ -492,8 +492,8 @@ def _mirror_scene(width=24, height=16):
 
 def test_bake_operator_end_to_end(empty_bpy, addon, tmp_path, capsys):
     try:
-        importlib.import_module(addon.__name__ + ".smbs_addon.bake")
-        importlib.import_module(addon.__name__ + ".smbs_addon.export")
+        importlib.import_module(addon.__name__ + ".smbs_addon.baking.bake")
+        importlib.import_module(addon.__name__ + ".smbs_addon.blender.export")
     except ImportError as e:
         pytest.skip(f"the render core cannot be imported yet: {e}")
     scene = _mirror_scene()
@@ -546,7 +546,7 @@ def test_bake_operator_with_nothing_to_bake(empty_bpy, addon, tmp_path):
 
 def test_bake_operator_reports_scene_errors(empty_bpy, addon, tmp_path):
     try:
-        importlib.import_module(addon.__name__ + ".smbs_addon.export")
+        importlib.import_module(addon.__name__ + ".smbs_addon.blender.export")
     except ImportError as e:
         pytest.skip(f"the render core cannot be imported yet: {e}")
     bpy.context.scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")

@@ -30,7 +30,7 @@ def _render(scene, path, compositing):
 
 
 def _read(path):
-    imageio = importlib.import_module("smbs_caustics.smbs_addon.imageio")
+    imageio = importlib.import_module("smbs_caustics.smbs_addon.io.exr")
     return imageio.read_exr(path)[0][..., :3]
 
 

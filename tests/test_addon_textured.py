@@ -22,7 +22,7 @@ ALBEDO_ROLES = ("albedo_image", "diffuse_color", "multiply", "albedo_add")
 
 @pytest.fixture
 def composite(empty_bpy):
-    return importlib.import_module(load_extension().__name__ + ".smbs_addon.composite")
+    return importlib.import_module(load_extension().__name__ + ".smbs_addon.blender.composite")
 
 
 def _per_albedo(h=4, w=6, value=0.2):
@@ -111,7 +111,7 @@ def test_per_albedo_updates_in_place_and_goes_again(composite, tmp_path):
     assert len(nodes) == len(mine) + 6
 
     # Again, from the written EXRs this time: the same nodes, one image of each, new pixels.
-    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.imageio")
+    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.io.exr")
     path, albedo_path = tmp_path / "caustics.exr", tmp_path / "caustics_per_albedo.exr"
     imageio.write_exr(path, _layer(value=3.0))
     imageio.write_exr(albedo_path, _per_albedo(value=0.7))
@@ -197,7 +197,7 @@ def test_cycles_render_adds_per_albedo_times_diffuse_color(composite, tmp_path):
     scene.camera = cam
     scene.render.image_settings.file_format = 'OPEN_EXR'
     scene.render.image_settings.color_depth = '32'
-    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.imageio")
+    imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.io.exr")
 
     def render(name, compositing):
         scene.render.use_compositing = compositing
@@ -222,8 +222,8 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     their Image datablocks; the switched-on pass is reported once; a result without a per-albedo
     part takes it out again."""
     bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
-    core_bake = importlib.import_module(addon.__name__ + ".smbs_addon.bake")
-    imageio = importlib.import_module(addon.__name__ + ".smbs_addon.imageio")
+    core_bake = importlib.import_module(addon.__name__ + ".smbs_addon.baking.bake")
+    imageio = importlib.import_module(addon.__name__ + ".smbs_addon.io.exr")
     scene = _mirror_scene(6, 4)
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     core = bake_op._core()
@@ -248,7 +248,7 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     assert np.allclose(_pixels(img)[::-1, :, :3], image - textured)
     assert np.allclose(_pixels(albedo)[::-1, :, :3], _per_albedo())
     assert bpy.path.abspath(albedo.filepath) == str(tmp_path / "layer_per_albedo.exr")
-    _assert_albedo_chain(importlib.import_module(addon.__name__ + ".smbs_addon.composite"),
+    _assert_albedo_chain(importlib.import_module(addon.__name__ + ".smbs_addon.blender.composite"),
                          scene.compositing_node_group, scene)
     switched = [text for levels, text in reports if levels == {'INFO'} and "Diffuse Color pass" in text]
     assert len(switched) == 1 and "'ViewLayer'" in switched[0], reports

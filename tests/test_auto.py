@@ -11,8 +11,8 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.bake import region_mean_error
-from smbs_addon.convergence import caustic_region
+from smbs_addon.baking.bake import region_mean_error
+from smbs_addon.baking.convergence import caustic_region
 
 
 def _agree(a, b, region, sigmas=4.0, rel=0.03):
@@ -56,7 +56,7 @@ def test_auto_is_the_default_and_names_its_choice():
 
 
 def test_pilot_scene_has_one_light_and_a_small_frame():
-    from smbs_addon import auto
+    from smbs_addon.baking import auto
 
     scene = scenes.water_scene(light="point", resolution=64)
     scene = __import__("dataclasses").replace(scene, light_color=np.vstack([scene.light_color, [[5.0, 5, 5]]]))
@@ -68,7 +68,7 @@ def test_pilot_scene_has_one_light_and_a_small_frame():
 
 
 def test_decide_takes_the_cheapest_per_effect():
-    from smbs_addon.auto import decide
+    from smbs_addon.baking.auto import decide
 
     def m(ref, sms, smbs):  # (direct, through, all) costs per method
         return {k: dict(zip(("direct", "through", "all"), v)) for k, v in
@@ -96,7 +96,7 @@ def test_decide_takes_the_cheapest_per_effect():
 def test_photon_factor_is_neyman_allocation():
     """Light tracing for the direct receivers, walks through glass: the light tracer gets
     sqrt(V_d c_w / (V_w c_d)) samples per walk sample, within PHOTON_FACTOR, two digits."""
-    from smbs_addon.auto import PHOTON_FACTOR, photon_factor
+    from smbs_addon.baking.auto import PHOTON_FACTOR, photon_factor
 
     def m(v_d, c_d, v_w, c_w, seen=0.25):
         return {"reference": {"var_direct": v_d, "rays": c_d},
@@ -131,7 +131,7 @@ def test_auto_shares_samples_between_photons_and_walks():
 def test_a_short_time_budget_runs_no_pilot():
     """The time rule counts the pilot (1-3 s per light): under PILOT_MIN_BUDGET_PER_LIGHT
     seconds per light auto bakes SMBS without one, and says so in the plan's words."""
-    from smbs_addon.auto import PILOT_MIN_BUDGET_PER_LIGHT, pilot_fits
+    from smbs_addon.baking.auto import PILOT_MIN_BUDGET_PER_LIGHT, pilot_fits
 
     assert pilot_fits(0.0, 3) and pilot_fits(20.0, 2) and not pilot_fits(19.9, 2) and not pilot_fits(2.0, 0)
     scene = scenes.glass_sphere_scene(resolution=(32, 24))
@@ -147,7 +147,7 @@ def test_a_short_time_budget_runs_no_pilot():
 def test_region_shares_add_up_to_the_whole():
     """auto weighs each region by its pixels: the direct and the mirrored shares of the
     variance (and so of the cost) add up to the whole caustic region's, exactly."""
-    from smbs_addon.auto import _cost, _var
+    from smbs_addon.baking.auto import _cost, _var
 
     rng = np.random.default_rng(0)
     b = rng.random((4, 6, 8)) * np.linspace(0.1, 3.0, 48).reshape(6, 8)

@@ -20,9 +20,9 @@ import pytest
 
 import scenes
 from smbs_addon import BakeCancelled, BakeSettings, Scene, SceneError, bake
-bake_module = importlib.import_module("smbs_addon.bake")  # the package's 'bake' is the function
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.imageio import read_exr, write_exr
+bake_module = importlib.import_module("smbs_addon.baking.bake")  # the package's 'bake' is the function
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.io.exr import read_exr, write_exr
 from test_cli import one_error_line, run
 
 
@@ -453,7 +453,7 @@ def fresh_bpy():
 
 
 def test_no_camera(fresh_bpy):
-    from smbs_addon.export import export_scene
+    from smbs_addon.blender.export import export_scene
 
     scene = blender_mirror_scene(camera=False)
     scene.name = "Camera-less"
@@ -463,7 +463,7 @@ def test_no_camera(fresh_bpy):
 
 
 def test_unsupported_material_nodes_are_named(fresh_bpy):
-    from smbs_addon.export import export_scene
+    from smbs_addon.blender.export import export_scene
 
     scene = blender_mirror_scene()
     toon = _material("Cartoon", "ShaderNodeBsdfToon", (1.0, 0.5, 0.2))
@@ -487,7 +487,7 @@ def test_unsupported_material_nodes_are_named(fresh_bpy):
 def test_library_linked_scene_exports_read_only(fresh_bpy, tmp_path):
     """A whole scene linked from a library (no window shows it, nothing in it is editable):
     the export evaluates it without touching it, and it bakes like a local one."""
-    from smbs_addon.export import export_scene
+    from smbs_addon.blender.export import export_scene
 
     scene = blender_mirror_scene()
     scene.name = "Library Scene"
@@ -513,7 +513,7 @@ def test_library_linked_scene_exports_read_only(fresh_bpy, tmp_path):
 
 
 def test_zero_size_light_from_blender_is_skipped_with_its_reason(fresh_bpy):
-    from smbs_addon.export import export_scene
+    from smbs_addon.blender.export import export_scene
 
     scene = blender_mirror_scene()
     data = bpy.data.lights.new("Sliver", 'AREA')
@@ -527,7 +527,7 @@ def test_zero_size_light_from_blender_is_skipped_with_its_reason(fresh_bpy):
 
 # ----------------------------------------------------------- a failed or cancelled bake changes nothing
 def _extension_core(addon):
-    return sys.modules[addon.__name__ + ".smbs_addon.bake"]
+    return sys.modules[addon.__name__ + ".smbs_addon.baking.bake"]
 
 
 def test_failed_bake_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path):
@@ -576,7 +576,7 @@ def test_bake_that_crashes_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path
 
 
 def test_cancelled_bake_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path, monkeypatch):
-    from smbs_addon.export import export_scene
+    from smbs_addon.blender.export import export_scene
 
     scene = blender_mirror_scene()
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")

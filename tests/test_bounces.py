@@ -14,8 +14,8 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.bounces import Limits, UNLIMITED
-from smbs_addon.scene import Scene
+from smbs_addon.scene.light_paths import Limits, UNLIMITED
+from smbs_addon.scene.arrays import Scene
 
 
 def test_the_last_event_is_free():

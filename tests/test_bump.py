@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from smbs_addon import bump
+from smbs_addon.scene import bump
 
 # a non-planar quad as two triangles, vertex 3 raised
 CO = np.array([[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [1.0, 1.0, 0.0], [0.0, 1.0, 0.5]])
@@ -127,7 +127,7 @@ def test_targets_share_the_budget_by_area():
 def _sheet(back=True):
     """A bumped unit sheet (two triangles, +Z up, corner normals tilted towards -X) whose normals met
     from behind tilt towards +X (Cycles' bump, bump.bend)."""
-    from smbs_addon.builder import SceneBuilder
+    from smbs_addon.scene.builder import SceneBuilder
 
     b = SceneBuilder("sheet")
     m = b.material("glass", "dielectric", ior=1.5)
@@ -142,7 +142,7 @@ def _sheet(back=True):
 def test_a_ray_from_behind_meets_the_normals_met_from_behind():
     """Tracer.intersect (kernels._shading_normal): a ray running along the geometric normal takes
     Scene.tri_normals_back, one against it tri_normals; without them, tri_normals either way."""
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.trace.tracer import Tracer
 
     sc, front, behind = _sheet()
     tr = Tracer(sc, threads=1)
@@ -157,8 +157,8 @@ def test_a_ray_from_behind_meets_the_normals_met_from_behind():
 
 
 def test_normals_from_behind_keep_through_save_and_load_and_are_checked(tmp_path):
-    from smbs_addon.errors import SceneError
-    from smbs_addon.scene import Scene
+    from smbs_addon.core.errors import SceneError
+    from smbs_addon.scene.arrays import Scene
 
     sc, _, behind = _sheet()
     sc.save(tmp_path / "s.npz")
@@ -175,8 +175,8 @@ def test_a_walk_through_a_bumped_sheet_takes_each_sides_normals():
     front's. The walk's vertex records the normal it used (kernels._lane_vertex)."""
     from types import SimpleNamespace
 
-    from smbs_addon import walk
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.walks import walk
+    from smbs_addon.trace.tracer import Tracer
 
     sc, front, behind = _sheet()
     ctx = SimpleNamespace(tracer=Tracer(sc, threads=1), casters=np.ones(1, bool), count=lambda key, n: None)

@@ -13,10 +13,11 @@ import math
 
 import numpy as np
 
-from smbs_addon import builder, optics
-from smbs_addon import scene as S
-from smbs_addon.estimators import chain_throughput
-from smbs_addon.geometry import Vertex
+from smbs_addon.scene import builder
+from smbs_addon.shading import optics
+from smbs_addon.scene import arrays as S
+from smbs_addon.walks.estimators import chain_throughput
+from smbs_addon.scene.geometry import Vertex
 
 
 def _random_configurations(n, seed=0):
@@ -167,10 +168,10 @@ def test_aimed_bent_paths_agree_with_cosine_sampling():
     independent runs each (measured: aimed 8250 +- 74 with 1024 per point, cosine 8179 +- 62 with
     2048; a density off by the cosine at the triangle, or a missed visibility check, would move it
     by 10% or more)."""
-    from smbs_addon import indirect
-    from smbs_addon.eye import Receivers
-    from smbs_addon.plan import make_plan
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.paths import gather as indirect
+    from smbs_addon.trace.eye import Receivers
+    from smbs_addon.baking.plan import make_plan
+    from smbs_addon.trace.tracer import Tracer
 
     scene = _leaning_mirror()
     plan = make_plan(scene)
@@ -212,8 +213,8 @@ def test_bent_receivers_are_a_random_share_of_every_cell():
     the same film cells on every pass wherever the cells are a multiple of 16 (sample_blends'
     164 x 124) and left the others without bent light: here receivers in 1,024 cells, 8 passes
     over them, and every cell is kept on some pass, each residue mod 16 about as often."""
-    from smbs_addon import indirect
-    from smbs_addon.eye import Receivers
+    from smbs_addon.paths import gather as indirect
+    from smbs_addon.trace.eye import Receivers
 
     cells, passes = 1024, 8
     n = cells * passes

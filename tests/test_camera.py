@@ -16,8 +16,8 @@ import math
 import numpy as np
 import pytest
 
-from smbs_addon import scene as S
-from smbs_addon.camera import CameraModel
+from smbs_addon.scene import arrays as S
+from smbs_addon.trace.camera import CameraModel
 
 bpy = pytest.importorskip("bpy")
 from bpy_extras.object_utils import world_to_camera_view  # noqa: E402
@@ -215,7 +215,7 @@ def test_rays_invert_project(blender, type, fit, res, aspect):
 def _kernel_rays_match(cm, rx, ry):
     """The eye paths' camera rays (kernels._camera_ray, from CameraModel.kernel_params) are rays()'s,
     started on the near clip plane, to rounding."""
-    from smbs_addon import kernels
+    from smbs_addon.kernels import compiled as kernels
 
     o, d, tnear = cm.rays(rx, ry)
     ko, kd = kernels.camera_rays(cm.kernel_params(), rx, ry)

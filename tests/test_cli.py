@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon.imageio import read_exr
+from smbs_addon.io.exr import read_exr
 
 ROOT = Path(__file__).resolve().parent.parent
 MIRROR_BLEND = ROOT / "sample_blends" / "mirror.blend"

@@ -13,11 +13,11 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.compare import Reference, compare, json_report, table_lines
-from smbs_addon.convergence import caustic_region, relative_error
-from smbs_addon.errors import SceneError
-from smbs_addon.imageio import write_exr
-from smbs_addon.__main__ import exr_channels, exr_metadata
+from smbs_addon.baking.compare import Reference, compare, json_report, table_lines
+from smbs_addon.baking.convergence import caustic_region, relative_error
+from smbs_addon.core.errors import SceneError
+from smbs_addon.io.exr import write_exr
+from smbs_addon.cli.main import exr_channels, exr_metadata
 
 
 @pytest.fixture(scope="module")
@@ -80,7 +80,7 @@ def test_a_reference_of_another_size_or_none_to_compare_is_refused(sphere):
 
 
 def test_a_scene_without_caustics_says_so_once():
-    from smbs_addon.builder import SceneBuilder
+    from smbs_addon.scene.builder import SceneBuilder
 
     b = SceneBuilder("Empty")
     b.plane("Floor", (0, 0, 0), 4, b.material("floor", "diffuse"), receiver=True)

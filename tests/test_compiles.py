@@ -5,9 +5,9 @@ import numpy as np
 from numba import njit
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon.__main__ import summary_lines
-from smbs_addon.bake import _Reporter
-from smbs_addon.compiles import CompileWatch
+from smbs_addon.cli.main import summary_lines
+from smbs_addon.baking.bake import _Reporter
+from smbs_addon.core.compiles import CompileWatch
 
 import scenes
 
@@ -112,7 +112,7 @@ def test_compare_gives_a_method_that_compiles_its_seconds_and_says_so():
     first batch): its row's time and budget leave the compiling out, and the table says so."""
     import dataclasses
 
-    from smbs_addon.compare import compare, table_lines
+    from smbs_addon.baking.compare import compare, table_lines
 
     bake_progress = _CompilingProgress()
     sc = scenes.glass_sphere_scene(resolution=(48, 36))

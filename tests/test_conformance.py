@@ -181,7 +181,7 @@ def test_a_metals_edge_tint_colours_its_caustic_as_cycles():
     1-5 at 8 spp, standard deviation 0.028, so ~0.01 here); plain Schlick from the same F0: 1.155."""
     import dataclasses
 
-    from smbs_addon import scene as S
+    from smbs_addon.scene import arrays as S
 
     name = "metallic_edge_ring"
     sc, ref = conf.scene_arrays(name), conf.load_reference(name)

@@ -23,7 +23,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon import scene as S
+from smbs_addon.scene import arrays as S
 from test_manifold_analytic import water_sun_expected
 from test_reference_analytic import check_against, pixel_floor_points
 
@@ -47,8 +47,8 @@ def test_closed_glass_is_the_same_in_both_units():
 
 def test_soft_falloff_factor_at_a_solution():
     """The manifold pass applies the same factor at the chain's last vertex."""
-    from smbs_addon.constraints import LightEnd
-    from smbs_addon.estimators import light_end_at_solution
+    from smbs_addon.walks.constraints import LightEnd
+    from smbs_addon.walks.estimators import light_end_at_solution
 
     scene = scenes.water_scene("point", resolution=8)
     scene.light_radius[:] = 0.5
@@ -69,8 +69,8 @@ def test_spot_cone_masks_the_ray_from_the_light_point_not_the_centre():
     direction) tests the cone on the ray from the sampled light point y to the chain's last
     vertex xk. Masking the direction from the light's centre instead put 45% of the glass ball's
     caustic pixels beyond 3 sigma of Cycles (sample_blends/glass_spot.blend; test below)."""
-    from smbs_addon.constraints import LightEnd
-    from smbs_addon.estimators import light_end_at_solution
+    from smbs_addon.walks.constraints import LightEnd
+    from smbs_addon.walks.estimators import light_end_at_solution
 
     scene = scenes.water_scene("point", resolution=8)
     li = 0
@@ -129,7 +129,7 @@ def test_area_light_spread_keeps_the_power_and_peaks_as_cycles_does():
     hemisphere is pi (the power of a lambertian light of the same radiance), 0 outside the cone,
     on the axis tan h / (tan h - h) (43.57 at 30 degrees) and, below h = 0.05, Cycles' Taylor
     normalisation 3 / h^3; none at 180 degrees."""
-    from smbs_addon.lights import spread_factor
+    from smbs_addon.shading.lights import spread_factor
 
     sc = scenes.mirror_scene(resolution=(8, 6))
     t = np.linspace(0.0, 0.5 * math.pi, 400_001)
@@ -147,7 +147,7 @@ def test_area_light_spread_keeps_the_power_and_peaks_as_cycles_does():
 
 
 def test_a_spread_light_aimed_away_reaches_no_caster_and_one_of_spread_0_is_skipped():
-    from smbs_addon.builder import SceneBuilder
+    from smbs_addon.scene.builder import SceneBuilder
 
     def scene(target, spread):
         b = SceneBuilder("softboxes")

@@ -19,10 +19,10 @@ import numpy as np
 import pytest
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon.__main__ import load_input
-from smbs_addon.bake import caustic_region
-from smbs_addon.convergence import box5
-from smbs_addon.imageio import read_exr
+from smbs_addon.cli.main import load_input
+from smbs_addon.baking.bake import caustic_region
+from smbs_addon.baking.convergence import box5
+from smbs_addon.io.exr import read_exr
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = ROOT / "tests" / "data"

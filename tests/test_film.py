@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from smbs_addon.film import Film, blackman_harris
+from smbs_addon.trace.film import Film, blackman_harris
 
 A = (0.35875, 0.48829, 0.14128, 0.01168)
 
@@ -200,7 +200,7 @@ def test_a_splat_shared_over_threads_is_one_threads_bit_for_bit(w):
     """Film.splat of SPLAT_SPLIT samples or more: each thread adds to rows of its own, so every
     pixel's sum is made in the samples' order, as on one thread: the same image, bit for bit
     (2, 3 and 7 threads; rows fewer than threads; a region; textured parts alike)."""
-    from smbs_addon.film import SPLAT_SPLIT
+    from smbs_addon.trace.film import SPLAT_SPLIT
 
     rng = np.random.default_rng(5)
     W, H, n = 40, 30, 3 * SPLAT_SPLIT
@@ -225,7 +225,7 @@ def test_a_batchs_sums_on_the_threads_are_one_threads():
     """Film.end_batch adds a batch to the sums in parts of pixels on the threads (a film of 2.3
     END_BATCH_PART pixels: 1, 2 and 3 parts): the image, the variance and the batches' luminances
     are one thread's, bit for bit, and the next batch starts from zero."""
-    from smbs_addon.film import END_BATCH_PART
+    from smbs_addon.trace.film import END_BATCH_PART
 
     W, H = 600, END_BATCH_PART * 23 // 10 // 600
     rng = np.random.default_rng(8)

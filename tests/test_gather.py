@@ -9,11 +9,13 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon import embree, indirect, kernels, optics
-from smbs_addon.bounces import Limits
-from smbs_addon.eye import Receivers
-from smbs_addon.plan import make_plan
-from smbs_addon.tracer import Tracer
+from smbs_addon.kernels import embree, compiled as kernels
+from smbs_addon.paths import gather as indirect
+from smbs_addon.shading import optics
+from smbs_addon.scene.light_paths import Limits
+from smbs_addon.trace.eye import Receivers
+from smbs_addon.baking.plan import make_plan
+from smbs_addon.trace.tracer import Tracer
 
 POINTS = np.array([[0.0, 0.0, 0.0], [0.15, 0.1, 0.0], [-0.2, 0.05, 0.0], [0.05, -0.25, 0.0]])
 
@@ -156,9 +158,9 @@ def test_segments_near_keeps_every_segment_that_meets_a_light():
     random directions: the exact test finds 20 or more per light, and the pre-test keeps no more
     than 5 times those that meet the light at all (a spot's beyond its cone), under half of all.
     A light at infinity keeps them all."""
-    from smbs_addon import lights as L
-    from smbs_addon import scene as S
-    from smbs_addon.builder import SceneBuilder, look_at
+    from smbs_addon.shading import lights as L
+    from smbs_addon.scene import arrays as S
+    from smbs_addon.scene.builder import SceneBuilder, look_at
 
     b = SceneBuilder("lights")
     grey = b.material("Grey", "diffuse", color=(0.8, 0.8, 0.8))

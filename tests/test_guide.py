@@ -4,8 +4,8 @@ import numpy as np
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.camera import CameraModel
-from smbs_addon.guide import Q, TILE, Guide
+from smbs_addon.trace.camera import CameraModel
+from smbs_addon.walks.guide import Q, TILE, Guide
 
 
 def _guide_with_one_tile():
@@ -54,9 +54,9 @@ def test_guide_skips_walks_seen_through_glass_without_changing_the_mean():
     st = runs[True].stats["lights"]["Area"]
     assert st["guided_skips_seen"] > 0
     assert "guided_skips_seen" not in runs[False].stats["lights"]["Area"]
-    from smbs_addon import auto
-    from smbs_addon.plan import make_plan
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.baking import auto
+    from smbs_addon.baking.plan import make_plan
+    from smbs_addon.trace.tracer import Tracer
     cam = CameraModel(scene.camera)
     seen = ~auto._direct_pixels(scene, Tracer(scene), cam, make_plan(scene))
     means = []
@@ -74,10 +74,10 @@ def test_a_faint_wide_glow_is_weak_on_every_random_stream():
     focus's over seeds 1-8 at 512 x 512 (few photons per tile: the tile they happened to crowd),
     so the noise decided whether the walks or the photons served it (walks 390k against 227k
     on one 1-spp bake). Averaged, it reads 0.006-0.012: weak on every seed, with room to spare."""
-    from smbs_addon.bake import _trace_plan
-    from smbs_addon.guide import WEAK_PEAK, build_guide, photon_budget
-    from smbs_addon.manifold import chain_types
-    from smbs_addon.plan import _rng, make_plan
+    from smbs_addon.baking.bake import _trace_plan
+    from smbs_addon.walks.guide import WEAK_PEAK, build_guide, photon_budget
+    from smbs_addon.walks.manifold import chain_types
+    from smbs_addon.baking.plan import _rng, make_plan
 
     scene = scenes.glass_sphere_scene(resolution=(512, 384))
     settings = BakeSettings(method="sms", spp=1, seed=1)

@@ -10,14 +10,15 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon import BakeSettings, bake, reference
-from smbs_addon import scene as S
-from smbs_addon.bake import caustic_region
-from smbs_addon.camera import CameraModel
-from smbs_addon.film import Film
-from smbs_addon.lights import emit
-from smbs_addon.plan import make_plan
-from smbs_addon.tracer import Tracer
+from smbs_addon import BakeSettings, bake
+from smbs_addon.paths import photons as reference
+from smbs_addon.scene import arrays as S
+from smbs_addon.baking.bake import caustic_region
+from smbs_addon.trace.camera import CameraModel
+from smbs_addon.trace.film import Film
+from smbs_addon.shading.lights import emit
+from smbs_addon.baking.plan import make_plan
+from smbs_addon.trace.tracer import Tracer
 from test_manifold_vs_reference import _compare
 
 
@@ -123,7 +124,7 @@ def test_seen_handoff_starts_with_the_first_chunk_where_a_caster_is_smooth():
     pane alone never hands off focusing paths (exact count of chunks), though the floor is seen
     through it (its hand-off rays, if any, are the paths no walk takes: see
     test_paths_no_walk_takes_count_through_glass)."""
-    from smbs_addon.manifold import can_focus
+    from smbs_addon.walks.manifold import can_focus
 
     ball = scenes.glass_sphere_scene(resolution=(32, 24), height=0.9)
     res = bake(ball, BakeSettings(method="sms", spp=1, batches=1, seed=1))
@@ -143,7 +144,7 @@ def test_seen_handoff_starts_with_the_first_chunk_where_a_caster_is_smooth():
 def _ball_under(light, size, resolution=(32, 24)):
     """glass_sphere_scene's ball (0.9 up) and camera under a sun of angle `size` degrees, straight down,
     or a point light of radius `size` 4 m up."""
-    from smbs_addon.builder import SceneBuilder
+    from smbs_addon.scene.builder import SceneBuilder
 
     b = SceneBuilder("ball under a " + light)
     b.plane("Floor", (0, 0, 0), 10, b.material("floor", "diffuse", color=(scenes.FLOOR_ALBEDO,) * 3))
@@ -163,8 +164,8 @@ def test_a_light_too_small_for_cosine_sampling_is_walked_at_seen_receivers():
     radius 2.6 m above the ball's box 0.004 times, one of 30 cm 3.4. The small lights' focusing paths
     stay with the walks from the first chunk on (exact counts); the large ones' first chunk hands them
     off, as an area light's does."""
-    from smbs_addon import manifold
-    from smbs_addon.indirect import HANDOFF_SAMPLES
+    from smbs_addon.walks import manifold
+    from smbs_addon.paths.gather import HANDOFF_SAMPLES
 
     def hits(sc):
         (lp,) = make_plan(sc).lights
@@ -191,7 +192,7 @@ def test_seen_handoff_stops_where_its_gather_finds_fewer_focusing_paths_than_the
     where the caster can focus, or once walks met a focusing path; after one, on while it found such
     paths, until the walks have met 16 and the gather fewer than half as many (the bumped water under
     a 0.5-degree sun, were it not walked: about 1 gathered to 225 walked per chunk)."""
-    from smbs_addon import manifold
+    from smbs_addon.walks import manifold
 
     ball = scenes.glass_sphere_scene(resolution=(32, 24))
     (lp,) = make_plan(ball).lights
@@ -220,9 +221,9 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     (that sees the floor through the ball), and one in all once the hand-off is made blind too."""
     import importlib
 
-    bake_module = importlib.import_module("smbs_addon.bake")
-    indirect = importlib.import_module("smbs_addon.indirect")
-    manifold = importlib.import_module("smbs_addon.manifold")
+    bake_module = importlib.import_module("smbs_addon.baking.bake")
+    indirect = importlib.import_module("smbs_addon.paths.gather")
+    manifold = importlib.import_module("smbs_addon.walks.manifold")
     monkeypatch.setattr(bake_module, "WALK_CHUNK", 32 * 24)  # 4 spp: 4 chunks or more
     monkeypatch.setattr(manifold, "SEEN_HANDOFF_MIN", 0.0)
     monkeypatch.setattr(manifold, "SEEN_HANDOFF_HITS", 0.0)  # at concentration 0 no light is large enough
@@ -267,8 +268,9 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     specular vertex (origin, direction, distance, throughput) and that vertex's record, to 1e-9;
     the same lanes alive. Glass sphere under an area light: receivers on the floor, K = 2. The
     uniform numbers are the kernel's own (keyed_uniform of the receiver, sample and dimension)."""
-    from smbs_addon import embree, kernels, optics
-    from smbs_addon.vec import cosine_hemisphere, dot, frame, to_world
+    from smbs_addon.kernels import embree, compiled as kernels
+    from smbs_addon.shading import optics
+    from smbs_addon.core.vec import cosine_hemisphere, dot, frame, to_world
 
     scene = scenes.glass_sphere_scene(resolution=(16, 12))
     plan = make_plan(scene)
@@ -336,8 +338,8 @@ def test_paths_no_walk_takes_count_through_glass():
     a bevelled cube's floor seen through it, chains of 5 and more vertices carry 8% of the light.
     Exact partition on the same random numbers, floor seen through a glass ball with T T the only
     walked type: (the others) + (every T T path) = (every path), and the others are not empty."""
-    from smbs_addon import indirect
-    from smbs_addon.eye import eye_receivers
+    from smbs_addon.paths import gather as indirect
+    from smbs_addon.trace.eye import eye_receivers
 
     ball = scenes.glass_sphere_scene(resolution=(32, 24), height=0.9)
     plan = make_plan(ball)

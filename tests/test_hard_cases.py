@@ -29,10 +29,10 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon import scene as S
-from smbs_addon.bake import caustic_region
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.optics import fresnel_dielectric, refract
+from smbs_addon.scene import arrays as S
+from smbs_addon.baking.bake import caustic_region
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.shading.optics import fresnel_dielectric, refract
 from test_manifold_analytic import mirror_expected, water_point_expected
 from test_reference_analytic import pixel_floor_points
 
@@ -602,7 +602,7 @@ def test_a_sun_too_narrow_for_float64_is_a_delta_light():
     the scene along its axis meet no light (it is a delta light, as at angle 0), with no division by zero
     (the bake fuzz drew such a sun: strength / 0, a warning there, inf where a ray ran exactly along the
     axis); the walks still bake its caustic, finite."""
-    from smbs_addon.lights import light_radiance
+    from smbs_addon.shading.lights import light_radiance
 
     b = SceneBuilder("narrow sun")
     b.plane("Floor", (0, 0, 0), 4, b.material("floor", "diffuse"), receiver=True)

@@ -6,10 +6,10 @@ Jacobians) give ok False and finite zeros, as the ok flags of the numpy code say
 import numpy as np
 import pytest
 
-from smbs_addon import kernels as K
-from smbs_addon.constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd, block_solve, blocks, specular_map
-from smbs_addon.geometry import Vertex, pack
-from smbs_addon.vec import cross, frame, normalize
+from smbs_addon.kernels import compiled as K
+from smbs_addon.walks.constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd, block_solve, blocks, specular_map
+from smbs_addon.scene.geometry import Vertex, pack
+from smbs_addon.core.vec import cross, frame, normalize
 
 
 def _random_chain(rng, n, types, directional):
@@ -129,7 +129,7 @@ def test_specular_map_kernel_matches_numpy():
 @pytest.mark.parametrize("types", ["R", "TT", "TRT"])
 @pytest.mark.parametrize("directional", [False, True])
 def test_large_proposal_matches_numpy(types, directional):
-    from smbs_addon.large_mutation import MAX_HALVINGS, large_direction
+    from smbs_addon.walks.large_mutation import MAX_HALVINGS, large_direction
 
     rng = np.random.default_rng(len(types) + 10 * directional)
     n = 1000
@@ -152,7 +152,7 @@ _CACHE_USE = r"""
 import importlib, sys, types
 import numpy as np
 name, path = sys.argv[1], sys.argv[2]
-if name != "smbs_addon.kernels":  # the same files under another package name, as Blender imports the extension
+if name != "smbs_addon.kernels.compiled":  # the same files under another package name, as Blender imports the extension
     top, sub = name.split(".")[:2]
     for pkg, where in ((top, []), (top + "." + sub, [path])):
         m = types.ModuleType(pkg)
@@ -170,7 +170,7 @@ print("CACHE-OK")
 
 def test_disk_cache_survives_two_module_names(tmp_path):
     """A kernel cached under one module name (Blender's bl_ext.*.smbs_caustics...) must not break
-    a later process importing the same file as smbs_addon.kernels, and the other way round
+    a later process importing the same file as smbs_addon.kernels.compiled, and the other way round
     (jit.py's cache locator)."""
     import os
     import subprocess
@@ -180,8 +180,8 @@ def test_disk_cache_survives_two_module_names(tmp_path):
     root = Path(__file__).resolve().parent.parent
     path = str(root / "smbs_addon")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
-    for name in ("smbs_caustics_test.smbs_addon.kernels", "smbs_addon.kernels", "smbs_caustics_test.smbs_addon.kernels",
-                 "smbs_addon.kernels"):
+    for name in ("smbs_caustics_test.smbs_addon.kernels.compiled", "smbs_addon.kernels.compiled", "smbs_caustics_test.smbs_addon.kernels.compiled",
+                 "smbs_addon.kernels.compiled"):
         proc = subprocess.run([sys.executable, "-c", _CACHE_USE, name, path], env=env, capture_output=True,
                               text=True, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
@@ -204,13 +204,13 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
     use = _CACHE_USE + "print('HITS', sum(K.end_mismatch.stats.cache_hits.values()))\n"
 
     def hits():
-        proc = subprocess.run([sys.executable, "-c", use, "copied.smbs_addon.kernels", str(pkg)], env=env,
+        proc = subprocess.run([sys.executable, "-c", use, "copied.smbs_addon.kernels.compiled", str(pkg)], env=env,
                               capture_output=True, text=True, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
         return int(proc.stdout.split("HITS")[1])
 
     assert hits() == 0 and hits() == 1  # compiled, then loaded
-    with open(pkg / "embree.py", "a") as f:
+    with open(pkg / "kernels" / "embree.py", "a") as f:
         f.write("# an edit\n")
     assert hits() == 0 and hits() == 1
 
@@ -222,12 +222,12 @@ def test_cache_stamp_covers_every_file_with_kernels():
     import os
     from pathlib import Path
 
-    from smbs_addon import jit
+    from smbs_addon.core import jit
 
-    pkg = Path(jit.__file__).resolve().parent
-    with_kernels = {f.name for f in pkg.glob("*.py") if "from .jit import" in f.read_text()}
-    assert "rough.py" in with_kernels and "kernels.py" in with_kernels
-    assert with_kernels | {"jit.py"} == {os.path.basename(f) for f in jit._FILES}
+    pkg = Path(jit.__file__).resolve().parents[1]
+    with_kernels = {str(f) for f in pkg.rglob("*.py") if "@njit" in f.read_text()}
+    assert {"microfacet.py", "compiled.py", "embree.py"} <= {os.path.basename(f) for f in with_kernels}
+    assert with_kernels <= set(jit._FILES)
 
 
 def test_typed_once_types_a_long_tuple_once(monkeypatch):
@@ -297,7 +297,7 @@ def test_lane_kernels_count_no_references_refuse_to_allocate_and_the_counters_se
     from numba import njit
     from numba.core.errors import TypingError
 
-    from smbs_addon.jit import JIT, LANES
+    from smbs_addon.core.jit import JIT, LANES
 
     @njit(**dict(LANES, cache=False))
     def through(t, scale):
@@ -364,8 +364,8 @@ def test_packed_floats_is_the_chain_itself_or_packs_a_copy():
     other list of vertices (reordered, a prefix, copied) gives pack's copy, equal to it."""
     import dataclasses
 
-    from smbs_addon.geometry import packed_floats
-    from smbs_addon.walk import Chain
+    from smbs_addon.scene.geometry import packed_floats
+    from smbs_addon.walks.walk import Chain
 
     F = np.random.default_rng(0).random((50, 2, 21))
     ch = Chain(F, np.zeros((50, 2, 3), np.int64), np.zeros(50), np.zeros((50, 3))).take(np.array([3, 1, 4, 1, 5]))

@@ -13,7 +13,7 @@ import pytest
 import scenes
 from smbs_addon import BakeSettings, bake
 
-bake_module = importlib.import_module("smbs_addon.bake")  # the module (the package exports the function)
+bake_module = importlib.import_module("smbs_addon.baking.bake")  # the module (the package exports the function)
 
 
 def _same(a, b):
@@ -30,9 +30,9 @@ def _same(a, b):
 def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monkeypatch):
     s = dict(method=method, estimator=estimator, spp=2, batches=2, seed=5)
     # small parts, so that these small bakes really split every intersect call made from Python
-    monkeypatch.setattr(importlib.import_module("smbs_addon.tracer"), "_MIN_SPLIT", 64)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.trace.tracer"), "_MIN_SPLIT", 64)
     # and indirect.handoff_gather (the ball seen through itself, first chunk) in blocks of 16 receivers
-    monkeypatch.setattr(importlib.import_module("smbs_addon.indirect"), "HANDOFF_LANES", 16 * 64)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.paths.gather"), "HANDOFF_LANES", 16 * 64)
     a = bake(make(), BakeSettings(**s, threads=1))
     b = bake(make(), BakeSettings(**s, threads=2))
     assert a.stats["rays"] == b.stats["rays"]
@@ -49,16 +49,16 @@ def test_same_seed_same_walks_whatever_the_threads(make, method, estimator, monk
     # hand-off in blocks of 7 receivers, that the threads take in turn (lanes.blocks): the image of
     # the uncut walks (the hand-off's random numbers are keyed by receiver and sample), and the same
     # rays whatever the threads
-    monkeypatch.setattr(importlib.import_module("smbs_addon.walk"), "WALK_BLOCK", 128)
-    monkeypatch.setattr(importlib.import_module("smbs_addon.trials"), "TRIAL_BLOCK", 8)
-    monkeypatch.setattr(importlib.import_module("smbs_addon.indirect"), "HANDOFF_LANES", 7 * 64)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.walks.walk"), "WALK_BLOCK", 128)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.walks.trials"), "TRIAL_BLOCK", 8)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.paths.gather"), "HANDOFF_LANES", 7 * 64)
     e = bake(make(), BakeSettings(**s, threads=1))
     f = bake(make(), BakeSettings(**s, threads=2))
     assert e.stats["rays"] == f.stats["rays"]
     assert _same(e, f) and _same(e, c)
     # a chunk's receivers in parts of 100 (manifold.ESTIMATE_PART), each its own random stream,
     # that the threads take in turn: another image, the same one whatever the threads
-    monkeypatch.setattr(importlib.import_module("smbs_addon.manifold"), "ESTIMATE_PART", 100)
+    monkeypatch.setattr(importlib.import_module("smbs_addon.walks.manifold"), "ESTIMATE_PART", 100)
     g = bake(make(), BakeSettings(**s, threads=1))
     h = bake(make(), BakeSettings(**s, threads=2))
     assert g.stats["rays"] == h.stats["rays"] and g.image.max() > 0
@@ -73,7 +73,7 @@ def test_bernoulli_trials_run_exactly_the_trials_each_sample_needs(make, method,
     """The trials are keyed by (sample, trial) and run one after the other per sample: blocks
     of one sample give the image of the default blocks, and every sample runs exactly the
     trials up to its first success (count = first success + 1), or max_trials if none."""
-    trials = importlib.import_module("smbs_addon.trials")
+    trials = importlib.import_module("smbs_addon.walks.trials")
     s = BakeSettings(method=method, spp=2, batches=2, seed=7)
     a = bake(make(), s)
     monkeypatch.setattr(trials, "TRIAL_BLOCK", 1)
@@ -93,8 +93,8 @@ def test_counters_of_a_chunks_parts_add_up_and_its_maxima_stay_maxima(monkeypatc
     largest of the parts' (summed, 8 parts would add their maxima), and the light's time is its
     share of the wall time, within the bake's (summed over parts on two threads, the busy time
     would be about twice it)."""
-    manifold = importlib.import_module("smbs_addon.manifold")
-    lanes = importlib.import_module("smbs_addon.lanes")
+    manifold = importlib.import_module("smbs_addon.walks.manifold")
+    lanes = importlib.import_module("smbs_addon.core.lanes")
     monkeypatch.setattr(manifold, "ESTIMATE_PART", 256)
     parts = []
     add = lanes.add_stats
@@ -119,7 +119,7 @@ def test_counters_of_a_chunks_parts_add_up_and_its_maxima_stay_maxima(monkeypatc
 def test_block_edges_shrink_towards_the_end_and_cover_every_lane():
     """lanes.block_edges: fixed blocks without a minimum; with one, blocks of an eighth of what
     is left, between the minimum and the size, never growing, every lane in exactly one."""
-    from smbs_addon import lanes
+    from smbs_addon.core import lanes
 
     assert lanes.block_edges(300, 128) == [0, 128, 256, 300]
     assert lanes.block_edges(0, 128, 8) == [0]
@@ -136,7 +136,7 @@ def test_blocks_run_each_block_once_in_order_and_do_not_split_inside():
     """lanes.blocks: every block once, results in block order whichever thread ran it; inside a
     block, lanes.run gives one part (the block's calls stay on its thread); one block is called
     as it is, so the calls inside it may split."""
-    from smbs_addon import lanes
+    from smbs_addon.core import lanes
 
     seen = []
     out = lanes.blocks(lambda a, b: seen.append((a, b)) or (a, b, lanes.nested()), 10, 3, 2)
@@ -159,7 +159,7 @@ def test_scratch_arrays_are_kept_per_thread_and_name_until_freed():
     """lanes.scratch: the same memory again for the same name on the same thread (shaped as asked,
     grown when too small), other memory on another thread or under another name; free_scratch
     lets every thread's go."""
-    from smbs_addon import lanes
+    from smbs_addon.core import lanes
 
     a = lanes.scratch("t_a", (4, 3))
     assert a.shape == (4, 3) and a.dtype == np.float64
@@ -219,7 +219,7 @@ def test_one_chunks_photons_split_over_threads_give_the_records_of_one_call(monk
     random numbers keyed by lane, records and splats joined in lane order): the image and the
     counts of one call, bit for bit. (A manifold bake's photon hand-off runs beside its walks
     instead, unsplit: the next test.)"""
-    reference = importlib.import_module("smbs_addon.reference")
+    reference = importlib.import_module("smbs_addon.paths.photons")
     ball = lambda: scenes.glass_sphere_scene(resolution=(32, 24))  # noqa: E731
     for method in ("reference",):
         s = dict(method=method, spp=2, batches=1, seed=6)
@@ -265,7 +265,7 @@ def test_a_bakes_rays_are_every_ray_its_tracers_cast(make, methods, monkeypatch)
     pixel) and auto's pilot bakes (a tracer of their own each) were left out; the pilot's were
     2.7x the rays the glass sphere's auto bake reported. The bent passes (cube_grey_reflect:
     Bump Map Correction) count too."""
-    tracer = importlib.import_module("smbs_addon.tracer")
+    tracer = importlib.import_module("smbs_addon.trace.tracer")
     made = []
     init = tracer.Tracer.__init__
 
@@ -290,7 +290,7 @@ def test_the_photon_hand_off_runs_beside_the_walks_with_the_image_and_counts_of_
     batch's walks (lanes.beside: at low spp a batch's photons are one chunk, whose numpy ran on one
     thread while the other waited), its splats made after the walks' and its counters added then:
     the image, the rays and the hand-off's counts of one thread, bit for bit."""
-    lanes = importlib.import_module("smbs_addon.lanes")
+    lanes = importlib.import_module("smbs_addon.core.lanes")
     calls, beside = [], lanes.beside
 
     def spy(fn):

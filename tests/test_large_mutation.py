@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon.large_mutation import MAX_HALVINGS, get_ratio
+from smbs_addon.walks.large_mutation import MAX_HALVINGS, get_ratio
 
 
 def _slab_hit(o, d, lo, hi):
@@ -54,7 +54,7 @@ def test_get_ratio_matches_the_algorithm_ray_by_ray():
 def _converged_chains(scene, types, n=4000, seed=5):
     """Plain SMS walks of one chain type from floor points in front of the pane; the lanes
     that converged (valid specular paths), with their receivers and light ends."""
-    from smbs_addon.walk import WalkConfig, newton_walk
+    from smbs_addon.walks.walk import WalkConfig, newton_walk
 
     rng = np.random.default_rng(seed)
     x0 = np.c_[rng.uniform(-1.0, 1.0, n), rng.uniform(-2.5, -0.2, n), np.zeros(n)]
@@ -72,7 +72,7 @@ def test_back_lit_trigger_at_the_last_vertex_never_fires_on_a_valid_path():
     back face (T R T) enters and leaves by the front face, and the test fires on every such
     valid path (on a pane seen behind a glass ball it cut SMBS's T R T success from SMS's 0.49
     to 0.055). By default the trigger looks at chains of one vertex only."""
-    from smbs_addon.walk import WalkConfig, backlit
+    from smbs_addon.walks.walk import WalkConfig, backlit
 
     scene = scenes.pane_scene()
     x0, chain, light = _converged_chains(scene, "TRT")
@@ -88,9 +88,9 @@ def test_back_lit_trigger_on_one_vertex_reads_the_light_against_x0():
     """A chain of one vertex: the default ("single") is the paper's test. A mirror's
     reflection fires where x0 and the light are on different sides; a refraction where on
     the same side (four hand-made lanes)."""
-    from smbs_addon.constraints import LightEnd
-    from smbs_addon.kernels import NF, NS, P
-    from smbs_addon.walk import Chain, WalkConfig, backlit
+    from smbs_addon.walks.constraints import LightEnd
+    from smbs_addon.kernels.compiled import NF, NS, P
+    from smbs_addon.walks.walk import Chain, WalkConfig, backlit
 
     F = np.zeros((4, 1, NF))
     F[:, 0, P:P + 3] = 0.0

@@ -4,8 +4,8 @@ against what Cycles renders."""
 import numpy as np
 import pytest
 
-from smbs_addon import layer
-from smbs_addon.optics import fresnel_dielectric
+from smbs_addon.shading import coat as layer
+from smbs_addon.shading.optics import fresnel_dielectric
 
 # Cycles 5.0.1 (the bpy module), measured: a plane of Blender's default Principled BSDF (Base
 # Color 0.8, Roughness 0.5, IOR 1.5) and one of Diffuse BSDF 0.8 under a sun, seen by an
@@ -83,8 +83,8 @@ def test_specular_ior_level_scales_the_reflectance_at_normal_incidence():
 
 
 def _one_material_scene(lay):
-    from smbs_addon import scene as S
-    from smbs_addon.builder import SceneBuilder
+    from smbs_addon.scene import arrays as S
+    from smbs_addon.scene.builder import SceneBuilder
 
     b = SceneBuilder()
     m = b.material("Floor", S.DIFFUSE, layer=lay)

@@ -13,10 +13,10 @@ import numpy as np
 import pytest
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon import scene as S
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.errors import SceneError
-from smbs_addon.plan import make_plan
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.core.errors import SceneError
+from smbs_addon.baking.plan import make_plan
 
 METHODS = ("reference", "sms", "smbs", "mnee", "auto")
 
@@ -168,8 +168,8 @@ def test_a_mesh_light_behind_an_object_that_does_not_shadow_it_is_seen_at_its_ow
     segment sees it, at distance 3 exactly (its distance from the point where the path leaves: the
     hand-off places the light's vertex there), with radiance 5; when it does, none does. The panel's
     Light Linking, asked of the object the segments leave, keeps it from a second such object."""
-    from smbs_addon import indirect
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.paths import gather as indirect
+    from smbs_addon.trace.tracer import Tracer
 
     b = SceneBuilder("seen")
     glow = b.material("Glow", "emitter", color=(1.0, 1.0, 1.0), strength=5.0)
@@ -204,9 +204,9 @@ def test_a_mesh_light_past_an_object_that_does_not_shadow_it_does_not_shadow_its
     these 4000 rays). The rest of a ray past the plate is aimed at the segment's end again; run on by what
     was left of its length, 1046 of the 1749 rays to the front of the ball met its own triangles (the spawn past
     the plate moves the ray off its line; shadow_linked_glow's walks were 0.89 of Cycles)."""
-    from smbs_addon.lights import shadow_tmax
-    from smbs_addon.manifold import sample_light
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.shading.lights import shadow_tmax
+    from smbs_addon.walks.manifold import sample_light
+    from smbs_addon.trace.tracer import Tracer
 
     def scene(plate):
         b = SceneBuilder("glow")

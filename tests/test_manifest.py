@@ -41,8 +41,8 @@ def test_built_zip_contents(tmp_path):
     assert zip_path.name == "smbs_caustics-0.1.0.zip"
     with zipfile.ZipFile(zip_path) as zf:
         names = set(zf.namelist())
-    for required in ("__init__.py", "blender_manifest.toml", "smbs_addon/scene.py",
-                     "smbs_addon/composite.py", "operators/bake.py", "ui/panels.py",
+    for required in ("__init__.py", "blender_manifest.toml", "smbs_addon/scene/arrays.py",
+                     "smbs_addon/blender/composite.py", "operators/bake.py", "ui/panels.py",
                      "ui/properties.py"):
         assert required in names, f"{required} missing from {sorted(names)}"
     excluded = ("tests/", "tools/", "bench/", "sample_blends/", ".venv/", ".ci/", ".git/",
@@ -71,10 +71,10 @@ for core in ("export", "bake", "composite", "imageio"):  # relative imports hold
     importlib.import_module(ext + ".smbs_addon." + core)
 # Prepare Kernels' processes import the installed core under this name, bpy left out
 import subprocess
-prepare = importlib.import_module(ext + ".smbs_addon.prepare")
+prepare = importlib.import_module(ext + ".smbs_addon.baking.prepare")
 check = prepare._IMPORT + "print('PART', prepare.__name__, prepare.__file__, 'bpy' in sys.modules)"
 part = subprocess.run(prepare.part_command(check, 0, 2), capture_output=True, text=True, timeout=120)
-assert part.stdout.split() == ["PART", ext + ".smbs_addon.prepare", prepare.__file__, "False"], part.stdout + part.stderr
+assert part.stdout.split() == ["PART", ext + ".smbs_addon.baking.prepare", prepare.__file__, "False"], part.stdout + part.stderr
 bpy.ops.preferences.addon_disable(module=ext)
 assert "bake_caustics" not in dir(bpy.ops.smbs) and not hasattr(bpy.context.scene, "smbs_caustics")
 print("INSTALL-OK")

@@ -128,8 +128,8 @@ def test_smbs_finds_twice_the_paths_on_a_fine_normal_map():
 def test_sphere_light_samples_only_the_cap_that_can_shine():
     """A sphere light's points outside sphere_cap face away from every caster: the cap is
     exact (no point left out could contribute), and smaller than the sphere."""
-    from smbs_addon.manifold import sphere_cap
-    from smbs_addon.plan import make_plan
+    from smbs_addon.walks.manifold import sphere_cap
+    from smbs_addon.baking.plan import make_plan
 
     scene = scenes.water_scene("point", size=2.6)
     scene.light_radius[:] = 0.5  # a big sphere, 3.5 above the water: a cap well short of the whole

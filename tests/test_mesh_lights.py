@@ -10,12 +10,13 @@ import math
 import numpy as np
 import pytest
 
-from smbs_addon import BakeSettings, bake, lights
-from smbs_addon import scene as S
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.errors import SceneError
-from smbs_addon.manifold import sample_light
-from smbs_addon.estimators import light_end_at_solution
+from smbs_addon import BakeSettings, bake
+from smbs_addon.shading import lights
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.core.errors import SceneError
+from smbs_addon.walks.manifold import sample_light
+from smbs_addon.walks.estimators import light_end_at_solution
 
 
 def _panel_scene(light="mesh", facing=-1.0, strength=60.0, size=0.8, res=(48, 36)):
@@ -179,7 +180,7 @@ def test_a_mesh_light_does_not_make_auto_honour_the_lamps_flags():
     """Cycles has no Shadow Caustics flag for a mesh light: it is always baked, and it does not count as
     a flagged light, so AUTO keeps an unflagged lamp beside it (and honours the lamps' flags once one
     lamp is flagged)."""
-    from smbs_addon.plan import make_plan
+    from smbs_addon.baking.plan import make_plan
 
     def plan_of(flag_lamp):
         b = SceneBuilder("flags")

@@ -7,14 +7,17 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon import BakeSettings, bake, embree, kernels, optics, reference
-from smbs_addon import scene as S
-from smbs_addon.bounces import Limits
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.eye import view_tables
-from smbs_addon.lights import emit
-from smbs_addon.plan import make_plan
-from smbs_addon.tracer import Tracer
+from smbs_addon import BakeSettings, bake
+from smbs_addon.kernels import embree, compiled as kernels
+from smbs_addon.shading import optics
+from smbs_addon.paths import photons as reference
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.light_paths import Limits
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.trace.eye import view_tables
+from smbs_addon.shading.lights import emit
+from smbs_addon.baking.plan import make_plan
+from smbs_addon.trace.tracer import Tracer
 
 # two overlapping spheres under a light at (0, 0, 3)
 TARGETS = np.array([[0.3, 0.0, 0.5, 0.4], [-0.2, 0.1, 0.6, 0.5]])
@@ -219,8 +222,8 @@ def test_camera_splats_are_the_numpy_connection(name):
     an orthographic one under water (records in the filter's margin count), and the ball's floor
     under a Principled BSDF's glossy coat (layer.weight towards the camera, layer.coat_factor) or
     rough (Oren-Nayar)."""
-    from smbs_addon import layer
-    from smbs_addon.camera import CameraModel
+    from smbs_addon.shading import coat as layer
+    from smbs_addon.trace.camera import CameraModel
 
     scene = scenes.water_scene("point") if name == "water_ortho" else scenes.glass_sphere_scene(resolution=(32, 24))
     if name.endswith("_floor"):  # a Principled coat; a rough (Oren-Nayar) diffuse

@@ -18,12 +18,12 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon import scene as S
-from smbs_addon.__main__ import main
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.camera import CameraModel
-from smbs_addon.plan import PILOT_PHOTONS, describe_chain, make_plan, refine_plan
-from smbs_addon.tracer import Tracer
+from smbs_addon.scene import arrays as S
+from smbs_addon.cli.main import main
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.trace.camera import CameraModel
+from smbs_addon.baking.plan import PILOT_PHOTONS, describe_chain, make_plan, refine_plan
+from smbs_addon.trace.tracer import Tracer
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -123,7 +123,7 @@ def test_a_dim_worlds_share_of_the_samples():
     -1.4 and -8.8). Blender's default grey beside this lamp bakes in less time (256 x 192: 8.3-9.1 s
     with every sample, 6.0-6.5 s with its share of 0.18, 4.8-5.2 s without the world; relative error
     0.431 against 0.438)."""
-    from smbs_addon import plan as P
+    from smbs_addon.baking import plan as P
 
     assert P.sample_share(0.0) == 1 / 16 and P.sample_share(0.25) == 0.5 and P.sample_share(4.0) == 1.0
     scene = lens_scene(False, (96, 72), world=0.05)
@@ -198,7 +198,7 @@ def test_a_narrow_spots_pilots_aim_into_its_cone():
     and any other light, aims at the diffuse surfaces' bounding sphere as before. Aimed there,
     glass_spot.blend's 16 deg spot lost its light through a diffuse bounce (the sample plans
     above say it now)."""
-    from smbs_addon.plan import spot_target
+    from smbs_addon.baking.plan import spot_target
 
     scene = scenes.water_scene("point", resolution=8)
     target = np.array([[0.3, -0.2, 0.0, 1.5]])
@@ -240,7 +240,7 @@ def test_no_caster_exits_zero_with_an_all_zero_layer(tmp_path, capsys):
     why = "scene 'Bare' has no caustic caster: no object with a glossy or glass material"
     assert f"plan:\n  Nothing to bake: {why}. The caustic layer is all zero.\n" in said
     assert f"nothing to bake: {why}; the caustic layer is all zero" in said
-    from smbs_addon.imageio import read_exr
+    from smbs_addon.io.exr import read_exr
 
     img = read_exr(out)[0]
     assert img.shape == (12, 16, 3) and not img.any()
@@ -276,7 +276,7 @@ SAMPLE_PLANS = {  # word for word: what each sample scene bakes, by which paths,
 def _sample_plan(name):
     import bpy
 
-    from smbs_addon.export import export_scene
+    from smbs_addon.blender.export import export_scene
 
     bpy.ops.wm.open_mainfile(filepath=str(ROOT / "sample_blends" / name), load_ui=False)
     scene = export_scene(bpy.context.scene)
@@ -293,7 +293,7 @@ def test_sample_scene_plans(name):
 def test_chain_flux_adds_up_as_a_loop_over_the_paths():
     """plan._chain_flux (np.unique and np.bincount) against the loop over pilot paths it replaced:
     the same chains in the order they first appear, and the same sums to the last bit."""
-    from smbs_addon.plan import _chain_flux, _letters
+    from smbs_addon.baking.plan import _chain_flux, _letters
 
     rng = np.random.default_rng(11)
     for n in (0, 1, 7, 3000):
@@ -315,8 +315,8 @@ def test_the_plans_look_from_the_camera_answers_the_light_tracers():
     not known), and the bake casts those rays once (eye_pass.rays_visible 0). Where not known, the
     light tracer's own look casts from the pixels that can see a mirror or glass alone: the same
     answer from a quarter of the rays, none with the ball out of the frame."""
-    from smbs_addon.bake import _specular_visible
-    from smbs_addon.plan import CAMERA_RAYS
+    from smbs_addon.baking.bake import _specular_visible
+    from smbs_addon.baking.plan import CAMERA_RAYS
 
     def look(scene):  # the light tracer's own look, as before the plan answered it
         cam = CameraModel(scene.camera)
@@ -338,8 +338,8 @@ def test_the_plans_look_from_the_camera_answers_the_light_tracers():
             assert st["eye_pass"]["rays_visible"] == 0 and st["eye_pass"]["enabled"] is want
     # more pixels than CAMERA_RAYS: not known from the plan, the light tracer looks itself, from the
     # pixels of the film cells that can see a mirror or glass (eye.specular_cells) alone
-    from smbs_addon.eye import specular_cells
-    from smbs_addon.film import Film
+    from smbs_addon.trace.eye import specular_cells
+    from smbs_addon.trace.film import Film
 
     for shift, want in ((0.0, True), (6.0, False)):
         big = scenes.glass_sphere_scene(resolution=(600, 500))
@@ -362,7 +362,7 @@ def test_pilots_on_one_thread_or_two_plan_the_same():
     """refine_plan's pilots run as tasks the threads take in turn (per light and caster, per
     indirect light), each with its own random stream: the plan on one thread is the plan on two,
     word for word, with the same rays (four lights, glass and a mirror: prepare's scene)."""
-    from smbs_addon import prepare
+    from smbs_addon.baking import prepare
 
     scene = prepare.scene("plain")
     plans = []
@@ -379,7 +379,7 @@ def test_a_closed_mesh_is_told_from_an_open_one():
     edge shared by exactly two triangles, vertices merged by coordinates (flat-shaded meshes repeat
     them per face; -0.0 is 0.0). A cube of 12 triangles, each with its own corners: closed; one
     triangle less: open; a glass ball closed, a pane's box closed, a plane open."""
-    from smbs_addon import manifold
+    from smbs_addon.walks import manifold
 
     corners = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])
     quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from smbs_addon import prepare
-from smbs_addon.bake import BakeSettings, bake
+from smbs_addon.baking import prepare
+from smbs_addon.baking.bake import BakeSettings, bake
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -27,7 +27,7 @@ def test_the_scenes_have_caustics_from_every_light():
     leave along the map's directions: lights._emit_along, which the sample scene hdri_glass compiled
     after prepare), a mirror and a glass each casting, and the bakes find a caustic (so the walks,
     photons and their kernels do run)."""
-    from smbs_addon import scene as S
+    from smbs_addon.scene import arrays as S
 
     for name in ("plain", "textured"):
         sc = prepare.scene(name)

@@ -10,14 +10,16 @@ not see keeps only its reflection (0.10 of its caustic), a glass ball diffuse ra
 import numpy as np
 import pytest
 
-from smbs_addon import BakeSettings, bake, kernels, optics
-from smbs_addon import scene as S
-from smbs_addon.bounces import Limits
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.camera import CameraModel
-from smbs_addon.lights import emit, light_radiance
-from smbs_addon.plan import make_plan
-from smbs_addon.tracer import Tracer
+from smbs_addon import BakeSettings, bake
+from smbs_addon.kernels import compiled as kernels
+from smbs_addon.shading import optics
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.light_paths import Limits
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.trace.camera import CameraModel
+from smbs_addon.shading.lights import emit, light_radiance
+from smbs_addon.baking.plan import make_plan
+from smbs_addon.trace.tracer import Tracer
 
 NO_GLOSSY = S.RAY_ALL & ~S.RAY_GLOSSY
 NO_TRANSMISSION = S.RAY_ALL & ~S.RAY_TRANSMISSION

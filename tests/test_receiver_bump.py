@@ -8,13 +8,14 @@ import math
 import numpy as np
 import pytest
 
-from smbs_addon import BakeSettings, bake, kernels
-from smbs_addon import scene as S
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.camera import CameraModel
-from smbs_addon.eye import view_bumped
-from smbs_addon.optics import bump_shadowing1
-from smbs_addon.tracer import Tracer
+from smbs_addon import BakeSettings, bake
+from smbs_addon.kernels import compiled as kernels
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.trace.camera import CameraModel
+from smbs_addon.trace.eye import view_bumped
+from smbs_addon.shading.optics import bump_shadowing1
+from smbs_addon.trace.tracer import Tracer
 
 UP = (0.0, 0.0, 1.0)
 
@@ -140,7 +141,7 @@ def test_a_pilots_smaller_frame_reads_the_same_view():
     same sub-pixel at 32 x 24 and at 12 x 9 pixels."""
     import dataclasses
 
-    from smbs_addon.eye import view_tables
+    from smbs_addon.trace.eye import view_tables
 
     sc = _mirror_scene(True)
     sc.view_normals, sc.view_points = _view(sc, TILTED)

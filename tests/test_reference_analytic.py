@@ -10,7 +10,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.camera import CameraModel
+from smbs_addon.trace.camera import CameraModel
 
 
 def pixel_floor_points(scene):

@@ -13,8 +13,8 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.bake import caustic_region
-from smbs_addon.builder import SceneBuilder, look_at
+from smbs_addon.baking.bake import caustic_region
+from smbs_addon.scene.builder import SceneBuilder, look_at
 
 RHO2 = 0.7
 
@@ -60,10 +60,10 @@ def test_caustic_seen_in_a_mirror_matches_direct_view():
 def _first_hit_specular_cells(scene, n=300_000, seed=0):
     """Film cells (eye.film_cells' grid) of uniform sample positions over the whole widened film
     whose camera ray meets a mirror or glass first: found by brute force."""
-    from smbs_addon import scene as S
-    from smbs_addon.camera import CameraModel
-    from smbs_addon.film import Film
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.scene import arrays as S
+    from smbs_addon.trace.camera import CameraModel
+    from smbs_addon.trace.film import Film
+    from smbs_addon.trace.tracer import Tracer
 
     cam = CameraModel(scene.camera)
     film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
@@ -86,8 +86,8 @@ def test_eye_cells_hold_every_sample_that_sees_a_mirror_or_glass_first():
     uniform sample positions over the widened film whose ray meets one first lies in its cells
     (exact), and on a ball, a ring and a pane the cells are far fewer than the film's; also on a
     ball whose upper half is diffuse (an object partly mirror or glass: the box of its glass)."""
-    from smbs_addon import scene as S
-    from smbs_addon.eye import film_cells, specular_cells
+    from smbs_addon.scene import arrays as S
+    from smbs_addon.trace.eye import film_cells, specular_cells
 
     def half_glass(resolution):
         scene = scenes.glass_sphere_scene(resolution=resolution)
@@ -113,7 +113,7 @@ def test_eye_pass_from_its_cells_is_the_whole_film_s():
     pass makes, bit for bit, from a third of its eye paths (glass ball; and the lens scene with a
     second glass ball hidden under its floor, whose box the camera's view covers: no sample
     there sees it first)."""
-    from smbs_addon import eye
+    from smbs_addon.trace import eye
     from test_plan import lens_scene
 
     for scene in (scenes.glass_sphere_scene(resolution=(64, 48)), lens_scene(True, (64, 48))):
@@ -139,11 +139,11 @@ def test_eye_paths_reflect_in_the_mirror_onto_the_floor():
     vertex lies where the camera ray, reflected at the mirror (from the mirror point offset by
     tracer.eps), meets the floor (1e-9), with the mirror's reflectance as throughput, one glossy
     bounce before it, and the direction back along the reflected ray."""
-    from smbs_addon.camera import CameraModel
-    from smbs_addon.eye import eye_receivers, film_cells
-    from smbs_addon.film import Film
-    from smbs_addon.plan import make_plan
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.trace.camera import CameraModel
+    from smbs_addon.trace.eye import eye_receivers, film_cells
+    from smbs_addon.trace.film import Film
+    from smbs_addon.baking.plan import make_plan
+    from smbs_addon.trace.tracer import Tracer
 
     scene = _mirror_scene(True)
     cam = CameraModel(scene.camera)
@@ -172,9 +172,9 @@ def test_fewer_eye_samples_than_cells_reach_every_cell_with_unit_weight():
     the cells exactly and every cell is reached. It was the first n_batch cells only, each with
     weight 1: cube_grey_reflect's light tracer read 0.742 +- 0.008 of Cycles over 8 seeds at 256
     spp, where at 512 it read 1.0."""
-    from smbs_addon.camera import CameraModel
-    from smbs_addon.eye import film_cells, film_samples
-    from smbs_addon.film import Film
+    from smbs_addon.trace.camera import CameraModel
+    from smbs_addon.trace.eye import film_cells, film_samples
+    from smbs_addon.trace.film import Film
 
     sc = scenes.glass_sphere_scene(resolution=(20, 15))
     cam = CameraModel(sc.camera)

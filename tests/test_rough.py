@@ -10,9 +10,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from smbs_addon import BakeSettings, bake, optics, rough
-from smbs_addon import scene as S
-from smbs_addon.builder import SceneBuilder
+from smbs_addon import BakeSettings, bake
+from smbs_addon.shading import optics, microfacet as rough
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.builder import SceneBuilder
 
 N = 400_000
 
@@ -346,9 +347,9 @@ def test_the_eye_sees_more_of_the_floor_in_a_rough_mirror():
     ray goes on in the perfect reflection and in one sampled direction, so the box of floor it finds
     seen in the mirror holds the perfect mirror's and reaches further (the pilots test landings
     against that box where a receiver is not seen directly)."""
-    from smbs_addon.camera import CameraModel
-    from smbs_addon.plan import camera_sees, make_plan
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.trace.camera import CameraModel
+    from smbs_addon.baking.plan import camera_sees, make_plan
+    from smbs_addon.trace.tracer import Tracer
 
     boxes = []
     for roughness in (0.0, 0.5):

@@ -9,10 +9,10 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings
-from smbs_addon import scene as S
-from smbs_addon.builder import SceneBuilder, look_at
-from smbs_addon.errors import SceneError
-from smbs_addon.scene import Scene
+from smbs_addon.scene import arrays as S
+from smbs_addon.scene.builder import SceneBuilder, look_at
+from smbs_addon.core.errors import SceneError
+from smbs_addon.scene.arrays import Scene
 
 
 def full_scene() -> Scene:
@@ -344,9 +344,9 @@ def test_a_bake_builds_each_seeder_once(monkeypatch):
     light and batch."""
     import importlib
 
-    from smbs_addon import manifold
+    from smbs_addon.walks import manifold
 
-    bake_mod = importlib.import_module("smbs_addon.bake")  # the module, not the function
+    bake_mod = importlib.import_module("smbs_addon.baking.bake")  # the module, not the function
     built = []
     init = manifold.Seeder.__init__
 

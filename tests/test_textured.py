@@ -11,8 +11,8 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon import scene as S
-from smbs_addon.__main__ import exr_channels
+from smbs_addon.scene import arrays as S
+from smbs_addon.cli.main import exr_channels
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
@@ -68,7 +68,7 @@ def test_under_a_principled_coat_the_albedo_is_what_the_coat_leaves():
     1 - A(mu) towards the eye, as Cycles' Diffuse Color pass holds it; per_albedo times that
     pass (the colour times the coat's share at the pixel's mu) gives back the textured part
     within the spread of mu inside a pixel (0.5%)."""
-    from smbs_addon import layer
+    from smbs_addon.shading import coat as layer
 
     sc = _textured(scenes.glass_sphere_scene(resolution=(32, 24)))
     sc.mat_layer = np.zeros((len(sc.mat_kind), 8))
@@ -99,7 +99,7 @@ def test_flags_given_as_numbers_split_the_same():
 def test_the_exr_holds_the_layer_and_the_per_albedo_channels():
     sc = _textured(scenes.glass_sphere_scene(resolution=(16, 12)))
     r = bake(sc, BakeSettings(method="reference", spp=1, seed=1))
-    from smbs_addon.__main__ import summary_lines
+    from smbs_addon.cli.main import summary_lines
 
     assert any(line.startswith("  textured receivers: ") and "Diffuse Color pass" in line
                for line in summary_lines(r.stats))

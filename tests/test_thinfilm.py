@@ -10,11 +10,11 @@ import math
 import numpy as np
 import pytest
 
-from smbs_addon import optics
-from smbs_addon import scene as S
-from smbs_addon import thinfilm as T
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.errors import SceneError
+from smbs_addon.shading import optics
+from smbs_addon.scene import arrays as S
+from smbs_addon.shading import thinfilm as T
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.core.errors import SceneError
 
 
 def _amplitudes(n1, c1, n2, c2):

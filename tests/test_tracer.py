@@ -10,8 +10,8 @@ from fractions import Fraction
 import numpy as np
 import pytest
 
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.tracer import Tracer
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.trace.tracer import Tracer
 
 
 def unit(v):

@@ -9,7 +9,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.errors import SceneError
+from smbs_addon.core.errors import SceneError
 
 
 def _walks(types="TT", n=3000, seed=4):
@@ -27,7 +27,7 @@ def test_a_stalled_walk_stops_at_the_first_step_that_shrank_four_by_less_than_a_
     the walk cut at max_iterations = m): a lane stops ("stalled") at the first step s >= 6 whose
     mismatch is above 0.9 times that of step s - 4, and only there; every other lane walks
     exactly as without the rule (outcome, steps, chain)."""
-    from smbs_addon.walk import STALL, STALLED, WalkConfig, end_mismatch, newton_walk
+    from smbs_addon.walks.walk import STALL, STALLED, WalkConfig, end_mismatch, newton_walk
 
     ctx, x0, ng0, light, chain = _walks()
     base = WalkConfig(beta0=0.125)
@@ -66,8 +66,8 @@ def test_first_step_scales_the_first_newton_step():
     through p; so where the ray meets x1's tangent plane is p again. Two walks of one step from
     the same seeds, beta 1 and 1/8, on lanes where both steps were accepted: the tangent-plane
     points' offsets from x1 are in the ratio 1/8 (1e-6)."""
-    from smbs_addon.kernels import P, S, T
-    from smbs_addon.walk import WalkConfig, newton_walk
+    from smbs_addon.kernels.compiled import P, S, T
+    from smbs_addon.walks.walk import WalkConfig, newton_walk
 
     ctx, x0, ng0, light, chain = _walks(n=2000)
     one = dict(max_iterations=1, max_step=1e9)
@@ -90,7 +90,7 @@ def test_first_step_scales_the_first_newton_step():
 
 
 def test_mnee_and_the_biased_estimator_keep_the_published_walk_and_bad_first_steps_are_refused():
-    from smbs_addon.walk import STALL
+    from smbs_addon.walks.walk import STALL
 
     for method in ("sms", "smbs"):
         w = BakeSettings(method=method).manifold_options().walk

@@ -13,8 +13,8 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.builder import SceneBuilder
-from smbs_addon.lights import EnvMap, emit
+from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.shading.lights import EnvMap, emit
 from test_reference_analytic import check_against, pixel_floor_points
 
 H, W = 32, 64

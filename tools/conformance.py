@@ -73,18 +73,18 @@ def scene_arrays(name: str):
     scene: its .blend file)."""
     import hashlib
 
-    from smbs_addon.scene import Scene
+    from smbs_addon.scene.arrays import Scene
 
     src = (ROOT / "sample_blends" / "conformance_scenes.py").read_bytes() + \
-        (ROOT / "sample_blends" / "build.py").read_bytes() + (ROOT / "smbs_addon" / "export.py").read_bytes() + \
-        (ROOT / "smbs_addon" / "bump.py").read_bytes()
+        (ROOT / "sample_blends" / "build.py").read_bytes() + (ROOT / "smbs_addon" / "blender" / "export.py").read_bytes() + \
+        (ROOT / "smbs_addon" / "scene" / "bump.py").read_bytes()
     if name in SAMPLES:
         src += (ROOT / "sample_blends" / f"{SAMPLES[name]}.blend").read_bytes()
     key = hashlib.sha1(src).hexdigest()[:12]
     path = CACHE / f"{name}-{key}.npz"
     if path.exists():
         return Scene.load(path)
-    from smbs_addon.__main__ import load_input
+    from smbs_addon.cli.main import load_input
 
     CACHE.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:
@@ -127,7 +127,7 @@ def _sample_reference(sample: str) -> dict:
 
 def region_of(lum: np.ndarray, frac: float = 0.05) -> np.ndarray:
     """The caustic region, as a bake picks its own (luminance over 5x5 pixels, 5% of its top)."""
-    from smbs_addon.convergence import caustic_region
+    from smbs_addon.baking.convergence import caustic_region
 
     return caustic_region(lum, frac)
 
@@ -217,9 +217,9 @@ def view_masks(scene, sub: int = 4) -> tuple[np.ndarray, np.ndarray]:
     primary rays meet a diffuse surface first, and those all of whose rays meet a mirror or
     glass first (the camera sees a receiver through them, or nothing). Pixels on an edge
     between the two are in neither."""
-    from smbs_addon import scene as S
-    from smbs_addon.camera import CameraModel
-    from smbs_addon.tracer import Tracer
+    from smbs_addon.scene import arrays as S
+    from smbs_addon.trace.camera import CameraModel
+    from smbs_addon.trace.tracer import Tracer
 
     cam = CameraModel(scene.camera)
     tracer = Tracer(scene, threads=2)
@@ -261,7 +261,7 @@ def render_diffuse_color(name: str, blend: Path, spp: int = 64, threads: int = 2
     import bpy
     from cycles_reference import _set_render
 
-    from smbs_addon.imageio import read_passes
+    from smbs_addon.io.exr import read_passes
 
     bpy.ops.wm.open_mainfile(filepath=str(blend))
     scene = bpy.context.scene

@@ -5,7 +5,7 @@ import textwrap
 
 import bpy
 
-# Statistics keys the panel understands (see smbs_addon.bake), with alternatives.
+# Statistics keys the panel understands (see smbs_addon.baking.bake), with alternatives.
 _SUCCESS_RATE = ("success_rate",)
 _WALKS = ("walks_succeeded", "walks_started")
 _MUTATIONS_PER_PATH = ("mutations_per_path", "mpp")
@@ -16,7 +16,7 @@ _TRIGGERS = (("tir", "TIR"), ("backlit", "back-lit"), ("slow", "slow"))
 
 # Objects that can cast or receive (as exported: anything with triangles), and lights.
 _GEOMETRY = {"MESH", "CURVE", "SURFACE", "FONT", "META"}
-_TAG = "smbs_caustics"  # custom property on the layer's image (see smbs_addon.composite)
+_TAG = "smbs_caustics"  # custom property on the layer's image (see smbs_addon.blender.composite)
 
 
 def _number(value):

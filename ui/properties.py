@@ -1,7 +1,7 @@
 """Bake settings stored on each scene as ``scene.smbs_caustics``.
 
 The properties named in ``BAKE_FIELDS`` are the fields of
-``smbs_addon.bake.BakeSettings`` with the same names and the same defaults; the
+``smbs_addon.baking.bake.BakeSettings`` with the same names and the same defaults; the
 operator copies them across by name. The rest are the layer's file, the
 Cycles policy and what the last bake left behind for the panels.
 """

@@ -1,0 +1,614 @@
+"""Caustic light that meets more than one diffuse surface.
+
+The caustic layer is what Cycles adds when caustics are on: every path camera ->
+(specular)* -> diffuse x0 -> ... -> light with at least one specular vertex on
+the light's side of x0. The manifold pass and the light tracer's first pass take
+the paths with x0 the only diffuse vertex (x0 -> specular+ -> light). This module
+takes the rest, the paths with at least one more diffuse vertex: a floor lit
+directly that lights a glass ball, which focuses that light back onto the floor
+(camera -> floor -> glass -> floor -> light), or water whose caustic on a pool's
+floor rises, reflects off the water's underside (total internal reflection) and
+lands on the floor again (camera -> water -> floor -> water -> floor -> water ->
+sun). On a pool with a floor of albedo 0.8 that is a third of the layer.
+
+Two estimators, split by how the camera sees x0:
+- directly: light tracing (``trace_photons``). Photons leave the lights in every
+  direction, bounce off diffuse surfaces (cosine, Russian roulette on the
+  albedo) and through specular ones, and splat at each receiver the camera sees
+  once their history holds a specular vertex and a diffuse one;
+- through mirrors or glass (the camera cannot be reached from x0 by a photon):
+  path tracing from x0 (``gather``): cosine bounces through specular chains to
+  the next diffuse vertices x1, x2, ..., where direct light counts once a
+  specular vertex lies behind, and the caustic at xi (xi -> specular+ -> light)
+  is estimated by the caller's ``connect`` (the manifold walks), or, for the
+  light tracer, by lights hit after a specular vertex.
+Bounces are counted as Cycles counts them, within the scene's Light Paths limits
+(bounces.py; without limits, 4 diffuse bounces).
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kernels import embree, compiled as kernels
+from ..core import lanes
+from ..shading import coat as layer, optics
+from ..scene import arrays as S
+from ..scene.light_paths import ONE_DIFFUSE, Limits, specular_kind
+from ..trace.eye import Receivers, direct_albedo, surface_at
+from ..scene.geometry import triangle_areas
+from ..shading.lights import area_light_shape, light_radiance, shadow_tmax
+from .photons import _letters, run_photons, scatter_specular, splat_records
+from ..shading.microfacet import walk_casters
+from ..core.vec import cross, dot, normalize
+
+MAX_SPECULAR = 32
+HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
+# the same where nothing is walked (every caster rough): the gather is then the whole estimator at
+# receivers seen through mirrors or glass, and more eye samples beat more directions per receiver.
+# Relative RMSE x time, SMBS, 2 seeds, 8 against 64: rough_pool_sun (64 spp) 1.42-1.46 in 3.3-3.7 s
+# against 1.10-1.13 in 15.1-16.2 s, 2.7x more efficient; rough_glass_ball (256 spp) 1.2x. Where
+# walks run (cube_grey, 32 spp: 0.71-0.83 against 0.56-0.70 in the same time) 64 stays
+UNWALKED_SAMPLES = 8
+HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
+# bent_gather's aimed bounces per receiver; its receivers are a share of the eye samples. The
+# manifold passes take one receiver in BENT_RECEIVER_SHARE (4 bounces from every receiver made
+# SMBS on sample_blends' glass ball 3.3 -> 3.9-4.0 s at 16 spp), the light tracer one eye sample
+# in BENT_EYE_SHARE (on cube_grey_reflect at 1024 spp, 4 from every eye sample took 11 of the
+# bake's 13.5 s, most of it the eye paths; 16 from one in 16, 2.2 of 4.6 s; on the glass ball of
+# sample_blends (256 spp) that doubled the bake for 0.2% of its layer, so 16 from one in 64)
+BENT_BOUNCES, BENT_RECEIVER_SHARE, BENT_EYE_SHARE = 16, 16, 64
+# specular vertices bent_gather follows: the bent paths are a few % of a layer at most (1.65% on
+# cube_grey), and chains longer than 8 carry 0.8-2.0% of a bevelled cube's light (OTHERS_DEPTH);
+# each lane keeps a record per vertex (kernels.handoff_lanes' seg and hist)
+BENT_DEPTH = 8
+# specular vertices handoff_gather follows for the paths no walk takes (chains longer than
+# max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
+# bounces): of the light a bevelled glass cube brings into the frame, chains of more than 8
+# vertices carry 0.8-2.0%, of more than 16 0.3-0.7% (photons, cube_grey and cube_white_rect)
+OTHERS_DEPTH = 16
+
+
+def _albedo(scene, mat):
+    return scene.mat_color[mat]
+
+
+def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
+    """Cosine-sampled bounce off diffuse vertices (about the shading normal on w_in's side),
+    with Russian roulette on the albedo (kernels.diffuse_rows). Returns (directions, weights,
+    kept vertices)."""
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    return kernels.diffuse_rows(rng.random((3, len(w_in))), f64(w_in), f64(ng), f64(ns), f64(beta), f64(albedo),
+                                bool(adjoint))
+
+
+def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False):
+    """Light tracing of the layer's paths through two or more diffuse vertices, splatted
+    at the receivers the camera sees directly (photons from lights.emit over the whole
+    scene, not only towards the casters), within the scene's Light Paths limits
+    (kernels.photon_lanes, indirect)."""
+    lim = Limits.of(scene)
+    rec, ids, _, _, _ = run_photons(scene, tracer, plan, photons, rng, stats, indirect=True,
+                                    max_iter=MAX_SPECULAR + min(lim.diffuse, 64) + 1, physical=physical)
+    splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=False)
+
+
+def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats, obj=None):
+    """Direct light of light li at diffuse points (one light sample each), as outgoing
+    radiance towards w_eye divided by the albedo: cos * L_e * G / (pi p). obj: the points'
+    objects, none lit where the light's Light Linking leaves the object out (None: all lit)."""
+    from ..walks.manifold import sample_light
+    from ..walks.estimators import light_end_at_solution
+
+    n = len(p)
+    out = np.zeros((n, 3))
+    if n == 0:
+        return out
+    light = sample_light(scene, li, n, rng)
+    _, e = light_end_at_solution(scene, li, light, p)
+    typ = scene.light_type[li]
+    if light.directional:
+        dirs, dist = light.y, np.full(n, np.inf)
+        g = np.ones(n)
+    else:
+        to = light.y - p
+        dist = np.sqrt(dot(to, to))
+        dirs = to / np.maximum(dist, 1e-300)[:, None]
+        if typ == S.AREA:
+            nrm = area_light_shape(scene, li)[3]
+            cos_y = np.maximum(0.0, -dot(dirs, nrm))
+        elif typ == S.MESH:  # both sides shine
+            cos_y = np.abs(dot(dirs, cross(light.ys, light.yt)))
+        elif scene.light_radius[li] > 0:
+            cos_y = np.maximum(0.0, -dot(dirs, normalize(light.y - scene.light_matrix[li][:3, 3])))
+        else:
+            cos_y = np.ones(n)
+        g = cos_y / np.maximum(dist, 1e-300) ** 2
+    side = np.sign(dot(w_eye, ng))
+    cos_x = dot(dirs, ns) * side
+    ok = (cos_x > 0) & (dot(dirs, ng) * side > 0) & (g > 0) & (e.max(axis=1) > 0)
+    if obj is not None and scene.light_linked(li):
+        ok &= scene.lit_by(li)[obj]
+    idx = np.flatnonzero(ok)
+    if idx.size:
+        o = tracer.spawn(p[idx], ng[idx], dirs[idx])
+        tmax = np.full(idx.size, np.inf) if light.directional else \
+            shadow_tmax(scene, li, light.y[idx], light.ys[idx], light.yt[idx], o, dirs[idx], dist[idx], tracer.eps)
+        blocked = tracer.occluded_past(o, dirs[idx], tmax, S.RAY_SHADOW, scene.unshadowing(li))  # Shadow Linking
+        stats["rays_direct"] = stats.get("rays_direct", 0) + int(idx.size)
+        idx = idx[~blocked]
+        out[idx] = (cos_x[idx] * g[idx] / math.pi)[:, None] * e[idx]
+    return out
+
+
+def seen_light(scene, tracer, li, o, d, refl, surf_t, obj):
+    """Where segments o + t d (leaving a reflection where refl, a refraction elsewhere; their next surface
+    at surf_t, inf where none) see light li before that surface, its radiance and distance: (seen, L, tl).
+    Cycles' lights are transparent (shade_light adds the emission and the path goes on): a light counts
+    wherever it lies in front of the next surface, not only the nearest. Under Shadow Linking, past the
+    surfaces of the objects that do not shadow the light as well (Cycles' dedicated light rays): the light
+    is found beyond the surfaces (tl its distance there) and the segments that meet it are traced again,
+    passing those objects. Light Linking: where the light lights obj, the object of the vertex each segment
+    leaves."""
+    refl = np.broadcast_to(np.asarray(refl, bool), (len(o),))
+    passable = scene.unshadowing(li)
+    if passable is None:
+        L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
+        seen = tl < surf_t
+    else:
+        L, tl = light_radiance(scene, li, o, d, refl=refl, beyond=True)
+        seen = L.max(axis=1) > 0
+        for r, kind in ((True, S.RAY_GLOSSY), (False, S.RAY_TRANSMISSION)):
+            j = np.flatnonzero(seen & (refl == r))
+            if j.size:  # short of the light itself (a mesh light's triangles are surfaces)
+                seen[j] = ~tracer.occluded_past(o[j], d[j], tl[j] * (1.0 - 1e-6), kind, passable)
+    seen &= L.max(axis=1) > 0
+    if scene.light_linked(li):
+        seen &= scene.lit_by(li)[obj]
+    return seen, L, tl
+
+
+def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
+           lights_hit=(), count_first=False, compiled=True, others=None):
+    """Path tracing from receivers x0 (seen through mirrors or glass) for the layer's paths
+    with more diffuse vertices; splats the radiance found at the eye samples' film positions.
+
+    Generations of diffuse vertices x0, x1, x2, ...: from each, one cosine bounce (Russian
+    roulette on the albedo) through specular vertices to the next diffuse vertex, where
+    - direct light of lights_direct counts once a specular vertex on a caster lies
+      between x0 and there;
+    - connect(receivers) -> (M,3), the caller's estimate of the caustic at planned
+      receivers (x_i -> specular+ -> light, throughput included: the manifold walks), counts
+      always; without connect, lights_hit seen right after a specular vertex on a caster
+      count instead (the light tracer's way), x0's own caustic only when count_first;
+    - with connect, others (light index -> reference.Handoff, those of others=True) adds the
+      paths x_i -> specular+ -> light (i >= 1) no walk takes (reference.other_paths: a chain
+      type not walked, longer than the longest walked, or through a specular vertex that is no
+      walked caster, such as a rough one), the lights hit on them, as handoff_gather adds them
+      at x0: the walks' estimate at x_i leaves exactly those out.
+    Every path keeps to the scene's Light Paths limits as Cycles counts them (bounces.py:
+    the events before the last one, from the camera, rc.prior before x0).
+
+    Without connect (and unless compiled is False: the same estimator in numpy, per bounce, for
+    the tests), the paths are traced in compiled code (_traced_gather)."""
+    n = len(rc.p)
+    if n == 0:
+        return
+    if connect is None and compiled:
+        radiance = _traced_gather(scene, tracer, plan, rc, rng, stats, lights_direct, physical, lights_hit,
+                                  count_first)
+        return _splat_gathered(scene, film, rc, radiance, stats)
+    lim = Limits.of(scene)
+    radiance = np.zeros((n, 3))
+    others = {li: ho for li, ho in (others or {}).items() if ho.others} if connect else {}
+    walked = walk_casters(scene, plan.casters) if others else None  # objects whose vertices a walk takes
+    # the frontier: diffuse vertices to bounce from, with the events before them
+    f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
+    f_beta, f_mat, f_cnt = rc.beta, rc.mat, rc.prior
+    f_has_s, f_depth = np.zeros(n, bool), np.zeros(n, np.int64)
+    absorbing = optics.absorbing(scene)
+    while len(f_lane):
+        # a diffuse bounce is never a caustic path's last event: it must fit the limits
+        go = np.flatnonzero(lim.fits(f_cnt + ONE_DIFFUSE))
+        d, beta, k = _diffuse_bounce(rng, f_w[go], f_ng[go], f_ns[go], f_beta[go], _albedo(scene, f_mat[go]), False)
+        sel = go[k]
+        x0 = np.flatnonzero(f_depth[sel] == 0)
+        if x0.size and layer.has_layers(scene):  # x0 under a Principled coat (kernels._gather_rows the same)
+            beta[x0] = beta[x0] * layer.coat_factor(scene, f_mat[sel[x0]], scene.mat_color, f_ns[sel[x0]],
+                                                    f_w[sel[x0]], d[x0])
+        lane, has_s, depth = f_lane[sel], f_has_s[sel], f_depth[sel]
+        cnt = f_cnt[sel] + ONE_DIFFUSE  # every event so far
+        before = cnt.copy()  # the events before the latest
+        o = tracer.spawn(f_p[sel], f_ng[sel], d)
+        last_caster = np.zeros(len(lane), bool)
+        last_obj = np.full(len(lane), -1)  # the latest specular vertex's object (Light Linking's)
+        last_refl = np.zeros(len(lane), bool)  # the latest specular event a reflection (a glossy ray leaves it)
+        medium = np.full(len(lane), -1)  # inside a glass (its material) or not
+        # the chain since the latest diffuse vertex: its letters (bit 1: R, the first vertex the
+        # highest, as reference._chain_codes) and whether every vertex is on a walked caster
+        code, on = np.zeros(len(lane), np.int64), np.ones(len(lane), bool)
+        nxt = []
+        for bounce in range(MAX_SPECULAR + 1):
+            if len(lane) == 0:
+                break
+            # past what the ray's kind does not meet: the diffuse bounce's, then the latest event's
+            h = tracer.intersect_past(o, d, S.RAY_DIFFUSE if bounce == 0 else
+                                      np.where(last_refl, S.RAY_GLOSSY, S.RAY_TRANSMISSION))
+            stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
+            if others and bounce > 0:
+                _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, bounce,
+                              (depth >= 1) & lim.fits(before), radiance, stats, last_obj)
+            if connect is None and bounce > 0 and len(lights_hit):
+                # Cycles' lights are transparent (shade_light adds the emission and the path
+                # goes on): every light in front of the next surface counts, not the nearest
+                surf_t = np.where(h.hit, h.t, np.inf)
+                seen_l = np.zeros((len(o), 3))
+                for li in lights_hit:
+                    seen, L, tl = seen_light(scene, tracer, li, o, d, last_refl, surf_t, last_obj)
+                    seen_l += np.where(seen[:, None], L, 0.0)
+                count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
+                                       & lim.fits(before))
+                np.add.at(radiance, lane[count], beta[count] * seen_l[count])
+            prim, hmat, kind = surface_at(scene, h)
+            if absorbing:  # the segment just crossed, inside a glass's volume (kernels._absorbed)
+                seg_medium = optics.arriving(scene, medium, hmat, h.hit, d, h.ng)
+                beta = beta * optics.transmittance(scene, seg_medium, np.where(h.hit, h.t, 0.0))
+            diff = np.flatnonzero(kind == S.DIFFUSE)
+            if diff.size:  # the next diffuse vertex
+                g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
+                         mat=hmat[diff], has_s=has_s[diff], depth=depth[diff] + 1, cnt=cnt[diff])
+                if layer.has_layers(scene):  # its diffuse under its glossy layer, towards w (as eye_receivers)
+                    g["beta"] = g["beta"] * layer.weight(layer.table(scene), g["mat"], dot(g["w"], g["ns"]))[:, None]
+                alb = _albedo(scene, g["mat"])
+                lit = np.flatnonzero(g["has_s"] & lim.fits(g["cnt"]))  # direct light: every event before fits
+                for li in lights_direct:
+                    if lit.size:
+                        rad = direct_light(scene, tracer, li, g["p"][lit], g["ng"][lit], g["ns"][lit], g["w"][lit],
+                                           rng, stats, scene.tri_object[prim[diff[lit]]])
+                        np.add.at(radiance, g["lane"][lit], g["beta"][lit] * alb[lit] * rad)
+                if connect is not None:
+                    rec = np.flatnonzero(plan.receivers[scene.tri_object[prim[diff]]]
+                                         & lim.fits(g["cnt"] + ONE_DIFFUSE))
+                    if rec.size:
+                        ln = g["lane"][rec]
+                        sub = Receivers(rx=rc.rx[ln], ry=rc.ry[ln], p=g["p"][rec], ng=g["ng"][rec], ns=g["ns"][rec],
+                                        w_eye=g["w"][rec], beta=g["beta"][rec], mat=g["mat"][rec],
+                                        eye_specular=np.maximum(rc.eye_specular[ln], 1), weight=rc.weight[ln],
+                                        prior=g["cnt"][rec])
+                        np.add.at(radiance, ln, connect(sub))
+                nxt.append(g)
+            spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
+            if spec.size == 0 or bounce == MAX_SPECULAR:
+                break
+            d_in = d[spec]
+            dd, bb, keep = scatter_specular(scene, rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
+                                            beta[spec], scale_eta=physical)
+            sk = spec[keep]
+            last_obj = scene.tri_object[prim[sk]]
+            last_caster = plan.casters[last_obj]
+            kinds = specular_kind(d_in[keep], dd, h.ng[sk])
+            last_refl = kinds == 1
+            if others:
+                code = code[sk] * 2 + last_refl
+                on = on[sk] & walked[scene.tri_object[prim[sk]]]
+            if absorbing:
+                medium = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
+            lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
+            before = cnt[sk]
+            cnt = before.copy()
+            cnt[np.arange(len(sk)), kinds] += 1
+            # a path whose events before the latest no longer fit cannot fit later
+            alive = np.flatnonzero(lim.fits(before))
+            if alive.size < len(lane):
+                lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
+                last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
+                last_obj = last_obj[alive]
+                last_refl = last_refl[alive]
+                if others:
+                    code, on = code[alive], on[alive]
+                if absorbing:
+                    medium = medium[alive]
+            o = tracer.spawn(h.p[sk], h.ng[sk], d)
+        if not nxt:
+            break
+        cat = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
+        f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
+        f_beta, f_mat, f_has_s, f_depth, f_cnt = cat["beta"], cat["mat"], cat["has_s"], cat["depth"], cat["cnt"]
+    _splat_gathered(scene, film, rc, radiance, stats)
+
+
+def _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats, last_obj):
+    """gather's paths no walk takes: the lights of others (light index -> Handoff) seen on the
+    segments (o, d; hits h) after k specular vertices, where ok, added to radiance per lane
+    (last_obj: the object of the vertex each segment leaves, for the lights' Light Linking)."""
+    surf_t = np.where(h.hit, h.t, np.inf)
+    for li, ho in others.items():
+        walked = [c for c in np.unique(code) if _letters(c, k) in ho.types]  # as reference.other_paths
+        other = ok & (~on | ~np.isin(code, walked))
+        if not other.any():
+            continue
+        refl = (code & 1) == 1  # the latest vertex's letter
+        seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, last_obj)
+        seen = np.flatnonzero(other & seen)
+        np.add.at(radiance, lane[seen], beta[seen] * L[seen])
+        stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
+
+
+def _splat_gathered(scene, film, rc: Receivers, radiance, stats):
+    hit = np.flatnonzero(radiance.max(axis=1) > 0)
+    if hit.size:
+        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))
+        stats["eye_splats"] = stats.get("eye_splats", 0) + int(hit.size)
+
+
+def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct, physical, lights_hit, count_first):
+    """gather's radiance (n,3) at the receivers without walks to connect (the light tracer's):
+    the paths traced in kernel calls (kernels.gather_lanes, their random numbers keyed by one draw
+    from rng and the receiver's index), the lights on the segments it records and the direct light
+    at the vertices it records found here, as gather finds them."""
+    from ..walks.manifold import light_can_be_hit
+
+    n = len(rc.p)
+    lim = Limits.of(scene)
+    hit_lights = [li for li in lights_hit if light_can_be_hit(scene, li)]
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    args = (f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye), f64(rc.beta), np.ascontiguousarray(rc.mat, np.int64),
+            np.ascontiguousarray(rc.prior, np.int64), tracer.kernel_geometry(plan.casters), optics.materials(scene),
+            lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), bool(hit_lights), bool(lights_direct),
+            tracer.eps)
+    key = int(rng.integers(2**63))
+    # a lane records at most MAX_SPECULAR segments and one vertex per diffuse vertex: every call moves on
+    cap = max(n, (int(lim.diffuse) + 2) * (MAX_SPECULAR + 2))
+    n_seg, n_vx = (cap if hit_lights else 0), (cap if lights_direct else 0)
+    parts, lane = [], 0
+    while lane < n:
+        seg, seg_i = np.empty((n_seg, kernels.SEG_F)), np.empty(n_seg, np.int64)
+        vx, vx_i = np.empty((n_vx, kernels.VX_F)), np.empty(n_vx, np.int64)
+        rt = tracer.rays()
+        lane, ms, mv, counts = kernels.gather_lanes(rt, key, lane, *args, seg, seg_i, vx, vx_i)
+        tracer.cast_by_kernel(rt, counts)
+        stats["rays_gather"] = stats.get("rays_gather", 0) + int(counts[embree.KINDS:].sum())
+        parts.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
+    seg, seg_i, vx, vx_i = (np.concatenate([p[k] for p in parts]) for k in range(4))
+    radiance = np.zeros((n, 3))
+    if len(seg):
+        o, d, surf_t = seg[:, kernels.SEG_O:kernels.SEG_O + 3], seg[:, kernels.SEG_D:kernels.SEG_D + 3], \
+            seg[:, kernels.SEG_T]
+        beta, refl = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3], seg[:, kernels.SEG_REFL] > 0
+        seg_obj = seg[:, kernels.SEG_OBJ].astype(np.int64)
+        for li in hit_lights:  # every light in front of the next surface (seen_light)
+            seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, seg_obj)
+            seen = np.flatnonzero(seen)
+            np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
+    if len(vx):
+        c = lambda k: vx[:, k:k + 3]  # noqa: E731
+        vx_obj = vx[:, kernels.VX_OBJ].astype(np.int64)
+        for li in lights_direct:
+            rad = direct_light(scene, tracer, li, c(kernels.VX_P), c(kernels.VX_NG), c(kernels.VX_NS),
+                               c(kernels.VX_W), rng, stats, vx_obj)
+            np.add.at(radiance, vx_i, c(kernels.VX_BETA) * rad)
+    return radiance
+
+
+def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
+                   samples=HANDOFF_SAMPLES, found: dict | None = None, bent=False, aim=True):
+    """The hand-off for receivers seen through mirrors or glass (rc), where no photon can
+    reach the camera: one cosine bounce from x0 through up to K specular vertices, counting
+    a light hit only when reference._handoff_select gives that path to the photons (its
+    chain a walked type on casters, focusing more than tau). The manifold pass drops
+    exactly those paths at these receivers, so the two add up; near a focus, where the
+    walks' estimate is heavy-tailed, the light seen from x0 through the caster is large
+    and cosine sampling finds it easily.
+
+    With a Handoff's ``others``, the paths no walk takes (a chain type not walked, longer than
+    the longest walked, or through a specular vertex that is no planned caster; up to
+    OTHERS_DEPTH vertices) count too, as the photons take them at receivers seen directly.
+
+    handoffs: light index -> reference.Handoff; samples:
+    cosine directions per receiver (rays are cheap next to the walks they replace, and a
+    focus's light is a small target); found: light index -> paths taken, added to.
+
+    bent (bent_gather): instead, every path through a specular vertex whose normal Cycles' Bump
+    Map Correction bent (optics.valid_reflection1) counts, and nothing else (handoffs: light index
+    -> None; aim: its first bounce towards the triangles that bend, False: cosine, every bent path).
+    Without bent such paths never count here: neither photons nor walks make them, so they are
+    bent_gather's alone."""
+    n = len(rc.p)
+    if n == 0 or not handoffs:
+        return
+    # blocks of receivers (bounded memory: HANDOFF_LANES rays in flight per thread) taken by the
+    # threads in turn, each path's random numbers keyed by one draw, its receiver and its sample
+    # (kernels.handoff_lanes), each block with its own counters, added in block order: the image
+    # does not depend on the thread count
+    key = int(rng.integers(2**63))
+
+    def block(a, b):
+        st, per_light = {}, {}
+        rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), key, a, st, handoffs, physical, samples,
+                             per_light, bent, aim)
+        return rad, st, per_light
+
+    # receivers per block: HANDOFF_LANES rays in flight at up to 4 specular vertices (each lane
+    # keeps a record per vertex), fewer when the paths no walk takes are followed further
+    per_block = max(1, HANDOFF_LANES // samples * 4 // max(4, _handoff_depth(handoffs)))
+    parts = lanes.blocks(block, n, per_block, tracer.threads)
+    radiance = np.concatenate([p[0] for p in parts])
+    for _, st, per_light in parts:
+        lanes.add_stats(stats, st)
+        if found is not None:
+            for li, v in per_light.items():
+                found[li] = found.get(li, 0) + v
+    hit = np.flatnonzero(radiance.max(axis=1) > 0)
+    if hit.size:
+        film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))
+
+
+def _light_shapes(scene, lights: tuple, eps: float):
+    """kernels.segments_near's rows for these lights, spheres widened by a millionth and eps (the
+    tracer's offset); a light at infinity keeps every segment (NEAR_ALL)."""
+    rows = np.zeros((len(lights), kernels.NEAR_F))
+    for row, li in zip(rows, lights):
+        typ, m = scene.light_type[li], scene.light_matrix[li]
+        if typ in S.DISTANT:
+            row[0] = kernels.NEAR_ALL
+        elif typ in (S.POINT, S.SPOT):
+            r = float(scene.light_radius[li])
+            if r * r > 0:
+                row[:5] = (kernels.NEAR_SPHERE, *m[:3, 3], r * (1 + 1e-6) + eps)
+            else:
+                row[0] = kernels.NEAR_NONE  # lights.light_radiance: never met
+        elif typ == S.AREA:
+            cen, ex, ey, nrm, hx, hy, _ = area_light_shape(scene, li)
+            disk = scene.light_shape[li] in (S.DISK, S.ELLIPSE)
+            row[:] = (kernels.NEAR_DISK if disk else kernels.NEAR_RECT, *cen, *ex, *ey, *nrm, hx, hy)
+        else:  # a mesh light: the sphere about its triangles' box
+            tv = scene.mesh_light(li)[1].reshape(-1, 3)
+            lo, hi = tv.min(axis=0), tv.max(axis=0)
+            row[:5] = (kernels.NEAR_SPHERE, *(0.5 * (lo + hi)), 0.5 * np.linalg.norm(hi - lo) * (1 + 1e-6) + eps)
+    return rows
+
+
+def _handoff_depth(handoffs: dict) -> int:
+    """Specular vertices handoff_gather follows: the longest walked chain, or OTHERS_DEPTH where
+    it takes the paths no walk takes (Handoff.others), BENT_DEPTH for the bent ones (None)."""
+    return max(BENT_DEPTH if h is None else max(h.max_chain, OTHERS_DEPTH) if h.others else h.max_chain
+               for h in handoffs.values())
+
+
+def bending_lights(scene, tracer, plan) -> list:
+    """The planned lights whose caustics can pass a bent specular vertex (bent_gather): a ray can
+    hit them, and some triangle can bend (bent_candidates; flat faces never do: their shading
+    normal is the geometric one). Empty: nothing to do."""
+    if not len(bent_candidates(scene, tracer, plan)[0]):
+        return []
+    from ..walks.manifold import light_can_be_hit
+
+    return [lp.index for lp in plan.lights if light_can_be_hit(scene, lp.index)]
+
+
+def bent_candidates(scene, tracer, plan):
+    """The triangles whose normals Cycles' Bump Map Correction can bend (on planned casters, the
+    material's flag on, shading normals that differ from the geometric one), their cumulative
+    areas and its guide table (kernels.cdf_pick): bent_gather aims its first bounce at points
+    uniform over them. Kept on the plan."""
+    if plan.bent is not None:
+        return plan.bent
+    corr = optics.bump_correction(scene)
+    ok = np.asarray(plan.casters, bool)[scene.tri_object] & corr[scene.tri_material]
+    ok &= np.abs(np.einsum("tkc,tc->tk", tracer.ns_corner, tracer.ng)).min(axis=1) < 1.0 - 1e-12
+    cand = np.flatnonzero(ok).astype(np.int64)
+    area = triangle_areas(tracer.v[cand])
+    if cand.size and area.sum() > 0:
+        cdf = np.cumsum(area)
+        cached = (cand, cdf, kernels.guide_table(cdf))
+    else:
+        cached = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+    plan.bent = cached
+    return cached
+
+
+def bent_receivers(rc: Receivers, rng, share=BENT_RECEIVER_SHARE) -> Receivers:
+    """The manifold passes' receivers for bent_gather: one in `share` at random, its splat weighted
+    up by as much. Not every share-th: the eye samples run through the film cells in turn, so on a
+    film whose cells are a multiple of 16 (164 x 124 for 160 x 120) every 16th receiver would be
+    in the same cells on every pass, and the others would never get the bent light."""
+    rb = rc.take(np.flatnonzero(rng.random(len(rc.p)) * share < 1.0))
+    rb.weight = rb.weight * share
+    return rb
+
+
+def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, physical=False,
+                samples=BENT_BOUNCES, aim=True):
+    """The caustic paths whose first specular vertex (from the receiver) has a shading normal
+    Cycles' Bump Map Correction bends (optics.valid_reflection1), at receivers rc: the light
+    then leaves the bent vertex along a direction only the eye's side determines, so no photon
+    and no walk makes them. On a bevelled glass cube 2 cm above the floor, the light reflected
+    off its outside at grazing angles doubles in the shadow beside it (conformance scene
+    cube_grey_reflect). Traced from x0 (handoff_gather, bent) towards points uniform in area over
+    the triangles that can bend (bent_candidates; kernels._toward_triangle): cosine sampling
+    found 38 such paths in 22 M rays on that cube. lights: the light indices that count. Paths
+    bent only at a later vertex are in no estimator (handoff_gather drops every bent path).
+    aim False: cosine sampling instead, every bent path (the tests' independent estimator)."""
+    if len(lights):  # bending_lights: only where some triangle can bend
+        handoff_gather(scene, tracer, film, plan, rc, rng, stats, dict.fromkeys(lights), physical=physical,
+                       samples=samples, bent=True, aim=aim)
+
+
+def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs: dict, physical, samples, found, bent,
+                   aim=True):
+    """handoff_gather's radiance (n,3) at a block of receivers, a0 the first's index (key, a0:
+    kernels.handoff_lanes' random numbers); found: light index -> paths taken.
+    The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
+    segments and the paths taken are found here, per number of specular vertices."""
+    from .photons import _handoff_select, other_paths, walked_casters
+
+    n = len(rc.p)
+    K = _handoff_depth(handoffs)
+    m = n * samples
+    # the kernel writes every entry read below (a lane's first seg_n segments, and the specular
+    # vertices before each of them)
+    seg, seg_n = lanes.scratch("handoff_seg", (m, K, 10)), np.zeros(m, np.int64)
+    hist, h_prim = lanes.scratch("handoff_hist", (m, K, 8)), lanes.scratch("handoff_prim", (m, K), np.int64)
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    rt = tracer.rays()
+    none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+    cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
+    counts = kernels.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye),
+                                   f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
+                                   np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters),
+                                   optics.materials(scene), bool(physical),
+                                   tracer.eps, seg, seg_n, hist, h_prim, cand, cdf, guide)
+    tracer.cast_by_kernel(rt, counts)
+    name = "bent" if bent else "handoff"
+    stats["rays_" + name] = stats.get("rays_" + name, 0) + int(counts[embree.KINDS:].sum())
+    radiance = np.zeros((n, 3))
+    lim = Limits.of(scene)
+    # the segments that can meet one of the lights at all, ahead of the exact tests below (which
+    # took a third of the hand-off's time): 1 in 1,300 on the floor seen in a gold ring, 1 in 420
+    # on a disk seen through a pane, 1 in 23-26 under a glass ball lit by a lamp or a mesh panel
+    near = lanes.scratch("handoff_near", (m, K), np.bool_)
+    kernels.segments_near(seg, seg_n, _light_shapes(scene, tuple(handoffs), tracer.eps), near)
+    for k in range(K):  # the segments after bounce = k + 1 specular vertices (near: only those a lane has)
+        row = np.flatnonzero(near[:, k])
+        if row.size == 0:
+            continue
+        bounce = k + 1
+        sk = seg[row, k]
+        o, d, surf_t, beta = sk[:, 0:3], sk[:, 3:6], sk[:, 6], sk[:, 7:10]
+        # Light Paths: the camera's events before x0, x0's diffuse bounce and the specular vertices
+        # before the last (bounces.py)
+        refl = hist[row, :k, 5].sum(axis=1) if k else np.zeros(row.size)
+        fits = lim.fits(rc.prior[row // samples] + ONE_DIFFUSE + np.stack([np.zeros(row.size), refl, k - refl], axis=1))
+        # bent paths are bent_gather's alone (handoff_gather's docstring)
+        fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
+        for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
+            refl = hist[row, k, 5] > 0
+            # Light Linking: of the vertex the light leaves last, the segment's own
+            seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, scene.tri_object[h_prim[row, k]])
+            seen = np.flatnonzero(seen & fits)
+            if seen.size == 0:
+                continue
+            if ho is None:
+                np.add.at(radiance, row[seen] // samples, beta[seen] * L[seen])
+                stats["bent_paths"] = stats.get("bent_paths", 0) + int(seen.size)
+                continue
+            y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]
+            r = row[seen]
+            # _handoff_select reads the history light side first: reverse the bounces
+            rev = np.arange(bounce)[::-1]
+            hr = hist[r][:, rev]
+            kb, refl = np.full(seen.size, bounce), hr[:, :, 5].astype(np.int64)
+            caster = walked_casters(scene, h_prim[r][:, rev], hr[:, :, 6] > 0)
+            take = _handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev], hr[:, :, 0:3],
+                                   hr[:, :, 3:5], refl, caster, y)
+            t = seen[take]
+            np.add.at(radiance, row[t] // samples, beta[t] * L[t])
+            # the focusing paths of walked types (what tells later chunks to hand off) apart from
+            # the paths no walk takes
+            other = other_paths(ho, kb, refl, caster)[take] if ho.others else np.zeros(t.size, bool)
+            stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size - other.sum())
+            stats["other_paths"] = stats.get("other_paths", 0) + int(other.sum())
+            found[li] = found.get(li, 0) + int(t.size - other.sum())
+    return radiance
+

@@ -1,0 +1,159 @@
+"""The film: Cycles' Blackman-Harris pixel filter, splatting, and a per-pixel
+noise estimate from independent batches.
+
+Cycles samples sub-pixel offsets from a separable Blackman-Harris window whose
+table is built with ``width *= 2`` (intern/cycles/scene/film.cpp), so a filter
+width w has support [-w, w] pixels on each axis. A pixel's value is
+integral h(x - c) L(x) dx with h normalised to one; splatting a light-path
+contribution with the same h estimates exactly that.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..kernels import compiled as kernels
+from ..core import lanes
+from ..core.vec import channel_mean
+
+SPLAT_SPLIT = 4096  # samples from which a splat's rows are shared over the threads
+END_BATCH_PART = 1 << 17  # pixels per thread at least when a batch's sums are added up
+MAX_GROUPS = 64  # batch images kept (even); more batches are merged in pairs
+
+
+def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
+    """1-D filter of Cycles' width convention, normalised to integrate to one (the same formula
+    as the splat kernel's, kernels.blackman_harris)."""
+    r = max(float(width), 0.5)  # splatting needs a finite support; Cycles' minimum is 0.01
+    return kernels.blackman_harris(np.asarray(x, np.float64).ravel(), r).reshape(np.shape(x))
+
+
+class Film:
+    """Accumulates RGB splats into B independent batches.
+
+    ``image`` is the mean over batches; ``variance`` the per-pixel variance of
+    that mean (from the spread between batches), so the noise estimate is
+    honest whatever the estimator's distribution.
+    """
+
+    def __init__(self, width: int, height: int, filter_width: float = 1.5,
+                 region: tuple | None = None, textured: bool = False, threads: int = 1):
+        self.W, self.H = int(width), int(height)
+        self.threads = max(1, int(threads))  # for large splats (each its own rows) and a batch's sums
+        self.filter_width = max(float(filter_width), 0.5)
+        self.region = region or (0, self.W, 0, self.H)
+        self.sum = np.zeros((self.H * self.W, 3))
+        self.sumsq = np.zeros((self.H * self.W, 3))
+        self.batches = 0
+        self._cur = np.zeros((self.H * self.W, 3))
+        # per group of group_size batches, the mean (H,W) float32 luminance and the time its
+        # last batch ended: the noise estimate and the convergence fit. A long bake (stop
+        # rules by time or noise) merges neighbouring groups in pairs once MAX_GROUPS are kept,
+        # so the memory stays bounded; a group not yet full waits in _pending
+        self.batch_luminance = []
+        self.batch_end = []
+        self.group_size = 1
+        self._pending, self._pending_n = None, 0
+        # with textured receivers (Scene.mat_textured): the splats that fell on them where the camera
+        # sees them, as they are and per unit albedo, summed over every batch (BakeResult.per_albedo)
+        self.textured = np.zeros((self.H * self.W, 3)) if textured else None
+        self.per_albedo = np.zeros((self.H * self.W, 3)) if textured else None
+
+    def splat(self, rx: np.ndarray, ry: np.ndarray, rgb: np.ndarray, albedo: np.ndarray | None = None) -> None:
+        """Add rgb (N,3) at raster positions (rx, ry from top) through the filter. albedo (N,3), on
+        a film with textured receivers: the albedo each sample's value was multiplied by where it
+        fell on one seen directly (the share of its diffuse Cycles' Diffuse Color pass holds), zero
+        elsewhere; those samples are also added to the textured part and, divided by it, to the
+        per-albedo part."""
+        if len(rx) == 0:
+            return
+        rx, ry = np.ascontiguousarray(rx, np.float64), np.ascontiguousarray(ry, np.float64)
+        rgb = np.ascontiguousarray(rgb, np.float64)
+        self._splat(self._cur, rx, ry, rgb)
+        if albedo is None or self.textured is None:
+            return
+        on = np.flatnonzero(np.asarray(albedo).max(axis=1) > 0)
+        if on.size:
+            a, v = np.asarray(albedo, np.float64)[on], rgb[on]
+            self._splat(self.textured, rx[on], ry[on], v)
+            unit = np.divide(v, a, out=np.zeros_like(v), where=a > 0)
+            self._splat(self.per_albedo, rx[on], ry[on], unit)
+
+    def _splat(self, into, rx, ry, rgb) -> None:
+        """kernels.splat into `into`; a splat of SPLAT_SPLIT samples or more on the threads, each
+        adding to rows of its own (the same image)."""
+        r = self.filter_width
+        k = int(math.ceil(r)) + 1
+        x0, x1, y0, y1 = self.region
+        bands = self.threads if len(rx) >= SPLAT_SPLIT else 1
+        edges = [y0 + (y1 - y0) * i // bands for i in range(bands + 1)]
+
+        def band(a, b):
+            kernels.splat(into, self.W, x0, x1, edges[a], edges[b], r, k, rx, ry, rgb)
+
+        lanes.run(band, bands, bands, 1)
+
+    def frame_share(self, rx: np.ndarray, ry: np.ndarray) -> np.ndarray:
+        """The share of a splat at (rx, ry) that lands in the render region: the filter's taps
+        splat() adds there, summed (a sample in the filter's margin may land wholly outside)."""
+        r = self.filter_width
+        k = int(math.ceil(r)) + 1
+        x0, x1, y0, y1 = self.region
+        offs = np.arange(-k, k + 1)
+
+        def axis(v, lo, hi):
+            px = np.floor(np.asarray(v, np.float64))[:, None] + offs
+            w = blackman_harris(px + 0.5 - np.asarray(v, np.float64)[:, None], r)
+            return np.where((px >= lo) & (px < hi), w, 0.0).sum(axis=1)
+
+        return axis(rx, x0, x1) * axis(ry, y0, y1)
+
+    def end_batch(self, t: float = 0.0) -> None:
+        """Close the current batch (t: when it ended, seconds into the bake)."""
+        lum = np.empty(self.H * self.W)
+
+        def part(a, b):  # pixels a..b-1 (elementwise: the threads' parts give the same bits)
+            cur = self._cur[a:b]
+            self.sum[a:b] += cur
+            self.sumsq[a:b] += cur * cur
+            lum[a:b] = channel_mean(cur)
+            cur[:] = 0.0
+
+        lanes.run(part, self.H * self.W, self.threads, END_BATCH_PART)
+        lum = lum.reshape(self.H, self.W)
+        self._pending = lum if self._pending is None else self._pending + lum
+        self._pending_n += 1
+        if self._pending_n == self.group_size:
+            self.batch_luminance.append((self._pending / self.group_size).astype(np.float32))
+            self.batch_end.append(float(t))
+            self._pending, self._pending_n = None, 0
+            if len(self.batch_luminance) == MAX_GROUPS:
+                g = self.batch_luminance
+                self.batch_luminance = [0.5 * (g[i] + g[i + 1]) for i in range(0, len(g), 2)]
+                self.batch_end = self.batch_end[1::2]
+                self.group_size *= 2
+        self.batches += 1
+
+    def textured_parts(self):
+        """(textured, per_albedo): the means over the batches of splat()'s two parts, (H,W,3)
+        each; (None, None) on a film without textured receivers."""
+        if self.textured is None:
+            return None, None
+        b = max(self.batches, 1)
+        return tuple((x / b).reshape(self.H, self.W, 3) for x in (self.textured, self.per_albedo))
+
+    @property
+    def image(self) -> np.ndarray:
+        b = max(self.batches, 1)
+        return (self.sum / b).reshape(self.H, self.W, 3)
+
+    @property
+    def variance(self) -> np.ndarray:
+        """Variance of the mean image per pixel and channel (zero with < 2 batches)."""
+        b = self.batches
+        if b < 2:
+            return np.zeros((self.H, self.W, 3))
+        mean = self.sum / b
+        var = np.maximum(self.sumsq / b - mean * mean, 0.0) * (b / (b - 1)) / b
+        return var.reshape(self.H, self.W, 3)
