@@ -30,7 +30,7 @@ sys.path.insert(0, str(ROOT))
 import conformance as conf  # noqa: E402
 from smbs_addon import BakeSettings, bake  # noqa: E402
 
-bake_module = importlib.import_module("smbs_addon.baking.bake")
+bake_module = importlib.import_module("smbs_addon.baking.settings")
 SCENES = ("through_glass_disk", "cube_white_rect", "cube_grey", "lens_area", "sphere_refraction_spot",
           "sphere_point_soft")
 VARIANTS = (("sms", None), ("smbs", "first"), ("smbs", "last"), ("smbs", "single"))

@@ -27,7 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 import throughput  # noqa: E402
 from smbs_addon import BakeSettings, bake
-from smbs_addon.kernels import embree  # noqa: E402
+from smbs_addon.core import embree  # noqa: E402
 from smbs_addon.scene.builder import SceneBuilder  # noqa: E402
 
 ROBUST = embree._SCENE_FLAG_ROBUST

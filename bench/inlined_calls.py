@@ -44,7 +44,7 @@ else:
 
 
 def dotted(symbol):
-    """_ZN10smbs_addon7kernels10_hit_pointB... -> smbs_addon.kernels.compiled._hit_point (Itanium-style names)."""
+    """_ZN10smbs_addon7kernels10_hit_pointB... -> smbs_addon.kernels.chain.hit_point (Itanium-style names)."""
     s, parts = symbol[3:], []
     while s[:1].isdigit():
         k = re.match(r"\d+", s).group()
@@ -54,7 +54,10 @@ def dotted(symbol):
 
 
 found, seen = {}, set()
-for mod in ("kernels", "optics", "lights", "thinfilm", "rough", "embree"):
+for mod in ("kernels.chain", "kernels.eye", "kernels.film", "kernels.gather", "kernels.handoff", "kernels.keyed",
+            "kernels.large_mutation", "kernels.newton", "kernels.photons", "kernels.trials", "kernels.walk",
+            "shading.optics", "shading.fresnel", "shading.coat", "shading.absorption", "shading.microfacet",
+            "shading.energy", "shading.lights", "shading.thinfilm", "core.embree", "core.vec3"):
     for name, v in vars(importlib.import_module("smbs_addon." + mod)).items():
         v = getattr(v, "dispatcher", v)  # kernels.TypedOnce
         if not isinstance(v, CPUDispatcher) or id(v) in seen:  # a function imported by another module

@@ -27,6 +27,7 @@ sys.path.insert(0, str(ROOT))
 
 import scenes  # noqa: E402
 from smbs_addon import BakeSettings, bake
+from smbs_addon.kernels import records  # noqa: E402
 from smbs_addon.walks import walk  # noqa: E402
 
 SCENES = {"sphere": scenes.glass_sphere_scene, "ring": scenes.ring_scene, "hammered": scenes.hammered_mirror_scene}
@@ -79,8 +80,8 @@ def main(argv=None) -> None:
                 r = walk.newton_walk(ctx, c2, types, x0, ng0, light, chain, large_ok, seed)
                 dt = time.perf_counter() - t
                 conv, steps = int(r.converged.sum()), int(r.mutations.sum())
-                codes = np.bincount(r.outcome, minlength=len(walk.OUTCOMES))
-                ends = ", ".join(f"{walk.OUTCOMES[c]} {codes[c]}" for c in np.flatnonzero(codes) if c != walk.OK)
+                codes = np.bincount(r.outcome, minlength=len(records.OUTCOMES))
+                ends = ", ".join(f"{records.OUTCOMES[c]} {codes[c]}" for c in np.flatnonzero(codes) if c != records.OK)
                 rows.append((item, types, v or "defaults", len(x0), conv, steps, steps / max(conv, 1), ends,
                              dt / len(x0) * 1e6))
                 print(*rows[-1], flush=True)

@@ -10,7 +10,9 @@ Public API::
 Nothing here imports bpy; only ``export`` (bpy -> Scene) and ``composite``
 (image -> Blender) do, and they are imported on demand.
 """
-from .baking.bake import BakeResult, BakeSettings, bake
+from .baking.result import BakeResult
+from .baking.settings import BakeSettings
+from .baking.bake import bake
 from .core.errors import BakeCancelled, SceneError
 from .scene.arrays import Camera, Scene
 

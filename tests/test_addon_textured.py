@@ -222,7 +222,7 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     their Image datablocks; the switched-on pass is reported once; a result without a per-albedo
     part takes it out again."""
     bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
-    core_bake = importlib.import_module(addon.__name__ + ".smbs_addon.baking.bake")
+    core_bake = importlib.import_module(addon.__name__ + ".smbs_addon.baking.result")
     imageio = importlib.import_module(addon.__name__ + ".smbs_addon.io.exr")
     scene = _mirror_scene(6, 4)
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")

@@ -11,7 +11,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.baking.bake import region_mean_error
+from smbs_addon.baking.result import region_mean_error
 from smbs_addon.baking.convergence import caustic_region
 
 

@@ -20,7 +20,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeCancelled, BakeSettings, Scene, SceneError, bake
-bake_module = importlib.import_module("smbs_addon.baking.bake")  # the package's 'bake' is the function
+bake_module = importlib.import_module("smbs_addon.baking.engine")  # where the film's memory is checked
 from smbs_addon.scene.builder import SceneBuilder
 from smbs_addon.io.exr import read_exr, write_exr
 from test_cli import one_error_line, run
@@ -392,7 +392,7 @@ def test_rebake_on_the_command_line_replaces(npz, tmp_path):
 bpy = pytest.importorskip("bpy")
 
 
-from blend_helpers import material as _material, plane as _plane  # noqa: E402
+from blend_helpers import material as material1, plane as _plane  # noqa: E402
 
 
 def blender_mirror_scene(light=True, camera=True, width=24, height=16):
@@ -400,8 +400,8 @@ def blender_mirror_scene(light=True, camera=True, width=24, height=16):
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
-    _plane(scene, "Floor", 10, _material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0))
-    _plane(scene, "Mirror", 1.5, _material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0), (0, 0, 1.5),
+    _plane(scene, "Floor", 10, material1("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0))
+    _plane(scene, "Mirror", 1.5, material1("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0), (0, 0, 1.5),
            (0, math.radians(-135), 0))
     if light:
         data = bpy.data.lights.new("Disk", 'AREA')
@@ -466,9 +466,9 @@ def test_unsupported_material_nodes_are_named(fresh_bpy):
     from smbs_addon.blender.export import export_scene
 
     scene = blender_mirror_scene()
-    toon = _material("Cartoon", "ShaderNodeBsdfToon", (1.0, 0.5, 0.2))
+    toon = material1("Cartoon", "ShaderNodeBsdfToon", (1.0, 0.5, 0.2))
     _plane(scene, "Toon", 1, toon, (2, 2, 0.5))
-    textured = _material("Marbled Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0))
+    textured = material1("Marbled Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0))
     tex = textured.node_tree.nodes.new("ShaderNodeTexNoise")
     glass_node = next(n for n in textured.node_tree.nodes if n.type == "BSDF_GLASS")
     textured.node_tree.links.new(tex.outputs["Color"], glass_node.inputs["Color"])

@@ -37,7 +37,7 @@ from hypothesis import strategies as st
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
 from smbs_addon.scene.builder import SceneBuilder
-from smbs_addon.shading.optics import conductor_f0, f82_tint_metal
+from smbs_addon.shading.fresnel import conductor_f0, f82_tint_metal
 
 EXAMPLES = int(os.environ.get("SMBS_BAKE_FUZZ", "24"))
 RES = (24, 18)

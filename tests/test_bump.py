@@ -140,7 +140,7 @@ def _sheet(back=True):
 
 
 def test_a_ray_from_behind_meets_the_normals_met_from_behind():
-    """Tracer.intersect (kernels._shading_normal): a ray running along the geometric normal takes
+    """Tracer.intersect (kernels.shading_normal1): a ray running along the geometric normal takes
     Scene.tri_normals_back, one against it tri_normals; without them, tri_normals either way."""
     from smbs_addon.trace.tracer import Tracer
 

@@ -213,12 +213,12 @@ def test_rays_invert_project(blender, type, fit, res, aspect):
 
 
 def _kernel_rays_match(cm, rx, ry):
-    """The eye paths' camera rays (kernels._camera_ray, from CameraModel.kernel_params) are rays()'s,
+    """The eye paths' camera rays (eye._camera_ray, from CameraModel.kernel_params) are rays()'s,
     started on the near clip plane, to rounding."""
-    from smbs_addon.kernels import compiled as kernels
+    from smbs_addon.kernels import eye
 
     o, d, tnear = cm.rays(rx, ry)
-    ko, kd = kernels.camera_rays(cm.kernel_params(), rx, ry)
+    ko, kd = eye.camera_rays(cm.kernel_params(), rx, ry)
     np.testing.assert_allclose(kd, d, rtol=0, atol=1e-14)
     np.testing.assert_allclose(ko, o + tnear[:, None] * d, rtol=0, atol=1e-12 * (1 + np.abs(o).max()))
 

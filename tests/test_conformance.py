@@ -233,7 +233,7 @@ def test_a_thin_film_colours_its_caustic_as_cycles(name, spp, bare):
 
 
 def test_a_glass_specular_tint_colours_its_caustic_as_cycles():
-    """spec_tint_ball: a Principled glass ball of Specular Tint 4 / 1 / 0 (f0 = 0.16 / 0.04 / 0, optics._tinted_glass),
+    """spec_tint_ball: a Principled glass ball of Specular Tint 4 / 1 / 0 (f0 = 0.16 / 0.04 / 0, optics.tinted_glass),
     each channel within 3% of the luminance's ratio; with the tint ignored (as before: white), red comes out
     1.29 of Cycles and blue 0.93 (blue over red 0.725). Light tracer 256 spp, seed 1: 0.993 (channels 0.991,
     0.994, 0.994); SMBS 16 spp 1.014 (1.012, 1.015, 1.016)."""

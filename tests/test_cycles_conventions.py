@@ -47,8 +47,8 @@ def test_closed_glass_is_the_same_in_both_units():
 
 def test_soft_falloff_factor_at_a_solution():
     """The manifold pass applies the same factor at the chain's last vertex."""
-    from smbs_addon.walks.constraints import LightEnd
-    from smbs_addon.walks.estimators import light_end_at_solution
+    from smbs_addon.shading.light_samples import LightEnd
+    from smbs_addon.shading.light_samples import light_end_at_solution
 
     scene = scenes.water_scene("point", resolution=8)
     scene.light_radius[:] = 0.5
@@ -69,8 +69,8 @@ def test_spot_cone_masks_the_ray_from_the_light_point_not_the_centre():
     direction) tests the cone on the ray from the sampled light point y to the chain's last
     vertex xk. Masking the direction from the light's centre instead put 45% of the glass ball's
     caustic pixels beyond 3 sigma of Cycles (sample_blends/glass_spot.blend; test below)."""
-    from smbs_addon.walks.constraints import LightEnd
-    from smbs_addon.walks.estimators import light_end_at_solution
+    from smbs_addon.shading.light_samples import LightEnd
+    from smbs_addon.shading.light_samples import light_end_at_solution
 
     scene = scenes.water_scene("point", resolution=8)
     li = 0

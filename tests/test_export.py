@@ -373,7 +373,7 @@ def test_a_partly_metallic_or_transmissive_principled_weighs_its_lobe():
     Transmission; the lobe that weighs most is the material, at that weight. A metal's rest is a
     dielectric coat (a mirror at Roughness 0) over a diffuse, whose diffuse is said to be left out
     (mirror_alloy, Metallic 0.7: 1.44 of Cycles before, 0.95 with the metal's weight alone)."""
-    from smbs_addon.shading.optics import fresnel_dielectric, fresnel_schlick, specular_weights
+    from smbs_addon.shading.fresnel import fresnel_dielectric, fresnel_schlick, specular_weights
 
     sc, w = one_material(material("Alloy", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 0.6, 0.3), "Metallic": 0.8, "Roughness": 0.0}))
@@ -403,7 +403,7 @@ def test_the_metallic_bsdf_is_an_f82_tint_metal():
     """The Metallic BSDF's F82 mode: F0 the Base Color, the Edge Tint scales Cycles' F82 term (its
     reflectance at cos 1/7 is the tint times Schlick's there); its roughness, and nothing warned. It was
     'not supported; treated as diffuse': a gold ring made with it cast no caustic."""
-    from smbs_addon.shading.optics import fresnel_schlick, specular_weights
+    from smbs_addon.shading.fresnel import fresnel_schlick, specular_weights
 
     sc, w = one_material(_metallic_node("Gold", **{"Base Color": (0.95, 0.7, 0.3), "Edge Tint": (1.0, 0.6, 0.2),
                                                    "Roughness": 0.0}))
@@ -422,7 +422,7 @@ def test_the_metallic_bsdf_as_a_physical_conductor():
     as the node has them; its thin film read (Scene.mat_film), an anisotropy said to be ignored."""
     import dataclasses
 
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import specular_weights
     from smbs_addon.shading.thinfilm import conductor_film1
 
     m = _metallic_node("Copper", "PHYSICAL_CONDUCTOR", IOR=(0.27, 0.68, 1.32), Extinction=(3.61, 2.63, 2.29),
@@ -449,7 +449,7 @@ def test_a_principled_metals_specular_tint_is_its_edge_tint():
     ignored."""
     import dataclasses
 
-    from smbs_addon.shading.optics import fresnel_schlick, specular_weights
+    from smbs_addon.shading.fresnel import fresnel_schlick, specular_weights
 
     sc, w = one_material(material("Tinted", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 0.8, 0.5), "Metallic": 1.0, "Roughness": 0.2, "Specular Tint": (0.4, 0.7, 1.0),
@@ -505,7 +505,7 @@ def test_a_thin_film_is_read_where_it_is_baked_and_said_to_be_ignored_elsewhere(
 def test_a_metal_mixed_with_a_diffuse_keeps_its_fresnel_at_its_weight():
     """A Mix Shader of a metal (weight 0.6) and a diffuse: the metal's reflectance is 0.6 x its own
     Fresnel, F82-Tint or a physical conductor's (its F0 was scaled by the weight too, as a colour is)."""
-    from smbs_addon.shading.optics import fresnel_dielectric, fresnel_schlick, specular_weights
+    from smbs_addon.shading.fresnel import fresnel_dielectric, fresnel_schlick, specular_weights
 
     cos = np.array([1.0, 0.5, 0.1])
     m = mixed("Half", ("ShaderNodeBsdfMetallic", {"Base Color": (0.9, 0.6, 0.3), "Edge Tint": (1.0, 1.0, 1.0),
@@ -529,7 +529,7 @@ def test_a_principled_metal_in_a_mix_weighs_its_coat_by_its_weight():
     0.6 with a diffuse, Cycles weighs both by 0.6: its reflectance is 0.6 x the unmixed one's at every
     angle (the coat was 1 - 0.8 x 0.6 = 0.52 of the dielectric Fresnel, not 0.2 x 0.6 = 0.12: 2.6 x too
     much at grazing angles)."""
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import specular_weights
 
     cos = np.array([1.0, 0.5, 0.1, 0.02])
     metal = {"Base Color": (0.9, 0.6, 0.3, 1.0), "Metallic": 0.8, "Roughness": 0.0, "IOR": 1.6}
@@ -555,7 +555,7 @@ def test_a_principled_glass_specular_tint_scales_its_fresnel_at_normal_incidence
     """Cycles' Principled glass (generalized_schlick_fresnel, negative exponent): f0 = F0 x Specular Tint (kept
     in [0, 1]) and the dielectric Fresnel F mapped from [F0, 1] onto [f0, 1]: R = f0 at normal incidence,
     1 under total internal reflection, T = (1 - R) sqrt(base). It was ignored (and said so)."""
-    from smbs_addon.shading.optics import fresnel_dielectric, specular_weights
+    from smbs_addon.shading.fresnel import fresnel_dielectric, specular_weights
 
     sc, w = one_material(material("Tinted", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.64, 1.0, 0.81), "Transmission Weight": 1.0, "IOR": 1.5, "Roughness": 0.0,
@@ -578,7 +578,7 @@ def test_a_principled_glass_specular_tint_scales_its_fresnel_at_normal_incidence
 def test_a_principled_glass_specular_tint_under_a_thin_film():
     """Under a thin film Cycles scales the film's reflectance f by f0 / F0, the more the nearer f is to F0
     (s = (1 - f) / (1 - F0)); a white tint leaves the film's colours as they are."""
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import specular_weights
     from smbs_addon.shading.thinfilm import dielectric_film1
 
     tint = np.array([0.3, 1.0, 3.0])
@@ -898,7 +898,7 @@ def test_a_diffuse_under_a_glossy_by_fresnel_keeps_one_minus_fresnel():
     """Mix(Diffuse, Glossy) by a Fresnel node: the diffuse's weight towards the eye is 1 - F(mu), which
     is layer.py's table for a coat of that index at Roughness 0."""
     from smbs_addon.shading import coat as layer
-    from smbs_addon.shading.optics import fresnel_dielectric
+    from smbs_addon.shading.fresnel import fresnel_dielectric
     m = _by_fresnel(mixed("OldFloor", ("ShaderNodeBsdfDiffuse", {"Color": (0.5, 0.6, 0.7)}),
                           ("ShaderNodeBsdfGlossy", {"Roughness": 0.2})), ior=1.5)
     sc, warnings = one_material(m)
@@ -1203,12 +1203,12 @@ def test_a_bumped_diffuse_receiver_is_exported_as_the_camera_sees_it(node_type):
     np.testing.assert_allclose(np.linalg.norm(n, axis=1), 1.0, atol=1e-5)
     assert n[:, 2].min() > 0 and np.degrees(np.arccos(n[:, 2].min())) > 10.0
     assert np.degrees(np.arccos(n[:, 2].max())) < 0.5  # and some face up
-    from smbs_addon.kernels import compiled as kernels
+    from smbs_addon.kernels import eye
     from smbs_addon.trace.camera import CameraModel
 
     cam = CameraModel(sc.camera)
     rows, cols = np.mgrid[0:120, 0:160]
-    o, d = kernels.camera_rays(cam.kernel_params(), (cols.ravel() + 0.5) / 4, (rows.ravel() + 0.5) / 4)
+    o, d = eye.camera_rays(cam.kernel_params(), (cols.ravel() + 0.5) / 4, (rows.ravel() + 0.5) / 4)
     t = -o[:, 2] / d[:, 2]
     np.testing.assert_allclose(p, o + t[:, None] * d, atol=1e-4)
 

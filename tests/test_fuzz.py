@@ -32,11 +32,14 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from smbs_addon.scene.builder import SceneBuilder, look_at
-from smbs_addon.walks.estimators import geometric_term, light_end_at_solution
-from smbs_addon.walks.manifold import Ctx, Seeder, _contribution, sample_light
+from smbs_addon.paths.focus import geometric_term
+from smbs_addon.shading.light_samples import light_end_at_solution
+from smbs_addon.walks.manifold import Ctx, Seeder, _contribution
+from smbs_addon.shading.light_samples import sample_light
 from smbs_addon.baking.plan import make_plan
 from smbs_addon.trace.tracer import Tracer
-from smbs_addon.walks.walk import OK, OUTCOMES, WalkConfig, end_mismatch, newton_walk
+from smbs_addon.kernels.records import OK, OUTCOMES
+from smbs_addon.walks.walk import WalkConfig, end_mismatch, newton_walk
 
 LANES = 4096  # walks per example, in one newton_walk call
 EXAMPLES = 150  # 150 x 4096 = 614,400 walks

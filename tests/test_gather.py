@@ -1,5 +1,5 @@
 """indirect.gather for the light tracer (no walks to connect): its paths traced in compiled code
-(kernels.gather_lanes) against the analytic answer, against the numpy estimator it replaced
+(gather.gather_lanes) against the analytic answer, against the numpy estimator it replaced
 (gather(compiled=False)), and the kernel's resumption when its records do not fit."""
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon.kernels import embree, compiled as kernels
+from smbs_addon.core import embree
+from smbs_addon.kernels import gather, handoff, records
 from smbs_addon.paths import gather as indirect
 from smbs_addon.shading import optics
 from smbs_addon.scene.light_paths import Limits
@@ -117,7 +118,7 @@ def test_compiled_gather_lights_later_diffuse_vertices_as_numpy_does(layered):
 
 
 def test_gather_lanes_leaves_a_lane_whole_when_its_records_do_not_fit():
-    """kernels.gather_lanes with room for 40 records a call gives, call after call, exactly the
+    """gather.gather_lanes with room for 40 records a call gives, call after call, exactly the
     records, lanes and ray counts of one call with room for all: a lane whose records would not fit
     is traced again whole in the next call (its random numbers are keyed by lane and event)."""
     scene = scenes.mirror_scene(radius=0.6)
@@ -132,9 +133,9 @@ def test_gather_lanes_leaves_a_lane_whole_when_its_records_do_not_fit():
     def run(cap):
         out, lane, rays = [], 0, 0
         while lane < n:
-            seg, seg_i = np.empty((cap, kernels.SEG_F)), np.empty(cap, np.int64)
-            vx, vx_i = np.empty((cap, kernels.VX_F)), np.empty(cap, np.int64)
-            lane, ms, mv, counts = kernels.gather_lanes(tracer.rays(), 77, lane, *args, seg, seg_i, vx, vx_i)
+            seg, seg_i = np.empty((cap, records.SEG_F)), np.empty(cap, np.int64)
+            vx, vx_i = np.empty((cap, records.VX_F)), np.empty(cap, np.int64)
+            lane, ms, mv, counts = gather.gather_lanes(tracer.rays(), 77, lane, *args, seg, seg_i, vx, vx_i)
             rays += int(counts[embree.KINDS:].sum())
             out.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
         return [np.concatenate([o[k] for o in out]) for k in range(4)], rays, len(out)
@@ -149,7 +150,7 @@ def test_gather_lanes_leaves_a_lane_whole_when_its_records_do_not_fit():
 
 
 def test_segments_near_keeps_every_segment_that_meets_a_light():
-    """kernels.segments_near, the hand-off's pre-test (indirect._light_shapes): every segment that
+    """handoff.segments_near, the hand-off's pre-test (indirect._light_shapes): every segment that
     lights.light_radiance finds meeting a light (beyond: wherever it lies) is kept, for a point of
     radius 0.1 with soft falloff, a spot, a square, a rectangle whose axes are sheared (the light
     test reads them as they are), a disk, an ellipse and a mesh light (the sphere about its box); a
@@ -182,7 +183,7 @@ def test_segments_near_keeps_every_segment_that_meets_a_light():
     sun = int(np.flatnonzero(scene.light_type == S.SUN)[0])
     everything = np.zeros((50, 2), bool)
     seg_n = np.array([0, 1, 2, 2, 1] * 10)
-    kernels.segments_near(np.ones((50, 2, 10)), seg_n, indirect._light_shapes(scene, (1, sun), 1e-6), everything)
+    handoff.segments_near(np.ones((50, 2, 10)), seg_n, indirect._light_shapes(scene, (1, sun), 1e-6), everything)
     assert np.array_equal(everything, seg_n[:, None] > np.arange(2))  # a sun: every segment, none past them
     rng = np.random.default_rng(11)
     lights = tuple(li for li in range(len(scene.light_type)) if li != sun)
@@ -201,7 +202,7 @@ def test_segments_near_keeps_every_segment_that_meets_a_light():
     seg[:, :, 0:3], seg[:, :, 3:6] = o.reshape(n, K, 3), d.reshape(n, K, 3)
     seg_n = rng.integers(0, K + 1, n)
     near = np.zeros((n, K), bool)
-    kernels.segments_near(seg, seg_n, shapes, near)
+    handoff.segments_near(seg, seg_n, shapes, near)
     met_any = np.zeros((n, K), bool)
     for j, li in enumerate(lights):
         met, geom = np.zeros((n, K), bool), np.zeros((n, K), bool)  # lit, and met at all (a spot's cone)
@@ -210,7 +211,7 @@ def test_segments_near_keeps_every_segment_that_meets_a_light():
             geom[:, k] = np.isfinite(t) & (seg_n > k)
             met[:, k] = geom[:, k] & (Lk.max(axis=1) > 0)
         alone = np.zeros((n, K), bool)
-        kernels.segments_near(seg, seg_n, shapes[j:j + 1], alone)
+        handoff.segments_near(seg, seg_n, shapes[j:j + 1], alone)
         assert not (met & ~alone).any(), scene.light_names[li]
         name = scene.light_names[li]
         if name == "Dot":

@@ -13,7 +13,7 @@ import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.paths import photons as reference
 from smbs_addon.scene import arrays as S
-from smbs_addon.baking.bake import caustic_region
+from smbs_addon.baking.result import caustic_region
 from smbs_addon.trace.camera import CameraModel
 from smbs_addon.trace.film import Film
 from smbs_addon.shading.lights import emit
@@ -221,7 +221,7 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     (that sees the floor through the ball), and one in all once the hand-off is made blind too."""
     import importlib
 
-    bake_module = importlib.import_module("smbs_addon.baking.bake")
+    bake_module = importlib.import_module("smbs_addon.baking.passes")
     indirect = importlib.import_module("smbs_addon.paths.gather")
     manifold = importlib.import_module("smbs_addon.walks.manifold")
     monkeypatch.setattr(bake_module, "WALK_CHUNK", 32 * 24)  # 4 spp: 4 chunks or more
@@ -261,14 +261,16 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
 
 
 def test_handoff_kernel_paths_are_the_numpy_steps():
-    """kernels.handoff_lanes (handoff_gather's paths, compiled) against the steps it stands for,
+    """handoff.handoff_lanes (handoff_gather's paths, compiled) against the steps it stands for,
     each done apart in numpy from the same uniform numbers: the cosine bounce off the receiver
     (vec.frame / cosine_hemisphere / to_world, Russian roulette on the albedo), tracer.spawn and
     tracer.intersect, the specular scatter (optics.scatter_rows), and the segment after the first
     specular vertex (origin, direction, distance, throughput) and that vertex's record, to 1e-9;
     the same lanes alive. Glass sphere under an area light: receivers on the floor, K = 2. The
     uniform numbers are the kernel's own (keyed_uniform of the receiver, sample and dimension)."""
-    from smbs_addon.kernels import embree, compiled as kernels
+    from smbs_addon.core import embree
+    from smbs_addon.kernels import handoff
+    from smbs_addon.kernels import keyed
     from smbs_addon.shading import optics
     from smbs_addon.core.vec import cosine_hemisphere, dot, frame, to_world
 
@@ -286,12 +288,12 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     alb = scene.mat_color[scene.tri_material[h0.prim]]
     m = n * samples
     key, a0 = 12345, 7  # lane l: sample l % samples of receiver a0 + l // samples
-    u = np.array([[kernels.keyed_uniform(key, a0 + lane // samples, lane % samples, j) for j in range(3 + K)]
+    u = np.array([[keyed.keyed_uniform(key, a0 + lane // samples, lane % samples, j) for j in range(3 + K)]
                   for lane in range(m)])
     seg, seg_n = np.zeros((m, K, 10)), np.zeros(m, np.int64)
     hist, h_prim = np.zeros((m, K, 8)), np.zeros((m, K), np.int64)
     rt = tracer.rays()
-    counts = kernels.handoff_lanes(rt, key, a0, samples, K, x0, ng, ns, ns, w0, beta0, alb,
+    counts = handoff.handoff_lanes(rt, key, a0, samples, K, x0, ng, ns, ns, w0, beta0, alb,
                                    scene.tri_material[h0.prim].astype(np.int64), tracer.kernel_geometry(plan.casters),
                                    optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim,
                                    np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))

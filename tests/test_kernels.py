@@ -6,8 +6,17 @@ Jacobians) give ok False and finite zeros, as the ok flags of the numpy code say
 import numpy as np
 import pytest
 
-from smbs_addon.kernels import compiled as K
-from smbs_addon.walks.constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd, block_solve, blocks, specular_map
+from smbs_addon.kernels import chain
+
+from smbs_addon.kernels import large_mutation
+
+from smbs_addon.kernels import newton
+
+from smbs_addon.kernels import records
+
+from smbs_addon.kernels import typed
+from smbs_addon.walks.constraints import ANGLE_DIFF, HALF_VECTOR, block_solve, blocks, specular_map
+from smbs_addon.shading.light_samples import LightEnd
 from smbs_addon.scene.geometry import Vertex, pack
 from smbs_addon.core.vec import cross, frame, normalize
 
@@ -63,8 +72,8 @@ def test_chain_solve_matches_numpy(form, types, directional):
     F, _ = pack(verts)
     E = np.stack(etas, 1)
     args = (form == HALF_VECTOR, _kinds(types), x0, F, E, light.y, light.ys, light.yt, directional)
-    out0, ok0 = K.chain_solve(0, *args)
-    out1, ok1 = K.chain_solve(1, *args)
+    out0, ok0 = newton.chain_solve(0, *args)
+    out1, ok1 = newton.chain_solve(1, *args)
     ref_ok = okc & oks
     assert ref_ok.mean() > 0.3  # the test exercises real chains
     np.testing.assert_array_equal(ok0, ref_ok)
@@ -75,7 +84,7 @@ def test_chain_solve_matches_numpy(form, types, directional):
     # the walk's proposal: the Newton step of x1, shortened and scaled by beta
     idx = rng.permutation(n)[: n // 2]
     beta = rng.uniform(0.1, 1.0, n)
-    p, d, okp = K.newton_proposal(idx, *args, beta, 0.3)
+    p, d, okp = newton.newton_proposal(idx, *args, beta, 0.3)
     np.testing.assert_array_equal(okp, ref_ok[idx])
     step = -(delta[idx, 0, 0, 0][:, None] * verts[0].s[idx] + delta[idx, 0, 1, 0][:, None] * verts[0].t[idx])
     ls = np.sqrt(np.sum(step * step, 1))
@@ -103,12 +112,12 @@ def test_degenerate_chains_are_flagged_not_nan():
         C, A, B, D, okc = blocks(ANGLE_DIFF, "TT", x0, verts, etas, light)
         _, oks = block_solve(A, B, D, C[..., None])
     for mode in (0, 1):
-        out, ok = K.chain_solve(mode, *args)
+        out, ok = newton.chain_solve(mode, *args)
         assert np.all(np.isfinite(out))
         assert not ok[:32].any()
         if mode == 0:
             np.testing.assert_array_equal(ok, okc & oks)
-    p, d, okp = K.newton_proposal(np.arange(n), *args, np.ones(n), 1.0)
+    p, d, okp = newton.newton_proposal(np.arange(n), *args, np.ones(n), 1.0)
     assert np.all(np.isfinite(p)) and np.all(np.isfinite(d)) and not okp[:32].any()
 
 
@@ -121,7 +130,7 @@ def test_specular_map_kernel_matches_numpy():
     for refract, kind in ((False, "R"), (True, "T")):
         ref, ok = specular_map(kind, w, nrm, eta)
         for i in range(n):
-            out, oki = K.smap(refract, tuple(w[i]), tuple(nrm[i]), eta[i])
+            out, oki = newton.smap(refract, tuple(w[i]), tuple(nrm[i]), eta[i])
             assert oki == ok[i]
             assert np.abs(np.array(out) - ref[i]).max() < 1e-15
 
@@ -142,7 +151,7 @@ def test_large_proposal_matches_numpy(types, directional):
     d_ref, ok_ref = large_direction(types, verts, etas, light, x0, obj_lo[obj1], obj_hi[obj1], scale)
     F, I = pack(verts)
     idx = np.arange(n)
-    d, ok = K.large_proposal(idx, _kinds(types), x0, F, I, np.stack(etas, 1), light.y, directional, obj_lo,
+    d, ok = large_mutation.large_proposal(idx, _kinds(types), x0, F, I, np.stack(etas, 1), light.y, directional, obj_lo,
                              obj_hi, scale, MAX_HALVINGS)
     np.testing.assert_array_equal(ok, ok_ref)
     assert 0.2 < ok.mean() and np.abs(d - d_ref)[ok].max() < 1e-14
@@ -152,7 +161,7 @@ _CACHE_USE = r"""
 import importlib, sys, types
 import numpy as np
 name, path = sys.argv[1], sys.argv[2]
-if name != "smbs_addon.kernels.compiled":  # the same files under another package name, as Blender imports the extension
+if name != "smbs_addon.kernels.chain":  # the same files under another package name, as Blender imports the extension
     top, sub = name.split(".")[:2]
     for pkg, where in ((top, []), (top + "." + sub, [path])):
         m = types.ModuleType(pkg)
@@ -170,7 +179,7 @@ print("CACHE-OK")
 
 def test_disk_cache_survives_two_module_names(tmp_path):
     """A kernel cached under one module name (Blender's bl_ext.*.smbs_caustics...) must not break
-    a later process importing the same file as smbs_addon.kernels.compiled, and the other way round
+    a later process importing the same file as smbs_addon.kernels.chain, and the other way round
     (jit.py's cache locator)."""
     import os
     import subprocess
@@ -180,8 +189,8 @@ def test_disk_cache_survives_two_module_names(tmp_path):
     root = Path(__file__).resolve().parent.parent
     path = str(root / "smbs_addon")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
-    for name in ("smbs_caustics_test.smbs_addon.kernels.compiled", "smbs_addon.kernels.compiled", "smbs_caustics_test.smbs_addon.kernels.compiled",
-                 "smbs_addon.kernels.compiled"):
+    for name in ("smbs_caustics_test.smbs_addon.kernels.chain", "smbs_addon.kernels.chain", "smbs_caustics_test.smbs_addon.kernels.chain",
+                 "smbs_addon.kernels.chain"):
         proc = subprocess.run([sys.executable, "-c", _CACHE_USE, name, path], env=env, capture_output=True,
                               text=True, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
@@ -201,10 +210,10 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
     pkg = tmp_path / "copy" / "smbs_addon"
     shutil.copytree(src, pkg, ignore=shutil.ignore_patterns("__pycache__"))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
-    use = _CACHE_USE + "print('HITS', sum(K.end_mismatch.stats.cache_hits.values()))\n"
+    use = _CACHE_USE + "print('HITS', sum(chain.end_mismatch.stats.cache_hits.values()))\n"
 
     def hits():
-        proc = subprocess.run([sys.executable, "-c", use, "copied.smbs_addon.kernels.compiled", str(pkg)], env=env,
+        proc = subprocess.run([sys.executable, "-c", use, "copied.smbs_addon.kernels.chain", str(pkg)], env=env,
                               capture_output=True, text=True, timeout=600, cwd=tmp_path)
         assert proc.returncode == 0 and "CACHE-OK" in proc.stdout, proc.stderr[-2000:]
         return int(proc.stdout.split("HITS")[1])
@@ -226,7 +235,7 @@ def test_cache_stamp_covers_every_file_with_kernels():
 
     pkg = Path(jit.__file__).resolve().parents[1]
     with_kernels = {str(f) for f in pkg.rglob("*.py") if "@njit" in f.read_text()}
-    assert {"microfacet.py", "compiled.py", "embree.py"} <= {os.path.basename(f) for f in with_kernels}
+    assert {"microfacet.py", "walk.py", "embree.py"} <= {os.path.basename(f) for f in with_kernels}
     assert with_kernels <= set(jit._FILES)
 
 
@@ -255,7 +264,7 @@ def test_typed_once_types_a_long_tuple_once(monkeypatch):
     calls.clear()
     total(arrays, 1.0)
     assert len(calls) > 0  # the plain dispatcher types the 7-tuple on every call
-    fast = K.TypedOnce(total)
+    fast = typed.TypedOnce(total)
     assert fast(arrays, 1.0) == 64.0
     calls.clear()
     assert [fast(arrays, 2.0) for _ in range(3)] == [65.0] * 3
@@ -268,10 +277,10 @@ def test_typed_once_types_a_long_tuple_once(monkeypatch):
     def half(x):
         return x / 2
 
-    h = K.TypedOnce(half)
+    h = typed.TypedOnce(half)
     assert h(3) == 1.5 and h(3) == 1.5  # int -> float64: converted by the dispatcher, each time
-    assert h._entries[K._arg_key((3,))] is half
-    assert h(3.0) == 1.5 and h._entries[K._arg_key((3.0,))] is not half
+    assert h._entries[typed._arg_key((3,))] is half
+    assert h(3.0) == 1.5 and h._entries[typed._arg_key((3.0,))] is not half
 
 
 def _nrt_outstanding():

@@ -13,7 +13,7 @@ import pytest
 import scenes
 from smbs_addon import BakeSettings, bake
 
-bake_module = importlib.import_module("smbs_addon.baking.bake")  # the module (the package exports the function)
+bake_module = importlib.import_module("smbs_addon.baking.passes")  # where the chunk sizes are
 
 
 def _same(a, b):

@@ -88,8 +88,8 @@ def test_back_lit_trigger_on_one_vertex_reads_the_light_against_x0():
     """A chain of one vertex: the default ("single") is the paper's test. A mirror's
     reflection fires where x0 and the light are on different sides; a refraction where on
     the same side (four hand-made lanes)."""
-    from smbs_addon.walks.constraints import LightEnd
-    from smbs_addon.kernels.compiled import NF, NS, P
+    from smbs_addon.shading.light_samples import LightEnd
+    from smbs_addon.kernels.records import NF, NS, P
     from smbs_addon.walks.walk import Chain, WalkConfig, backlit
 
     F = np.zeros((4, 1, NF))

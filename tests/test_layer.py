@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 
 from smbs_addon.shading import coat as layer
-from smbs_addon.shading.optics import fresnel_dielectric
+from smbs_addon.shading.fresnel import fresnel_dielectric
 
 # Cycles 5.0.1 (the bpy module), measured: a plane of Blender's default Principled BSDF (Base
 # Color 0.8, Roughness 0.5, IOR 1.5) and one of Diffuse BSDF 0.8 under a sun, seen by an

@@ -205,7 +205,7 @@ def test_a_mesh_light_past_an_object_that_does_not_shadow_it_does_not_shadow_its
     was left of its length, 1046 of the 1749 rays to the front of the ball met its own triangles (the spawn past
     the plate moves the ray off its line; shadow_linked_glow's walks were 0.89 of Cycles)."""
     from smbs_addon.shading.lights import shadow_tmax
-    from smbs_addon.walks.manifold import sample_light
+    from smbs_addon.shading.light_samples import sample_light
     from smbs_addon.trace.tracer import Tracer
 
     def scene(plate):

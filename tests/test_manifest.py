@@ -67,7 +67,7 @@ result = bpy.ops.extensions.package_install_files(
     filepath=sys.argv[1], repo="user_default", enable_on_install=True)
 assert result == {'FINISHED'}, result
 assert "bake_caustics" in dir(bpy.ops.smbs) and hasattr(bpy.context.scene, "smbs_caustics")
-for core in ("export", "bake", "composite", "imageio"):  # relative imports hold inside the zip
+for core in ("blender.export", "baking.bake", "blender.composite", "io.exr", "kernels.walk", "cli.main"):  # relative imports hold inside the zip
     importlib.import_module(ext + ".smbs_addon." + core)
 # Prepare Kernels' processes import the installed core under this name, bpy left out
 import subprocess

@@ -128,7 +128,7 @@ def test_smbs_finds_twice_the_paths_on_a_fine_normal_map():
 def test_sphere_light_samples_only_the_cap_that_can_shine():
     """A sphere light's points outside sphere_cap face away from every caster: the cap is
     exact (no point left out could contribute), and smaller than the sphere."""
-    from smbs_addon.walks.manifold import sphere_cap
+    from smbs_addon.shading.light_samples import sphere_cap
     from smbs_addon.baking.plan import make_plan
 
     scene = scenes.water_scene("point", size=2.6)

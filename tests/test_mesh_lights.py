@@ -15,8 +15,8 @@ from smbs_addon.shading import lights
 from smbs_addon.scene import arrays as S
 from smbs_addon.scene.builder import SceneBuilder
 from smbs_addon.core.errors import SceneError
-from smbs_addon.walks.manifold import sample_light
-from smbs_addon.walks.estimators import light_end_at_solution
+from smbs_addon.shading.light_samples import sample_light
+from smbs_addon.shading.light_samples import light_end_at_solution
 
 
 def _panel_scene(light="mesh", facing=-1.0, strength=60.0, size=0.8, res=(48, 36)):

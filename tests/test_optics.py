@@ -11,7 +11,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from smbs_addon.shading.optics import fresnel_dielectric, fresnel_schlick, reflect, refract
+from smbs_addon.shading.fresnel import fresnel_dielectric, fresnel_schlick
+from smbs_addon.shading.optics import reflect, refract
 
 PROFILE = settings(max_examples=300, derandomize=True, deadline=None, database=None)
 
@@ -103,7 +104,7 @@ def test_a_conductor_without_extinction_is_a_dielectric(n, mu):
     """The physical conductor's Fresnel (optics.fresnel_conductor1, the Metallic BSDF's Physical
     Conductor) with k = 0 is the dielectric Fresnel of index n, an independent formula."""
     from smbs_addon.scene import arrays as S
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import specular_weights
 
     sc = _metal_scene(S.FRESNEL_CONDUCTOR, (0.5,) * 3, (n, n, n, 0.0, 0.0, 0.0))
     R, T = specular_weights(sc, np.zeros(1, np.int64), np.array([mu]))
@@ -115,7 +116,7 @@ def test_conductor_fresnel_at_normal_and_grazing_incidence():
     """A physical conductor reflects ((n - 1)^2 + k^2) / ((n + 1)^2 + k^2) head on and everything at
     grazing incidence, from either side, with no NaN where n or k is 0 in a channel; values in [0, 1]."""
     from smbs_addon.scene import arrays as S
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import specular_weights
 
     n, k = np.array([0.2, 1.1, 0.0]), np.array([3.6, 0.0, 2.0])
     sc = _metal_scene(S.FRESNEL_CONDUCTOR, (0.5,) * 3, np.concatenate([n, k]))
@@ -134,8 +135,8 @@ def test_f82_tint_matches_its_definition():
     head on, 1 at grazing incidence, and at cos = 1/7 (about 82 degrees) the tint times Schlick's value
     there, the model's definition; a white tint is Schlick's F0 towards white everywhere."""
     from smbs_addon.scene import arrays as S
-    from smbs_addon.shading.optics import f82_tint_metal
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import f82_tint_metal
+    from smbs_addon.shading.fresnel import specular_weights
 
     f0, tint = np.array([0.9, 0.6, 0.3]), np.array([1.0, 0.5, 0.2])
     sc = _metal_scene(S.FRESNEL_SCHLICK, f0, f82_tint_metal(f0, tint))
@@ -153,7 +154,7 @@ def test_a_rough_conductors_mean_fresnel_is_cycles_f82_fit():
     the F82 model fitted at cos 1 and 1/7): within 1% of the conductor's own hemispherical mean (an
     independent quadrature), and exact for a Schlick metal, whose fit is itself (F0 + (1 - F0) / 21)."""
     from smbs_addon.scene import arrays as S
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import specular_weights
     from smbs_addon.shading.microfacet import _f82_fit_mean
 
     sc = _metal_scene(S.FRESNEL_CONDUCTOR, (0.5,) * 3, (0.27, 0.68, 1.32, 3.61, 2.63, 2.29))
@@ -263,7 +264,7 @@ def test_a_far_tinted_glass_under_a_film_keeps_its_weights_in_range():
     T >= 0 (the bake fuzz found it: glass of index near 1, a film of 1 nm and index 1, tint 31)."""
     from smbs_addon.scene import arrays as S
     from smbs_addon.scene.builder import SceneBuilder
-    from smbs_addon.shading.optics import specular_weights
+    from smbs_addon.shading.fresnel import specular_weights
 
     b = SceneBuilder("tint")
     m = b.material("glass", S.DIELECTRIC, color=(1.0, 1.0, 1.0), ior=1.02, metal=(30.0, 0.0, 30.0, 0, 0, 0),

@@ -1,4 +1,4 @@
-"""The light tracer's photons, compiled (lights.emit, kernels.photon_lanes): the flux they
+"""The light tracer's photons, compiled (lights.emit, photons.photon_lanes): the flux they
 carry against independent estimates, a mirror's caustic photons against the law of
 reflection, and the kernel's bookkeeping (records that do not fit, threads) exact."""
 import math
@@ -8,7 +8,10 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.kernels import embree, compiled as kernels
+from smbs_addon.core import embree
+from smbs_addon.kernels import eye
+from smbs_addon.kernels import photons
+from smbs_addon.kernels import records
 from smbs_addon.shading import optics
 from smbs_addon.paths import photons as reference
 from smbs_addon.scene import arrays as S
@@ -99,15 +102,15 @@ def test_emitted_flux_is_the_light_s_flux_into_its_targets(kind, kw):
 
 
 def _trace(scene, plan, tracer, ph, key, indirect, cap, max_iter):
-    """kernels.photon_lanes over every photon, cap records per call: records, tally, rays."""
+    """photons.photon_lanes over every photon, cap records per call: records, tally, rays."""
     n = len(ph.o)
     K = 2
     hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
-    tally = np.zeros(kernels.PH_TALLY, np.int64)
+    tally = np.zeros(records.PH_TALLY, np.int64)
     recs, ids, lane, rays, calls = [], [], 0, 0, 0
     while lane < n:
-        rec, rec_i = np.empty((cap, kernels.REC_F)), np.empty((cap, 3), np.int64)
-        lane, m, counts = kernels.photon_lanes(tracer.rays(), indirect, ph.o, ph.d, ph.w, np.zeros(4), ph.visibility,
+        rec, rec_i = np.empty((cap, records.REC_F)), np.empty((cap, 3), np.int64)
+        lane, m, counts = photons.photon_lanes(tracer.rays(), indirect, ph.o, ph.d, ph.w, np.zeros(4), ph.visibility,
                                                np.zeros(0, bool), np.zeros(0, bool), key, lane, tracer.kernel_geometry(plan.casters), plan.receivers,
                                                optics.materials(scene), Limits.of(scene).array(), 32, max_iter, False,
                                                tracer.eps, rec, rec_i, hist, h_prim, tally)
@@ -139,7 +142,7 @@ def test_records_that_do_not_fit_are_traced_again_the_same(indirect):
     assert np.array_equal(big[0], small[0]) and np.array_equal(big[1], small[1])
     assert np.array_equal(big[2], small[2]) and big[3] == small[3]
     assert np.array_equal(big[5], small[5]) and np.array_equal(big[6], small[6])
-    assert big[2][kernels.PH_PHOTONS] == n
+    assert big[2][records.PH_PHOTONS] == n
     if indirect:  # a photon splats at every receiver once it may
         assert len(np.unique(big[1][:, 0])) < len(big[1])
 
@@ -165,10 +168,10 @@ def test_mirror_photons_reflect_onto_the_floor():
     start = on_mirror + tracer.eps * np.sign(r @ n_m)[:, None] * n_m  # tracer.spawn's offset
     floor = start - (start[:, 2] / r[:, 2])[:, None] * r
     assert len(rec) > 5000
-    assert np.abs(rec[:, kernels.REC_P:kernels.REC_P + 3] - floor).max() < 1e-9
-    assert np.allclose(rec[:, kernels.REC_BETA:kernels.REC_BETA + 3], ph.w[ids[:, 0]] * scenes.MIRROR_RHO,
+    assert np.abs(rec[:, records.REC_P:records.REC_P + 3] - floor).max() < 1e-9
+    assert np.allclose(rec[:, records.REC_BETA:records.REC_BETA + 3], ph.w[ids[:, 0]] * scenes.MIRROR_RHO,
                        rtol=1e-12, atol=0)
-    assert np.allclose(rec[:, kernels.REC_W:kernels.REC_W + 3], -r, atol=1e-12)
+    assert np.allclose(rec[:, records.REC_W:records.REC_W + 3], -r, atol=1e-12)
     assert np.all(ids[:, 1] == 1) and len(np.unique(ids[:, 0])) == len(ids)
     # every photon that meets the mirror first and reflects onto the floor splats, no other
     h = tracer.intersect(ph.o, ph.d)
@@ -179,7 +182,7 @@ def test_mirror_photons_reflect_onto_the_floor():
     land = pm - (pm[:, 2] / rm[:, 2])[:, None] * rm
     onto = (rm[:, 2] < 0) & (np.abs(land[:, :2]).max(axis=1) < 5.0)
     assert np.array_equal(np.sort(ids[:, 0]), np.flatnonzero(first_mirror)[onto])
-    assert stats["photons"] == 20000 and tally[kernels.PH_LOST] == 0
+    assert stats["photons"] == 20000 and tally[records.PH_LOST] == 0
 
 
 def test_light_tracer_same_image_whatever_the_threads():
@@ -195,7 +198,7 @@ def test_light_tracer_same_image_whatever_the_threads():
 
 def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo, under_layer):
     """The camera connection as reference.splat_to_camera made it in numpy (camera.CameraModel's
-    towards and importance, tracer.spawn and occluded), for kernels.camera_splats to be held to:
+    towards and importance, tracer.spawn and occluded), for eye.camera_splats to be held to:
     (raster x, raster y, value) of the splats, and the shadow rays cast."""
     rx, ry, to_cam, tmax, cos_axis, dist, valid = cam.towards(y, margin)
     ci_g, co_g = (w_in * ng).sum(1), (to_cam * ng).sum(1)
@@ -215,7 +218,7 @@ def _splat_to_camera_numpy(tracer, cam, margin, y, ng, ns, w_in, beta, albedo, u
 @pytest.mark.parametrize("name", ["glass_sphere", "water_ortho", "glass_sphere_principled_floor",
                                   "glass_sphere_rough_floor"])
 def test_camera_splats_are_the_numpy_connection(name):
-    """kernels.camera_splats (the light tracer's records connected to the camera, the shadow rays
+    """eye.camera_splats (the light tracer's records connected to the camera, the shadow rays
     cast in the kernel) against the same connection made in numpy from CameraModel.towards and
     importance: the same splats (raster positions to 1e-9 pixel, values to 1e-12 relative), the
     same shadow rays, on a perspective camera (the glass ball's caustic, some of it hidden by the ball),
@@ -240,14 +243,14 @@ def test_camera_splats_are_the_numpy_connection(name):
     assert len(rec) > 1000
     margin = scene.camera.filter_width
     col = lambda k: rec[:, k:k + 3]  # noqa: E731
-    want = _splat_to_camera_numpy(tracer, cam, margin, col(kernels.REC_P), col(kernels.REC_NG), col(kernels.REC_NS),
-                                  col(kernels.REC_W), col(kernels.REC_BETA), scene.mat_color[ids[:, 2]],
+    want = _splat_to_camera_numpy(tracer, cam, margin, col(records.REC_P), col(records.REC_NG), col(records.REC_NS),
+                                  col(records.REC_W), col(records.REC_BETA), scene.mat_color[ids[:, 2]],
                                   lambda idx, to_cam, ns, w: layer.weight(tab, ids[idx, 2], (to_cam * ns).sum(1))[:, None]
                                   * layer.coat_factor(scene, ids[idx, 2], scene.mat_color, ns, to_cam, w))
     n = len(rec)
     rx, ry, val, alb = np.empty(n), np.empty(n), np.empty((n, 3)), np.full((n, 3), np.nan)
     textured = scene.mat_kind == S.DIFFUSE  # every receiver textured: each splat's albedo written beside it
-    rays, m, _ = kernels.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
+    rays, m, _ = eye.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
                                        optics.materials(scene), True, tracer.eps, textured, view_tables(scene, cam),
                                        (tracer.ng, scene.tri_object, tracer.hid), rx, ry, val, alb)
     assert 100 < m <= rays <= n and rays == want[3]

@@ -293,7 +293,7 @@ def test_sample_scene_plans(name):
 def test_chain_flux_adds_up_as_a_loop_over_the_paths():
     """plan._chain_flux (np.unique and np.bincount) against the loop over pilot paths it replaced:
     the same chains in the order they first appear, and the same sums to the last bit."""
-    from smbs_addon.baking.plan import _chain_flux, _letters
+    from smbs_addon.baking.plan import _chain_flux, chain_letters
 
     rng = np.random.default_rng(11)
     for n in (0, 1, 7, 3000):
@@ -302,7 +302,7 @@ def test_chain_flux_adds_up_as_a_loop_over_the_paths():
         w = rng.random(n) * 10.0 ** rng.uniform(-6, 6, n)
         loop = {}
         for row, wv in zip(letters, w):
-            loop[_letters(row)] = loop.get(_letters(row), 0.0) + float(wv)
+            loop[chain_letters(row)] = loop.get(chain_letters(row), 0.0) + float(wv)
         got = _chain_flux(letters, w)
         assert list(got.items()) == list(loop.items())
         assert len(got) == len({tuple(r) for r in letters})
@@ -315,7 +315,9 @@ def test_the_plans_look_from_the_camera_answers_the_light_tracers():
     not known), and the bake casts those rays once (eye_pass.rays_visible 0). Where not known, the
     light tracer's own look casts from the pixels that can see a mirror or glass alone: the same
     answer from a quarter of the rays, none with the ball out of the frame."""
-    from smbs_addon.baking.bake import _specular_visible
+    from types import SimpleNamespace
+
+    from smbs_addon.baking.passes import specular_visible
     from smbs_addon.baking.plan import CAMERA_RAYS
 
     def look(scene):  # the light tracer's own look, as before the plan answered it
@@ -352,8 +354,9 @@ def test_the_plans_look_from_the_camera_answers_the_light_tracers():
         assert plan.specular_seen is None
         film = Film(cam.W, cam.H, big.camera.filter_width, cam.region)
         cells = specular_cells(big, tracer, cam, film)
-        every = _specular_visible(big, tracer, cam, plan, film)
-        some = _specular_visible(big, tracer, cam, plan, film, cells)
+        job = SimpleNamespace(scene=big, tracer=tracer, cam=cam, plan=plan, film=film)
+        every = specular_visible(job)
+        some = specular_visible(job, cells)
         assert look(big) is want and every == (want, 600 * 500) and some[0] is want
         assert some[1] == 0 if not want else 0 < some[1] < 0.3 * 600 * 500, some  # the ball's box: 26% of the frame
 

@@ -9,7 +9,8 @@ from pathlib import Path
 import numpy as np
 
 from smbs_addon.baking import prepare
-from smbs_addon.baking.bake import BakeSettings, bake
+from smbs_addon.baking.settings import BakeSettings
+from smbs_addon.baking.bake import bake
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -67,7 +68,7 @@ def test_check_says_whether_the_kernels_are_compiled(tmp_path, monkeypatch):
     shutil.copytree(ROOT / "smbs_addon", tmp_path / "smbs_addon", ignore=shutil.ignore_patterns("__pycache__"))
     copy = check(tmp_path)
     assert copy.returncode == 1 and copy.stdout.startswith("kernels: not compiled"), copy
-    assert sorted(p.name for p in (tmp_path / "smbs_addon" / "__pycache__").glob("*.nb*")) == []
+    assert sorted(p.name for p in (tmp_path / "smbs_addon").rglob("__pycache__/*.nb*")) == []
     assert prepare.ready() is True
     monkeypatch.setattr(prepare, "KERNELS", ("no_such_kernel",))
     assert prepare.ready() is None

@@ -1,5 +1,5 @@
 """A bumped diffuse receiver, shaded as Cycles shades it: its normal as the camera's view holds it
-(Scene.view_normals, eye.view_bumped, kernels.view_normal1) and the shadowing of a bent normal
+(Scene.view_normals, eye.view_bumped, eye.view_normal1) and the shadowing of a bent normal
 (optics.bump_shadowing1, Cycles' bump_shadowing_term)."""
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon.kernels import compiled as kernels
+from smbs_addon.kernels import eye
 from smbs_addon.scene import arrays as S
 from smbs_addon.scene.builder import SceneBuilder
 from smbs_addon.trace.camera import CameraModel
@@ -63,7 +63,7 @@ def _view(scene, normal, s=2):
     the normal `normal` there."""
     cam = CameraModel(scene.camera)
     rows, cols = np.mgrid[0:cam.H * s, 0:cam.W * s]
-    o, d = kernels.camera_rays(cam.kernel_params(), (cols.ravel() + 0.5) / s, (rows.ravel() + 0.5) / s)
+    o, d = eye.camera_rays(cam.kernel_params(), (cols.ravel() + 0.5) / s, (rows.ravel() + 0.5) / s)
     p = o - (o[:, 2] / d[:, 2])[:, None] * d
     floor = np.all(np.abs(p[:, :2]) < 3.0, axis=1)
     n = np.where(floor[:, None], np.asarray(normal, float), 0.0)
@@ -106,7 +106,7 @@ def test_the_view_is_read_only_where_it_shows_the_receiver_itself():
     sc.view_normals, sc.view_points = _view(sc, TILTED)
     cam = CameraModel(sc.camera)
     rx, ry = np.full(4, 10.3), np.full(4, 12.6)
-    o, d = kernels.camera_rays(cam.kernel_params(), rx, ry)
+    o, d = eye.camera_rays(cam.kernel_params(), rx, ry)
     h = Tracer(sc).intersect(o, d)
     assert h.hit.all()
     p, ng, ns = h.p.copy(), h.ng.copy(), h.ns.copy()

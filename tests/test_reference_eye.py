@@ -13,7 +13,7 @@ import pytest
 
 import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.baking.bake import caustic_region
+from smbs_addon.baking.result import caustic_region
 from smbs_addon.scene.builder import SceneBuilder, look_at
 
 RHO2 = 0.7

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon import BakeSettings
+from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
 from smbs_addon.scene.builder import SceneBuilder, look_at
 from smbs_addon.core.errors import SceneError
@@ -346,7 +346,7 @@ def test_a_bake_builds_each_seeder_once(monkeypatch):
 
     from smbs_addon.walks import manifold
 
-    bake_mod = importlib.import_module("smbs_addon.baking.bake")  # the module, not the function
+    bake_mod = importlib.import_module("smbs_addon.baking.passes")  # where the chunk sizes are
     built = []
     init = manifold.Seeder.__init__
 
@@ -356,7 +356,7 @@ def test_a_bake_builds_each_seeder_once(monkeypatch):
 
     monkeypatch.setattr(manifold.Seeder, "__init__", counting)
     monkeypatch.setattr(bake_mod, "WALK_CHUNK", 500)  # several chunks per batch
-    res = bake_mod.bake(scenes.ring_scene(resolution=(40, 30)),
+    res = bake(scenes.ring_scene(resolution=(40, 30)),
                         BakeSettings(method="sms", spp=2, batches=2, seed=1, guide=False))
     walked = sorted(res.stats["lights"]["Area"]["by_chain"])
     assert sorted(built) == walked and len(walked) >= 1

@@ -27,7 +27,8 @@ def test_a_stalled_walk_stops_at_the_first_step_that_shrank_four_by_less_than_a_
     the walk cut at max_iterations = m): a lane stops ("stalled") at the first step s >= 6 whose
     mismatch is above 0.9 times that of step s - 4, and only there; every other lane walks
     exactly as without the rule (outcome, steps, chain)."""
-    from smbs_addon.walks.walk import STALL, STALLED, WalkConfig, end_mismatch, newton_walk
+    from smbs_addon.walks.walk import STALL, WalkConfig, end_mismatch, newton_walk
+    from smbs_addon.kernels.records import STALLED
 
     ctx, x0, ng0, light, chain = _walks()
     base = WalkConfig(beta0=0.125)
@@ -66,7 +67,7 @@ def test_first_step_scales_the_first_newton_step():
     through p; so where the ray meets x1's tangent plane is p again. Two walks of one step from
     the same seeds, beta 1 and 1/8, on lanes where both steps were accepted: the tangent-plane
     points' offsets from x1 are in the ratio 1/8 (1e-6)."""
-    from smbs_addon.kernels.compiled import P, S, T
+    from smbs_addon.kernels.records import P, S, T
     from smbs_addon.walks.walk import WalkConfig, newton_walk
 
     ctx, x0, ng0, light, chain = _walks(n=2000)

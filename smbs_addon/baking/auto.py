@@ -33,7 +33,9 @@ import time
 
 import numpy as np
 
-from . import convergence
+from ..trace.camera import CameraModel
+from ..trace.tracer import Tracer
+from . import convergence, engine
 from ..scene import arrays as S
 
 PILOT_PIXELS = 40 * 30  # the pilot's frame: the camera's, scaled down to about this many pixels
@@ -105,12 +107,9 @@ def _cost(batch_lum, region, work, n_all: int) -> float:
     return _var(batch_lum, region, n_all) * work
 
 
-def choose(scene, settings, plan, cancel=None) -> dict:
-    """{light index: Choice} from a pilot per planned light (see the module's notes)."""
-    from .bake import bake
-    from ..trace.camera import CameraModel
-    from ..trace.tracer import Tracer
-
+def choose(scene, settings, plan, cancel=None, watch=None) -> dict:
+    """{light index: Choice} from a pilot per planned light (see the module's notes): each candidate
+    baked whole (engine.bake_fixed) on the pilot's scene; watch: the bake's CompileWatch."""
     out = {}
     for lp in plan.lights:
         sub = _pilot_scene(scene, lp.index)
@@ -123,7 +122,7 @@ def choose(scene, settings, plan, cancel=None) -> dict:
             s = dataclasses.replace(settings, method=m, spp=PILOT_BATCHES, batches=PILOT_BATCHES, time_budget=0.0,
                                     noise_target=0.0, indirect=False, estimator="unbiased")
             t = time.perf_counter()
-            res = bake(sub, s, cancel=cancel)
+            res = engine.bake_fixed(sub, s, cancel, watch)
             st = res.stats  # the work per sample: the rays past the plan, the photon pre-pass and the look
             cast += st["rays"]
             work = (st["rays"] - st["plan"].get("rays", 0) - st.get("guide", {}).get("rays", 0)

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import math
 import time
-import zlib
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -21,6 +20,7 @@ from ..scene import arrays as S
 from ..core.errors import SceneError
 from ..shading.lights import env_map, light_axis, light_covers
 from ..shading.microfacet import rough_materials
+from ..core.random import PILOT_CASTER, PILOT_INDIRECT, PLAN_LOOK, light_key, stream
 from ..core.vec import dot
 
 
@@ -106,10 +106,6 @@ def describe_chain(t: str) -> str:
         return "refraction" if k == 1 else f"refraction, {k} vertices"
     what = "internal reflection" if t[0] == "T" and t[-1] == "T" else "reflection"
     return f"refraction, {k} vertices, {r} {what}{'s' if r > 1 else ''}"
-
-
-def light_key(name: str) -> int:
-    return zlib.crc32(name.encode("utf-8"))
 
 
 def _bounding_sphere(lo, hi, scene) -> np.ndarray:
@@ -288,10 +284,6 @@ FAINT = "its caustic is too faint to show"
 CAMERA_RAYS = 1 << 18  # at most this many rays for what the camera sees (a grid over the frame)
 
 
-def _rng(seed, *key):
-    return np.random.default_rng(np.random.SeedSequence([int(seed), *[int(k) for k in key]]))
-
-
 def _surfaces(scene, tracer, o, d, camera=False, passable=None):
     """Trace rays (camera: the camera's own, Tracer.camera_intersect; passable: past the objects it marks,
     Tracer.intersect_past): (hits, indices of the rays that hit, their object, material and kind)."""
@@ -323,7 +315,7 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
 
     def part(a, b):
         return _sees_part(scene, tracer, plan, o[a:b], d[a:b], max_bounces, 4 * CAMERA_RAYS * (b - a) // max(n, 1),
-                          _rng(0, 10, a))
+                          stream(0, PLAN_LOOK, a))
 
     rays, specular = 0, False
     for p_direct, p_through, p_sides, p_rays, p_specular in lanes.blocks(part, n, SEES_PART, tracer.threads):
@@ -442,7 +434,8 @@ def _pilot(scene, tracer, cam, plan, ph, direct, through, sides, rng, max_bounce
     ids (-1 past its end), its chain letters, the receiver, the flux it carries
     (luminance, through the Fresnel weights) and where it lands; and the rays cast. target None: photons
     leaving a diffuse surface (ph.o is on it), the first specular hit on any caster."""
-    from ..shading.optics import reflect, refract, specular_weights
+    from ..shading.optics import reflect, refract
+    from ..shading.fresnel import specular_weights
 
     n0 = len(ph.o)
     keep = ph.w.max(axis=1) > 0
@@ -546,7 +539,7 @@ def caustic_irradiance(at: np.ndarray, w: np.ndarray, scale: float) -> float:
     return float(cell[bright].sum() / (bright.sum() * h * h))
 
 
-def _letters(row) -> str:
+def chain_letters(row) -> str:
     """Chain letters of one pilot path, the receiver's side first (the walks' order)."""
     return "".join("R" if c == 1 else "T" for c in row[::-1] if c)
 
@@ -559,7 +552,7 @@ def _chain_flux(letters: np.ndarray, w: np.ndarray) -> dict:
         return {}
     rows, first, inv = np.unique(letters, axis=0, return_index=True, return_inverse=True)
     flux = np.bincount(inv.ravel(), weights=w, minlength=len(rows))
-    return {_letters(rows[u]): float(flux[u]) for u in np.argsort(first, kind="stable")}
+    return {chain_letters(rows[u]): float(flux[u]) for u in np.argsort(first, kind="stable")}
 
 
 def spot_target(scene, li: int, sphere: np.ndarray) -> tuple[np.ndarray, float]:
@@ -598,7 +591,7 @@ def _caster_pilot(scene, tracer, cam, plan, seen, seed, lp, k, pilots, max_bounc
     from ..shading.lights import emit
 
     o = lp.caster_objects[k]
-    rng = _rng(seed, 7, lp.key, light_key(scene.object_names[o]))
+    rng = stream(seed, PILOT_CASTER, lp.key, light_key(scene.object_names[o]))
     ph = emit(scene, lp.index, lp.targets[k:k + 1], pilots, rng)
     hist, letters, recv, wgt, at, r = _pilot(scene, tracer, cam, plan, ph, *seen, rng, max_bounces, o)
     first = hist[:, 0] == o
@@ -618,7 +611,7 @@ def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere,
     from ..shading.lights import Photons, emit
     from ..core.vec import cosine_hemisphere, frame, to_world
 
-    rng = _rng(seed, 8, light_key(scene.light_names[li]))
+    rng = stream(seed, PILOT_INDIRECT, light_key(scene.light_names[li]))
     ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng)  # onto the diffuse surfaces
     lit = np.flatnonzero(ph.w.max(axis=1) > 0)
     h = tracer.intersect_past(ph.o[lit], ph.d[lit], 0, ph.unshadowing)  # past what does not shadow it

@@ -18,6 +18,7 @@ bpy.ops.smbs.prepare_kernels()"`` on a farm node), whose processes are Blender's
 """
 from __future__ import annotations
 
+import importlib
 import json
 import math
 import os
@@ -52,8 +53,10 @@ _BAKE_LINE = "bake "  # run()'s line per bake
 
 # the kernels a bake calls from Python (each compiles the helpers it calls inside it): ready()
 # looks for them in the disk cache
-KERNELS = ("walk_lanes", "bernoulli_lanes", "chain_solve", "handoff_lanes", "segments_near", "photon_lanes",
-           "eye_lanes", "gather_lanes", "camera_splats", "splat")
+KERNELS = ("walk.walk_lanes", "trials.bernoulli_lanes", "newton.chain_solve", "handoff.handoff_lanes",
+           "handoff.segments_near", "photons.photon_lanes", "eye.eye_lanes", "gather.gather_lanes", "eye.camera_splats",
+           "film.splat")  # module.kernel under smbs_addon.kernels
+_KERNELS_PACKAGE = __name__.rsplit(".", 2)[0] + ".kernels"  # under whatever name the package is imported
 
 
 def ready() -> bool | None:
@@ -62,12 +65,11 @@ def ready() -> bool | None:
     compiling: True or False; None where this numba keeps its cache otherwise than numba 0.60
     (no telling). Reads their cache index files (~15 ms); compiles nothing. A kernel for a rarer
     setting (the textured coat, say) may still compile in a bake where this says True."""
-    from ..kernels import compiled as kernels
-
     try:
         for name in KERNELS:
-            kernel = getattr(kernels, name)
-            kernel = getattr(kernel, "dispatcher", kernel)  # kernels.TypedOnce
+            module, _, attr = name.partition(".")
+            kernel = getattr(importlib.import_module(f"{_KERNELS_PACKAGE}.{module}"), attr)
+            kernel = getattr(kernel, "dispatcher", kernel)  # typed.TypedOnce
             this_cpu = kernel.targetctx.codegen().magic_tuple()
             # the index is empty where its stamp is not this code's (jit.py); its keys are
             # (signature, the processor compiled for, ...)
@@ -115,7 +117,8 @@ def run(part: int = 0, parts: int = 1, say=None, progress=None, cancel=None) -> 
     """Make part `part`'s bakes in this process; returns {"seconds", "compile_s", "kernels"}.
     progress(fraction, message) before each bake; cancel() returning True stops between and
     inside bakes (BakeCancelled, as bake)."""
-    from .bake import BakeSettings, bake
+    from .settings import BakeSettings
+    from .bake import bake
     from ..core.errors import BakeCancelled
 
     todo = bakes(part, parts)

@@ -25,7 +25,7 @@ from ..scene import arrays as S
 from ..scene.builder import SceneBuilder
 from ..core.errors import SceneError
 from ..shading.coat import principled_layer
-from ..shading.optics import conductor_f0, f82_tint_metal
+from ..shading.fresnel import conductor_f0, f82_tint_metal
 from ..shading.microfacet import GGX, MULTI_GGX, SINGULAR_ALPHA2
 
 log = logging.getLogger(__name__)
@@ -735,7 +735,7 @@ def _bsdf(node, mat, warn, direct=False) -> dict:
                      f"Transmission); the rest neither casts nor receives caustics")
             # Cycles' Principled glass tints transmission by sqrt(base colour) at every
             # refraction and leaves reflection white; its Specular Tint scales the Fresnel term's
-            # value at normal incidence (Scene.mat_metal[:3] = tint - 1; optics._tinted_glass)
+            # value at normal incidence (Scene.mat_metal[:3] = tint - 1; optics.tinted_glass)
             try:
                 spec_tint = np.maximum(_input(node, "Specular Tint", np.ones(3)), 0.0)
             except _Unsupported:

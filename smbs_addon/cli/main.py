@@ -76,7 +76,7 @@ def _clamp(s):
 
 
 def _methods(s):
-    from ..baking.bake import METHODS
+    from ..baking.settings import METHODS
 
     ms = tuple(m.strip() for m in s.split(",") if m.strip())
     bad = [m for m in ms if m not in METHODS]
@@ -124,7 +124,7 @@ def _bake_options(b):
 
 
 def _settings(args, method: str, spp: int, time_budget: float = 0.0, noise_target: float = 0.0):
-    from ..baking.bake import BakeSettings
+    from ..baking.settings import BakeSettings
 
     settings = BakeSettings(method=method, spp=spp, seed=args.seed, batches=args.batches,
                             threads=args.threads or 0, use_cycles_flags=args.flags,
@@ -136,7 +136,7 @@ def _settings(args, method: str, spp: int, time_budget: float = 0.0, noise_targe
 
 
 def build_parser() -> argparse.ArgumentParser:
-    from ..baking.bake import METHODS
+    from ..baking.settings import METHODS
 
     p = _Parser(prog="python -m smbs_addon", description="Bake caustics for a Blender scene.")
     sub = p.add_subparsers(dest="command", required=True)

@@ -7,8 +7,8 @@ them side by side. error_model="numpy": x / 0 is inf or NaN as in numpy, never a
 The cache locator installed here does two things numba's own does not:
 - one disk cache per name the package is imported under. numba's cache is keyed by the
   source file, but a cached kernel rebuilds its environment by importing its module by the
-  name it was compiled under: the same file imported as smbs_addon.kernels.compiled (command line) and
-  as bl_ext.<repo>.smbs_caustics.smbs_addon.kernels.compiled (Blender) would each fail to load the
+  name it was compiled under: the same file imported as smbs_addon.kernels.chain (command line) and
+  as bl_ext.<repo>.smbs_caustics.smbs_addon.kernels.chain (Blender) would each fail to load the
   other's entries (ModuleNotFoundError). The module's name goes into the cache file names;
 - a stamp over every file that holds kernels. A kernel of kernels.py inlines embree.py's ray
   calls, and numba's stamp covers only the kernel's own file: an edit of embree.py would load
@@ -20,7 +20,7 @@ import hashlib
 import os
 
 JIT = dict(cache=True, nogil=True, error_model="numpy", _nrt=True)
-# The loops over lanes (kernels' *_rows and _walk_jobs, a lane's seed and ray chain, and the per-event
+# The loops over lanes (kernels' *_rows and walk_jobs, a lane's seed and ray chain, and the per-event
 # helpers they call with arrays: optics.scatter1, kernels._coat_factor, thinfilm.f82_film1) compile
 # without numba's reference counting. There numba calls NRT_incref and NRT_decref for every array a
 # variable takes, a tuple gives up or an inlined helper receives, per lane and Newton step (a call
@@ -36,7 +36,7 @@ LANES = dict(JIT, _nrt=False)
 # while numba's own inline="always" types it again at every call site (the walks' first compile took
 # 154 s with the small helpers so marked, 71 s without: bench/results/first_bake.md). A helper keeps
 # inline="always" where LLVM would leave a call in a hot kernel (bench/inlined_calls.py lists the
-# calls left), or where it is the Newton step itself (kernels._lane_blocks, _lane_solve, _lane_newton:
+# calls left), or where it is the Newton step itself (kernels._lane_blocks, _lane_solve, lane_newton:
 # called, a hammered mirror's bakes were 8-15% slower).
 
 _PACKAGE = __name__.rsplit(".", 2)[0]  # smbs_addon, under whatever name it is imported

@@ -31,7 +31,10 @@ import math
 
 import numpy as np
 
-from ..kernels import embree, compiled as kernels
+from ..core import embree
+from ..kernels.gather import gather_lanes
+from ..kernels import handoff
+from ..kernels import records
 from ..core import lanes
 from ..shading import coat as layer, optics
 from ..scene import arrays as S
@@ -39,9 +42,13 @@ from ..scene.light_paths import ONE_DIFFUSE, Limits, specular_kind
 from ..trace.eye import Receivers, direct_albedo, surface_at
 from ..scene.geometry import triangle_areas
 from ..shading.lights import area_light_shape, light_radiance, shadow_tmax
-from .photons import _letters, run_photons, scatter_specular, splat_records
+from ..shading.light_samples import light_can_be_hit, light_end_at_solution, sample_light
+from ..trace.eye import eye_receivers
+from .handoff import handoff_select, chain_letters, other_paths, walked_casters
+from .photons import run_photons, scatter_specular, splat_records
 from ..shading.microfacet import walk_casters
 from ..core.vec import cross, dot, normalize
+from .photons import MAX_SPECULAR_BOUNCES
 
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
@@ -61,7 +68,7 @@ HANDOFF_LANES = 1 << 17  # rays in flight in handoff_gather
 BENT_BOUNCES, BENT_RECEIVER_SHARE, BENT_EYE_SHARE = 16, 16, 64
 # specular vertices bent_gather follows: the bent paths are a few % of a layer at most (1.65% on
 # cube_grey), and chains longer than 8 carry 0.8-2.0% of a bevelled cube's light (OTHERS_DEPTH);
-# each lane keeps a record per vertex (kernels.handoff_lanes' seg and hist)
+# each lane keeps a record per vertex (handoff.handoff_lanes' seg and hist)
 BENT_DEPTH = 8
 # specular vertices handoff_gather follows for the paths no walk takes (chains longer than
 # max_chain), as far as the conformance scenes' Cycles settings (16 glossy and transmission
@@ -76,10 +83,10 @@ def _albedo(scene, mat):
 
 def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
     """Cosine-sampled bounce off diffuse vertices (about the shading normal on w_in's side),
-    with Russian roulette on the albedo (kernels.diffuse_rows). Returns (directions, weights,
+    with Russian roulette on the albedo (handoff.diffuse_rows). Returns (directions, weights,
     kept vertices)."""
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
-    return kernels.diffuse_rows(rng.random((3, len(w_in))), f64(w_in), f64(ng), f64(ns), f64(beta), f64(albedo),
+    return handoff.diffuse_rows(rng.random((3, len(w_in))), f64(w_in), f64(ng), f64(ns), f64(beta), f64(albedo),
                                 bool(adjoint))
 
 
@@ -87,7 +94,7 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=
     """Light tracing of the layer's paths through two or more diffuse vertices, splatted
     at the receivers the camera sees directly (photons from lights.emit over the whole
     scene, not only towards the casters), within the scene's Light Paths limits
-    (kernels.photon_lanes, indirect)."""
+    (photons.photon_lanes, indirect)."""
     lim = Limits.of(scene)
     rec, ids, _, _, _ = run_photons(scene, tracer, plan, photons, rng, stats, indirect=True,
                                     max_iter=MAX_SPECULAR + min(lim.diffuse, 64) + 1, physical=physical)
@@ -98,8 +105,6 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats, obj=None):
     """Direct light of light li at diffuse points (one light sample each), as outgoing
     radiance towards w_eye divided by the albedo: cos * L_e * G / (pi p). obj: the points'
     objects, none lit where the light's Light Linking leaves the object out (None: all lit)."""
-    from ..walks.manifold import sample_light
-    from ..walks.estimators import light_end_at_solution
 
     n = len(p)
     out = np.zeros((n, 3))
@@ -214,7 +219,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         d, beta, k = _diffuse_bounce(rng, f_w[go], f_ng[go], f_ns[go], f_beta[go], _albedo(scene, f_mat[go]), False)
         sel = go[k]
         x0 = np.flatnonzero(f_depth[sel] == 0)
-        if x0.size and layer.has_layers(scene):  # x0 under a Principled coat (kernels._gather_rows the same)
+        if x0.size and layer.has_layers(scene):  # x0 under a Principled coat (kernels/gather.py's gather_rows the same)
             beta[x0] = beta[x0] * layer.coat_factor(scene, f_mat[sel[x0]], scene.mat_color, f_ns[sel[x0]],
                                                     f_w[sel[x0]], d[x0])
         lane, has_s, depth = f_lane[sel], f_has_s[sel], f_depth[sel]
@@ -324,7 +329,7 @@ def _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, k, ok, r
     (last_obj: the object of the vertex each segment leaves, for the lights' Light Linking)."""
     surf_t = np.where(h.hit, h.t, np.inf)
     for li, ho in others.items():
-        walked = [c for c in np.unique(code) if _letters(c, k) in ho.types]  # as reference.other_paths
+        walked = [c for c in np.unique(code) if chain_letters(c, k) in ho.types]  # as reference.other_paths
         other = ok & (~on | ~np.isin(code, walked))
         if not other.any():
             continue
@@ -344,10 +349,9 @@ def _splat_gathered(scene, film, rc: Receivers, radiance, stats):
 
 def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct, physical, lights_hit, count_first):
     """gather's radiance (n,3) at the receivers without walks to connect (the light tracer's):
-    the paths traced in kernel calls (kernels.gather_lanes, their random numbers keyed by one draw
+    the paths traced in kernel calls (gather.gather_lanes, their random numbers keyed by one draw
     from rng and the receiver's index), the lights on the segments it records and the direct light
     at the vertices it records found here, as gather finds them."""
-    from ..walks.manifold import light_can_be_hit
 
     n = len(rc.p)
     lim = Limits.of(scene)
@@ -363,31 +367,31 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
     n_seg, n_vx = (cap if hit_lights else 0), (cap if lights_direct else 0)
     parts, lane = [], 0
     while lane < n:
-        seg, seg_i = np.empty((n_seg, kernels.SEG_F)), np.empty(n_seg, np.int64)
-        vx, vx_i = np.empty((n_vx, kernels.VX_F)), np.empty(n_vx, np.int64)
+        seg, seg_i = np.empty((n_seg, records.SEG_F)), np.empty(n_seg, np.int64)
+        vx, vx_i = np.empty((n_vx, records.VX_F)), np.empty(n_vx, np.int64)
         rt = tracer.rays()
-        lane, ms, mv, counts = kernels.gather_lanes(rt, key, lane, *args, seg, seg_i, vx, vx_i)
+        lane, ms, mv, counts = gather_lanes(rt, key, lane, *args, seg, seg_i, vx, vx_i)
         tracer.cast_by_kernel(rt, counts)
         stats["rays_gather"] = stats.get("rays_gather", 0) + int(counts[embree.KINDS:].sum())
         parts.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
     seg, seg_i, vx, vx_i = (np.concatenate([p[k] for p in parts]) for k in range(4))
     radiance = np.zeros((n, 3))
     if len(seg):
-        o, d, surf_t = seg[:, kernels.SEG_O:kernels.SEG_O + 3], seg[:, kernels.SEG_D:kernels.SEG_D + 3], \
-            seg[:, kernels.SEG_T]
-        beta, refl = seg[:, kernels.SEG_BETA:kernels.SEG_BETA + 3], seg[:, kernels.SEG_REFL] > 0
-        seg_obj = seg[:, kernels.SEG_OBJ].astype(np.int64)
+        o, d, surf_t = seg[:, records.SEG_O:records.SEG_O + 3], seg[:, records.SEG_D:records.SEG_D + 3], \
+            seg[:, records.SEG_T]
+        beta, refl = seg[:, records.SEG_BETA:records.SEG_BETA + 3], seg[:, records.SEG_REFL] > 0
+        seg_obj = seg[:, records.SEG_OBJ].astype(np.int64)
         for li in hit_lights:  # every light in front of the next surface (seen_light)
             seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, seg_obj)
             seen = np.flatnonzero(seen)
             np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
     if len(vx):
         c = lambda k: vx[:, k:k + 3]  # noqa: E731
-        vx_obj = vx[:, kernels.VX_OBJ].astype(np.int64)
+        vx_obj = vx[:, records.VX_OBJ].astype(np.int64)
         for li in lights_direct:
-            rad = direct_light(scene, tracer, li, c(kernels.VX_P), c(kernels.VX_NG), c(kernels.VX_NS),
-                               c(kernels.VX_W), rng, stats, vx_obj)
-            np.add.at(radiance, vx_i, c(kernels.VX_BETA) * rad)
+            rad = direct_light(scene, tracer, li, c(records.VX_P), c(records.VX_NG), c(records.VX_NS),
+                               c(records.VX_W), rng, stats, vx_obj)
+            np.add.at(radiance, vx_i, c(records.VX_BETA) * rad)
     return radiance
 
 
@@ -395,7 +399,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
                    samples=HANDOFF_SAMPLES, found: dict | None = None, bent=False, aim=True):
     """The hand-off for receivers seen through mirrors or glass (rc), where no photon can
     reach the camera: one cosine bounce from x0 through up to K specular vertices, counting
-    a light hit only when reference._handoff_select gives that path to the photons (its
+    a light hit only when reference.handoff_select gives that path to the photons (its
     chain a walked type on casters, focusing more than tau). The manifold pass drops
     exactly those paths at these receivers, so the two add up; near a focus, where the
     walks' estimate is heavy-tailed, the light seen from x0 through the caster is large
@@ -419,7 +423,7 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
         return
     # blocks of receivers (bounded memory: HANDOFF_LANES rays in flight per thread) taken by the
     # threads in turn, each path's random numbers keyed by one draw, its receiver and its sample
-    # (kernels.handoff_lanes), each block with its own counters, added in block order: the image
+    # (handoff.handoff_lanes), each block with its own counters, added in block order: the image
     # does not depend on the thread count
     key = int(rng.integers(2**63))
 
@@ -445,27 +449,27 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
 
 def _light_shapes(scene, lights: tuple, eps: float):
-    """kernels.segments_near's rows for these lights, spheres widened by a millionth and eps (the
+    """handoff.segments_near's rows for these lights, spheres widened by a millionth and eps (the
     tracer's offset); a light at infinity keeps every segment (NEAR_ALL)."""
-    rows = np.zeros((len(lights), kernels.NEAR_F))
+    rows = np.zeros((len(lights), records.NEAR_F))
     for row, li in zip(rows, lights):
         typ, m = scene.light_type[li], scene.light_matrix[li]
         if typ in S.DISTANT:
-            row[0] = kernels.NEAR_ALL
+            row[0] = records.NEAR_ALL
         elif typ in (S.POINT, S.SPOT):
             r = float(scene.light_radius[li])
             if r * r > 0:
-                row[:5] = (kernels.NEAR_SPHERE, *m[:3, 3], r * (1 + 1e-6) + eps)
+                row[:5] = (records.NEAR_SPHERE, *m[:3, 3], r * (1 + 1e-6) + eps)
             else:
-                row[0] = kernels.NEAR_NONE  # lights.light_radiance: never met
+                row[0] = records.NEAR_NONE  # lights.light_radiance: never met
         elif typ == S.AREA:
             cen, ex, ey, nrm, hx, hy, _ = area_light_shape(scene, li)
             disk = scene.light_shape[li] in (S.DISK, S.ELLIPSE)
-            row[:] = (kernels.NEAR_DISK if disk else kernels.NEAR_RECT, *cen, *ex, *ey, *nrm, hx, hy)
+            row[:] = (records.NEAR_DISK if disk else records.NEAR_RECT, *cen, *ex, *ey, *nrm, hx, hy)
         else:  # a mesh light: the sphere about its triangles' box
             tv = scene.mesh_light(li)[1].reshape(-1, 3)
             lo, hi = tv.min(axis=0), tv.max(axis=0)
-            row[:5] = (kernels.NEAR_SPHERE, *(0.5 * (lo + hi)), 0.5 * np.linalg.norm(hi - lo) * (1 + 1e-6) + eps)
+            row[:5] = (records.NEAR_SPHERE, *(0.5 * (lo + hi)), 0.5 * np.linalg.norm(hi - lo) * (1 + 1e-6) + eps)
     return rows
 
 
@@ -482,7 +486,6 @@ def bending_lights(scene, tracer, plan) -> list:
     normal is the geometric one). Empty: nothing to do."""
     if not len(bent_candidates(scene, tracer, plan)[0]):
         return []
-    from ..walks.manifold import light_can_be_hit
 
     return [lp.index for lp in plan.lights if light_can_be_hit(scene, lp.index)]
 
@@ -490,7 +493,7 @@ def bending_lights(scene, tracer, plan) -> list:
 def bent_candidates(scene, tracer, plan):
     """The triangles whose normals Cycles' Bump Map Correction can bend (on planned casters, the
     material's flag on, shading normals that differ from the geometric one), their cumulative
-    areas and its guide table (kernels.cdf_pick): bent_gather aims its first bounce at points
+    areas and its guide table (handoff.cdf_pick): bent_gather aims its first bounce at points
     uniform over them. Kept on the plan."""
     if plan.bent is not None:
         return plan.bent
@@ -501,7 +504,7 @@ def bent_candidates(scene, tracer, plan):
     area = triangle_areas(tracer.v[cand])
     if cand.size and area.sum() > 0:
         cdf = np.cumsum(area)
-        cached = (cand, cdf, kernels.guide_table(cdf))
+        cached = (cand, cdf, handoff.guide_table(cdf))
     else:
         cached = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
     plan.bent = cached
@@ -526,7 +529,7 @@ def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, ph
     and no walk makes them. On a bevelled glass cube 2 cm above the floor, the light reflected
     off its outside at grazing angles doubles in the shadow beside it (conformance scene
     cube_grey_reflect). Traced from x0 (handoff_gather, bent) towards points uniform in area over
-    the triangles that can bend (bent_candidates; kernels._toward_triangle): cosine sampling
+    the triangles that can bend (bent_candidates; handoff._toward_triangle): cosine sampling
     found 38 such paths in 22 M rays on that cube. lights: the light indices that count. Paths
     bent only at a later vertex are in no estimator (handoff_gather drops every bent path).
     aim False: cosine sampling instead, every bent path (the tests' independent estimator)."""
@@ -538,10 +541,9 @@ def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, ph
 def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs: dict, physical, samples, found, bent,
                    aim=True):
     """handoff_gather's radiance (n,3) at a block of receivers, a0 the first's index (key, a0:
-    kernels.handoff_lanes' random numbers); found: light index -> paths taken.
-    The paths are traced in one kernel call (kernels.handoff_lanes); the lights seen on their
+    handoff.handoff_lanes' random numbers); found: light index -> paths taken.
+    The paths are traced in one kernel call (handoff.handoff_lanes); the lights seen on their
     segments and the paths taken are found here, per number of specular vertices."""
-    from .photons import _handoff_select, other_paths, walked_casters
 
     n = len(rc.p)
     K = _handoff_depth(handoffs)
@@ -554,7 +556,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     rt = tracer.rays()
     none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
     cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
-    counts = kernels.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye),
+    counts = handoff.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye),
                                    f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
                                    np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters),
                                    optics.materials(scene), bool(physical),
@@ -568,7 +570,7 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     # took a third of the hand-off's time): 1 in 1,300 on the floor seen in a gold ring, 1 in 420
     # on a disk seen through a pane, 1 in 23-26 under a glass ball lit by a lamp or a mesh panel
     near = lanes.scratch("handoff_near", (m, K), np.bool_)
-    kernels.segments_near(seg, seg_n, _light_shapes(scene, tuple(handoffs), tracer.eps), near)
+    handoff.segments_near(seg, seg_n, _light_shapes(scene, tuple(handoffs), tracer.eps), near)
     for k in range(K):  # the segments after bounce = k + 1 specular vertices (near: only those a lane has)
         row = np.flatnonzero(near[:, k])
         if row.size == 0:
@@ -595,12 +597,12 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
                 continue
             y = d[seen] if ho.directional else o[seen] + tl[seen, None] * d[seen]
             r = row[seen]
-            # _handoff_select reads the history light side first: reverse the bounces
+            # handoff_select reads the history light side first: reverse the bounces
             rev = np.arange(bounce)[::-1]
             hr = hist[r][:, rev]
             kb, refl = np.full(seen.size, bounce), hr[:, :, 5].astype(np.int64)
             caster = walked_casters(scene, h_prim[r][:, rev], hr[:, :, 6] > 0)
-            take = _handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev], hr[:, :, 0:3],
+            take = handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev], hr[:, :, 0:3],
                                    hr[:, :, 3:5], refl, caster, y)
             t = seen[take]
             np.add.at(radiance, row[t] // samples, beta[t] * L[t])
@@ -612,3 +614,36 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
             found[li] = found.get(li, 0) + int(t.size - other.sum())
     return radiance
 
+
+def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, rng, stats,
+              max_bounces=MAX_SPECULAR_BOUNCES, physical=False, lights_direct=(), cells=None):
+    """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse receiver
+    x0 -> ... -> light, by path tracing from the eye.
+
+    The light tracer cannot connect such x0 to the camera (the connection passes a
+    delta BSDF), so this estimator covers exactly the paths whose eye chain has at
+    least one specular vertex; together they partition the caustic layer. From x0,
+    cosine-sampled paths must find a finite light right after a specular vertex on a
+    caster (x0's own caustic, or that of a later diffuse vertex), or light a later
+    diffuse vertex directly once a specular vertex lies behind (indirect.gather):
+    unbiased, noisy for small lights, blind to point lights of radius 0 and suns of
+    angle 0. cells: a mask over the film cells whose samples are traced (eye.specular_cells:
+    those that can see a mirror or glass first; None: all)."""
+
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=1,
+                       max_bounces=max_bounces, scale_eta=physical, cells=cells)
+    gather(scene, tracer, film, plan, rc, rng, stats, lights_direct, physical=physical,
+           lights_hit=light_indices, count_first=True)
+
+
+def trace_bent(scene, tracer, cam, film, plan, lights, start, n, n_batch, rng, stats, physical=False):
+    """The light tracer's share of the paths through a vertex Cycles' Bump Map Correction bends
+    (indirect.bent_gather) at receivers the camera sees directly, where photons splat (no photon
+    makes such a path; at receivers seen through mirrors and glass trace_eye's gather finds
+    them): eye samples start..start+n of the batch to their first surface, kept where it is a
+    diffuse receiver seen directly."""
+
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
+                       scale_eta=physical)
+    bent_gather(scene, tracer, film, plan, rc.take(np.flatnonzero(rc.eye_specular == 0)), rng, stats, lights,
+                physical=physical)

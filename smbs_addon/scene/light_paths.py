@@ -63,7 +63,7 @@ class Limits:
         return self.allowed(cnt[:, 0], cnt[:, 1], cnt[:, 2])
 
     def array(self) -> np.ndarray:
-        """(diffuse, glossy, transmission, total), as the kernels take them (kernels._fits)."""
+        """(diffuse, glossy, transmission, total), as the kernels take them (kernels.fits_limits)."""
         return np.array([self.diffuse, self.glossy, self.transmission, self.total], np.int64)
 
     def chain_fits(self, types: str, d=1, g=0, t=0):

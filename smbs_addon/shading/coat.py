@@ -33,62 +33,18 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-from .optics import fresnel_dielectric
-from .microfacet import SINGULAR_ALPHA2
+from .fresnel import fresnel_dielectric
+from .microfacet import MU_STEPS, SINGULAR_ALPHA2, lambda_ggx, shadowing, visible_normals
+from ..core.jit import JIT, LANES
+from ..core.vec3 import add3, dot1, neg3, normalize3
+from .fresnel import fresnel_dielectric1
 
-MU_STEPS = 64  # the table's cosines: 0, 1/64, ..., 1
 # coat_factor: a diffuse channel whose Lambert term (albedo x (1 - A) x cos / pi) is at most this is
 # black; the coat's share over it, glossy / Lambert, would overflow (an albedo of 1e-309, fuzzed)
 LAMBERT_FLOOR = 1e-250
-_GRID = 64  # stratified visible-normal samples per axis
 _cache: dict = {}  # (ior, roughness, tint) -> (weights, gains), each (MU_STEPS + 1,)
-
-
-def lambda_ggx(cos, a2):
-    """Smith's Lambda of GGX (alpha^2 = a2) for directions of cosine cos (> 0)."""
-    c2 = np.maximum(cos * cos, 1e-12)
-    return 0.5 * (np.sqrt(1.0 + a2 * np.maximum(1.0 / c2 - 1.0, 0.0)) - 1.0)
-
-
-def shadowing(lam_in, cos_out, ok, a2):
-    """Smith's height-correlated G2 over the masking G1 of the sampling direction, (1 + L_in) /
-    (1 + L_in + L_out), where ok (a lobe leaving on its side), else 0: what a visible-normal sample
-    keeps (lam_in: lambda_ggx of the sampling direction; cos_out: the new direction's cosine)."""
-    return np.where(ok, (1.0 + lam_in) / (1.0 + lam_in + lambda_ggx(np.where(ok, cos_out, 1.0), a2)), 0.0)
-
-
-def visible_normals(mu: np.ndarray, alpha: float, grid: int = _GRID, jitter=None):
-    """Stratified samples (grid^2, the same for every mu) of GGX's visible normals (Heitz 2018) for
-    directions w of cosines mu in the x-z plane: (hx, hz) of the normals (K, S) and (wx, wz) of the
-    directions (K, 1); the normals' y parts are not needed by the albedos. jitter: (2, grid^2)
-    offsets in [0, 1) within the strata (None: their midpoints)."""
-    u = (np.arange(grid) + 0.5) / grid
-    u1, u2 = (x.ravel() for x in np.meshgrid(u, u, indexing="ij"))
-    if jitter is not None:
-        u1, u2 = u1 + (jitter[0] - 0.5) / grid, u2 + (jitter[1] - 0.5) / grid
-    # concentric mapping of the unit square onto the disk (Shirley and Chiu)
-    a, b = 2.0 * u1 - 1.0, 2.0 * u2 - 1.0
-    big = np.abs(a) > np.abs(b)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        r = np.where(big, a, b)
-        phi = np.where(big, (math.pi / 4) * b / np.where(a == 0, 1, a),
-                       math.pi / 2 - (math.pi / 4) * a / np.where(b == 0, 1, b))
-    t1, t2 = r * np.cos(phi), r * np.sin(phi)
-    alpha = max(float(alpha), 1e-4)
-    m = np.clip(np.asarray(mu, float), 1e-4, 1.0)[:, None]  # (K, 1) against the samples (1, S)
-    wo_x = np.sqrt(np.maximum(1.0 - m * m, 0.0))
-    # the view stretched to the hemisphere configuration (in the x-z plane: T1 is the y axis)
-    vl = np.sqrt(alpha * alpha * wo_x * wo_x + m * m)
-    vx, vz = alpha * wo_x / vl, m / vl
-    s = 0.5 * (1.0 + vz)
-    tt2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - t1 * t1, 0.0)) + s * t2
-    tz = np.sqrt(np.maximum(1.0 - t1 * t1 - tt2 * tt2, 0.0))
-    # nh = t1 T1 + tt2 T2 + tz vh, with T1 = (0, 1, 0) and T2 = vh x T1 = (-vz, 0, vx)
-    nx, ny, nz = -tt2 * vz + tz * vx, t1 + 0.0 * m, tt2 * vx + tz * vz
-    hx, hy, hz = alpha * nx, alpha * ny, np.maximum(nz, 0.0)
-    hl = np.maximum(np.sqrt(hx * hx + hy * hy + hz * hz), 1e-300)
-    return hx / hl, hz / hl, wo_x, m
 
 
 def _albedos(mu: np.ndarray, alpha: float, eta: float) -> tuple[np.ndarray, np.ndarray]:
@@ -299,3 +255,100 @@ def coat_factor(scene, mat, color, n, w_view, w_light, share=True) -> np.ndarray
     k = np.where(lit, s[:, None] * (rough + eval_g[:, None] / np.where(lit, lambert, 1.0)), 1.0)
     out[idx] = np.where((ok & (sw_d > 0))[:, None], k, 1.0)
     return out
+
+
+@njit(**JIT)
+def lambda_clamped1(cos, a2):
+    c2 = max(cos * cos, 1e-12)
+    return 0.5 * (math.sqrt(1.0 + a2 * max(1.0 / c2 - 1.0, 0.0)) - 1.0)
+
+
+@njit(**JIT)
+def oren_nayar_g1(c):
+    """layer.oren_nayar_g for one cosine."""
+    if c < 1e-6:
+        return (math.pi / 2 - 2.0 / 3.0) - c
+    sn = math.sqrt(max(1.0 - c * c, 0.0))
+    th = math.acos(min(c, 1.0))
+    return sn * (th - 2.0 / 3.0 - sn * c) + 2.0 / 3.0 * (sn / c) * (1.0 - sn * sn * sn)
+
+
+@njit(**JIT)
+def oren_nayar_ratio1(sigma, alb, nv, nl, lv):
+    """layer.oren_nayar_ratio for one path and one channel's albedo alb."""
+    sigma = min(max(sigma, 0.0), 1.0)
+    a = 1.0 / (math.pi + sigma * (math.pi / 2 - 2.0 / 3.0))
+    b = sigma * a
+    t = lv - nl * nv
+    if t > 0:
+        t = t / (max(nl, nv) + 1e-38)
+    e_avg = a * math.pi + ((2 * math.pi - 5.6) / 3.0) * b
+    al = min(max(alb, 0.0), 1.0)
+    e_ms = (1.0 / math.pi) * al * al * (e_avg / (1.0 - e_avg)) / (1.0 - al * (1.0 - e_avg))
+    e_l = a * math.pi + b * oren_nayar_g1(nl)
+    e_v = a * math.pi + b * oren_nayar_g1(nv)
+    return math.pi * (a + b * t + e_ms * (1.0 - e_v) * (1.0 - e_l))
+
+
+@njit(**LANES)
+def coat_factor1(mats, m, n, w_view, w_light, share):
+    """layer.coat_factor for one path (mats: optics.materials): what Cycles' caustics on-minus-off
+    keeps of a path leaving material m's diffuse towards w_light, relative to a Lambert diffuse;
+    (1, 1, 1) exactly for a Lambert diffuse without a coat. The same sums as layer.coat_factor."""
+    lay = mats[8]
+    eta, rough, tint, wgt, sigma = lay[m, 0], lay[m, 1], lay[m, 2], lay[m, 3], lay[m, 4]
+    a2 = rough ** 4
+    coated = eta > 1.0 and a2 > SINGULAR_ALPHA2 and wgt > 0.0
+    if not (coated or sigma > 0.0):
+        return 1.0, 1.0, 1.0
+    nv = dot1(n, w_view)
+    nn = neg3(n) if nv < 0 else n
+    mu_o = min(max(abs(nv), 1e-6), 1.0)
+    mu_i = dot1(nn, w_light)
+    if not mu_i > 1e-9:
+        return 1.0, 1.0, 1.0
+    if not wgt > 0.0:
+        wgt = 1.0
+    col = mats[2]
+    b0, b1, b2 = col[m, 0] / wgt, col[m, 1] / wgt, col[m, 2] / wgt
+    one_minus_a = table_weight1(mats[9], m, mu_o)  # the glossy coat's alone: a clear coat scales all alike
+    sw_d = (b0 + b1 + b2) / 3.0 * one_minus_a
+    if not sw_d > 0:
+        return 1.0, 1.0, 1.0
+    r0 = r1 = r2 = 1.0
+    if sigma > 0.0:
+        lv = dot1(w_view, w_light)
+        r0, r1, r2 = (oren_nayar_ratio1(sigma, b0, mu_o, mu_i, lv), oren_nayar_ratio1(sigma, b1, mu_o, mu_i, lv),
+                      oren_nayar_ratio1(sigma, b2, mu_o, mu_i, lv))
+    eval_g = 0.0
+    s = 1.0
+    if coated:
+        h = normalize3(add3(w_view, w_light))
+        c_nh = dot1(h, nn)
+        d = a2 / (math.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
+        lam_o = lambda_clamped1(mu_o, a2)
+        g2 = 1.0 / (1.0 + lam_o + lambda_clamped1(mu_i, a2))
+        eval_g = table_weight1(mats[7], m, mu_o) * fresnel_dielectric1(dot1(h, w_view), eta) * tint * d * g2 / (4.0 * mu_o)
+        if share:
+            pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
+            pdf_d = mu_i / math.pi
+            p_d = sw_d / max(sw_d + (1.0 - one_minus_a), 1e-300)
+            s = p_d * pdf_d / max(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300)
+    e_d = one_minus_a * mu_i / math.pi
+    # a channel whose Lambert term is below layer.LAMBERT_FLOOR is black (the coat's share over it
+    # would overflow: a colour of 1e-309 made an infinite caustic)
+    k0 = s * (r0 + eval_g / (b0 * e_d)) if b0 * e_d > LAMBERT_FLOOR else 1.0
+    k1 = s * (r1 + eval_g / (b1 * e_d)) if b1 * e_d > LAMBERT_FLOOR else 1.0
+    k2 = s * (r2 + eval_g / (b2 * e_d)) if b2 * e_d > LAMBERT_FLOOR else 1.0
+    return k0, k1, k2
+
+
+@njit(**JIT)
+def table_weight1(tab, m, mu):
+    """layer.weight for one vertex: material m's entry of tab (one of layer.py's tables,
+    optics.materials' mats[6], [7] or [9]) at the eye's cosine mu; exactly 1 in a row of ones."""
+    x = min(abs(mu), 1.0) * MU_STEPS
+    i = min(int(x), MU_STEPS - 1)
+    f = x - i
+    a = tab[m, i]
+    return a + (tab[m, i + 1] - a) * f

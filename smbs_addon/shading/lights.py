@@ -27,8 +27,9 @@ from numba import njit
 from ..scene import arrays as S
 from ..scene.geometry import area_points
 from ..core.jit import JIT
-from .microfacet import frame1
+from ..core.vec3 import frame1
 from ..core.vec import concentric_disk, dot
+from ..core import embree
 
 
 @dataclass
@@ -547,8 +548,6 @@ def _mesh_light_radiance(scene, li, o, d, surf_t, beyond=False):
     again in an embree scene of its triangles alone, no farther than that surface (within float32's
     error); t is then just before that surface, as the callers count a light before it. beyond: where
     the ray meets its triangles at all, t their distance."""
-    from ..kernels import embree
-
     if beyond:
         surf_t = np.full(len(o), np.inf)
     elif surf_t is None:

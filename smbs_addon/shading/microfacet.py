@@ -12,16 +12,8 @@ That weight is symmetric in the two directions up to the refraction's (eta_from 
 which optics.scatter1 handles as for a smooth glass, so photons (adjoint) sample h from their
 own incoming direction too.
 
-Multiscatter GGX (Blender's default distribution for the Principled, Glass and Glossy BSDF)
-adds what single scattering loses (Cycles' microfacet_ggx_preserve_energy, after Kulla and
-Conty): the lobe is multiplied by 1 + F_ms (1 - E(mu)) / E(mu), mu the cosine of the eye's
-direction with the shading normal, E the single-scattering albedo without Fresnel (for glass:
-reflection and refraction together, its Fresnel included, on the side the eye is), and
-F_ms = F_ss E_avg / (1 - F_ss (1 - E_avg)), F_ss the lobe's Fresnel averaged over the
-hemisphere (a mirror's colour, a metal's Schlick term; 1 for glass, for which the factor is
-1 / E). E is computed here by stratified visible-normal samples (layer.visible_normals), not
-read from Cycles' tables, and tabulated per material at MU_STEPS + 1 cosines
-(energy_tables): linear between them in scatter1 (energy_gain1).
+Multiscatter GGX's energy compensation is energy.py's. The numpy forms here (lambda_ggx, shadowing,
+visible_normals) serve the tables of energy.py and coat.py, which integrate over the visible normals.
 """
 from __future__ import annotations
 
@@ -30,8 +22,9 @@ import math
 import numpy as np
 from numba import njit
 
-from ..scene import arrays as S
 from ..core.jit import JIT
+from ..core.vec3 import dot1, frame1
+from ..scene import arrays as S
 
 # a smoother mirror or glass (alpha^2 = Roughness^4 at most this: Roughness 0.0178) is baked as a perfect one, so
 # the walks take it. Cycles' own threshold (BSDF_ROUGHNESS_SQ_THRESH) is 2e-10, Roughness 0.0038; between the two
@@ -39,12 +32,6 @@ from ..core.jit import JIT
 SINGULAR_ALPHA2 = 1e-7
 GGX, MULTI_GGX = 0, 1  # Scene.mat_distribution (a scene without it: Multiscatter GGX, Blender's default)
 _TAU = 2.0 * math.pi
-
-
-@njit(**JIT)
-def dot1(a, b):
-    """The dot product of two 3-tuples (optics and kernels call this one: LLVM inlines it)."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 @njit(**JIT)
@@ -56,15 +43,6 @@ def lambda1(cos, a2):
         return 1e30
     t = a2 * (1.0 / c2 - 1.0)
     return 0.5 * (math.sqrt(1.0 + (t if t > 0.0 else 0.0)) - 1.0)
-
-
-@njit(**JIT)
-def frame1(n):
-    """Two unit tangents completing the unit n to an orthonormal frame (Duff et al. 2017)."""
-    s = 1.0 if n[2] >= 0.0 else -1.0
-    a = -1.0 / (s + n[2])
-    b = n[0] * n[1] * a
-    return (1.0 + s * n[0] * n[0] * a, s * b, -s * n[0]), (b, s + n[1] * n[1] * a, -n[1])
 
 
 @njit(inline="always", **JIT)
@@ -102,27 +80,6 @@ def visible_normal1(w, n, alpha, u1, u2):
             hx * t[2] + hy * bt[2] + hz * n[2])
 
 
-@njit(inline="always", **JIT)
-def energy_gain1(table, m, outside, mu):
-    """Multiscatter GGX's factor (3-tuple) for material m where the eye's direction makes the
-    cosine mu (>= 0) with the shading normal, outside (True) or inside a glass: table is
-    energy_tables' (M, 2, MU + 1, 3), rows of 1 where there is none."""
-    steps = table.shape[2] - 1
-    x = mu * steps
-    if x > steps:
-        x = float(steps)
-    if not x > 0.0:
-        x = 0.0
-    i = int(x)
-    if i > steps - 1:
-        i = steps - 1
-    f = x - i
-    side = 0 if outside else 1
-    return ((1.0 - f) * table[m, side, i, 0] + f * table[m, side, i + 1, 0],
-            (1.0 - f) * table[m, side, i, 1] + f * table[m, side, i + 1, 1],
-            (1.0 - f) * table[m, side, i, 2] + f * table[m, side, i + 1, 2])
-
-
 # ------------------------------------------------------------------ tables
 def alphas(scene) -> np.ndarray:
     """(M,) each material's GGX alpha where it is a rough mirror or glass (alpha^2 above
@@ -142,129 +99,6 @@ def distributions(scene) -> np.ndarray:
 def rough_materials(scene) -> np.ndarray:
     """(M,) bool: the rough mirrors and glass (alphas above 0)."""
     return alphas(scene) > 0
-
-
-FINE_GRID = 256  # strata per axis of the visible normals for the energy tables (jittered: ~1e-4)
-_CHUNK = 8  # cosines per pass
-
-
-def fine_mean(mu: np.ndarray, alpha: float, f) -> np.ndarray:
-    """(K,) the mean over GGX's visible normals of f(hx, hz, wx, wz) (layer.visible_normals' arrays) for
-    each cosine mu: FINE_GRID^2 strata jittered by a fixed generator (the same table every time).
-    Midpoints converge as 1 / grid where the integrand jumps (a reflection dipping under the
-    surface, total internal reflection): 0.3% high at 64 strata; these are within ~1e-4."""
-    from .coat import visible_normals
-
-    jitter = np.random.default_rng(12345).random((2, FINE_GRID * FINE_GRID))
-    mu = np.asarray(mu, float)
-    out = np.empty(len(mu))
-    for a in range(0, len(mu), _CHUNK):
-        out[a:a + _CHUNK] = f(*visible_normals(mu[a:a + _CHUNK], alpha, FINE_GRID, jitter)).mean(axis=1)
-    return out
-
-
-def visible_albedo(mu: np.ndarray, alpha: float) -> np.ndarray:
-    """E(mu): the single-scattering albedo of a GGX mirror without Fresnel (Cycles' ggx_E)."""
-    from .coat import lambda_ggx, shadowing
-
-    a2 = max(float(alpha), 1e-4) ** 2
-
-    def reflected(hx, hz, wx, wz):
-        rz = 2.0 * (hx * wx + hz * wz) * hz - wz
-        return shadowing(lambda_ggx(wz, a2), rz, rz > 0, a2)
-    return fine_mean(mu, alpha, reflected)
-
-
-def glass_albedo(mu: np.ndarray, alpha: float, eta: float) -> np.ndarray:
-    """The single-scattering albedo of a GGX glass (reflection and refraction, the dielectric
-    Fresnel at the microfacet included; no eta^2 radiance factor, as Cycles) for directions of
-    cosine mu on the side from which the other side's index is eta times this one's."""
-    from .coat import lambda_ggx, shadowing
-    from .optics import fresnel_dielectric
-
-    a2 = max(float(alpha), 1e-4) ** 2
-
-    def lobes(hx, hz, wx, wz):
-        c = hx * wx + hz * wz  # w.h (> 0 for a visible normal)
-        F = fresnel_dielectric(np.abs(c), eta)
-        li = lambda_ggx(wz, a2)
-        rz = 2.0 * c * hz - wz
-        er = 1.0 / eta
-        s2 = er * er * (1.0 - c * c)
-        tz = -er * wz + (er * c - np.sqrt(np.maximum(1.0 - s2, 0.0))) * hz
-        return F * shadowing(li, rz, rz > 0, a2) + (1.0 - F) * shadowing(li, tz, (s2 < 1.0) & (tz < 0), a2)
-    return fine_mean(mu, alpha, lobes)
-
-
-def _hemisphere_mean(f: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """2 int_0^1 f(mu) mu dmu (the trapezoid rule over the table's cosines), along axis 0."""
-    w = np.full(len(mu), mu[1] - mu[0])
-    w[0] = w[-1] = 0.5 * (mu[1] - mu[0])
-    return 2.0 * np.tensordot(w * mu, f, axes=(0, 0))
-
-
-def _gain(E: np.ndarray, fss: np.ndarray, mu: np.ndarray) -> np.ndarray:
-    """(K, 3) Cycles' 1 + F_ms (1 - E) / E for albedos E (K,) and F_ss (3,)."""
-    e = np.maximum(E, 1e-4)
-    e_avg = float(_hemisphere_mean(E, mu))
-    fms = fss * e_avg / (1.0 - fss * (1.0 - e_avg))
-    return 1.0 + fms[None, :] * ((1.0 - e) / e)[:, None]
-
-
-_cache: dict = {}
-
-
-def _f82_fit_mean(f0, f82) -> np.ndarray:
-    """Cycles' mean Fresnel reflectance of a physical conductor (fresnel_conductor_Fss,
-    kernel/closure/bsdf_util.h): the F82 model fitted to its reflectance at normal incidence (f0)
-    and at cos = 1/7 (f82), whose mean is F0 + (1 - F0) / 21 - B / 126."""
-    from .optics import f82_terms
-
-    schlick, scale = f82_terms(f0)
-    b = scale * (schlick - f82)
-    return np.clip(f0 + (1.0 - f0) / 21.0 - b / 126.0, 0.0, 1.0)
-
-
-def energy_tables(scene) -> np.ndarray:
-    """(M, 2, MU_STEPS + 1, 3): Multiscatter GGX's factor per material, eye outside (0) or inside
-    a glass (1), at mu = 0, 1/MU_STEPS, ..., 1 (energy_gain1); ones for the rest (smooth, GGX, a
-    Refraction BSDF: Cycles compensates none of these)."""
-    from .coat import MU_STEPS
-    from .optics import _tinted_glass, fresnel_dielectric, metal, specular_weights
-
-    M = len(scene.mat_kind)
-    out = np.ones((M, 2, MU_STEPS + 1, 3))
-    a, dist = alphas(scene), distributions(scene)
-    mu = np.linspace(0.0, 1.0, MU_STEPS + 1)
-    for m in np.flatnonzero((a > 0) & (dist == MULTI_GGX)):
-        kind, fres = int(scene.mat_kind[m]), int(scene.mat_fresnel[m])
-        eta = float(scene.mat_ior[m])
-        if kind == S.DIELECTRIC and fres == S.REFRACTION_ONLY:
-            continue
-        if kind == S.DIELECTRIC:
-            # Cycles' F_ss for a glass: its transmission tint (white: the factor is 1 / E, E on the eye's
-            # side), or where that is black its reflection tint times the mean Fresnel reflectance
-            fss = np.asarray(scene.mat_color[m], np.float64)
-            if not fss.any():
-                f_mean = _hemisphere_mean(fresnel_dielectric(mu, eta), mu)
-                fss = f_mean * scene.mat_reflect_color[m]
-                row = metal(scene)[m] if metal(scene).size else np.zeros(6)
-                if np.any(row[:3] != 0.0):  # a Principled glass's Specular Tint: F's mean mapped as F is
-                    f = float(f_mean)
-                    fss = np.array(_tinted_glass((f, f, f), eta, tuple(float(v) for v in row), False)) \
-                        * scene.mat_reflect_color[m]
-            key = ("glass", float(a[m]), eta, tuple(np.round(fss, 12)))
-            albedos = lambda m=m, eta=eta: [glass_albedo(mu, a[m], e) for e in (eta, 1.0 / eta)]  # noqa: E731
-        else:
-            R, _ = specular_weights(scene, np.full(len(mu), m), mu)
-            fss = _f82_fit_mean(R[-1], specular_weights(scene, np.array([m]), np.array([1.0 / 7.0]))[0][0]) \
-                if fres == S.FRESNEL_CONDUCTOR else _hemisphere_mean(R, mu)
-            key = ("mirror", float(a[m]), tuple(np.round(fss, 12)))
-            albedos = lambda m=m: [visible_albedo(mu, a[m])]  # noqa: E731  (both sides alike)
-        if key not in _cache:
-            _cache[key] = np.stack([_gain(E, fss, mu) for E in albedos()])
-        out[m] = _cache[key]
-    return np.ascontiguousarray(out)
 
 
 # ------------------------------------------------------------------ who takes a rough surface's paths
@@ -289,3 +123,55 @@ def rough_casters(scene, casters: np.ndarray) -> np.ndarray:
 def walk_casters(scene, casters: np.ndarray) -> np.ndarray:
     """(O,) bool: the planned casters the walks take (the smooth ones: rough_objects')."""
     return np.asarray(casters, bool) & ~rough_objects(scene)
+
+
+MU_STEPS = 64  # the table's cosines: 0, 1/64, ..., 1
+
+
+_GRID = 64  # stratified visible-normal samples per axis
+
+
+def lambda_ggx(cos, a2):
+    """Smith's Lambda of GGX (alpha^2 = a2) for directions of cosine cos (> 0)."""
+    c2 = np.maximum(cos * cos, 1e-12)
+    return 0.5 * (np.sqrt(1.0 + a2 * np.maximum(1.0 / c2 - 1.0, 0.0)) - 1.0)
+
+
+def shadowing(lam_in, cos_out, ok, a2):
+    """Smith's height-correlated G2 over the masking G1 of the sampling direction, (1 + L_in) /
+    (1 + L_in + L_out), where ok (a lobe leaving on its side), else 0: what a visible-normal sample
+    keeps (lam_in: lambda_ggx of the sampling direction; cos_out: the new direction's cosine)."""
+    return np.where(ok, (1.0 + lam_in) / (1.0 + lam_in + lambda_ggx(np.where(ok, cos_out, 1.0), a2)), 0.0)
+
+
+def visible_normals(mu: np.ndarray, alpha: float, grid: int = _GRID, jitter=None):
+    """Stratified samples (grid^2, the same for every mu) of GGX's visible normals (Heitz 2018) for
+    directions w of cosines mu in the x-z plane: (hx, hz) of the normals (K, S) and (wx, wz) of the
+    directions (K, 1); the normals' y parts are not needed by the albedos. jitter: (2, grid^2)
+    offsets in [0, 1) within the strata (None: their midpoints)."""
+    u = (np.arange(grid) + 0.5) / grid
+    u1, u2 = (x.ravel() for x in np.meshgrid(u, u, indexing="ij"))
+    if jitter is not None:
+        u1, u2 = u1 + (jitter[0] - 0.5) / grid, u2 + (jitter[1] - 0.5) / grid
+    # concentric mapping of the unit square onto the disk (Shirley and Chiu)
+    a, b = 2.0 * u1 - 1.0, 2.0 * u2 - 1.0
+    big = np.abs(a) > np.abs(b)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        r = np.where(big, a, b)
+        phi = np.where(big, (math.pi / 4) * b / np.where(a == 0, 1, a),
+                       math.pi / 2 - (math.pi / 4) * a / np.where(b == 0, 1, b))
+    t1, t2 = r * np.cos(phi), r * np.sin(phi)
+    alpha = max(float(alpha), 1e-4)
+    m = np.clip(np.asarray(mu, float), 1e-4, 1.0)[:, None]  # (K, 1) against the samples (1, S)
+    wo_x = np.sqrt(np.maximum(1.0 - m * m, 0.0))
+    # the view stretched to the hemisphere configuration (in the x-z plane: T1 is the y axis)
+    vl = np.sqrt(alpha * alpha * wo_x * wo_x + m * m)
+    vx, vz = alpha * wo_x / vl, m / vl
+    s = 0.5 * (1.0 + vz)
+    tt2 = (1.0 - s) * np.sqrt(np.maximum(1.0 - t1 * t1, 0.0)) + s * t2
+    tz = np.sqrt(np.maximum(1.0 - t1 * t1 - tt2 * tt2, 0.0))
+    # nh = t1 T1 + tt2 T2 + tz vh, with T1 = (0, 1, 0) and T2 = vh x T1 = (-vz, 0, vx)
+    nx, ny, nz = -tt2 * vz + tz * vx, t1 + 0.0 * m, tt2 * vx + tz * vz
+    hx, hy, hz = alpha * nx, alpha * ny, np.maximum(nz, 0.0)
+    hl = np.maximum(np.sqrt(hx * hx + hy * hy + hz * hz), 1e-300)
+    return hx / hl, hz / hl, wo_x, m

@@ -13,8 +13,7 @@ import numpy as np
 
 from ..scene import arrays as S
 from ..core.vec import normalize
-
-
+from ..kernels import eye
 def _border_pixel(frac: float, size: int) -> int:
     """Blender's ``rcti`` border edge: float32(frac) * size, truncated to an int."""
     return int(np.float32(frac) * np.float32(size))
@@ -109,7 +108,7 @@ class CameraModel:
 
     def kernel_params(self) -> np.ndarray:
         """What rays(), towards() and importance() need, for the kernels (kernels.CAM_* entries:
-        kernels._camera_ray, kernels.camera_splats)."""
+        eye._camera_ray, eye.camera_splats)."""
         return np.concatenate([self.origin, self.axes.ravel(),
                                [self.xmin, self.ymin, self.pix_w, self.pix_h, self.H, float(self.ortho),
                                 self.cam.clip_start, self.cam.clip_end, self.pixel_area], self.inv_axes.ravel(),
@@ -126,9 +125,7 @@ class CameraModel:
     def centre_rays(self, jj: np.ndarray, ii: np.ndarray):
         """Rays through the centres of pixels (rows jj, columns ii): (origins on the near clip
         plane, unit directions), as rays() makes them."""
-        from ..kernels import compiled as kernels
-
-        return kernels.camera_rays(self.kernel_params(), ii + 0.5, jj + 0.5)
+        return eye.camera_rays(self.kernel_params(), ii + 0.5, jj + 0.5)
 
     def towards(self, p: np.ndarray, margin: float = 0.0):
         """Connections of world points to the camera: raster positions, unit directions to

@@ -15,6 +15,12 @@ import numpy as np
 from ..scene import arrays as S
 from ..shading.coat import has_layers, table as layer_table, weight as layer_weight
 from ..core.vec import dot
+from dataclasses import replace
+from ..core import embree, lanes
+from ..kernels import eye
+from ..kernels import records
+from ..shading.optics import materials
+from .camera import CameraModel
 
 EYE_MIN_PART = 8192  # eye paths per thread below which splitting does not pay (as tracer._MIN_SPLIT)
 
@@ -49,7 +55,7 @@ class Receivers:
 
 
 def view_tables(scene, cam) -> tuple:
-    """What the kernels read of the bumped receivers' view (kernels.view_normal1): (Scene.mat_view_bump
+    """What the kernels read of the bumped receivers' view (eye.view_normal1): (Scene.mat_view_bump
     as flags (M,), view_normals, view_points, t (4,)): t takes a raster position (x, y) of camera
     model cam to the view's, (t0 x + t1, t2 y + t3), through the view plane (the camera at the
     view's resolution frames it, camera.CameraModel); t0 = 0 where there is no view."""
@@ -58,10 +64,6 @@ def view_tables(scene, cam) -> tuple:
     if h == 0 or not flags.any():
         z = np.zeros((0, 0, 3), np.float32)
         return np.zeros(len(scene.mat_kind), np.bool_), z, z, np.zeros(4)
-    from dataclasses import replace
-
-    from .camera import CameraModel
-
     m = CameraModel(replace(cam.cam, resolution_x=w, resolution_y=h, resolution_percentage=100, use_border=False))
     # view plane: fx = xmin + x pix_w, fy = ymin + (H - y) pix_h, in both
     t = np.array([cam.pix_w / m.pix_w, (cam.xmin - m.xmin) / m.pix_w, cam.pix_h / m.pix_h,
@@ -73,14 +75,12 @@ def view_tables(scene, cam) -> tuple:
 def view_bumped(scene, cam, p, ng, ns, mat) -> np.ndarray:
     """x0's shading normals (M,3) as Cycles bends them on a bumped diffuse receiver
     (Scene.mat_view_bump): read from the view of the bumped receivers alone (Scene.view_normals)
-    where x0 projects, seen directly or through mirrors and glass alike (kernels.view_normal1); ns
+    where x0 projects, seen directly or through mirrors and glass alike (eye.view_normal1); ns
     elsewhere: off the frame, and where the view's sub-pixel there is not x0's surface (the receiver
     hides itself, an edge)."""
     flags, vn, vp, t = view_tables(scene, cam)
     if not t[0] > 0 or len(p) == 0:
         return ns
-    from ..kernels import compiled as kernels
-
     on = np.flatnonzero(flags[mat])
     rx, ry, to_cam, _, _, dist, valid = cam.towards(np.ascontiguousarray(p[on], np.float64), margin=np.inf)
     on, rx, ry, to_cam, dist = on[valid], rx[valid], ry[valid], to_cam[valid], dist[valid]
@@ -90,7 +90,7 @@ def view_bumped(scene, cam, p, ng, ns, mat) -> np.ndarray:
     out = np.array(ns, np.float64)
     bent = np.empty((on.size, 3))
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
-    kernels.view_normal_rows(vn, vp, t, f64(rx), f64(ry), f64(p[on]), f64(ng[on]), f64(ns[on]), f64(to_cam), foot,
+    eye.view_normal_rows(vn, vp, t, f64(rx), f64(ry), f64(p[on]), f64(ng[on]), f64(ns[on]), f64(to_cam), foot,
                              bent)
     out[on] = bent
     return out
@@ -206,12 +206,8 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     """Trace n eye samples (of a batch of n_batch; with cells, a mask over the film cells, only
     those in its cells) to their first diffuse receiver, keeping those with at least
     min_specular specular vertices on the way (glass by Fresnel choice): one kernel call
-    (kernels.eye_lanes), its random numbers keyed by one draw from rng and each sample's index
+    (eye.eye_lanes), its random numbers keyed by one draw from rng and each sample's index
     in the batch."""
-    from ..kernels import embree, compiled as kernels
-    from ..core import lanes
-    from ..shading.optics import materials
-
     rx, ry, weight, sample = film_samples(cam, film, start, n, n_batch, rng, cells)
     key = int(rng.integers(2**63))
     n = len(rx)
@@ -221,10 +217,10 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
             int(max_bounces), int(min_specular), bool(scale_eta), tracer.eps)
 
     def part(a, b):  # a part of the lanes on a thread (lanes.run), its records in lane order
-        rec, rec_i, prior = np.empty((b - a, kernels.REC_F)), np.empty((b - a, 3), np.int64), \
+        rec, rec_i, prior = np.empty((b - a, records.REC_F)), np.empty((b - a, 3), np.int64), \
             np.empty((b - a, 3), np.int64)
         rt = tracer.rays()
-        m, counts = kernels.eye_lanes(rt, params, rx[a:b], ry[a:b], sample[a:b], *args, rec, rec_i, prior)
+        m, counts = eye.eye_lanes(rt, params, rx[a:b], ry[a:b], sample[a:b], *args, rec, rec_i, prior)
         tracer.cast_by_kernel(rt, counts)
         rec_i[:m, 0] += a
         return rec[:m], rec_i[:m], prior[:m], int(counts[embree.KINDS:].sum())

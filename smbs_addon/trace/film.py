@@ -13,7 +13,7 @@ import math
 
 import numpy as np
 
-from ..kernels import compiled as kernels
+from ..kernels import film
 from ..core import lanes
 from ..core.vec import channel_mean
 
@@ -24,9 +24,9 @@ MAX_GROUPS = 64  # batch images kept (even); more batches are merged in pairs
 
 def blackman_harris(x: np.ndarray, width: float) -> np.ndarray:
     """1-D filter of Cycles' width convention, normalised to integrate to one (the same formula
-    as the splat kernel's, kernels.blackman_harris)."""
+    as the splat kernel's, film.blackman_harris)."""
     r = max(float(width), 0.5)  # splatting needs a finite support; Cycles' minimum is 0.01
-    return kernels.blackman_harris(np.asarray(x, np.float64).ravel(), r).reshape(np.shape(x))
+    return film.blackman_harris(np.asarray(x, np.float64).ravel(), r).reshape(np.shape(x))
 
 
 class Film:
@@ -81,7 +81,7 @@ class Film:
             self._splat(self.per_albedo, rx[on], ry[on], unit)
 
     def _splat(self, into, rx, ry, rgb) -> None:
-        """kernels.splat into `into`; a splat of SPLAT_SPLIT samples or more on the threads, each
+        """film.splat into `into`; a splat of SPLAT_SPLIT samples or more on the threads, each
         adding to rows of its own (the same image)."""
         r = self.filter_width
         k = int(math.ceil(r)) + 1
@@ -90,7 +90,7 @@ class Film:
         edges = [y0 + (y1 - y0) * i // bands for i in range(bands + 1)]
 
         def band(a, b):
-            kernels.splat(into, self.W, x0, x1, edges[a], edges[b], r, k, rx, ry, rgb)
+            film.splat(into, self.W, x0, x1, edges[a], edges[b], r, k, rx, ry, rgb)
 
         lanes.run(band, bands, bands, 1)
 

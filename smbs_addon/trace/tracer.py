@@ -14,11 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..kernels import embree
+from ..core import embree
 from ..core import lanes
 from ..scene import arrays as S
-from ..kernels.compiled import barycentric_rows, intersect_rays, shading_normal_rows
+from ..kernels.chain import barycentric_rows, intersect_rays, shading_normal_rows
 from ..core.vec import cross, dot, norm, normalize
+from ..kernels.records import HIDDEN_PASSES
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
 
@@ -163,9 +164,7 @@ class Tracer:
         """intersect for rays of kind `kind` (a scene.RAY_* bit, or one per ray): past the surfaces of
         the objects such rays do not meet (self.hid, Cycles' Ray Visibility) and of the objects passable
         marks ((O,) bool, or None), up to kernels.HIDDEN_PASSES of them (then a miss), each next hit on
-        the ray's own line, as the kernels' rays (kernels._hit_or_miss_past)."""
-        from ..kernels.compiled import HIDDEN_PASSES
-
+        the ray's own line, as the kernels' rays (kernels.hit_or_miss_past)."""
         h = self.intersect(o, d)
         if passable is None and not (self.hid.size and (self.hid & np.bitwise_or.reduce(np.ravel(kind))).any()):
             return h  # nothing these rays pass: plain intersect
@@ -199,8 +198,6 @@ class Tracer:
             hidden = passable if hidden is None else hidden | passable
         if hidden is None:
             return self.occluded(o, d, tmax)
-        from ..kernels.compiled import HIDDEN_PASSES
-
         o, tmax = np.array(o, np.float64), np.array(np.broadcast_to(tmax, (len(o),)), np.float64)
         d = np.array(d, np.float64)
         end = o + np.where(np.isfinite(tmax), tmax, 0.0)[:, None] * d  # where each finite segment stops
@@ -233,7 +230,7 @@ class Tracer:
         return self.occluded_past(o, d, tmax, S.RAY_CAMERA)
 
     def kernel_geometry(self, casters: np.ndarray) -> tuple:
-        """The scene as the kernels trace paths through it (kernels._trace_lane's geo), with the
+        """The scene as the kernels trace paths through it (kernels.trace_lane's geo), with the
         plan's caster flags per object and the kinds of ray each object does not meet (self.hid)."""
         sc = self.scene
         return (self.v, self.ng, self.ns_corner, sc.tri_material, sc.mat_kind, sc.tri_object, casters, sc.mat_ior,

@@ -19,27 +19,14 @@ sphere (sun).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.vec import dot, frame, normalize
+from ..shading.light_samples import LightEnd
 
 HALF_VECTOR, ANGLE_DIFF = "hv", "ad"
 _R_MIN = 1e-6  # refraction at grazing exit: the derivative of sqrt blows up below this
-
-
-@dataclass
-class LightEnd:
-    """The fixed end of a chain: a point y with tangents, or a direction."""
-
-    directional: bool
-    y: np.ndarray  # (N,3) point, or unit direction towards the light when directional
-    ys: np.ndarray  # (N,3) tangent 1 (orthonormal)
-    yt: np.ndarray  # (N,3) tangent 2
-
-    def take(self, idx) -> "LightEnd":
-        return LightEnd(self.directional, self.y[idx], self.ys[idx], self.yt[idx])
 
 
 def _unit_d(u, length, a):

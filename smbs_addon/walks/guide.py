@@ -24,6 +24,7 @@ from ..shading.lights import emit
 from ..shading.optics import absorbing, arriving, inside, transmittance
 from ..paths.photons import scatter_specular
 from ..shading.microfacet import rough_objects
+from ..core import lanes
 
 TILE = 4  # pixels per tile side
 Q = 0.125  # walk probability in tiles no photon reached
@@ -99,8 +100,6 @@ def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, ma
     A light's photons are traced in parts of GUIDE_PART (_guide_part) that the threads take in
     turn, each from its own random stream (keyed by one draw per light from rng and the part's
     first photon), and added up in part order: the guide does not depend on the thread count."""
-    from ..core import lanes
-
     x0, x1, y0, y1 = cam.region
     nx = (x1 - x0 + 2 * TILE) // TILE + 2
     ny = (y1 - y0 + 2 * TILE) // TILE + 2

@@ -19,17 +19,25 @@ import numpy as np
 from ..core import lanes
 from ..scene import arrays as S
 from ..scene.light_paths import Limits
-from .constraints import LightEnd
-from .estimators import chain_throughput, concentration, geometric_term, light_end_at_solution, same_solution
+from ..shading.light_samples import LightEnd
+from .estimators import chain_throughput, same_solution
+from ..paths.focus import concentration, geometric_term
+from ..shading.light_samples import light_end_at_solution
 from ..trace.eye import direct_albedo, eye_receivers
 from ..scene.geometry import area_points, triangle_areas
 from ..shading.coat import coat_factor, has_layers
-from ..shading.lights import area_light_points, cone_solid_angle, distant_cone, env_map, mesh_light_points, shadow_tmax
-from ..shading.optics import bump_shadowing, has_reflection
+from ..shading.lights import cone_solid_angle, distant_cone, shadow_tmax
+from ..shading.optics import bump_shadowing
+from ..shading.fresnel import has_reflection
 from ..shading.microfacet import rough_casters, walk_casters
 from .trials import bernoulli_trials
-from ..core.vec import channel_mean, dot, normalize, uniform_cone, frame, to_world
-from .walk import OUTCOMES, TRIGGERS, WalkConfig, newton_walk, propagate
+from ..core.vec import channel_mean, dot, normalize
+from ..kernels.records import OUTCOMES, TRIGGERS
+from .walk import WalkConfig, newton_walk, propagate
+from ..shading.light_samples import light_can_be_hit, sample_light, sphere_cap
+from ..paths.gather import (HANDOFF_SAMPLES, UNWALKED_SAMPLES, bending_lights, bent_gather, bent_receivers, gather,
+                            handoff_gather)
+from ..paths.handoff import Handoff
 
 
 @dataclass
@@ -190,69 +198,6 @@ def chain_types(scene, plan, opts: ManifoldOptions, light_paths: bool = True) ->
         if t not in out and len(t) <= opts.max_chain and (lim.chain_fits(t) or not light_paths):
             out.append(t)
     return out
-
-
-def sphere_cap(scene, li, lo, hi):
-    """The part of a sphere light (point or spot with a radius) that can shine on
-    anything in the box [lo, hi] (every caster): (unit axis, cos of the half-angle),
-    or None for the whole sphere. A point y = c + r u faces a point x only if
-    (x - c).u > r; over a ball of radius R around the box's centre at distance d that
-    needs u.axis > (r - R) / d, so outside this cap every sample contributes nothing."""
-    if scene.light_type[li] not in (S.POINT, S.SPOT):
-        return None
-    r = float(scene.light_radius[li])
-    c = scene.light_matrix[li][:3, 3]
-    cen = 0.5 * (lo + hi)
-    R = 0.5 * float(np.linalg.norm(hi - lo))
-    d = float(np.linalg.norm(cen - c))
-    if r <= 0 or d <= 0 or not np.all(np.isfinite([R, d])):
-        return None
-    cos_t = (r - R) / d
-    if not (-1.0 < cos_t < 1.0):
-        return None
-    return (cen - c) / d, cos_t
-
-
-def sample_light(scene, li, n, rng, cap=None) -> LightEnd:
-    """One light sample per lane: a point on the light (uniform in area; on a sphere
-    light, uniform over ``cap`` when given), or a sun's or the world's direction (uniform in
-    its cone; the world's is the whole sphere, or as bright as its map, lights.EnvMap).
-    Tangents are set at the solution."""
-    typ = scene.light_type[li]
-    m = scene.light_matrix[li]
-    z = np.zeros((n, 3))
-    env = env_map(scene, li)
-    if typ in S.DISTANT and env is not None:
-        return LightEnd(True, env.sample(rng.random(n), rng.random(n), rng.random(n)), z, z.copy())
-    if typ in S.DISTANT:
-        axis, half, _ = distant_cone(scene, li)
-        to_sun = np.broadcast_to(-axis, (n, 3)).copy()
-        if half > 0:
-            s, t = frame(to_sun)
-            to_sun = to_world(uniform_cone(rng.random(n), rng.random(n), math.cos(half)), s, t, to_sun)
-        return LightEnd(True, to_sun, z, z.copy())
-    if typ == S.AREA:
-        return LightEnd(False, area_light_points(scene, li, n, rng), z, z.copy())
-    if typ == S.MESH:  # its tangents are its triangle's, known now
-        y, ng = mesh_light_points(scene, li, n, rng)
-        ys, yt = frame(ng)
-        return LightEnd(False, y, ys, yt)
-    c = m[:3, 3]
-    r = float(scene.light_radius[li])
-    if r > 0:
-        if cap is None:
-            zc = 1.0 - 2.0 * rng.random(n)
-        else:
-            zc = 1.0 - (1.0 - cap[1]) * rng.random(n)
-        phi = 2 * math.pi * rng.random(n)
-        rr = np.sqrt(np.maximum(0.0, 1 - zc * zc))
-        u = np.stack([rr * np.cos(phi), rr * np.sin(phi), zc], -1)
-        if cap is not None:
-            axis = np.broadcast_to(cap[0], (n, 3))
-            s, t = frame(axis)
-            u = to_world(u, s, t, axis)
-        return LightEnd(False, c + r * u, z, z.copy())
-    return LightEnd(False, np.broadcast_to(c, (n, 3)).copy(), z, z.copy())
 
 
 class Seeder:
@@ -627,8 +572,6 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     handoffs, focus = {}, set()
     rough = bool(rough_casters(scene, plan.casters).any())
     if (opts.handoff > 0 and types_list) or rough:
-        from ..paths.photons import Handoff
-
         for lp in plan.lights:
             if not light_can_be_hit(scene, lp.index):
                 continue
@@ -651,8 +594,6 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         ctx.handoff_seen = ctx.first_order = False
     hit = np.flatnonzero(total.max(axis=1) > 0)
     film.splat(rc.rx[hit], rc.ry[hit], total[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))
-    from ..paths.gather import bending_lights, bent_gather, bent_receivers
-
     bent = bending_lights(scene, tracer, plan)
     if bent:  # its counters where the light tracer keeps its bent pass's: the eye pass's "bent" part
         t_bent, bent_stats = time.perf_counter(), eye_stats.setdefault("bent", {"time_s": 0.0})
@@ -663,8 +604,6 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
         return
     rc_seen = rc.take(seen)
     if handoffs:
-        from ..paths.gather import HANDOFF_SAMPLES, UNWALKED_SAMPLES, handoff_gather
-
         found = {}
         handoff_gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, handoffs, physical=opts.physical,
                        found=found, samples=HANDOFF_SAMPLES if types_list else UNWALKED_SAMPLES)
@@ -672,8 +611,6 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
             st = ctxs[li].stats
             st["seen_handoff_paths"] = st.get("seen_handoff_paths", 0) + found.get(li, 0)
     if lights_direct:
-        from ..paths.gather import gather
-
         gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, lights_direct,
                physical=opts.physical, connect=caustic, others=handoffs)
 
@@ -703,8 +640,6 @@ def handoff_hits(scene, li, casters=()) -> float:
     the chain that many times its solid angle): a sun's cone; a point or spot light's sphere
     and an area light (its area over the squared distance) as seen from the nearest point of its
     casters' boxes (casters: object ids), the largest they can look there. inf for a world."""
-    from ..paths.gather import HANDOFF_SAMPLES
-
     typ = scene.light_type[li]
     if typ == S.WORLD:
         return math.inf
@@ -736,16 +671,4 @@ def can_focus(scene, lp) -> bool:
     no bound)? Only where shading normals vary over a face: a smooth-shaded caster."""
     return bool(np.any(scene.object_smooth[np.asarray(lp.caster_objects, np.int64)]))
 
-
-def light_can_be_hit(scene, li) -> bool:
-    """Whether a ray can hit light li: an area light, a sun with an angle, a point or spot
-    light with a radius, a mesh light (delta lights can only be connected to, by the walks)."""
-    typ = scene.light_type[li]
-    if typ == S.AREA:
-        return True
-    if typ == S.MESH:  # as a surface (lights.light_radiance)
-        return True
-    if typ in S.DISTANT:  # a cone too narrow for float64 is a delta light (light_radiance)
-        return cone_solid_angle(distant_cone(scene, li)[1]) > 0
-    return bool(scene.light_radius[li] > 0)
 

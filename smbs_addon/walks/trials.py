@@ -1,7 +1,7 @@
 """The unbiased estimator's Bernoulli trials: how many walks it takes to find a solution again.
 
 A sample whose walk found a solution needs the number of independent walks (trials) it takes
-to find that same solution again (estimators.py). kernels.bernoulli_lanes runs a sample's
+to find that same solution again (estimators.py). trials.bernoulli_lanes runs a sample's
 trials one after the other, each a whole walk from a fresh seed with its rays cast inside the
 kernel, until one finds the solution: no trial runs that the sample turns out not to need.
 The samples are cut into blocks of TRIAL_BLOCK that the threads take in turn (lanes.blocks),
@@ -10,7 +10,7 @@ on a hammered mirror), and with blocks of 128 to the end one thread was often le
 last heavy block (hammered mirror 48^2 SMS: cpu/wall 1.57; shrinking blocks: 1.92).
 
 Trial t of sample s draws its random numbers from a counter-based hash of (key, s, t)
-(kernels.keyed_uniform), so each sample's first success does not depend on the cut, the
+(keyed.keyed_uniform), so each sample's first success does not depend on the cut, the
 thread or the order: one seed, one image.
 
 (Until issue 11's kernels called embree themselves, the trials ran as a lane pool: one
@@ -22,9 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kernels import embree, compiled as kernels
-from ..core import lanes
-from .walk import _count_rays, _geo, kernel_config
+from ..core import embree, lanes
+from ..kernels.trials import bernoulli_lanes
+from .walk import count_rays, walk_geometry, kernel_config
 
 TRIAL_BLOCK = 128  # samples per block, shrinking towards TRIAL_BLOCK_MIN at the end (lanes.block_edges)
 TRIAL_BLOCK_MIN = 8
@@ -42,18 +42,18 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
     samples = tuple(np.ascontiguousarray(a, np.float64) for a in (x0, ng0, light.y, d1)) + (
         np.ascontiguousarray(obj1, np.int64),)
     seeds = (seeder.cdf, np.ascontiguousarray(seeder.v, np.float64), seeder.obj.astype(np.int64))
-    cfg_t, geo, tracer = kernel_config(ctx, opts.walk, types), _geo(ctx), ctx.tracer
+    cfg_t, geo, tracer = kernel_config(ctx, opts.walk, types), walk_geometry(ctx), ctx.tracer
 
     def part(a, b):
         rt = tracer.rays()
         trials = (seeder.total, key, a, opts.max_trials, opts.walk.defensive, opts.uniqueness)
-        first[a:b], walks, steps, counts = kernels.bernoulli_lanes(
+        first[a:b], walks, steps, counts = bernoulli_lanes(
             rt, tuple(x[a:b] for x in samples), seeds, trials, cfg_t, geo, light.directional, ctx.obj_lo, ctx.obj_hi)
         tracer.cast_by_kernel(rt, counts)
         return walks, steps, counts
 
     parts = lanes.blocks(part, S, TRIAL_BLOCK, tracer.threads, TRIAL_BLOCK_MIN, whole=True)
-    _count_rays(ctx, sum((p[2] for p in parts), embree.counters()))
+    count_rays(ctx, sum((p[2] for p in parts), embree.counters()))
     st = ctx.stats
     st["bernoulli_walks"] = st.get("bernoulli_walks", 0) + sum(int(p[0]) for p in parts)
     st["bernoulli_mutations"] = st.get("bernoulli_mutations", 0) + sum(int(p[1]) for p in parts)

@@ -20,21 +20,18 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .constraints import ANGLE_DIFF, HALF_VECTOR, LightEnd
+from .constraints import ANGLE_DIFF, HALF_VECTOR
+from ..shading.light_samples import LightEnd
 from ..scene.geometry import vertex_view
-from ..kernels import embree, compiled as kernels
+from ..core import embree
+from ..kernels import chain
+from ..kernels import records
+from ..kernels import walk
 from ..core import lanes
-from ..kernels.compiled import NF
+from ..kernels.records import NF
 from .large_mutation import MAX_HALVINGS
+from ..kernels.records import TRIGGERS, TRIG_BACKLIT, TRIG_SLOW, TRIG_TIR
 
-# walk outcome codes
-(OK, MISS, NOT_CASTER, WRONG_MATERIAL, TIR, SIDE, SEED_OBJECT, SINGULAR, MAX_ITER, WRONG_END, OCCLUDED,
- TIR_INNER, SIDE_INNER, STALLED) = range(14)
-OUTCOMES = ("converged", "miss", "not_caster", "wrong_material", "tir", "side", "seed_object",
-            "singular", "max_iterations", "wrong_end", "occluded", "tir_inner", "side_inner", "stalled")
-# large-mutation triggers
-NONE, TRIG_TIR, TRIG_BACKLIT, TRIG_SLOW = 0, 1, 2, 3
-TRIGGERS = ("none", "tir", "backlit", "slow")
 
 
 @dataclass
@@ -104,14 +101,14 @@ class Chain:
 WALK_BLOCK = 2048  # lanes per block of newton_walk and propagate (lanes.blocks)
 
 
-def _geo(ctx) -> tuple:
-    """The scene as the kernels trace chains through it (kernels._trace_lane)."""
+def walk_geometry(ctx) -> tuple:
+    """The scene as the kernels trace chains through it (chain.trace_lane)."""
     return ctx.tracer.kernel_geometry(ctx.casters)
 
 
-def _count_rays(ctx, counts) -> None:
-    ctx.count("rays_seed", counts[embree.KINDS + kernels.RAYS_SEED])
-    ctx.count("rays_walk", counts[embree.KINDS + kernels.RAYS_WALK])
+def count_rays(ctx, counts) -> None:
+    ctx.count("rays_seed", counts[embree.KINDS + records.RAYS_SEED])
+    ctx.count("rays_walk", counts[embree.KINDS + records.RAYS_WALK])
 
 
 def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
@@ -127,31 +124,31 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
     status, out = np.zeros(n, np.int64), np.zeros((n, 3))
     x0, ng0, d = (np.ascontiguousarray(a, np.float64) for a in (x0, ng0, d))
     want = np.full(n, -1, np.int64) if want_obj is None else np.ascontiguousarray(want_obj, np.int64)
-    kinds, geo, tracer = kernels.chain_kinds(types), _geo(ctx), ctx.tracer
+    kinds, geo, tracer = records.chain_kinds(types), walk_geometry(ctx), ctx.tracer
 
     def part(a, b):
         rt = tracer.rays()
-        counts = kernels.trace_lanes(rt, kinds, x0[a:b], ng0[a:b], d[a:b], want[a:b], geo, tracer.eps, F[a:b],
+        counts = chain.trace_lanes(rt, kinds, x0[a:b], ng0[a:b], d[a:b], want[a:b], geo, tracer.eps, F[a:b],
                                      I[a:b], status[a:b], out[a:b])
         tracer.cast_by_kernel(rt, counts)
         return counts
 
     counts = sum(lanes.blocks(part, n, WALK_BLOCK, tracer.threads, whole=True), embree.counters())
-    _count_rays(ctx, counts)
+    count_rays(ctx, counts)
     return Chain(F, I, status, out)
 
 
 def end_mismatch(chain: Chain, light: LightEnd):
     """|w_o' - w_o| at the last vertex: the propagated direction against the
     direction to the light end; and whether it points to the light's side."""
-    return kernels.end_mismatch(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
+    return chain.end_mismatch(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
 
 
 def backlit(cfg: WalkConfig, types: str, x0, chain: Chain, light: LightEnd) -> np.ndarray:
     """SMBS trigger 2 per lane, as the walk tests it (cfg.backlit_vertex): at chain vertex j,
     for a reflection the vertex before it (x0 for j = 0) and the light lie on different sides
     of its surface; for a refraction, on the same side."""
-    return kernels.backlit_lanes(kernels.chain_kinds(types), _backlit_at(cfg.backlit_vertex, len(types)),
+    return walk.backlit_lanes(records.chain_kinds(types), _backlit_at(cfg.backlit_vertex, len(types)),
                                  np.asarray(x0, np.float64), chain.F, np.asarray(light.y, np.float64),
                                  light.directional)
 
@@ -173,8 +170,8 @@ def _backlit_at(where: str, k: int) -> int:
 
 
 def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
-    """The walk's settings as the kernels take them (kernels._walk_lane)."""
-    return (cfg.form == HALF_VECTOR, kernels.chain_kinds(types), cfg.smbs, cfg.tir, cfg.backlit, cfg.slow,
+    """The walk's settings as the kernels take them (walk._walk_lane)."""
+    return (cfg.form == HALF_VECTOR, records.chain_kinds(types), cfg.smbs, cfg.tir, cfg.backlit, cfg.slow,
             cfg.tir_rejected, _backlit_at(cfg.backlit_vertex, len(types)), cfg.tau, cfg.slow_run, cfg.min_beta,
             cfg.threshold, cfg.max_step * ctx.scale, ctx.tracer.eps, MAX_HALVINGS, cfg.max_iterations,
             float(cfg.beta0), int(cfg.stall_window), float(cfg.stall_factor),
@@ -188,7 +185,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     as the walk. Lanes whose seed failed keep their seed outcome. large_ok (N,) bool: lanes
     allowed SMBS's large mutations (the rest walk as plain SMS).
 
-    kernels.walk_lanes walks each lane from its seed to its outcome, casting its rays itself;
+    walk.walk_lanes walks each lane from its seed to its outcome, casting its rays itself;
     the lanes are cut into blocks of WALK_BLOCK that the threads take in turn (lanes.blocks).
     Lanes walk independently of each other: the result does not depend on the cut."""
     n, k = len(x0), len(types)
@@ -205,20 +202,20 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     etas = np.zeros((n, k))
     state = (F, I, out_dir, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool), np.ones(n), np.ones(n),
              np.zeros(n, np.int64), np.zeros(n, np.int64), outcome, np.zeros(n, bool), np.zeros(n, np.int64))
-    cfg_t, geo, tracer = kernel_config(ctx, cfg, types), _geo(ctx), ctx.tracer
+    cfg_t, geo, tracer = kernel_config(ctx, cfg, types), walk_geometry(ctx), ctx.tracer
 
     def part(a, b):
         rt = tracer.rays()
         lane = (x0[a:b], ng0[a:b], ly[a:b], lys[a:b], lyt[a:b], light.directional, etas[a:b], large_ok[a:b],
                 ctx.obj_lo, ctx.obj_hi)
-        large, counts = kernels.walk_lanes(rt, chain is not None, d[a:b], want[a:b], cfg_t, geo, lane,
+        large, counts = walk.walk_lanes(rt, chain is not None, d[a:b], want[a:b], cfg_t, geo, lane,
                                            tuple(x[a:b] for x in state))
         tracer.cast_by_kernel(rt, counts)
         return large, counts
 
     parts = lanes.blocks(part, n, WALK_BLOCK, tracer.threads, whole=True)
     large = sum((p[0] for p in parts), np.zeros(4, np.int64))
-    _count_rays(ctx, sum((p[1] for p in parts), embree.counters()))
+    count_rays(ctx, sum((p[1] for p in parts), embree.counters()))
     converged, mutations = state[11], state[12]
     return WalkResult(chain=Chain(F, I, outcome.copy(), out_dir), converged=converged, outcome=outcome,
                       mutations=mutations, large={TRIGGERS[t]: int(large[t]) for t in (TRIG_TIR, TRIG_BACKLIT,

@@ -1,0 +1,101 @@
+"""One bake of a pipeline, start to finish: validate, plan, trace the plan, make the film, run the
+light tracer's or the walks' batches until the stop rule says enough, and turn the film into a
+BakeResult. bake.py runs it for the user (auto's choice first); auto's pilot runs it for each
+candidate method.
+"""
+from __future__ import annotations
+
+import time
+
+from ..core.errors import SceneError
+from ..paths.gather import bending_lights, bent_candidates
+from ..trace.camera import CameraModel
+from ..trace.film import Film
+from ..trace.tracer import Tracer
+from .job import MEMORY_BUDGET, Job
+from .light_tracing import bake_light_tracing
+from .plan import make_plan, refine_plan
+from .result import BakeResult, finish, nothing_to_bake
+from .settings import BakeSettings
+from .walking import bake_walks
+
+
+def start(scene, settings, report, cancel, on_plan, watch) -> Job | BakeResult:
+    """Validate, plan, trace the plan and make the film: the job, or the all-zero result of a scene
+    with nothing to bake. on_plan(lines) gets the plan in words before any caustic is traced."""
+    settings = settings or BakeSettings()
+    settings.validate()
+    scene.validate()
+    t0 = time.perf_counter()
+    plan = make_plan(scene, settings.use_cycles_flags)
+    cam = CameraModel(scene.camera)
+    check_memory(scene, cam.W, cam.H, settings.batches)
+    if plan.nothing:
+        return nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
+    tracer = trace_plan(plan, scene, settings, cam)
+    film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region, textured=scene.textured_materials() is not None,
+                threads=tracer.threads)
+    _note_bent(scene, tracer, plan)
+    if on_plan is not None:
+        on_plan(plan.words())
+    if plan.nothing:
+        return nothing_to_bake(scene, settings, plan, cam, t0, None)
+    return Job(scene, settings, plan, cam, tracer, film, t0, report, cancel, watch)
+
+
+def run(job, light_tracing: bool, choices=None) -> BakeResult:
+    """Bake the job by light tracing alone, or by the walks (choices: auto's per light, {} for a
+    fixed method)."""
+    if light_tracing:
+        batches, stop, t_first, rays = bake_light_tracing(job)
+    else:
+        batches, stop, t_first, rays = bake_walks(job, choices or {})
+    return finish(job, batches, stop, t_first, rays)
+
+
+def bake_fixed(scene, settings, cancel=None, watch=None) -> BakeResult:
+    """A whole bake of a fixed method (not auto): what auto's pilot runs for each candidate."""
+    job = start(scene, settings, None, cancel, None, watch)
+    if isinstance(job, BakeResult):
+        return job
+    return run(job, settings.method == "reference")
+
+
+def film_memory(width: int, height: int, batches: int, textured: bool = False) -> int:
+    """Bytes the film of a bake needs: per pixel the sum, sum of squares and current batch
+    (3 float64 each), the image and variance made from them (float64, then float32), and one
+    float32 luminance image per batch (kept, then stacked); with textured receivers, their two
+    sums (3 float64 each) and the two float32 images made from them."""
+    px = int(width) * int(height)
+    extra = px * 2 * 3 * (8 + 4) if textured else 0
+    return px * (3 * 3 * 8 + 2 * 3 * 8 + 2 * 3 * 4) + 2 * int(batches) * px * 4 + extra
+
+
+def check_memory(scene, width: int, height: int, batches: int) -> None:
+    """Refuse, before anything is allocated, a film bigger than MEMORY_BUDGET."""
+    need = film_memory(width, height, batches, scene.textured_materials() is not None)
+    if need > MEMORY_BUDGET:
+        raise SceneError(
+            f"scene '{scene.name}': a {width} x {height} caustic layer needs about "
+            f"{need / 2**30:.1f} GiB for its film ({batches} batches), more than the "
+            f"{MEMORY_BUDGET / 2**30:g} GiB limit; lower the resolution (or its percentage) "
+            f"or the number of batches")
+
+
+def trace_plan(plan, scene, settings, cam) -> Tracer:
+    """The traced part of the plan (plan.refine_plan) with the bake's tracer; the tracer's
+    tolerances then follow what takes part, not objects out of the plan."""
+    tracer = Tracer(scene, threads=settings.threads or None)
+    refine_plan(plan, scene, tracer, cam, settings.seed, settings.pilots, indirect=settings.indirect)
+    tracer.set_extent(*plan.bounds)
+    return tracer
+
+
+def _note_bent(scene, tracer, plan) -> None:
+    """The plan says where Cycles' Bump Map Correction bends normals (indirect.bent_gather)."""
+    if not bending_lights(scene, tracer, plan):
+        return
+    cand = bent_candidates(scene, tracer, plan)[0]
+    names = ", ".join(sorted({scene.object_names[o] for o in scene.tri_object[cand]}))
+    plan.notes.append(f"{names}: smooth normals that Cycles' Bump Map Correction bends at grazing angles; "
+                      "those paths are traced from the receivers")
