@@ -74,13 +74,11 @@ def _distribution(node, mat, warn, roughness) -> int:
     return GGX
 
 
-def _thin_film(node) -> list:
-    """['thin film'] where a node's Thin Film Thickness is linked or above Cycles' cutoff (0.1 nm,
-    THINFILM_THICKNESS_CUTOFF, compared in float32 as Cycles does)."""
+def _has_film(node) -> bool:
+    """Is a node's Thin Film Thickness linked or above Cycles' cutoff (0.1 nm, THINFILM_THICKNESS_CUTOFF,
+    compared in float32 as Cycles does)?"""
     sock = node.inputs.get("Thin Film Thickness")
-    if sock is not None and (follow(sock) is not None or np.float32(sock.default_value) > np.float32(thinfilm.CUTOFF)):
-        return ["thin film"]
-    return []
+    return sock is not None and (follow(sock) is not None or np.float32(sock.default_value) > np.float32(thinfilm.CUTOFF))
 
 
 def _film(node, mat, warn) -> tuple:
@@ -88,7 +86,7 @@ def _film(node, mat, warn) -> tuple:
     where it is Cycles' cutoff thin or less. A thickness or index driven by nodes is not read (warned
     about): no film."""
     sock = node.inputs.get("Thin Film Thickness")
-    if not _thin_film(node):
+    if not _has_film(node):
         return S.NO_FILM
     if follow(sock) is not None or is_linked(node, "Thin Film IOR"):
         warn(f"material '{mat.name}': the thin film of '{node.name}' is driven by nodes (a textured thickness or "
@@ -303,7 +301,7 @@ def _refraction(node, mat, warn) -> dict:
 
 def _glossy(node, mat, warn) -> dict:
     """A Glossy (or old Anisotropic) BSDF: a mirror of colour Color, no Fresnel term."""
-    if _thin_film(node):
+    if _has_film(node):
         warn(f"material '{mat.name}': the thin film of '{node.name}' ignored")
     if node.inputs.get("Anisotropy") is not None and (
             is_linked(node, "Anisotropy") or float(node.inputs["Anisotropy"].default_value) != 0):
