@@ -34,7 +34,7 @@ def _core():
     """The render core's entry points (imported on first use)."""
     from types import SimpleNamespace
 
-    from ..smbs_addon.blender import composite, export
+    from ..smbs_addon.blender import composite, export, world
     from ..smbs_addon.io import exr as imageio
     from ..smbs_addon.baking import plan
     from ..smbs_addon.cli.main import exr_channels, exr_metadata
@@ -48,7 +48,7 @@ def _core():
                            diffuse_color_switched_on=composite.diffuse_color_switched_on,
                            has_layer=composite.has_layer, write_exr=imageio.write_exr, write_json=imageio.write_json,
                            make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels,
-                           world_unread=export.world_unread)
+                           world_unread=world.world_unread)
 
 
 def _plain(value):

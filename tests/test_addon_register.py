@@ -820,7 +820,7 @@ def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
 
 def test_bake_operator_bakes_a_bumped_floor(empty_bpy, addon, tmp_path):
     """The button on a floor whose Diffuse BSDF's Normal is a Bump node of a Noise Texture: the
-    export's render of the camera's view (export._view_maps) runs inside the operator and leaves no
+    export's render of the camera's view (cycles_passes.view_maps) runs inside the operator and leaves no
     scene, object, mesh, material or image of its own behind; the floor is read as bumped."""
     scene = _mirror_scene()
     settings = _bumped(scene, "Floor", "Diffuse BSDF", tmp_path)

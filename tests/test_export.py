@@ -1,4 +1,5 @@
-"""Blender scene -> Scene arrays (smbs_addon.blender.export), with tiny scenes built in bpy."""
+"""Blender scene -> Scene arrays (smbs_addon.blender: export_scene and the modules it calls), with tiny
+scenes built in bpy."""
 from __future__ import annotations
 
 import math
@@ -13,7 +14,7 @@ bmesh = pytest.importorskip("bmesh")
 from smbs_addon.scene import bump  # noqa: E402
 from smbs_addon.scene import arrays as S  # noqa: E402
 from smbs_addon.core.errors import SceneError  # noqa: E402
-from smbs_addon.blender import export as export_module  # noqa: E402
+from smbs_addon.blender import cycles_passes  # noqa: E402
 from smbs_addon.blender.export import export_scene  # noqa: E402
 from smbs_addon.shading.microfacet import distributions  # noqa: E402
 
@@ -1119,7 +1120,7 @@ def test_a_bump_node_on_a_caster_bends_its_normals_as_cycles_does(node_type, inp
     assert err[inner].max() < 1e-3 and err.max() < 5e-3, (err[inner].max(), err.max())
     assert np.degrees(np.arccos(n[..., 2].min())) > (8.0 if coords == "Object" else 4.0)  # the bump's tilt
     assert sc.object_smooth[sc.object_names.index("Water")]
-    if coords == "Generated":  # an attribute: Cycles' bump flips with the surface (export._bump_flips)
+    if coords == "Generated":  # an attribute: Cycles' bump flips with the surface (bump_nodes._bump_flips)
         assert sc.tri_normals_back.shape == (0, 3, 3)
         return
     # the position: met from behind, Cycles bends the flipped normal -Z by the same term (bump.bend)
@@ -1146,7 +1147,7 @@ def test_a_bump_cycles_cannot_bake_leaves_the_surface_unbumped_and_the_scene_as_
         assert set(_blend_data()["scenes"]) - set(before["scenes"])  # it fails with its scene made
         raise RuntimeError("no Cycles here")
 
-    monkeypatch.setattr(export_module, "_emission_bake", fails)
+    monkeypatch.setattr(cycles_passes, "_emission_bake", fails)
     sc, warnings = export()
     assert warnings == ["object 'Water': the bumps of its Normal could not be baked (no Cycles here); its "
                         "caustic is baked from the unbumped surface"]
@@ -1188,7 +1189,7 @@ def _render_settings():
 @pytest.mark.parametrize("node_type", ["ShaderNodeBsdfDiffuse", "ShaderNodeBsdfPrincipled"])
 def test_a_bumped_diffuse_receiver_is_exported_as_the_camera_sees_it(node_type):
     """A Bump node on a Diffuse (or a diffuse Principled) BSDF's Normal: the export renders what
-    Cycles' camera rays meet (export._view_maps: the Normal and Position passes at s x s sub-pixels,
+    Cycles' camera rays meet (cycles_passes.view_maps: the Normal and Position passes at s x s sub-pixels,
     s = 4 for 40 x 30 pixels): over the floor, unit normals the bumps tilt (up to 10 degrees and
     more), never below the floor; the points on the floor, where our own camera's rays through the
     sub-pixels' centres meet it. Nothing said; the user's scene and render settings as they were."""
@@ -1223,7 +1224,7 @@ def test_a_bumped_receivers_view_cycles_cannot_render_is_said(monkeypatch):
         assert sc.name in bpy.data.scenes
         raise RuntimeError("no Cycles here")
 
-    monkeypatch.setattr(export_module, "_view_render", fails)
+    monkeypatch.setattr(cycles_passes, "_view_render", fails)
     sc, warnings = export()
     assert warnings == [f"scene '{scene().name}': the view of its bumped receivers could not be rendered (no Cycles "
                         f"here); the caustic on them is shaded with their unbumped normals"]
@@ -1608,7 +1609,7 @@ def test_textured_world_is_black_with_a_warning():
     sc, warnings = export()
     assert np.allclose(sc.world_color, 0) and sc.light_names == []
     assert len(warnings) == 1 and warnings[0].startswith("world 'Sky':")
-    from smbs_addon.blender.export import world_unread
+    from smbs_addon.blender.world import world_unread
 
     assert world_unread(scene()) == "Sky"  # the policy names it (rendered by neither)
     _environment_world(rotation=(0, 0, 30))
@@ -1658,7 +1659,7 @@ def test_an_environment_texture_is_the_worlds_map():
 def test_a_large_map_is_averaged_down():
     """An HDRI wider than WORLD_MAP_WIDTH is averaged over blocks (uneven where the widths do not
     divide): every block the mean of its pixels, the map's mean kept."""
-    from smbs_addon.blender.export import _averaged_down
+    from smbs_addon.blender.world import _averaged_down
 
     rng = np.random.default_rng(3)
     img = rng.random((10, 20, 3)).astype(np.float32)

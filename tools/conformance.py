@@ -76,8 +76,13 @@ def scene_arrays(name: str):
     from smbs_addon.scene.arrays import Scene
 
     src = (ROOT / "sample_blends" / "conformance_scenes.py").read_bytes() + \
-        (ROOT / "sample_blends" / "build.py").read_bytes() + (ROOT / "smbs_addon" / "blender" / "export.py").read_bytes() + \
-        (ROOT / "smbs_addon" / "scene" / "bump.py").read_bytes()
+        (ROOT / "sample_blends" / "build.py").read_bytes()
+    # the export: every module of the blender package (export.py and the modules it calls; the few that
+    # do not, such as composite.py, only cost a fresh export when they change) and of the scene package
+    # it builds the arrays with
+    for module in sorted((ROOT / "smbs_addon" / "blender").glob("*.py")) + \
+            sorted((ROOT / "smbs_addon" / "scene").glob("*.py")):
+        src += module.read_bytes()
     if name in SAMPLES:
         src += (ROOT / "sample_blends" / f"{SAMPLES[name]}.blend").read_bytes()
     key = hashlib.sha1(src).hexdigest()[:12]

@@ -193,17 +193,11 @@ def load_input(path: str, warn=print):
     if p.suffix.lower() == ".npz":
         return Scene.load(p)
     if p.suffix.lower() == ".blend":
-        try:
-            import bpy
-        except ImportError:
-            raise SceneError("reading .blend files needs the bpy module (pip install bpy==5.0.1)") from None
-        from ..blender.export import export_scene
+        # imported here, not at the top: bpy takes seconds to load and an .npz input does not need
+        # it (without bpy, this import raises SceneError saying so)
+        from ..blender.open_blend import open_blend
 
-        try:
-            bpy.ops.wm.open_mainfile(filepath=str(p.resolve()), load_ui=False)
-        except RuntimeError as err:
-            raise OSError(f"cannot open '{path}' as a .blend file: {str(err).strip().splitlines()[-1]}") from None
-        return export_scene(bpy.context.scene, warn=warn)
+        return open_blend(path, warn)
     raise SceneError(f"input '{path}': expected a .blend or .npz file")
 
 
