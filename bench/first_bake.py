@@ -25,7 +25,7 @@ ROOT = Path(__file__).resolve().parents[1]
 SAMPLE_BAKES = r'''
 import glob, sys
 sys.path.insert(0, ".")
-from smbs_addon.cli.main import load_input
+from smbs_addon.cli.inputs import load_input
 from smbs_addon import BakeSettings, bake
 total = 0
 for f in sorted(glob.glob("sample_blends/*.blend")):

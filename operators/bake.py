@@ -37,7 +37,7 @@ def _core():
     from ..smbs_addon.blender import composite, export, world
     from ..smbs_addon.io import exr as imageio
     from ..smbs_addon.baking import plan
-    from ..smbs_addon.cli.main import exr_channels, exr_metadata
+    from ..smbs_addon.io.exr import exr_channels, exr_metadata
     from ..smbs_addon.baking.settings import BakeSettings
     from ..smbs_addon.baking.bake import bake
     from ..smbs_addon.core.errors import BakeCancelled, SceneError

@@ -227,7 +227,8 @@ def pane_scene(thickness=0.1, resolution=(32, 24)):
 def seed_chains(scene, types: str, x0, rng):
     """Plain SMS seed chains of one chain type from floor points x0 (normal +z), as a bake seeds
     its walks: (ctx, ng0, light, chain), the light's points and the seeds drawn from rng."""
-    from smbs_addon.walks.manifold import Ctx, Seeder
+    from smbs_addon.walks.manifold import Ctx
+    from smbs_addon.walks.seeds import Seeder
     from smbs_addon.shading.light_samples import sample_light
     from smbs_addon.baking.plan import make_plan
     from smbs_addon.trace.tracer import Tracer

@@ -112,12 +112,15 @@ def test_negative_clamp():
     assert bake_error(scene, clamp_g=float("nan")) == "clamp_g must be 0 (off) or a positive luminance, not nan"
 
 
-def test_nan_normals_name_the_array():
+def test_nan_normals_name_the_object():
+    """A NaN in a triangle's normals names the object that holds the triangle (issue 59: it named the
+    internal array 'tri_normals')."""
     scene = scenes.mirror_scene(resolution=(8, 6))
     scene.tri_normals[3, 1] = np.nan
+    owner = scene.object_names[int(scene.tri_object[3])]
     with pytest.raises(SceneError) as e:
         scene.validate()
-    assert str(e.value) == "scene array 'tri_normals' holds NaN or infinite values"
+    assert str(e.value) == f"object '{owner}': its normals hold NaN or infinite values (1 triangle)"
 
 
 def _invalid(scene) -> str:

@@ -17,7 +17,7 @@ from smbs_addon.baking.compare import Reference, compare, json_report, table_lin
 from smbs_addon.baking.convergence import caustic_region, relative_error
 from smbs_addon.core.errors import SceneError
 from smbs_addon.io.exr import write_exr
-from smbs_addon.cli.main import exr_channels, exr_metadata
+from smbs_addon.io.exr import exr_channels, exr_metadata
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ import numpy as np
 from numba import njit
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon.cli.main import summary_lines
+from smbs_addon.cli.report import summary_lines
 from smbs_addon.baking.bake import _Reporter
 from smbs_addon.core.compiles import CompileWatch
 

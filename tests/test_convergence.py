@@ -113,7 +113,7 @@ def test_time_rule_adds_batches_and_counts_the_whole_bake():
     res = bake(sc, BakeSettings(method="reference", spp=1, batches=1, seed=4, time_budget=1e-6))
     assert res.stats["batches_done"] == 2 and res.stats["stopped_by"] == "time"  # two at least: a spread
     assert res.stats["relative_error"] is not None
-    from smbs_addon.cli.main import error_lines
+    from smbs_addon.cli.report import error_lines
 
     work = res.stats["time_s"] - res.stats["compile_s"]  # the rule's clock: compiling kernels is not in it
     assert "  warning: the 1e-06 s budget was shorter than the plan, the pre-pass and the two batches an error " \
@@ -176,7 +176,7 @@ def test_convergence_of_a_synthetic_bake():
 def test_the_error_bar_says_which_bias_it_leaves_out():
     """The error bar is the spread between batches: it cannot see a bias. A bake says which one
     it leaves out (stats error_leaves_out, the CLI's summary, the panel); an unbiased bake none."""
-    from smbs_addon.cli.main import error_lines
+    from smbs_addon.cli.report import error_lines
 
     sc = scenes.glass_sphere_scene(resolution=(48, 36))
     cases = {"unbiased SMS": (dict(method="sms"), []),
@@ -200,7 +200,7 @@ def test_the_error_bar_says_which_bias_it_leaves_out():
 def test_box_is_the_mean_over_each_pixels_neighbourhood():
     """convergence.box against a direct mean over each pixel's (2r+1)^2 window, the edges
     repeated (np.pad's 'edge'), on odd shapes and radii 1-3; its input is left as it was."""
-    from smbs_addon.baking.convergence import box
+    from smbs_addon.core.vec import box
 
     rng = np.random.default_rng(4)
     for shape, r in (((7, 5), 1), ((9, 13), 2), ((4, 3), 3), ((1, 6), 2)):

@@ -19,7 +19,7 @@ import numpy as np
 import pytest
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon.cli.main import load_input
+from smbs_addon.cli.inputs import load_input
 from smbs_addon.baking.result import caustic_region
 from smbs_addon.baking.convergence import box5
 from smbs_addon.io.exr import read_exr

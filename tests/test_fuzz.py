@@ -34,7 +34,9 @@ from hypothesis import strategies as st
 from smbs_addon.scene.builder import SceneBuilder, look_at
 from smbs_addon.paths.focus import geometric_term
 from smbs_addon.shading.light_samples import light_end_at_solution
-from smbs_addon.walks.manifold import Ctx, Seeder, _contribution
+from smbs_addon.walks.contribution import _contribution
+from smbs_addon.walks.manifold import Ctx
+from smbs_addon.walks.seeds import Seeder
 from smbs_addon.shading.light_samples import sample_light
 from smbs_addon.baking.plan import make_plan
 from smbs_addon.trace.tracer import Tracer

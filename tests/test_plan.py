@@ -22,7 +22,8 @@ from smbs_addon.scene import arrays as S
 from smbs_addon.cli.main import main
 from smbs_addon.scene.builder import SceneBuilder
 from smbs_addon.trace.camera import CameraModel
-from smbs_addon.baking.plan import PILOT_PHOTONS, describe_chain, make_plan, refine_plan
+from smbs_addon.baking.pilots import PILOT_PHOTONS
+from smbs_addon.baking.plan import describe_chain, make_plan, refine_plan
 from smbs_addon.trace.tracer import Tracer
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -198,7 +199,7 @@ def test_a_narrow_spots_pilots_aim_into_its_cone():
     and any other light, aims at the diffuse surfaces' bounding sphere as before. Aimed there,
     glass_spot.blend's 16 deg spot lost its light through a diffuse bounce (the sample plans
     above say it now)."""
-    from smbs_addon.baking.plan import spot_target
+    from smbs_addon.baking.pilots import spot_target
 
     scene = scenes.water_scene("point", resolution=8)
     target = np.array([[0.3, -0.2, 0.0, 1.5]])
@@ -293,7 +294,8 @@ def test_sample_scene_plans(name):
 def test_chain_flux_adds_up_as_a_loop_over_the_paths():
     """plan._chain_flux (np.unique and np.bincount) against the loop over pilot paths it replaced:
     the same chains in the order they first appear, and the same sums to the last bit."""
-    from smbs_addon.baking.plan import _chain_flux, chain_letters
+    from smbs_addon.baking.plan import _chain_flux
+    from smbs_addon.baking.pilots import chain_letters
 
     rng = np.random.default_rng(11)
     for n in (0, 1, 7, 3000):
@@ -318,7 +320,7 @@ def test_the_plans_look_from_the_camera_answers_the_light_tracers():
     from types import SimpleNamespace
 
     from smbs_addon.baking.passes import specular_visible
-    from smbs_addon.baking.plan import CAMERA_RAYS
+    from smbs_addon.baking.pilots import CAMERA_RAYS
 
     def look(scene):  # the light tracer's own look, as before the plan answered it
         cam = CameraModel(scene.camera)

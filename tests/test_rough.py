@@ -348,7 +348,8 @@ def test_the_eye_sees_more_of_the_floor_in_a_rough_mirror():
     seen in the mirror holds the perfect mirror's and reaches further (the pilots test landings
     against that box where a receiver is not seen directly)."""
     from smbs_addon.trace.camera import CameraModel
-    from smbs_addon.baking.plan import camera_sees, make_plan
+    from smbs_addon.baking.pilots import camera_sees
+    from smbs_addon.baking.plan import make_plan
     from smbs_addon.trace.tracer import Tracer
 
     boxes = []

@@ -187,7 +187,8 @@ def test_loaded_values_are_validated(saved, tmp_path):
     arrays["tri_vertices"][3, 1, 2] = np.nan
     p = tmp_path / "nan.npz"
     np.savez_compressed(p, **arrays)
-    with pytest.raises(SceneError, match=re.escape("scene array 'tri_vertices' holds NaN or infinite values")):
+    owner = arrays["object_names"][int(arrays["tri_object"][3])] if "object_names" in arrays else None
+    with pytest.raises(SceneError, match=re.escape(f"object '{owner}': its vertices hold NaN or infinite values")):
         Scene.load(p)
 
 
@@ -197,11 +198,15 @@ def test_validate_rejects_nan_vertices():
     sc.tri_vertices[0, 0, 0] = np.nan
     with pytest.raises(SceneError) as e:
         sc.validate()
-    assert str(e.value) == "scene array 'tri_vertices' holds NaN or infinite values"
+    assert str(e.value) == f"object '{sc.object_names[sc.tri_object[0]]}': its vertices hold NaN or infinite values " \
+                           "(1 triangle)"
     sc = full_scene()
     sc.tri_vertices[-1, 2, 1] = -np.inf
-    with pytest.raises(SceneError, match="'tri_vertices' holds NaN or infinite"):
+    sc.tri_vertices[-2, 0, 0] = np.nan
+    with pytest.raises(SceneError) as e:
         sc.validate()
+    assert str(e.value) == f"object '{sc.object_names[sc.tri_object[-2]]}': its vertices hold NaN or infinite " \
+                           "values (2 triangles)"
 
 
 def test_validate_rejects_negative_power_naming_the_light():
@@ -219,7 +224,7 @@ def test_validate_rejects_bad_ior_naming_the_material(ior):
     sc.mat_ior[sc.mat_names.index("Glass")] = ior
     with pytest.raises(SceneError) as e:
         sc.validate()
-    expected = ("scene array 'mat_ior' holds NaN or infinite values" if np.isnan(ior)
+    expected = ("material 'Glass': its IOR is NaN or infinite" if np.isnan(ior)
                 else "material 'Glass': IOR must be positive")
     assert str(e.value) == expected
 
@@ -231,7 +236,10 @@ def test_validate_rejects_nan_in_any_float_array(name):
     getattr(sc, name).flat[0] = np.nan
     with pytest.raises(SceneError) as e:
         sc.validate()
-    assert str(e.value) == f"scene array '{name}' holds NaN or infinite values"
+    owner, names = {"light": ("light", sc.light_names), "mat": ("material", sc.mat_names)}[name.split("_")[0]]
+    what = {"light_radius": "radius", "light_spot_size": "spot size", "light_spread": "spread", "light_angle": "angle",
+            "mat_strength": "strength", "mat_roughness": "roughness", "mat_reflect_color": "reflection colour"}[name]
+    assert str(e.value) == f"{owner} '{names[0]}': its {what} is NaN or infinite"
 
 
 def test_validate_names_the_metal_whose_fresnel_is_wrong():
@@ -344,7 +352,7 @@ def test_a_bake_builds_each_seeder_once(monkeypatch):
     light and batch."""
     import importlib
 
-    from smbs_addon.walks import manifold
+    from smbs_addon.walks import seeds as manifold
 
     bake_mod = importlib.import_module("smbs_addon.baking.passes")  # where the chunk sizes are
     built = []

@@ -12,7 +12,7 @@ import pytest
 import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
-from smbs_addon.cli.main import exr_channels
+from smbs_addon.io.exr import exr_channels
 
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT / "tools"))
@@ -99,7 +99,7 @@ def test_flags_given_as_numbers_split_the_same():
 def test_the_exr_holds_the_layer_and_the_per_albedo_channels():
     sc = _textured(scenes.glass_sphere_scene(resolution=(16, 12)))
     r = bake(sc, BakeSettings(method="reference", spp=1, seed=1))
-    from smbs_addon.cli.main import summary_lines
+    from smbs_addon.cli.report import summary_lines
 
     assert any(line.startswith("  textured receivers: ") and "Diffuse Color pass" in line
                for line in summary_lines(r.stats))

@@ -89,7 +89,7 @@ def scene_arrays(name: str):
     path = CACHE / f"{name}-{key}.npz"
     if path.exists():
         return Scene.load(path)
-    from smbs_addon.cli.main import load_input
+    from smbs_addon.cli.inputs import load_input
 
     CACHE.mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory() as tmp:

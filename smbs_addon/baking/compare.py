@@ -29,6 +29,8 @@ import numpy as np
 
 from . import convergence
 from ..core.errors import SceneError
+from ..io.exr import read_exr
+from .bake import bake
 
 
 @dataclasses.dataclass
@@ -41,7 +43,6 @@ class Reference:
 
     @classmethod
     def from_exr(cls, path) -> "Reference":
-        from ..io.exr import read_exr
 
         img, _ = read_exr(path)
         if img.ndim != 3 or img.shape[2] < 3:
@@ -76,8 +77,6 @@ def compare(scene, methods, seconds: float, settings, reference: Reference | Non
     Returns {"region_pixels", "region_from", "seconds", "rows": [one dict per method, in the
     order given], "results": {method: BakeResult}}, and "nothing_to_bake" (why) for a scene
     with no caustic (its rows empty)."""
-    from .bake import bake
-
     if not methods:
         raise SceneError("compare: no method to compare")
     if len(set(methods)) != len(methods):

@@ -20,25 +20,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from ..core.vec import box
 
 MIN_FIT_POINTS = 3  # prefix variances (k = 2..G) needed for the log-log fit
 HEAVY_TAIL = 1.5  # error(all) / (error(first half) / sqrt 2) above this: the variance is still growing
-
-
-def box(x: np.ndarray, radius: int) -> np.ndarray:
-    """(H,W) -> the mean over each pixel's (2 radius + 1)^2 neighbourhood (edges repeated), in
-    two passes of shifted sums (in place: 3.5x faster than a new array per sum, the same bits)."""
-    h, w = x.shape
-    k = 2 * radius + 1
-    p = np.pad(np.asarray(x, np.float64), radius, mode="edge")
-    rows = p[:, 0:w].copy()
-    for i in range(1, k):
-        rows += p[:, i:w + i]
-    out = rows[0:h].copy()
-    for i in range(1, k):
-        out += rows[i:h + i]
-    out /= float(k * k)
-    return out
 
 
 def box5(x: np.ndarray) -> np.ndarray:

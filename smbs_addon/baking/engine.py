@@ -12,7 +12,7 @@ from ..paths.gather import bending_lights, bent_candidates
 from ..trace.camera import CameraModel
 from ..trace.film import Film
 from ..trace.tracer import Tracer
-from .job import MEMORY_BUDGET, Job
+from .job import Job, MEMORY_BUDGET
 from .light_tracing import bake_light_tracing
 from .plan import make_plan, refine_plan
 from .result import BakeResult, finish, nothing_to_bake

@@ -12,14 +12,13 @@ import numpy as np
 
 from ..core import lanes
 from ..core.random import EYE, HANDOFF, INDIRECT, PHOTONS, WALKS, light_key
-from ..paths import gather as indirect
-from ..paths import photons
+from ..paths import gather as indirect, photons
 from ..paths.handoff import Handoff
 from ..scene import arrays as S
 from ..shading.lights import emit
 from ..shading.microfacet import rough_casters
 from ..walks.manifold import manifold_chunk
-from .plan import spot_target
+from .pilots import spot_target
 
 CHUNK = 65536  # lanes per chunk (keeps temporaries in cache, see performance-anchors.md)
 WALK_CHUNK = 65536  # eye samples per manifold chunk (each fans out to lights x chain types x trials): big
@@ -166,9 +165,7 @@ def walks_batch(job, b, walk, eye_stats) -> None:
     for c, start in enumerate(range(0, per_batch, WALK_CHUNK)):
         job.prog.check()
         n = min(WALK_CHUNK, per_batch - start)
-        manifold_chunk(job.scene, job.tracer, job.cam, job.film, job.plan, walk.opts, walk.types, start, n,
-                       per_batch, job.rng(WALKS, 0, b, c), job.light_stats, eye_stats, walk.guide,
-                       lights_direct=job.indirect_lights(), opts_by_light=walk.opts_by_light)
+        manifold_chunk(job, walk, start, n, job.rng(WALKS, 0, b, c), eye_stats)
         job.prog.step(f"{job.settings.method}, batch {b + 1}/{job.settings.batches}")
 
 

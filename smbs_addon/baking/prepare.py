@@ -30,6 +30,10 @@ import time
 import numpy as np
 
 from ..core.compiles import CompileWatch, counted
+from ..core.errors import BakeCancelled
+from .settings import BakeSettings
+from ..scene.builder import SceneBuilder
+from .bake import bake
 
 # (scene, settings) of the bakes, in the order one process makes them; part i of n takes every
 # n-th from i. Two parts split the compiling between the walks (the first bake: walks alone, no
@@ -85,8 +89,6 @@ def scene(name: str):
     glass ball (smooth shaded, with Cycles' Bump Map Correction) over it, a point, a spot, an area
     and a sun light; 'textured': the floor's colour a texture's, under a Principled glossy coat, and a world
     of an image."""
-    from ..scene.builder import SceneBuilder
-
     b = SceneBuilder(f"prepare_{name}")
     # textured: also a Principled floor's glossy coat over its diffuse (scene.mat_layer)
     layer = (1.5, 0.5, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0) if name == "textured" else (0.0,) * 8
@@ -117,10 +119,6 @@ def run(part: int = 0, parts: int = 1, say=None, progress=None, cancel=None) -> 
     """Make part `part`'s bakes in this process; returns {"seconds", "compile_s", "kernels"}.
     progress(fraction, message) before each bake; cancel() returning True stops between and
     inside bakes (BakeCancelled, as bake)."""
-    from .settings import BakeSettings
-    from .bake import bake
-    from ..core.errors import BakeCancelled
-
     todo = bakes(part, parts)
     scenes = {}
     t0 = time.perf_counter()
@@ -163,7 +161,6 @@ out = prepare.run(int(part), int(parts), say=lambda m: print(m, flush=True))
 print(f"kernels compiled: {out['kernels']} in {out['compile_s']:.1f} s as {prepare.__name__}", flush=True)
 """
 
-
 def part_command(code: str, part: int, parts: int) -> list:
     """The command line of prepare()'s process `part` of `parts` running `code` (_PART, or _IMPORT
     and a check of one's own): this Python, the core's package name and folder, sys.path."""
@@ -178,8 +175,6 @@ def prepare(jobs: int | None = None, say=None, progress=None, cancel=None) -> di
     one job runs them here. progress(fraction, message) as bakes end; cancel() returning True
     stops the processes (BakeCancelled). Returns {"seconds": wall time, "kernels": compiled,
     "jobs": processes, "as": the name the kernels were compiled under}."""
-    from ..core.errors import BakeCancelled
-
     jobs = max(1, min(jobs or os.cpu_count() or 1, len(BAKES)))
     t0 = time.perf_counter()
     if jobs == 1:

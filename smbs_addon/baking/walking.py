@@ -19,7 +19,7 @@ from ..shading.microfacet import rough_casters
 from ..walks.guide import Guide, build_guide, photon_budget
 from ..walks.manifold import chain_types
 from .job import Progress
-from .passes import WALK_CHUNK, DeferredFilm, eye_rays, rays, handoff_batch, hands_off, indirect_batch, walks_batch
+from .passes import DeferredFilm, WALK_CHUNK, eye_rays, handoff_batch, hands_off, indirect_batch, rays, walks_batch
 from .stop import run_batches
 
 

@@ -1,5 +1,5 @@
 """A .blend file -> ``Scene``: open it with the bpy module and export its scene (the command
-line's .blend input, cli.main.load_input)."""
+line's .blend input, cli.inputs.load_input)."""
 from __future__ import annotations
 
 from pathlib import Path

@@ -1,1 +1,2 @@
-"""io"""
+"""Files: EXR images with their statistics in the header (exr). Imports core only.
+"""

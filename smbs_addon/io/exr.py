@@ -131,3 +131,31 @@ def read_passes(path) -> dict:
     finally:
         inp.close()
     return out
+
+
+def exr_metadata(settings, result) -> dict:
+    """The EXR header entries of a bake (also written by the Blender operator)."""
+    st = result.stats
+    meta = {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
+            "time_s": st["time_s"], "rays": st["rays"],
+            "noise_relative": st["noise"]["relative_noise"], "stats": st}
+    for key in ("relative_error", "seconds_to_halve_error"):  # absent (None): not measurable
+        if st.get(key) is not None:
+            meta[key] = float(st[key])
+    if getattr(result, "per_albedo", None) is not None:  # a pipeline reading R, G, B alone would miss it
+        meta["composite"] = ("R, G, B + per_albedo_R, _G, _B x the render's Diffuse Color pass (the caustic on "
+                             "textured receivers seen directly, per unit albedo)")
+    return meta
+
+
+def exr_channels(result) -> dict:
+    """The EXR's channels beside the colour: ``std``, each pixel's standard deviation of
+    the mean luminance (where the noise is, for a compositor); with textured receivers
+    ``per_albedo_R``, ``_G``, ``_B`` (BakeResult.per_albedo: the caustic on them per unit albedo,
+    for the render's Diffuse Color pass to multiply; the colour is then BakeResult.layer())."""
+    std = getattr(result, "std", None)
+    out = {} if std is None else {"std": std}
+    per_albedo = getattr(result, "per_albedo", None)
+    if per_albedo is not None:
+        out.update({f"per_albedo_{c}": per_albedo[:, :, i] for i, c in enumerate("RGB")})
+    return out

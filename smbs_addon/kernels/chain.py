@@ -11,7 +11,9 @@ from numba import njit
 
 from ..core.jit import JIT, LANES
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
-from .records import DNS, DNT, HIDDEN_PASSES, MAT, MISS, NF, NG, NOT_CASTER, NS, OBJ, OK, P, PRIM, RAYS_SEED, S, SEED_OBJECT, SIDE, SIDE_INNER, T, TIR, TIR_INNER, WRONG_MATERIAL
+from .records import (
+    DNS, DNT, HIDDEN_PASSES, MAT, MISS, NF, NG, NOT_CASTER, NS, OBJ, OK, P, PRIM, RAYS_SEED, S, SEED_OBJECT, SIDE,
+    SIDE_INNER, T, TIR, TIR_INNER, WRONG_MATERIAL)
 from .typed import TypedOnce
 from ..core.vec3 import add3, cols3, cross3, div3, dot1, normalize3, scale3, sub3, vertex_cols3
 from ..core.embree import intersect1, ray_state

@@ -10,8 +10,7 @@ from numba import njit
 from ..core.jit import JIT
 from .records import NF
 from .typed import TypedOnce
-from .walk import walk_jobs
-from .walk import walk_scratch
+from .walk import walk_jobs, walk_scratch
 from ..core.embree import ray_state
 
 

@@ -10,16 +10,16 @@ import math
 import numpy as np
 from numba import njit
 
-from .records import MAT, MAX_ITER, NF, NS, OK, P, RAYS_WALK, SIDE, SINGULAR, STALLED, TIR, TRIG_BACKLIT, TRIG_NONE, TRIG_SLOW, TRIG_TIR
+from .records import (
+    MAT, MAX_ITER, NF, NS, OBJ, OK, P, RAYS_WALK, SIDE, SINGULAR, STALLED, TIR, TRIG_BACKLIT, TRIG_NONE, TRIG_SLOW,
+    TRIG_TIR)
 from .typed import TypedOnce
 from .newton import copy_rows, lane_newton, lane_scratch
 from .large_mutation import lane_large
-from .chain import lane_mismatch, trace_lane
+from .chain import lane_mismatch, seed_lane, trace_lane
 from ..core.vec3 import add3, cols3, dot1, normalize3, scale3, sub3, vertex_cols3
 from ..core.embree import ray_state
 from ..core.jit import JIT, LANES
-from .records import OBJ
-from .chain import seed_lane
 from .keyed import keyed_uniform
 
 

@@ -31,24 +31,20 @@ import math
 
 import numpy as np
 
-from ..core import embree
+from ..core import embree, lanes
 from ..kernels.gather import gather_lanes
-from ..kernels import handoff
-from ..kernels import records
-from ..core import lanes
+from ..kernels import handoff, records
 from ..shading import coat as layer, optics
 from ..scene import arrays as S
-from ..scene.light_paths import ONE_DIFFUSE, Limits, specular_kind
-from ..trace.eye import Receivers, direct_albedo, surface_at
+from ..scene.light_paths import Limits, ONE_DIFFUSE, specular_kind
+from ..trace.eye import Receivers, direct_albedo, eye_receivers, surface_at
 from ..scene.geometry import triangle_areas
 from ..shading.lights import area_light_shape, light_radiance, shadow_tmax
 from ..shading.light_samples import light_can_be_hit, light_end_at_solution, sample_light
-from ..trace.eye import eye_receivers
-from .handoff import handoff_select, chain_letters, other_paths, walked_casters
-from .photons import run_photons, scatter_specular, splat_records
+from .handoff import chain_letters, handoff_select, other_paths, walked_casters
+from .photons import MAX_SPECULAR_BOUNCES, run_photons, scatter_specular, splat_records
 from ..shading.microfacet import walk_casters
 from ..core.vec import cross, dot, normalize
-from .photons import MAX_SPECULAR_BOUNCES
 
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
@@ -204,129 +200,171 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
         radiance = _traced_gather(scene, tracer, plan, rc, rng, stats, lights_direct, physical, lights_hit,
                                   count_first)
         return _splat_gathered(scene, film, rc, radiance, stats)
-    lim = Limits.of(scene)
-    radiance = np.zeros((n, 3))
-    others = {li: ho for li, ho in (others or {}).items() if ho.others} if connect else {}
-    walked = walk_casters(scene, plan.casters) if others else None  # objects whose vertices a walk takes
-    # the frontier: diffuse vertices to bounce from, with the events before them
-    f_lane, f_p, f_ng, f_ns, f_w = np.arange(n), rc.p, rc.ng, rc.ns, rc.w_eye
-    f_beta, f_mat, f_cnt = rc.beta, rc.mat, rc.prior
-    f_has_s, f_depth = np.zeros(n, bool), np.zeros(n, np.int64)
-    absorbing = optics.absorbing(scene)
-    while len(f_lane):
+    _GatherInNumpy(scene, tracer, plan, rc, rng, stats, physical, others if connect else None).run(
+        film, lights_direct, connect, lights_hit, count_first)
+
+
+class _GatherInNumpy:
+    """gather's generations in numpy, one diffuse bounce and its specular chain at a time: what
+    the walks' connect needs at every diffuse vertex (a Python callback), and the tests' second
+    form of _traced_gather's compiled paths."""
+
+    def __init__(self, scene, tracer, plan, rc, rng, stats, physical, others):
+        self.scene, self.tracer, self.plan, self.rc, self.rng, self.stats = scene, tracer, plan, rc, rng, stats
+        self.physical = physical
+        self.lim = Limits.of(scene)
+        self.radiance = np.zeros((len(rc.p), 3))
+        self.others = {li: ho for li, ho in (others or {}).items() if ho.others}
+        self.walked = walk_casters(scene, plan.casters) if self.others else None  # objects a walk takes
+        self.absorbing = optics.absorbing(scene)
+
+    def run(self, film, lights_direct, connect, lights_hit, count_first):
+        rc = self.rc
+        n = len(rc.p)
+        # the frontier: diffuse vertices to bounce from, with the events before them
+        front = dict(lane=np.arange(n), p=rc.p, ng=rc.ng, ns=rc.ns, w=rc.w_eye, beta=rc.beta, mat=rc.mat,
+                     cnt=rc.prior, has_s=np.zeros(n, bool), depth=np.zeros(n, np.int64))
+        while len(front["lane"]):
+            nxt = self._generation(front, lights_direct, connect, lights_hit, count_first)
+            if not nxt:
+                break
+            front = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
+        _splat_gathered(self.scene, film, rc, self.radiance, self.stats)
+
+    def _generation(self, f, lights_direct, connect, lights_hit, count_first) -> list:
+        """One diffuse bounce from the frontier f and the specular chain after it: the next
+        frontier's parts (one per specular bounce that met diffuse vertices)."""
+        scene, lim = self.scene, self.lim
         # a diffuse bounce is never a caustic path's last event: it must fit the limits
-        go = np.flatnonzero(lim.fits(f_cnt + ONE_DIFFUSE))
-        d, beta, k = _diffuse_bounce(rng, f_w[go], f_ng[go], f_ns[go], f_beta[go], _albedo(scene, f_mat[go]), False)
+        go = np.flatnonzero(lim.fits(f["cnt"] + ONE_DIFFUSE))
+        d, beta, k = _diffuse_bounce(self.rng, f["w"][go], f["ng"][go], f["ns"][go], f["beta"][go],
+                                     _albedo(scene, f["mat"][go]), False)
         sel = go[k]
-        x0 = np.flatnonzero(f_depth[sel] == 0)
+        x0 = np.flatnonzero(f["depth"][sel] == 0)
         if x0.size and layer.has_layers(scene):  # x0 under a Principled coat (kernels/gather.py's gather_rows the same)
-            beta[x0] = beta[x0] * layer.coat_factor(scene, f_mat[sel[x0]], scene.mat_color, f_ns[sel[x0]],
-                                                    f_w[sel[x0]], d[x0])
-        lane, has_s, depth = f_lane[sel], f_has_s[sel], f_depth[sel]
-        cnt = f_cnt[sel] + ONE_DIFFUSE  # every event so far
-        before = cnt.copy()  # the events before the latest
-        o = tracer.spawn(f_p[sel], f_ng[sel], d)
-        last_caster = np.zeros(len(lane), bool)
-        last_obj = np.full(len(lane), -1)  # the latest specular vertex's object (Light Linking's)
-        last_refl = np.zeros(len(lane), bool)  # the latest specular event a reflection (a glossy ray leaves it)
-        medium = np.full(len(lane), -1)  # inside a glass (its material) or not
-        # the chain since the latest diffuse vertex: its letters (bit 1: R, the first vertex the
-        # highest, as reference._chain_codes) and whether every vertex is on a walked caster
-        code, on = np.zeros(len(lane), np.int64), np.ones(len(lane), bool)
+            beta[x0] = beta[x0] * layer.coat_factor(scene, f["mat"][sel[x0]], scene.mat_color, f["ns"][sel[x0]],
+                                                    f["w"][sel[x0]], d[x0])
+        cnt = f["cnt"][sel] + ONE_DIFFUSE  # every event so far
+        m = len(sel)
+        path = dict(lane=f["lane"][sel], beta=beta, has_s=f["has_s"][sel], depth=f["depth"][sel], d=d, cnt=cnt,
+                    before=cnt.copy(),  # the events before the latest
+                    last_caster=np.zeros(m, bool),
+                    last_obj=np.full(m, -1),  # the latest specular vertex's object (Light Linking's)
+                    last_refl=np.zeros(m, bool),  # the latest specular event a reflection (a glossy ray leaves it)
+                    medium=np.full(m, -1),  # inside a glass (its material) or not
+                    # the chain since the latest diffuse vertex: its letters (bit 1: R, the first vertex
+                    # the highest, as reference._chain_codes) and whether every vertex is on a walked caster
+                    code=np.zeros(m, np.int64), on=np.ones(m, bool))
+        o = self.tracer.spawn(f["p"][sel], f["ng"][sel], d)
         nxt = []
         for bounce in range(MAX_SPECULAR + 1):
-            if len(lane) == 0:
+            if len(path["lane"]) == 0:
                 break
-            # past what the ray's kind does not meet: the diffuse bounce's, then the latest event's
-            h = tracer.intersect_past(o, d, S.RAY_DIFFUSE if bounce == 0 else
-                                      np.where(last_refl, S.RAY_GLOSSY, S.RAY_TRANSMISSION))
-            stats["rays_gather"] = stats.get("rays_gather", 0) + len(o)
-            if others and bounce > 0:
-                _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, bounce,
-                              (depth >= 1) & lim.fits(before), radiance, stats, last_obj)
-            if connect is None and bounce > 0 and len(lights_hit):
-                # Cycles' lights are transparent (shade_light adds the emission and the path
-                # goes on): every light in front of the next surface counts, not the nearest
-                surf_t = np.where(h.hit, h.t, np.inf)
-                seen_l = np.zeros((len(o), 3))
-                for li in lights_hit:
-                    seen, L, tl = seen_light(scene, tracer, li, o, d, last_refl, surf_t, last_obj)
-                    seen_l += np.where(seen[:, None], L, 0.0)
-                count = np.flatnonzero(last_caster & ((depth >= 1) | count_first) & (seen_l.max(axis=1) > 0)
-                                       & lim.fits(before))
-                np.add.at(radiance, lane[count], beta[count] * seen_l[count])
-            prim, hmat, kind = surface_at(scene, h)
-            if absorbing:  # the segment just crossed, inside a glass's volume (kernels._absorbed)
-                seg_medium = optics.arriving(scene, medium, hmat, h.hit, d, h.ng)
-                beta = beta * optics.transmittance(scene, seg_medium, np.where(h.hit, h.t, 0.0))
+            h, prim, hmat, kind = self._segment(path, o, bounce, connect, lights_hit, count_first)
             diff = np.flatnonzero(kind == S.DIFFUSE)
             if diff.size:  # the next diffuse vertex
-                g = dict(lane=lane[diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff], beta=beta[diff],
-                         mat=hmat[diff], has_s=has_s[diff], depth=depth[diff] + 1, cnt=cnt[diff])
-                if layer.has_layers(scene):  # its diffuse under its glossy layer, towards w (as eye_receivers)
-                    g["beta"] = g["beta"] * layer.weight(layer.table(scene), g["mat"], dot(g["w"], g["ns"]))[:, None]
-                alb = _albedo(scene, g["mat"])
-                lit = np.flatnonzero(g["has_s"] & lim.fits(g["cnt"]))  # direct light: every event before fits
-                for li in lights_direct:
-                    if lit.size:
-                        rad = direct_light(scene, tracer, li, g["p"][lit], g["ng"][lit], g["ns"][lit], g["w"][lit],
-                                           rng, stats, scene.tri_object[prim[diff[lit]]])
-                        np.add.at(radiance, g["lane"][lit], g["beta"][lit] * alb[lit] * rad)
-                if connect is not None:
-                    rec = np.flatnonzero(plan.receivers[scene.tri_object[prim[diff]]]
-                                         & lim.fits(g["cnt"] + ONE_DIFFUSE))
-                    if rec.size:
-                        ln = g["lane"][rec]
-                        sub = Receivers(rx=rc.rx[ln], ry=rc.ry[ln], p=g["p"][rec], ng=g["ng"][rec], ns=g["ns"][rec],
-                                        w_eye=g["w"][rec], beta=g["beta"][rec], mat=g["mat"][rec],
-                                        eye_specular=np.maximum(rc.eye_specular[ln], 1), weight=rc.weight[ln],
-                                        prior=g["cnt"][rec])
-                        np.add.at(radiance, ln, connect(sub))
-                nxt.append(g)
+                nxt.append(self._diffuse_vertex(path, h, prim, hmat, diff, lights_direct, connect))
             spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))
             if spec.size == 0 or bounce == MAX_SPECULAR:
                 break
-            d_in = d[spec]
-            dd, bb, keep = scatter_specular(scene, rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
-                                            beta[spec], scale_eta=physical)
-            sk = spec[keep]
-            last_obj = scene.tri_object[prim[sk]]
-            last_caster = plan.casters[last_obj]
-            kinds = specular_kind(d_in[keep], dd, h.ng[sk])
-            last_refl = kinds == 1
-            if others:
-                code = code[sk] * 2 + last_refl
-                on = on[sk] & walked[scene.tri_object[prim[sk]]]
-            if absorbing:
-                medium = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
-            lane, beta, has_s, depth, d = lane[sk], bb, has_s[sk] | last_caster, depth[sk], dd
-            before = cnt[sk]
-            cnt = before.copy()
-            cnt[np.arange(len(sk)), kinds] += 1
-            # a path whose events before the latest no longer fit cannot fit later
-            alive = np.flatnonzero(lim.fits(before))
-            if alive.size < len(lane):
-                lane, beta, has_s, depth, d = lane[alive], beta[alive], has_s[alive], depth[alive], d[alive]
-                last_caster, before, cnt, sk = last_caster[alive], before[alive], cnt[alive], sk[alive]
-                last_obj = last_obj[alive]
-                last_refl = last_refl[alive]
-                if others:
-                    code, on = code[alive], on[alive]
-                if absorbing:
-                    medium = medium[alive]
-            o = tracer.spawn(h.p[sk], h.ng[sk], d)
-        if not nxt:
-            break
-        cat = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
-        f_lane, f_p, f_ng, f_ns, f_w = cat["lane"], cat["p"], cat["ng"], cat["ns"], cat["w"]
-        f_beta, f_mat, f_has_s, f_depth, f_cnt = cat["beta"], cat["mat"], cat["has_s"], cat["depth"], cat["cnt"]
-    _splat_gathered(scene, film, rc, radiance, stats)
+            path, o = self._specular(path, h, prim, hmat, kind, spec)
+        return nxt
+
+    def _segment(self, path, o, bounce, connect, lights_hit, count_first):
+        """The segment from o along path["d"] to its next surface: the lights on it (others', and
+        lights_hit's without connect), the absorption across it. Returns (hits, their prims,
+        materials and kinds)."""
+        scene, lim, lane, beta, d = self.scene, self.lim, path["lane"], path["beta"], path["d"]
+        # past what the ray's kind does not meet: the diffuse bounce's, then the latest event's
+        h = self.tracer.intersect_past(o, d, S.RAY_DIFFUSE if bounce == 0 else
+                                       np.where(path["last_refl"], S.RAY_GLOSSY, S.RAY_TRANSMISSION))
+        self.stats["rays_gather"] = self.stats.get("rays_gather", 0) + len(o)
+        if self.others and bounce > 0:
+            _count_others(scene, self.tracer, self.others, (o, d, h), path, bounce,
+                          (path["depth"] >= 1) & lim.fits(path["before"]), self.radiance, self.stats)
+        if connect is None and bounce > 0 and len(lights_hit):
+            # Cycles' lights are transparent (shade_light adds the emission and the path
+            # goes on): every light in front of the next surface counts, not the nearest
+            surf_t = np.where(h.hit, h.t, np.inf)
+            seen_l = np.zeros((len(o), 3))
+            for li in lights_hit:
+                seen, L, tl = seen_light(scene, self.tracer, li, o, d, path["last_refl"], surf_t, path["last_obj"])
+                seen_l += np.where(seen[:, None], L, 0.0)
+            count = np.flatnonzero(path["last_caster"] & ((path["depth"] >= 1) | count_first)
+                                   & (seen_l.max(axis=1) > 0) & lim.fits(path["before"]))
+            np.add.at(self.radiance, lane[count], beta[count] * seen_l[count])
+        prim, hmat, kind = surface_at(scene, h)
+        if self.absorbing:  # the segment just crossed, inside a glass's volume (absorption.absorbed1)
+            seg_medium = optics.arriving(scene, path["medium"], hmat, h.hit, d, h.ng)
+            path["beta"] = beta * optics.transmittance(scene, seg_medium, np.where(h.hit, h.t, 0.0))
+        return h, prim, hmat, kind
+
+    def _diffuse_vertex(self, path, h, prim, hmat, diff, lights_direct, connect) -> dict:
+        """The diffuse vertices the segments met (rows diff): their direct light, the walks' caustic
+        there (connect), and their part of the next frontier."""
+        scene, rc, lim, d = self.scene, self.rc, self.lim, path["d"]
+        g = dict(lane=path["lane"][diff], p=h.p[diff], ng=h.ng[diff], ns=h.ns[diff], w=-d[diff],
+                 beta=path["beta"][diff], mat=hmat[diff], has_s=path["has_s"][diff], depth=path["depth"][diff] + 1,
+                 cnt=path["cnt"][diff])
+        if layer.has_layers(scene):  # its diffuse under its glossy layer, towards w (as eye_receivers)
+            g["beta"] = g["beta"] * layer.weight(layer.table(scene), g["mat"], dot(g["w"], g["ns"]))[:, None]
+        alb = _albedo(scene, g["mat"])
+        lit = np.flatnonzero(g["has_s"] & lim.fits(g["cnt"]))  # direct light: every event before fits
+        for li in lights_direct:
+            if lit.size:
+                rad = direct_light(scene, self.tracer, li, g["p"][lit], g["ng"][lit], g["ns"][lit], g["w"][lit],
+                                   self.rng, self.stats, scene.tri_object[prim[diff[lit]]])
+                np.add.at(self.radiance, g["lane"][lit], g["beta"][lit] * alb[lit] * rad)
+        if connect is not None:
+            rec = np.flatnonzero(self.plan.receivers[scene.tri_object[prim[diff]]] & lim.fits(g["cnt"] + ONE_DIFFUSE))
+            if rec.size:
+                ln = g["lane"][rec]
+                sub = Receivers(rx=rc.rx[ln], ry=rc.ry[ln], p=g["p"][rec], ng=g["ng"][rec], ns=g["ns"][rec],
+                                w_eye=g["w"][rec], beta=g["beta"][rec], mat=g["mat"][rec],
+                                eye_specular=np.maximum(rc.eye_specular[ln], 1), weight=rc.weight[ln],
+                                prior=g["cnt"][rec])
+                np.add.at(self.radiance, ln, connect(sub))
+        return g
+
+    def _specular(self, path, h, prim, hmat, kind, spec):
+        """Scatter the paths at the specular vertices (rows spec): the paths that go on and the
+        origins of their next segments."""
+        scene, d = self.scene, path["d"]
+        d_in = d[spec]
+        dd, bb, keep = scatter_specular(scene, self.rng, -d[spec], h.ns[spec], h.ng[spec], hmat[spec], kind[spec],
+                                        path["beta"][spec], scale_eta=self.physical)
+        sk = spec[keep]
+        last_obj = scene.tri_object[prim[sk]]
+        last_caster = self.plan.casters[last_obj]
+        kinds = specular_kind(d_in[keep], dd, h.ng[sk])
+        new = dict(lane=path["lane"][sk], beta=bb, has_s=path["has_s"][sk] | last_caster, depth=path["depth"][sk],
+                   d=dd, last_obj=last_obj, last_caster=last_caster, last_refl=kinds == 1)
+        if self.others:
+            new["code"] = path["code"][sk] * 2 + new["last_refl"]
+            new["on"] = path["on"][sk] & self.walked[scene.tri_object[prim[sk]]]
+        if self.absorbing:
+            new["medium"] = optics.inside(scene, hmat[sk], kind[sk] == S.DIELECTRIC, dd, h.ng[sk])
+        new["before"] = path["cnt"][sk]
+        cnt = new["before"].copy()
+        cnt[np.arange(len(sk)), kinds] += 1
+        new["cnt"] = cnt
+        # a path whose events before the latest no longer fit cannot fit later
+        alive = np.flatnonzero(self.lim.fits(new["before"]))
+        if alive.size < len(new["lane"]):
+            new = {key: v[alive] for key, v in new.items()}
+            sk = sk[alive]
+        for key in ("code", "on", "medium"):  # kept only where they are used (others, absorbing)
+            new.setdefault(key, None)
+        return new, self.tracer.spawn(h.p[sk], h.ng[sk], new["d"])
 
 
-def _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, k, ok, radiance, stats, last_obj):
+def _count_others(scene, tracer, others, segments, path, k, ok, radiance, stats):
     """gather's paths no walk takes: the lights of others (light index -> Handoff) seen on the
-    segments (o, d; hits h) after k specular vertices, where ok, added to radiance per lane
-    (last_obj: the object of the vertex each segment leaves, for the lights' Light Linking)."""
+    segments (o, d, hits h) of the paths (lane, beta, chain code, on walked casters, last_obj: the
+    object of the vertex each segment leaves, for the lights' Light Linking) after k specular
+    vertices, where ok, added to radiance per lane."""
+    o, d, h = segments
+    lane, beta, code, on = path["lane"], path["beta"], path["code"], path["on"]
     surf_t = np.where(h.hit, h.t, np.inf)
     for li, ho in others.items():
         walked = [c for c in np.unique(code) if chain_letters(c, k) in ho.types]  # as reference.other_paths
@@ -334,7 +372,7 @@ def _count_others(scene, tracer, others, o, d, h, lane, beta, code, on, k, ok, r
         if not other.any():
             continue
         refl = (code & 1) == 1  # the latest vertex's letter
-        seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, last_obj)
+        seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, path["last_obj"])
         seen = np.flatnonzero(other & seen)
         np.add.at(radiance, lane[seen], beta[seen] * L[seen])
         stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)

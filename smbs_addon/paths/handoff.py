@@ -112,3 +112,8 @@ def handoff_select(scene, tracer, handoff, x0, kb, prim, pts, bary, refl, caster
             c = concentration(types, x0[g], verts, etas, y[g], handoff.directional)
             take[g[c > tau]] = True
     return take
+
+
+# At receivers seen through mirrors or glass the hand-off goes to cosine sampling, weaker than
+# light tracing: only paths focusing more than this (the default hand-off) go there
+SEEN_HANDOFF_MIN = 4.0

@@ -15,11 +15,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core import embree
-from ..kernels import eye
+from ..core import embree, lanes
+from ..kernels import eye, records
 from ..kernels.photons import photon_lanes
-from ..kernels import records
-from ..core import lanes
 from ..shading.optics import materials, scatter_rows
 from ..shading.microfacet import rough_materials
 from .handoff import Handoff, handoff_select, walked_casters

@@ -9,7 +9,6 @@ A scene is saved and loaded as a single ``.npz`` file (``save`` / ``load``).
 from __future__ import annotations
 
 import dataclasses
-import math
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -18,64 +17,14 @@ from pathlib import Path
 import numpy as np
 
 from ..core.errors import SceneError
-
-FORMAT_VERSION = 1
-
-# Material classes (Scene.mat_kind)
-DIFFUSE, CONDUCTOR, DIELECTRIC, EMITTER = 0, 1, 2, 3
-MATERIAL_KINDS = ("diffuse", "conductor", "dielectric", "emitter")
-# Fresnel models (Scene.mat_fresnel). Conductors: Glossy BSDF (constant colour, NONE), Cycles'
-# F82-Tint metal (SCHLICK: Schlick from F0 = mat_color towards white, less B cos (1 - cos)^6 with
-# B = mat_metal[:, :3], zero without; a Principled BSDF's metallic lobe, the Metallic BSDF's F82
-# mode) or a physical conductor (CONDUCTOR: the Fresnel equations of complex index n + ik,
-# mat_metal's n and k per channel; the Metallic BSDF's Physical Conductor mode; mat_color then
-# holds its reflectance at normal incidence). Dielectrics: glass (NONE: the dielectric Fresnel
-# term splits reflection and refraction; a Principled glass's Specular Tint c scales its value at
-# normal incidence, mat_metal[:, :3] = c - 1, zero without) or Cycles' Refraction BSDF (REFRACTION_ONLY: transmits
-# its colour with no Fresnel term and no reflection; total internal reflection absorbs).
-FRESNEL_NONE, FRESNEL_SCHLICK, REFRACTION_ONLY, FRESNEL_CONDUCTOR = 0, 1, 2, 3
-FRESNEL_MODELS = ("none", "F82-Tint", "refraction only", "physical conductor")  # by index
-
-# Light types (Scene.light_type), as Cycles defines them; WORLD is a world of constant colour
-# (a Background node): radiance light_color from every direction, at infinity; MESH is a mesh
-# light (an object's triangles of an emitter material, Scene.tri_light): radiance light_color
-# from both sides of each triangle, as Cycles' Emission shader shines
-POINT, SPOT, AREA, SUN, WORLD, MESH = 0, 1, 2, 3, 4, 5
-LIGHT_TYPES = ("POINT", "SPOT", "AREA", "SUN", "WORLD", "MESH")
-DISTANT = (SUN, WORLD)  # lights at infinity: a path's light end is a direction
-# Area light shapes (Scene.light_shape)
-SQUARE, RECTANGLE, DISK, ELLIPSE = 0, 1, 2, 3
-AREA_SHAPES = ("SQUARE", "RECTANGLE", "DISK", "ELLIPSE")
-
-PERSP, ORTHO = 0, 1
-
-# Cycles' Ray Visibility (an object's or a light's Object > Visibility > Ray Visibility; the world's
-# World > Settings): which rays meet it, as bits of Scene.object_visibility and light_visibility. A
-# ray's kind is the event at the vertex it leaves, from the camera: a diffuse receiver's bounce casts
-# a diffuse ray, a mirror's reflection or a glass's (inside too) a glossy one, a refraction a
-# transmission one
-RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION, RAY_SHADOW = 1, 2, 4, 8, 16
-RAY_ALL = 31
-PATH_RAYS = RAY_DIFFUSE | RAY_GLOSSY | RAY_TRANSMISSION  # a caustic path's rays after the camera's
-
-# fields a scene file may lack (saved before they were exported): their defaults hold
-OPTIONAL = ("light_paths", "mat_bump_correction", "mat_layer", "mat_textured", "mat_absorb", "world_map",
-            "world_map_rotation", "mat_distribution", "tri_normals_back", "mat_view_bump", "view_normals",
-            "view_points", "object_visibility", "light_visibility", "tri_light", "mat_emission", "mat_metal",
-            "light_links", "light_blockers", "mat_film")
-SENSOR_FITS = ("AUTO", "HORIZONTAL", "VERTICAL")
-MAX_FILTER_WIDTH = 10.0  # pixels: Cycles' pixel filter width is from 0.01 to 10
-MAX_BOUNCES = 1024  # Blender's Light Paths bounce limits go up to this
-MAX_POWER = 1e20  # a light's power (W) or a sun's strength: past it a caustic overflows float32
-NO_FILM = (0.0, 1.33)  # a material's mat_film row without a film (Blender's default Thin Film IOR)
-MAX_COLOR = 1e6  # a material's colour channel (an albedo, 1 at most in a physical scene)
-
-
-def flat_axes(m3) -> bool:
-    """Does a 3x3 linear part lose a dimension (an axis scaled to zero, or the axes in a plane),
-    relative to its own scale?"""
-    m = np.asarray(m3, float)
-    return not (abs(np.linalg.det(m)) > 1e-12 * max(float(np.abs(m).max()), 1e-300) ** 3)
+# the codes and limits live in constants.py; the scene's module re-exports them (scene.arrays.DIFFUSE, ...)
+from .constants import (  # noqa: F401
+    AREA, AREA_SHAPES, CONDUCTOR, DIELECTRIC, DIFFUSE, DISK, DISTANT, ELLIPSE, EMITTER, FORMAT_VERSION,
+    FRESNEL_CONDUCTOR, FRESNEL_MODELS, FRESNEL_NONE, FRESNEL_SCHLICK, LIGHT_TYPES, MATERIAL_KINDS, MAX_BOUNCES,
+    MAX_COLOR, MAX_FILTER_WIDTH, MAX_POWER, MESH, NO_FILM, OPTIONAL, ORTHO, PATH_RAYS, PERSP, POINT, RAY_ALL,
+    RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_SHADOW, RAY_TRANSMISSION, RECTANGLE, REFRACTION_ONLY, SENSOR_FITS,
+    SPOT, SQUARE, SUN, WORLD, flat_axes)
+from .validate import validate
 
 
 def offset_eps(lo, hi) -> float:
@@ -409,215 +358,10 @@ class Scene:
 
     # ---------------------------------------------------------------- validate
     def validate(self) -> None:
-        """Check shapes and values; raise SceneError naming what is wrong. Starts the geometry
-        memo (_memo) afresh, kept only if the scene is valid."""
+        """Check shapes and values (validate.py); raise SceneError naming what is wrong. Starts the
+        geometry memo (_memo) afresh, kept only if the scene is valid."""
         self.__dict__.pop("_geometry_memo", None)
-        T = self.n_tris
-        expect = {
-            "tri_vertices": (T, 3, 3), "tri_normals": (T, 3, 3), "tri_uvs": (T, 3, 2),
-            "tri_object": (T,), "tri_material": (T,),
-        }
-        for name, shape in expect.items():
-            a = getattr(self, name)
-            if a.shape != shape:
-                raise SceneError(f"scene array '{name}' has shape {a.shape}, expected {shape}")
-        O, M, L = len(self.object_names), len(self.mat_names), self.n_lights
-        if self.tri_normals_back.shape not in ((0, 3, 3), (T, 3, 3)):
-            raise SceneError(f"scene array 'tri_normals_back' has shape {self.tri_normals_back.shape}, expected "
-                             f"{(T, 3, 3)} or none")
-        for name in ("object_caster", "object_receiver", "object_smooth"):
-            if getattr(self, name).shape != (O,):
-                raise SceneError(f"scene array '{name}' must have one entry per object ({O})")
-        for name in ("mat_kind", "mat_ior", "mat_roughness", "mat_strength", "mat_fresnel"):
-            if getattr(self, name).shape != (M,):
-                raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
-        bad = np.flatnonzero(~np.isin(self.mat_fresnel, range(len(FRESNEL_MODELS))))
-        if bad.size:
-            known = ", ".join(f"{i} ({what})" for i, what in enumerate(FRESNEL_MODELS))
-            raise SceneError(f"material '{self.mat_names[int(bad[0])]}': Fresnel model {int(self.mat_fresnel[bad[0]])} "
-                             f"is none of {known}")
-        if self.mat_bump_correction.shape not in ((0,), (M,)):
-            raise SceneError(f"scene array 'mat_bump_correction' must have one entry per material ({M}) or none")
-        if self.mat_distribution.shape not in ((0,), (M,)) or not np.isin(self.mat_distribution, (0, 1)).all():
-            raise SceneError(f"scene array 'mat_distribution' must have one entry, 0 (GGX) or 1 (Multiscatter GGX), "
-                             f"per material ({M}) or none")
-        if self.mat_textured.shape not in ((0,), (M,)):
-            raise SceneError(f"scene array 'mat_textured' must have one entry per material ({M}) or none")
-        wrong = np.flatnonzero(self.mat_textured.astype(bool) & (self.mat_kind != DIFFUSE)) if self.mat_textured.size \
-            else []
-        if len(wrong):
-            raise SceneError(f"material '{self.mat_names[int(wrong[0])]}': only a diffuse material can be textured")
-        if self.mat_view_bump.shape not in ((0,), (M,)):
-            raise SceneError(f"scene array 'mat_view_bump' must have one entry per material ({M}) or none")
-        wrong = np.flatnonzero(self.mat_view_bump.astype(bool) & (self.mat_kind != DIFFUSE)) \
-            if self.mat_view_bump.size else []
-        if len(wrong):
-            raise SceneError(f"material '{self.mat_names[int(wrong[0])]}': only a diffuse material's bumps are "
-                             f"read from the view")
-        vn, vp = np.asarray(self.view_normals), np.asarray(self.view_points)
-        if vn.shape != vp.shape or vn.ndim != 3 or vn.shape[2] != 3:
-            raise SceneError(f"scene arrays 'view_normals' {vn.shape} and 'view_points' {vp.shape} must both be "
-                             f"(H s, W s, 3)")
-        if vn.size and not (np.all(np.isfinite(vn)) and np.all(np.isfinite(vp))):
-            raise SceneError("scene arrays 'view_normals' and 'view_points' hold NaN or infinite values")
-        for name, n in (("object_visibility", O), ("light_visibility", L)):
-            a = getattr(self, name)
-            if a.shape not in ((0,), (n,)) or (a.size and not np.all((a >= 0) & (a <= RAY_ALL))):
-                raise SceneError(f"scene array '{name}' must have one entry of Ray Visibility bits (0 to "
-                                 f"{RAY_ALL}) per {name.split('_')[0]} ({n}) or none")
-        for name, what in (("light_links", "Light Linking: the objects each light lights"),
-                           ("light_blockers", "Shadow Linking: the objects that shadow each light")):
-            a = getattr(self, name)
-            if a.size and a.shape != (L, O):
-                raise SceneError(f"scene array '{name}' must be ({L}, {O}) ({what}) or empty, not {a.shape}")
-        if self.mat_emission.shape not in ((0, 3), (M, 3)):
-            raise SceneError(f"scene array 'mat_emission' must be ({M}, 3) or empty")
-        bad = ~np.all(np.isfinite(self.mat_emission) & (self.mat_emission >= 0) & (self.mat_emission <= MAX_POWER),
-                      axis=1) if self.mat_emission.size else []
-        if np.any(bad):
-            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': emission must be finite, "
-                             f"from 0 to {MAX_POWER:g}")
-        if self.mat_metal.shape not in ((0, 6), (M, 6)):
-            raise SceneError(f"scene array 'mat_metal' must be ({M}, 6) or empty")
-        if self.mat_metal.size and not np.all(np.isfinite(self.mat_metal)):
-            bad = np.flatnonzero(~np.all(np.isfinite(self.mat_metal), axis=1))
-            raise SceneError(f"material '{self.mat_names[int(bad[0])]}': its metal's Fresnel (F82 tint, or index "
-                             f"n + ik) is not finite")
-        phys = np.flatnonzero(self.mat_fresnel == FRESNEL_CONDUCTOR)
-        for m in phys:
-            if self.mat_kind[m] != CONDUCTOR:
-                raise SceneError(f"material '{self.mat_names[int(m)]}': the physical conductor's Fresnel is a "
-                                 f"metal's, the material is not one")
-            if not self.mat_metal.size or np.any(self.mat_metal[m] < 0) or not np.any(self.mat_metal[m] > 0):
-                raise SceneError(f"material '{self.mat_names[int(m)]}': a physical conductor needs its index n and "
-                                 f"extinction k per channel, not negative (scene array 'mat_metal')")
-        if self.mat_metal.size:
-            bad = np.flatnonzero((self.mat_kind == DIELECTRIC) & np.any(self.mat_metal[:, :3] < -1.0, axis=1))
-            if bad.size:
-                raise SceneError(f"material '{self.mat_names[int(bad[0])]}': a glass's Specular Tint must not be "
-                                 f"negative (scene array 'mat_metal' holds it less 1)")
-        if self.mat_film.shape not in ((0, 2), (M, 2)):
-            raise SceneError(f"scene array 'mat_film' must be ({M}, 2) or empty")
-        bad = ~(np.all(np.isfinite(self.mat_film), axis=1) & (self.mat_film[:, 0] >= 0) & (self.mat_film[:, 0] <= 1e6)
-                & (self.mat_film[:, 1] > 0)) if self.mat_film.size else []
-        if np.any(bad):
-            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': a thin film needs a thickness "
-                             f"from 0 to 1e6 nm and an index above 0")
-        if self.mat_absorb.shape not in ((0, 3), (M, 3)):
-            raise SceneError(f"scene array 'mat_absorb' must be ({M}, 3) or empty")
-        bad = ~np.all(np.isfinite(self.mat_absorb) & (self.mat_absorb >= 0), axis=1) if self.mat_absorb.size else []
-        if np.any(bad):
-            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(bad)[0])]}': volume absorption must be "
-                             f"finite and not negative")
-        wrong = np.flatnonzero((self.mat_absorb.max(axis=1) > 0) & (self.mat_kind != DIELECTRIC)) \
-            if self.mat_absorb.size else []
-        if len(wrong):
-            raise SceneError(f"material '{self.mat_names[int(wrong[0])]}': only glass can absorb light inside it")
-        if self.mat_layer.shape not in ((0, 8), (M, 8)):
-            raise SceneError(f"scene array 'mat_layer' must be ({M}, 8) or empty")
-        fine = np.all(np.isfinite(self.mat_layer) & (self.mat_layer >= 0) & (self.mat_layer <= MAX_COLOR), axis=1)
-        if not fine.all():
-            raise SceneError(f"material '{self.mat_names[int(np.flatnonzero(~fine)[0])]}': its glossy layer "
-                             f"(index, roughness, tint, weight, diffuse roughness, coat weight, coat index, "
-                             f"coat roughness) must be finite numbers from 0 to {MAX_COLOR:g}")
-        for name in ("mat_color", "mat_reflect_color"):
-            if getattr(self, name).shape != (M, 3):
-                raise SceneError(f"scene array '{name}' must be ({M}, 3)")
-        if T and (self.tri_object.min() < 0 or self.tri_object.max() >= O):
-            raise SceneError("triangle object index out of range")
-        if T and (self.tri_material.min() < 0 or self.tri_material.max() >= M):
-            raise SceneError("triangle material index out of range")
-        for name in ("light_type", "light_radius", "light_soft_falloff", "light_spot_size",
-                     "light_spot_blend", "light_shape", "light_spread", "light_angle",
-                     "light_caustics"):
-            if getattr(self, name).shape != (L,):
-                raise SceneError(f"scene array '{name}' must have one entry per light ({L})")
-        if self.light_matrix.shape != (L, 4, 4) or self.light_color.shape != (L, 3) \
-                or self.light_size.shape != (L, 2):
-            raise SceneError("light matrix/colour/size arrays do not match the light count")
-        for name in ("tri_vertices", "tri_normals", "tri_normals_back", "tri_uvs", "mat_color", "mat_reflect_color",
-                     "mat_ior", "mat_roughness", "mat_strength", "light_matrix", "light_color",
-                     "light_radius", "light_spot_size", "light_spot_blend", "light_size",
-                     "light_spread", "light_angle", "world_color"):
-            if not np.all(np.isfinite(getattr(self, name))):
-                raise SceneError(f"scene array '{name}' holds NaN or infinite values")
-        cam = self.camera
-        if np.shape(cam.matrix_world) != (4, 4) or not np.all(np.isfinite(cam.matrix_world)):
-            raise SceneError("camera matrix must be a finite 4x4 matrix")
-        for name in ("lens", "sensor_width", "sensor_height", "ortho_scale", "pixel_aspect_x",
-                     "pixel_aspect_y", "clip_start", "clip_end", "filter_width"):
-            v = getattr(cam, name)
-            if not (np.isfinite(v) and v > 0):
-                raise SceneError(f"camera {name} must be a positive number, not {v}")
-        if not (np.isfinite(cam.shift_x) and np.isfinite(cam.shift_y)):
-            raise SceneError("camera shift holds NaN or infinite values")
-        if cam.type not in (PERSP, ORTHO):
-            raise SceneError(f"camera type {cam.type!r} not supported (perspective or orthographic)")
-        if cam.sensor_fit not in SENSOR_FITS:
-            raise SceneError(f"camera sensor fit {cam.sensor_fit!r} not supported ({', '.join(SENSOR_FITS)})")
-        if cam.filter_width > MAX_FILTER_WIDTH:
-            raise SceneError(f"camera filter_width {cam.filter_width:g} pixels: Cycles' pixel filter is at most "
-                             f"{MAX_FILTER_WIDTH:g}")
-        if flat_axes(np.asarray(cam.matrix_world, float)[:3, :3]):
-            raise SceneError("camera: its matrix is degenerate (an axis scaled to zero?), so it has no view direction")
-        if cam.use_border:
-            b = np.asarray(cam.border, float)
-            if b.shape != (4,) or not np.all(np.isfinite(b)) or b.min() < 0 or b.max() > 1:
-                raise SceneError(f"camera render border {tuple(np.ravel(b).tolist())}: expected min x, max x, min y, "
-                                 "max y, each a fraction of the frame from 0 to 1")
-        bad = np.flatnonzero((self.mat_kind == DIELECTRIC) & ~(self.mat_ior > 0))
-        if bad.size:
-            raise SceneError(f"material '{self.mat_names[bad[0]]}': IOR must be positive")
-        if np.shape(self.light_paths) != (4,):
-            raise SceneError("scene array 'light_paths' must hold 4 bounce limits (max, diffuse, glossy, transmission)")
-        kinds = np.flatnonzero((self.light_type < 0) | (self.light_type >= len(LIGHT_TYPES)))
-        if kinds.size:
-            raise SceneError(f"light '{self.light_names[kinds[0]]}': unknown type {int(self.light_type[kinds[0]])}")
-        if np.any(self.light_color < 0):
-            i = int(np.flatnonzero((self.light_color < 0).any(axis=1))[0])
-            raise SceneError(f"light '{self.light_names[i]}': negative power")
-        if np.any(self.light_color > MAX_POWER):
-            i = int(np.flatnonzero((self.light_color > MAX_POWER).any(axis=1))[0])
-            raise SceneError(f"light '{self.light_names[i]}': power {self.light_color[i].max():.3g} is beyond "
-                             f"{MAX_POWER:g}, more than a float32 caustic layer can hold")
-        for name, label in (("mat_color", "colour"), ("mat_reflect_color", "reflection colour")):
-            c = getattr(self, name)
-            bad = np.flatnonzero(((c < 0) | (c > MAX_COLOR)).any(axis=1)) if len(c) else []
-            if len(bad):
-                raise SceneError(f"material '{self.mat_names[bad[0]]}': {label} {tuple(c[bad[0]].tolist())} "
-                                 f"must be between 0 and {MAX_COLOR:g}")
-        wide = np.flatnonzero((self.light_spread < 0) | (self.light_spread > math.pi + 1e-6)) if L else []
-        if len(wide):
-            raise SceneError(f"light '{self.light_names[wide[0]]}': spread {self.light_spread[wide[0]]:g} radians "
-                             "must be from 0 to pi (180 degrees)")
-        sizes = np.flatnonzero((self.light_size < 0).any(axis=1) | (self.light_radius < 0)
-                               | (self.light_angle < 0) | (self.light_spot_size < 0)) if L else []
-        if len(sizes):
-            raise SceneError(f"light '{self.light_names[sizes[0]]}': negative size, radius, angle or spot size")
-        tl = np.asarray(self.tri_light)
-        if tl.shape not in ((0,), (T,)) or (tl.size and not np.all((tl >= -1) & (tl < L))):
-            raise SceneError(f"scene array 'tri_light' must have one entry per triangle ({T}), a light index or -1, "
-                             f"or none")
-        owned = np.bincount(tl[tl >= 0], minlength=L) if tl.size else np.zeros(L, np.int64)
-        bare = np.flatnonzero((self.light_type == MESH) & (owned == 0))
-        if bare.size:
-            raise SceneError(f"light '{self.light_names[bare[0]]}': a mesh light without triangles")
-        wrong = np.flatnonzero(self.light_type[tl[tl >= 0]] != MESH) if tl.size else []
-        if len(wrong):
-            raise SceneError(f"light '{self.light_names[int(tl[tl >= 0][wrong[0]])]}': triangles shine as it, but it "
-                             f"is not a mesh light")
-        wm = np.asarray(self.world_map)
-        if wm.ndim != 3 or wm.shape[2] != 3 or (wm.size and min(wm.shape[:2]) < 1):
-            raise SceneError(f"scene array 'world_map' must be (H, W, 3), not {wm.shape}")
-        if wm.size and not (np.all(np.isfinite(wm)) and wm.min() >= 0 and wm.max() <= MAX_POWER):
-            raise SceneError(f"world map: its pixels must be finite, from 0 to {MAX_POWER:g}")
-        R = np.asarray(self.world_map_rotation, float)
-        if R.shape != (3, 3) or not (np.all(np.isfinite(R)) and np.allclose(R @ R.T, np.eye(3), atol=1e-6)):
-            raise SceneError("scene array 'world_map_rotation' must be a 3 x 3 rotation")
-        lp = np.asarray(self.light_paths)
-        if not np.all(lp <= MAX_BOUNCES):  # negative: no limit (bounces.Limits.of)
-            raise SceneError(f"Light Paths bounces {tuple(lp.tolist())}: each at most {MAX_BOUNCES} "
-                             "(Blender's limit)")
+        validate(self)
         self.__dict__["_geometry_memo"] = ((id(self.tri_vertices), id(self.tri_object)), {})
 
     # -------------------------------------------------------------- save/load

@@ -5,6 +5,7 @@ Everything is given in world space. Names are kept so messages can name objects.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -40,6 +41,78 @@ def look_at(origin, target, up=(0.0, 0.0, 1.0)) -> np.ndarray:
     return m
 
 
+@dataclass(frozen=True)
+class MaterialProps:
+    """A material's properties (SceneBuilder.material), with Cycles' defaults. emission: radiance
+    (W/m^2/sr) its surface emits beside its own kind (a Principled BSDF's Emission); an emitter's is
+    color x strength. Either makes a mesh light of its faces (build). metal: a metal's Fresnel beyond
+    its colour (Scene.mat_metal): F82-Tint's B per channel (fresnel FRESNEL_SCHLICK), or n then k per
+    channel (FRESNEL_CONDUCTOR), or a glass's Specular Tint less 1. film: a thin film's (thickness nm,
+    index) over it (Scene.mat_film; thickness 0: none)."""
+
+    color: tuple = (0.8, 0.8, 0.8)
+    ior: float = 1.5
+    roughness: float = 0.0
+    strength: float = 0.0
+    reflect_color: tuple = (1.0, 1.0, 1.0)
+    fresnel: int = S.FRESNEL_NONE
+    bump_correction: bool = False
+    layer: tuple = (0.0,) * 8
+    textured: bool = False
+    absorb: tuple = (0.0, 0.0, 0.0)
+    distribution: int = 1
+    view_bump: bool = False
+    emission: tuple = (0.0, 0.0, 0.0)
+    metal: tuple = (0.0,) * 6
+    film: tuple = S.NO_FILM
+
+
+@dataclass(frozen=True)
+class MeshOptions:
+    """How a mesh is shaded and takes part (SceneBuilder.mesh). normals: per-vertex normals (V,3) for
+    smooth shading; None means flat. visibility: the rays that meet it (S.RAY_* bits, Cycles' Ray
+    Visibility). lit: where its faces shine (a mesh light), the names of the objects its light lights
+    (Light Linking, Scene.light_links); None: every object. blockers: likewise, the objects that
+    shadow it (Shadow Linking, Scene.light_blockers)."""
+
+    normals: object = None
+    smooth: object = None
+    uvs: object = None
+    caster: bool = False
+    receiver: bool = False
+    face_materials: object = None
+    visibility: int = S.RAY_ALL
+    lit: object = None
+    blockers: object = None
+
+
+@dataclass(frozen=True)
+class LightProps:
+    """A light's placement and Cycles settings (SceneBuilder.light). power: watts (point/spot/area) or
+    irradiance W/m^2 (sun). matrix, or location (and target, default straight down). visibility: the
+    rays that meet it (S.RAY_* bits, Cycles' Ray Visibility); lit: the names of the objects it lights
+    (Light Linking, Scene.light_links), None: every object; blockers: the names of the objects that
+    shadow it (Shadow Linking, Scene.light_blockers), None: every object."""
+
+    matrix: object = None
+    location: object = None
+    target: object = None
+    power: float = 1000.0
+    color: tuple = (1.0, 1.0, 1.0)
+    radius: float = 0.0
+    soft_falloff: bool = False
+    spot_size: float = math.radians(45)
+    spot_blend: float = 0.15
+    shape: str = "SQUARE"
+    size: object = (1.0, 1.0)
+    spread: float = math.pi
+    angle: float = 0.0
+    caustics: bool = True
+    visibility: int = S.RAY_ALL
+    lit: object = None
+    blockers: object = None
+
+
 class SceneBuilder:
     def __init__(self, name: str = "scene"):
         self.name = name
@@ -56,45 +129,32 @@ class SceneBuilder:
         self.view_normals = self.view_points = np.zeros((0, 0, 3), np.float32)
 
     # ------------------------------------------------------------ materials
-    def material(self, name, kind, color=(0.8, 0.8, 0.8), ior=1.5, roughness=0.0,
-                 strength=0.0, reflect_color=(1.0, 1.0, 1.0), fresnel=S.FRESNEL_NONE,
-                 bump_correction=False, layer=(0.0,) * 8, textured=False, absorb=(0.0, 0.0, 0.0),
-                 distribution=1, view_bump=False, emission=(0.0, 0.0, 0.0), metal=(0.0,) * 6,
-                 film=S.NO_FILM) -> int:
-        """emission: radiance (W/m^2/sr) its surface emits beside its own kind (a Principled BSDF's
-        Emission); an emitter's is color x strength. Either makes a mesh light of its faces (build).
-        metal: a metal's Fresnel beyond its colour (Scene.mat_metal): F82-Tint's B per channel
-        (fresnel FRESNEL_SCHLICK), or n then k per channel (FRESNEL_CONDUCTOR), or a glass's Specular
-        Tint less 1. film: a thin film's (thickness nm, index) over it (Scene.mat_film; thickness 0: none)."""
+    def material(self, name, kind, **props) -> int:
+        """A material of kind ("diffuse", "conductor", "dielectric", "emitter", or its code) and the
+        properties of MaterialProps (by keyword); an existing name returns that material's index."""
         for i, m in enumerate(self.materials):
             if m["name"] == name:
                 return i
+        p = MaterialProps(**props)
         kind = S.MATERIAL_KINDS.index(kind) if isinstance(kind, str) else int(kind)
-        self.materials.append(dict(name=name, kind=kind, color=np.asarray(color, float),
-                                   reflect_color=np.asarray(reflect_color, float), ior=float(ior),
-                                   roughness=float(roughness), strength=float(strength),
-                                   fresnel=int(fresnel), bump_correction=bool(bump_correction),
-                                   layer=np.asarray(layer, float), textured=bool(textured),
-                                   absorb=np.broadcast_to(np.asarray(absorb, float), (3,)).copy(),
-                                   distribution=int(distribution), view_bump=bool(view_bump),
-                                   emission=np.broadcast_to(np.asarray(emission, float), (3,)).copy(),
-                                   metal=np.broadcast_to(np.asarray(metal, float), (6,)).copy(),
-                                   film=np.asarray(film, float).reshape(2).copy()))
+        self.materials.append(dict(name=name, kind=kind, color=np.asarray(p.color, float),
+                                   reflect_color=np.asarray(p.reflect_color, float), ior=float(p.ior),
+                                   roughness=float(p.roughness), strength=float(p.strength),
+                                   fresnel=int(p.fresnel), bump_correction=bool(p.bump_correction),
+                                   layer=np.asarray(p.layer, float), textured=bool(p.textured),
+                                   absorb=np.broadcast_to(np.asarray(p.absorb, float), (3,)).copy(),
+                                   distribution=int(p.distribution), view_bump=bool(p.view_bump),
+                                   emission=np.broadcast_to(np.asarray(p.emission, float), (3,)).copy(),
+                                   metal=np.broadcast_to(np.asarray(p.metal, float), (6,)).copy(),
+                                   film=np.asarray(p.film, float).reshape(2).copy()))
         return len(self.materials) - 1
 
     # --------------------------------------------------------------- meshes
-    def mesh(self, name, vertices, faces, material, normals=None, smooth=None, uvs=None,
-             caster=False, receiver=False, face_materials=None, visibility=S.RAY_ALL, lit=None,
-             blockers=None) -> int:
-        """Add a mesh. faces: (F,3) triangles or (F,4) quads (split 0-1-2, 0-2-3).
-
-        normals: per-vertex normals (V,3) for smooth shading; None means flat.
-        material: a material index, or a name already defined.
-        visibility: the rays that meet it (S.RAY_* bits, Cycles' Ray Visibility).
-        lit: where its faces shine (a mesh light), the names of the objects its light lights (Light
-        Linking, Scene.light_links); None: every object. blockers: likewise, the objects that shadow it
-        (Shadow Linking, Scene.light_blockers).
-        """
+    def mesh(self, name, vertices, faces, material, **options) -> int:
+        """Add a mesh. faces: (F,3) triangles or (F,4) quads (split 0-1-2, 0-2-3); material: a material
+        index, or a name already defined; options: MeshOptions (by keyword)."""
+        o = MeshOptions(**options)
+        normals, smooth, uvs, face_materials = o.normals, o.smooth, o.uvs, o.face_materials
         V = np.asarray(vertices, float).reshape(-1, 3)
         F = np.asarray(faces, np.int64)
         if F.ndim != 2 or F.shape[1] not in (3, 4):
@@ -119,9 +179,9 @@ class SceneBuilder:
         else:
             tu = np.broadcast_to(np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]]), (len(F), 3, 2))
         oid = len(self.objects)
-        self.objects.append(dict(name=name, caster=bool(caster), receiver=bool(receiver),
+        self.objects.append(dict(name=name, caster=bool(o.caster), receiver=bool(o.receiver),
                                  smooth=bool(normals is not None if smooth is None else smooth),
-                                 visibility=int(visibility), lit=_names(lit), blockers=_names(blockers)))
+                                 visibility=int(o.visibility), lit=_names(o.lit), blockers=_names(o.blockers)))
         self._tris.append(tv)
         self._normals.append(tn)
         self._back.append(None)
@@ -202,26 +262,23 @@ class SceneBuilder:
         return self.mesh(name, V, faces, material, normals=dirs if smooth else None, **kw)
 
     # --------------------------------------------------------------- lights
-    def light(self, name, type, matrix=None, location=None, target=None, power=1000.0,
-              color=(1.0, 1.0, 1.0), radius=0.0, soft_falloff=False, spot_size=math.radians(45),
-              spot_blend=0.15, shape="SQUARE", size=(1.0, 1.0), spread=math.pi, angle=0.0,
-              caustics=True, visibility=S.RAY_ALL, lit=None, blockers=None) -> int:
-        """power: watts (point/spot/area) or irradiance W/m^2 (sun); a world: see world().
-        visibility: the rays that meet it (S.RAY_* bits, Cycles' Ray Visibility); lit: the names of
-        the objects it lights (Light Linking, Scene.light_links), None: every object; blockers: the names
-        of the objects that shadow it (Shadow Linking, Scene.light_blockers), None: every object."""
+    def light(self, name, type, **props) -> int:
+        """A light of type ("POINT", "SPOT", "AREA", "SUN") and the properties of LightProps (by
+        keyword); a world: see world()."""
+        p = LightProps(**props)
+        matrix = p.matrix
         if matrix is None:
-            loc = np.zeros(3) if location is None else location
-            tgt = np.asarray(loc, float) - np.array([0, 0, 1.0]) if target is None else target
+            loc = np.zeros(3) if p.location is None else p.location
+            tgt = np.asarray(loc, float) - np.array([0, 0, 1.0]) if p.target is None else p.target
             matrix = look_at(loc, tgt)
-        size = (size, size) if np.isscalar(size) else tuple(size)
+        size = (p.size, p.size) if np.isscalar(p.size) else tuple(p.size)
         self.lights.append(dict(
             name=name, type=S.LIGHT_TYPES.index(type), matrix=np.asarray(matrix, float),
-            color=np.asarray(color, float) * float(power), radius=float(radius),
-            soft_falloff=bool(soft_falloff), spot_size=float(spot_size),
-            spot_blend=float(spot_blend), shape=S.AREA_SHAPES.index(shape),
-            size=np.asarray(size, float), spread=float(spread), angle=float(angle),
-            caustics=bool(caustics), visibility=int(visibility), lit=_names(lit), blockers=_names(blockers)))
+            color=np.asarray(p.color, float) * float(p.power), radius=float(p.radius),
+            soft_falloff=bool(p.soft_falloff), spot_size=float(p.spot_size),
+            spot_blend=float(p.spot_blend), shape=S.AREA_SHAPES.index(p.shape),
+            size=np.asarray(size, float), spread=float(p.spread), angle=float(p.angle),
+            caustics=bool(p.caustics), visibility=int(p.visibility), lit=_names(p.lit), blockers=_names(p.blockers)))
         return len(self.lights) - 1
 
     def world(self, color, strength=1.0, name="World", caustics=True, image=None, rotation=None,

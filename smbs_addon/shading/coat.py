@@ -35,11 +35,10 @@ import math
 import numpy as np
 from numba import njit
 
-from .fresnel import fresnel_dielectric
+from .fresnel import fresnel_dielectric, fresnel_dielectric1
 from .microfacet import MU_STEPS, SINGULAR_ALPHA2, lambda_ggx, shadowing, visible_normals
 from ..core.jit import JIT, LANES
 from ..core.vec3 import add3, dot1, neg3, normalize3
-from .fresnel import fresnel_dielectric1
 
 # coat_factor: a diffuse channel whose Lambert term (albedo x (1 - A) x cos / pi) is at most this is
 # black; the coat's share over it, glossy / Lambert, would overflow (an albedo of 1e-309, fuzzed)

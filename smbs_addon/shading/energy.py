@@ -16,8 +16,8 @@ from numba import njit
 
 from ..core.jit import JIT
 from ..scene import arrays as S
-from .fresnel import tinted_glass, f82_terms, fresnel_dielectric, metal, film, specular_weights
-from .microfacet import MU_STEPS, MULTI_GGX, alphas, distributions, lambda_ggx, shadowing, visible_normals
+from .fresnel import f82_terms, film, fresnel_dielectric, metal, specular_weights, tinted_glass
+from .microfacet import MULTI_GGX, MU_STEPS, alphas, distributions, lambda_ggx, shadowing, visible_normals
 
 
 @njit(inline="always", **JIT)

@@ -14,10 +14,8 @@ from numba import njit
 from ..core.jit import JIT
 from ..core.vec3 import row3 as _row3
 from ..scene import arrays as S
-from .thinfilm import CUTOFF as _FILM_CUTOFF
-from .thinfilm import clip01 as _clip01
-from .thinfilm import conductor_film1, dielectric_film1, f82_film1
-from .thinfilm import f82 as _f82
+from .thinfilm import (
+    CUTOFF as _FILM_CUTOFF, clip01 as _clip01, conductor_film1, dielectric_film1, f82 as _f82, f82_film1)
 
 
 _CONDUCTOR, _DIELECTRIC = S.CONDUCTOR, S.DIELECTRIC

@@ -16,12 +16,11 @@ import numpy as np
 from numba import njit
 
 from ..core.jit import JIT, LANES
-from ..core.vec3 import dot1 as _dot
-from ..core.vec3 import row3 as _row3
+from ..core.vec3 import dot1 as _dot, row3 as _row3
 from ..scene import arrays as S
 from .coat import coat, gain_table, spec_table, table
 from .energy import cached_energy_tables, energy_gain1
-from .fresnel import material1, metal1, film1, film, metal, specular_weights1, surface_tables
+from .fresnel import film, film1, material1, metal, metal1, specular_weights1, surface_tables
 from .microfacet import alphas, lambda1, visible_normal1
 
 _DIELECTRIC = S.DIELECTRIC

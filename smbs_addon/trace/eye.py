@@ -8,17 +8,15 @@ cell this batch), an unbiased estimate of integral h(x - c) L(x) dx.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..scene import arrays as S
 from ..shading.coat import has_layers, table as layer_table, weight as layer_weight
 from ..core.vec import dot
-from dataclasses import replace
 from ..core import embree, lanes
-from ..kernels import eye
-from ..kernels import records
+from ..kernels import eye, records
 from ..shading.optics import materials
 from .camera import CameraModel
 

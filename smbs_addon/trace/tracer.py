@@ -14,8 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import embree
-from ..core import lanes
+from ..core import embree, lanes
 from ..scene import arrays as S
 from ..kernels.chain import barycentric_rows, intersect_rays, shading_normal_rows
 from ..core.vec import cross, dot, norm, normalize

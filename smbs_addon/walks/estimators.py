@@ -1,78 +1,209 @@
-"""What a converged chain contributes, and the two ways to weight it.
+"""The estimator of the manifold walks: for one light and chain type, per receiver, walk from seeds
+to solutions and weigh what each solution contributes (contribution.py).
 
-Contribution of a solution x0 -> x1..xk -> y (Zeltner et al. 2020, eq. 7):
-
-    beta_eye * f_d(x0) cos(x0) * T(x1..xk) * G(x0 <-> y) * L_e(y) / p(y)
-
-with the generalised geometric term G = |dw0/dA_y| (or |dw0/dw_y| for a
-sun), computed from the block-tridiagonal Jacobian (Jakob & Marschner 2012):
-solving J X = -D_k gives dx1/dy in orthonormal tangent coordinates, so
-dw0/dA_y = |cos theta_1| / |x1 - x0|^2 * |det dx1/dy|. T multiplies each
-vertex's Fresnel term and colour, and the radiance change (eta_to/eta_from)^2
-at refractions in physical units (Cycles leaves radiance unscaled, and so do
-we by default: the layer is added to a Cycles render).
-
-Estimators over M trials of the stochastic walk:
-- unbiased: 1/p of the found solution by geometric Bernoulli trials (repeat the
-  whole procedure until the same solution comes back);
-- biased: the sum over the unique solutions found, each with weight one.
+- unbiased (SMS's Algorithm 2, kept by SMBS): 1/p of the found solution by geometric Bernoulli
+  trials (repeat the whole seeding and walk until the same solution comes back);
+- biased: the sum over the unique solutions of M walks, each with weight one (and MNEE: one walk).
 """
 from __future__ import annotations
 
 
 import numpy as np
 
-from ..scene import arrays as S
-from ..shading.optics import absorbing, arriving, bent, bump_correction, inside, transmittance
-from ..shading.fresnel import specular_weights
+from ..scene.light_paths import Limits
+from ..kernels.records import OUTCOMES, TRIGGERS
+from ..paths.handoff import SEEN_HANDOFF_MIN
+from .seeds import Seeder
+from .contribution import _contribution, _count_clamped
+from .trials import bernoulli_trials
+from ..paths.focus import concentration
+from .walk import newton_walk
+from ..shading.light_samples import sample_light, sphere_cap
 from ..core.vec import dot, normalize
-
-def chain_throughput(scene, types, x0, verts, light_point, directional, physical=False):
-    """Product over the chain of the specular weights (optics.specular_weights), (N,3); zero
-    through a vertex whose normal Cycles would bend (optics.bent: indirect.bent_gather's paths)."""
-    n = len(x0)
-    T = np.ones((n, 3))
-    corr = bump_correction(scene)
-    for j, kind in enumerate(types):
-        v = verts[j]
-        prev = x0 if j == 0 else verts[j - 1].p
-        wi = normalize(prev - v.p)
-        if corr.any():  # a vertex Cycles' Bump Map Correction bends: not Cycles' path (optics.scatter1)
-            c = np.flatnonzero(corr[v.mat])
-            if c.size:
-                T[c[bent(wi[c], v.n[c], v.ng[c])]] = 0.0
-        R, Tr = specular_weights(scene, v.mat, dot(wi, v.n))
-        if kind == "R":
-            T *= R
-        else:
-            w = Tr
-            if physical:  # light arrives from the w_o side and leaves on the w_i side
-                eta = scene.mat_ior[v.mat]
-                ratio = np.where(dot(wi, v.ng) < 0, eta, 1.0 / eta)  # eta(w_i side) / eta(w_o side)
-                w = w * (ratio**2)[:, None]
-            T *= w
-    if absorbing(scene):  # inside glass: what its Volume Absorption leaves (optics.transmittance)
-        glass = scene.mat_kind == S.DIELECTRIC
-        v0 = verts[0]  # x0 to the first vertex: inside where x0 lies under it (a pool's floor)
-        seg = x0 - v0.p
-        T *= transmittance(scene, inside(scene, v0.mat, glass[v0.mat], seg, v0.ng), np.sqrt(dot(seg, seg)))
-        for j in range(len(types)):
-            v = verts[j]
-            if j + 1 < len(types):
-                q, nxt = verts[j + 1].p, verts[j + 1]
-            elif directional:
-                continue  # towards a sun: out of every glass
-            else:
-                q, nxt = light_point, None
-            seg = q - v.p
-            medium = inside(scene, v.mat, glass[v.mat], seg, v.ng)
-            if nxt is not None:  # or arriving at the next vertex from its back
-                medium = arriving(scene, medium, nxt.mat, np.ones(len(seg), bool), seg, nxt.ng)
-            T *= transmittance(scene, medium, np.sqrt(dot(seg, seg)))
-    return T
 
 
 def same_solution(d_a, d_b, obj_a, obj_b, threshold):
     """Two solutions are the same when the first segment's direction agrees and
     the first vertex lies on the same object."""
     return (np.abs(dot(d_a, d_b) - 1.0) < threshold) & (obj_a == obj_b)
+
+
+def _walk(ctx, opts, seeder, types, x0, ng0, light, rng):
+    """Seed and walk (in one kernel call per block of lanes: walk.newton_walk); the statistics
+    count these primary walks (the paper's SR and mpp), Bernoulli re-walks apart."""
+    d, want_obj = seeder.directions(rng, x0, light, ctx)
+    large_ok = rng.random(len(x0)) >= opts.walk.defensive if opts.walk.smbs else None
+    res = newton_walk(ctx, opts.walk, types, x0, ng0, light, large_ok=large_ok, seed=(d, want_obj))
+    st = ctx.stats
+    st["walks"] = st.get("walks", 0) + len(x0)
+    st["successes"] = st.get("successes", 0) + int(res.converged.sum())
+    st["mutations"] = st.get("mutations", 0) + int(res.mutations.sum())
+    lm = st.setdefault("large_mutations", dict.fromkeys(TRIGGERS[1:], 0))
+    for k, v in res.large.items():
+        lm[k] += v
+    oc = st.setdefault("outcomes", {})
+    for code, cnt in zip(*np.unique(res.outcome, return_counts=True)):
+        oc[OUTCOMES[code]] = oc.get(OUTCOMES[code], 0) + int(cnt)
+    # the same per chain type: internal reflections (T R T) behave unlike a lens's T T
+    bc = st.setdefault("by_chain", {}).setdefault(types, {"walks": 0, "successes": 0, "mutations": 0,
+                                                          "large_mutations": 0})
+    bc["walks"] += len(x0)
+    bc["successes"] += int(res.converged.sum())
+    bc["mutations"] += int(res.mutations.sum())
+    bc["large_mutations"] += int(sum(res.large.values()))
+    return res
+
+
+def estimate(ctx, opts, li, types, rc, rng, guide=None):
+    """Per-receiver radiance (M,3) of one light and one chain type at receivers rc: light samples,
+    the lanes worth a walk, the walks, what their solutions contribute, the focusing paths left to
+    the photon hand-off, and the estimator's weights (unbiased: Bernoulli trials; biased: each unique
+    solution once)."""
+    n = len(rc.p)
+    out = np.zeros((n, 3))
+    if n == 0 or not ctx.scene.chain_lit(li, types):  # the light's Ray Visibility leaves the chain's last ray out
+        return out
+    # the same for every chunk: built once per bake (its areas, cdf and planes cost ~50 ms per
+    # chunk on a 131k-triangle mirror)
+    seeder = ctx.scene.derived(("seeder", types, opts.method, ctx.casters.tobytes()),
+                               lambda: Seeder(ctx.scene, ctx.casters, types, opts.method))
+    if seeder.total <= 0:
+        return out
+    cap = sphere_cap(ctx.scene, li, ctx.caster_lo, ctx.caster_hi)
+    light = sample_light(ctx.scene, li, n, rng, cap)
+    emit_scale = 1.0 if cap is None else 0.5 * (1.0 - cap[1])  # the cap's share of the sphere's area
+    # the eye side of x0 must see the light side: offset origins towards the receiver's eye side
+    ng_eye = rc.ng * np.sign(dot(rc.w_eye, rc.ng))[:, None]
+    unbiased = opts.estimator == "unbiased" and opts.method != "mnee"
+    M = 1 if (unbiased or opts.method == "mnee") else max(1, opts.trials)
+    feasible, rr_weight = _walked(ctx, li, types, rc, light, seeder, rng, guide)
+    lanes = np.repeat(np.flatnonzero(feasible), M)
+    if lanes.size == 0:
+        return out
+    # primary walks from receivers seen through mirrors or glass (auto's cost of that effect)
+    ctx.stats["walks_seen"] = ctx.stats.get("walks_seen", 0) + int((rc.eye_specular[lanes] > 0).sum())
+    res = _walk(ctx, opts, seeder, types, rc.p[lanes], ng_eye[lanes], light.take(lanes), rng)
+    conv = np.flatnonzero(res.converged)
+    if conv.size == 0:
+        return out
+    chain = res.chain.take(conv)
+    owner = lanes[conv]
+    val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain, emit_scale)
+    if opts.handoff > 0:
+        _drop_handed_off(ctx, opts, types, rc, owner, light, chain, val, ok)
+    val = val * rr_weight[owner][:, None]
+    if opts.method == "mnee" and seeder.reflect_first:  # one caster picked uniformly per lane
+        val = val * len(seeder.centers)
+    cut = None if ctx.clamp_cut is None else (  # what the clamp removed from the image, with the same weights
+        ctx.clamp_cut * rr_weight[owner] * rc.weight[owner]
+        * (len(seeder.centers) if opts.method == "mnee" and seeder.reflect_first else 1)
+        * (1.0 if ctx.film is None else ctx.film.frame_share(rc.rx[owner], rc.ry[owner])))
+    d1 = normalize(chain.verts[0].p - rc.p[owner])
+    obj1 = chain.verts[0].obj
+    if not unbiased:
+        _biased_sum(ctx, opts, out, owner, val, ok, d1, obj1, M, cut)
+    else:
+        _unbiased_sum(ctx, opts, seeder, types, rc, ng_eye, light, (out, owner, val, ok), (d1, obj1), cut, rng)
+    return out
+
+
+def _walked(ctx, li, types, rc, light, seeder, rng, guide):
+    """Which receivers walk: those whose light sample the casters can join (the seeder's test), within
+    Cycles' Light Paths limits, not left to the photon hand-off (a weak chain type at receivers seen
+    directly), and past the guide's Russian roulette. Returns (feasible (M,) bool, the roulette's
+    weights 1/q)."""
+    n = len(rc.p)
+    feasible = seeder.feasible(rc.p, light, 1e-9 * ctx.scale)
+    ctx.stats["culled_lanes"] = ctx.stats.get("culled_lanes", 0) + int((~feasible).sum())
+    # Cycles' Light Paths limits on the whole path: the camera's events before x0, x0's diffuse
+    # bounce and the chain's vertices but the last (bounces.py)
+    fits = Limits.of(ctx.scene).chain_fits(types, rc.prior[:, 0] + 1, rc.prior[:, 1], rc.prior[:, 2])
+    if not fits.all():
+        ctx.stats["light_paths_skips"] = ctx.stats.get("light_paths_skips", 0) + int((feasible & ~fits).sum())
+        feasible &= fits
+    rr_weight = np.ones(n)
+    if guide is not None and guide.is_weak(li, types):  # the photon hand-off serves direct receivers
+        weak = feasible & (rc.eye_specular == 0)
+        ctx.stats["weak_skips"] = ctx.stats.get("weak_skips", 0) + int(weak.sum())
+        feasible &= ~weak
+    if guide is not None:  # Russian roulette outside the tiles the photon pre-pass reached
+        q = guide.keep_probability(li, types, rc.rx, rc.ry, rc.eye_specular, rc.p)
+        survive = rng.random(n) < q
+        skipped = feasible & ~survive
+        ctx.stats["guided_skips"] = ctx.stats.get("guided_skips", 0) + int(skipped.sum())
+        seen_skips = int((skipped & (rc.eye_specular > 0)).sum())
+        ctx.stats["guided_skips_seen"] = ctx.stats.get("guided_skips_seen", 0) + seen_skips
+        feasible &= survive
+        rr_weight = 1.0 / q
+    return feasible, rr_weight
+
+
+def _drop_handed_off(ctx, opts, types, rc, owner, light, chain, val, ok) -> None:
+    """The fold's paths belong to the photon hand-off (baking.passes.handoff_batch) at receivers the
+    camera sees directly, and to indirect.handoff_gather at those it sees through mirrors or glass
+    once an earlier chunk found such focusing paths there (ctx.handoff_seen); what they take, this
+    pass drops (val and ok, in place)."""
+    seen = rc.eye_specular[owner] > 0
+    cand = ok & (~seen | ctx.first_order)
+    if not cand.any():
+        return
+    di = np.flatnonzero(cand)
+    ch_d = chain.take(di)
+    etas = [ctx.scene.mat_ior[v.mat] for v in ch_d.verts]
+    c = concentration(types, rc.p[owner[di]], ch_d.verts, etas, light.y[owner[di]], light.directional)
+    seen_tau = max(opts.handoff, SEEN_HANDOFF_MIN)
+    seen_focus = seen[di] & (c > seen_tau)
+    ctx.stats["seen_focus"] = ctx.stats.get("seen_focus", 0) + int(seen_focus.sum())
+    handed = di[(~seen[di] & (c > opts.handoff)) | (seen_focus & ctx.handoff_seen)]
+    ok[handed] = False
+    val[handed] = 0.0
+    if ctx.clamp_cut is not None:
+        ctx.clamp_cut[handed] = 0.0
+    ctx.stats["handed_off"] = ctx.stats.get("handed_off", 0) + int(handed.size)
+
+
+def _biased_sum(ctx, opts, out, owner, val, ok, d1, obj1, M, cut) -> None:
+    """The biased estimator: each unique solution of a receiver's M walks once (earlier trials win),
+    added into out."""
+    keep = np.ones(len(owner), bool)
+    if M > 1:
+        order = np.argsort(owner, kind="stable")
+        o_s, d_s, ob_s = owner[order], d1[order], obj1[order]
+        for shift in range(1, M):
+            same_owner = o_s[shift:] == o_s[:-shift]
+            dup = same_owner & same_solution(d_s[shift:], d_s[:-shift], ob_s[shift:], ob_s[:-shift],
+                                             opts.uniqueness)
+            k2 = np.ones(len(owner), bool)
+            k2[shift:] = ~dup
+            keep[order] &= k2
+    np.add.at(out, owner[keep & ok], val[keep & ok])
+    _count_clamped(ctx, None if cut is None else cut[keep & ok])
+
+
+def _unbiased_sum(ctx, opts, seeder, types, rc, ng_eye, light, found, first_dir, cut, rng) -> None:
+    """The unbiased estimator: 1/p by Bernoulli trials, only where the contribution is non-zero: the
+    count is that of the first trial that finds the same solution again (trials.py: each sample's
+    trials in turn inside a kernel, random numbers keyed by sample and trial). found: (out, owner,
+    val, ok), out added into; first_dir: (d1, obj1), each solution's first direction and object."""
+    out, owner, val, ok = found
+    d1, obj1 = first_dir
+    pend = np.flatnonzero(ok)
+    own = owner[pend]
+    first = bernoulli_trials(ctx, opts, seeder, types, rc.p[own], ng_eye[own], light.take(own), d1[pend], obj1[pend],
+                             int(rng.integers(2**63)))
+    done = first < opts.max_trials
+    count = 1.0 + first
+    capped = ~done
+    ctx.stats["capped"] = ctx.stats.get("capped", 0) + int(capped.sum())
+    st = ctx.stats
+    st["bernoulli_lanes"] = st.get("bernoulli_lanes", 0) + int(pend.size)
+    st["bernoulli_trials"] = st.get("bernoulli_trials", 0) + int(count.sum())
+    st["bernoulli_trials_max"] = max(st.get("bernoulli_trials_max", 0), int(count.max()) if count.size else 0)
+    # what the cap leaves out: a capped lane's weight would have exceeded max_trials, so
+    # max_trials times its value is a lower bound on its share (luminance, as splatted)
+    cp = pend[capped]
+    st["capped_energy_min"] = st.get("capped_energy_min", 0.0) + float(
+        (val[cp].mean(axis=1) * rc.weight[owner[cp]]).sum() * opts.max_trials)
+    w = np.where(capped, 0.0, count)
+    np.add.at(out, owner[pend], val[pend] * w[:, None])
+    _count_clamped(ctx, None if cut is None else cut[pend] * w)

@@ -18,8 +18,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..scene import arrays as S
-from ..scene.light_paths import ONE_DIFFUSE, Limits, specular_kind
-from ..baking.convergence import box
+from ..scene.light_paths import Limits, ONE_DIFFUSE, specular_kind
+from ..core.vec import box
 from ..shading.lights import emit
 from ..shading.optics import absorbing, arriving, inside, transmittance
 from ..paths.photons import scatter_specular

@@ -24,7 +24,7 @@ import numpy as np
 
 from ..core import embree, lanes
 from ..kernels.trials import bernoulli_lanes
-from .walk import count_rays, walk_geometry, kernel_config
+from .walk import count_rays, kernel_config, walk_geometry
 
 TRIAL_BLOCK = 128  # samples per block, shrinking towards TRIAL_BLOCK_MIN at the end (lanes.block_edges)
 TRIAL_BLOCK_MIN = 8

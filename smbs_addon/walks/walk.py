@@ -23,14 +23,12 @@ import numpy as np
 from .constraints import ANGLE_DIFF, HALF_VECTOR
 from ..shading.light_samples import LightEnd
 from ..scene.geometry import vertex_view
-from ..core import embree
-from ..kernels import chain
+from ..core import embree, lanes
 from ..kernels import records
-from ..kernels import walk
-from ..core import lanes
-from ..kernels.records import NF
+from ..kernels.chain import end_mismatch as mismatch_lanes, trace_lanes
+from ..kernels.walk import backlit_lanes, walk_lanes
+from ..kernels.records import NF, TRIGGERS, TRIG_BACKLIT, TRIG_SLOW, TRIG_TIR
 from .large_mutation import MAX_HALVINGS
-from ..kernels.records import TRIGGERS, TRIG_BACKLIT, TRIG_SLOW, TRIG_TIR
 
 
 
@@ -102,7 +100,7 @@ WALK_BLOCK = 2048  # lanes per block of newton_walk and propagate (lanes.blocks)
 
 
 def walk_geometry(ctx) -> tuple:
-    """The scene as the kernels trace chains through it (chain.trace_lane)."""
+    """The scene as the kernels trace chains through it (kernels/chain.py's trace_lane)."""
     return ctx.tracer.kernel_geometry(ctx.casters)
 
 
@@ -128,7 +126,7 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
 
     def part(a, b):
         rt = tracer.rays()
-        counts = chain.trace_lanes(rt, kinds, x0[a:b], ng0[a:b], d[a:b], want[a:b], geo, tracer.eps, F[a:b],
+        counts = trace_lanes(rt, kinds, x0[a:b], ng0[a:b], d[a:b], want[a:b], geo, tracer.eps, F[a:b],
                                      I[a:b], status[a:b], out[a:b])
         tracer.cast_by_kernel(rt, counts)
         return counts
@@ -141,14 +139,14 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
 def end_mismatch(chain: Chain, light: LightEnd):
     """|w_o' - w_o| at the last vertex: the propagated direction against the
     direction to the light end; and whether it points to the light's side."""
-    return chain.end_mismatch(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
+    return mismatch_lanes(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
 
 
 def backlit(cfg: WalkConfig, types: str, x0, chain: Chain, light: LightEnd) -> np.ndarray:
     """SMBS trigger 2 per lane, as the walk tests it (cfg.backlit_vertex): at chain vertex j,
     for a reflection the vertex before it (x0 for j = 0) and the light lie on different sides
     of its surface; for a refraction, on the same side."""
-    return walk.backlit_lanes(records.chain_kinds(types), _backlit_at(cfg.backlit_vertex, len(types)),
+    return backlit_lanes(records.chain_kinds(types), _backlit_at(cfg.backlit_vertex, len(types)),
                                  np.asarray(x0, np.float64), chain.F, np.asarray(light.y, np.float64),
                                  light.directional)
 
@@ -170,7 +168,7 @@ def _backlit_at(where: str, k: int) -> int:
 
 
 def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
-    """The walk's settings as the kernels take them (walk._walk_lane)."""
+    """The walk's settings as the kernels take them (kernels/walk.py's _walk_lane)."""
     return (cfg.form == HALF_VECTOR, records.chain_kinds(types), cfg.smbs, cfg.tir, cfg.backlit, cfg.slow,
             cfg.tir_rejected, _backlit_at(cfg.backlit_vertex, len(types)), cfg.tau, cfg.slow_run, cfg.min_beta,
             cfg.threshold, cfg.max_step * ctx.scale, ctx.tracer.eps, MAX_HALVINGS, cfg.max_iterations,
@@ -185,7 +183,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     as the walk. Lanes whose seed failed keep their seed outcome. large_ok (N,) bool: lanes
     allowed SMBS's large mutations (the rest walk as plain SMS).
 
-    walk.walk_lanes walks each lane from its seed to its outcome, casting its rays itself;
+    kernels/walk.py's walk_lanes walks each lane from its seed to its outcome, casting its rays itself;
     the lanes are cut into blocks of WALK_BLOCK that the threads take in turn (lanes.blocks).
     Lanes walk independently of each other: the result does not depend on the cut."""
     n, k = len(x0), len(types)
@@ -208,7 +206,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
         rt = tracer.rays()
         lane = (x0[a:b], ng0[a:b], ly[a:b], lys[a:b], lyt[a:b], light.directional, etas[a:b], large_ok[a:b],
                 ctx.obj_lo, ctx.obj_hi)
-        large, counts = walk.walk_lanes(rt, chain is not None, d[a:b], want[a:b], cfg_t, geo, lane,
+        large, counts = walk_lanes(rt, chain is not None, d[a:b], want[a:b], cfg_t, geo, lane,
                                            tuple(x[a:b] for x in state))
         tracer.cast_by_kernel(rt, counts)
         return large, counts

@@ -1,0 +1,54 @@
+"""The command line's commands beside bake: prepare (compile the kernels) and compare (an equal-time
+table of methods)."""
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+from .exits import EXIT_NOT_READY, EXIT_OK
+from ..baking.compare import Reference, compare, json_report, table_lines
+from .arguments import bake_settings
+from .inputs import check_writable, load_input
+from ..core.compiles import counted
+from ..baking.prepare import prepare
+from ..io.exr import write_json
+
+def prepare_command(args, say) -> int:
+    """python -m smbs_addon prepare: compile the kernels (smbs_addon.baking.prepare)."""
+    if args.check:  # for scripts: prepare --check || prepare
+        state = prepare.ready()
+        say({True: "kernels: compiled for this machine; bakes load them from the cache",
+             False: "kernels: not compiled for this code on this machine; the first bake compiles them "
+                    "(a few minutes), `python -m smbs_addon prepare` does it now",
+             None: "kernels: cannot tell whether they are compiled (this numba keeps its cache otherwise)"}[state])
+        return EXIT_OK if state else EXIT_NOT_READY
+    out = prepare.prepare(args.jobs, say=say)
+    say(f"prepared: {counted(out['kernels'], 'kernel')} compiled in {out['seconds']:.1f} s "
+        f"({counted(out['jobs'], 'process')}); bakes on this machine load them from the cache")
+    return EXIT_OK
+
+
+def compare_command(args, say) -> int:
+    """python -m smbs_addon compare: an equal-time table of the scene (smbs_addon.baking.compare)."""
+    settings = bake_settings(args, args.methods[0], args.batches)  # one sample per pixel per batch
+    out = Path(args.out) if args.out else None
+    if out is not None:
+        check_writable(out)
+    if args.reference and not Path(args.reference).is_file():
+        raise FileNotFoundError(f"reference '{args.reference}' does not exist")
+    ref = Reference.from_exr(args.reference) if args.reference else None
+    scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
+    n = len(args.methods)
+
+    def progress(i, m):
+        if not args.quiet:
+            print(f"[{i + 1}/{n}] {m}: {args.time:g} s", file=sys.stderr, flush=True)
+
+    report = compare(scene, args.methods, args.time, settings, ref, progress=progress)
+    if out is not None:
+        write_json(out, json_report(report))
+    print(f"scene '{scene.name}'")
+    for line in table_lines(report):
+        print(line)
+    if out is not None:
+        say(f"wrote {out}")
+    return EXIT_OK
