@@ -4,7 +4,8 @@ import numpy as np
 import pytest
 
 import scenes
-from smbs_addon.walks.large_mutation import MAX_HALVINGS, get_ratio
+from smbs_addon.walks.walk import MAX_HALVINGS
+from oracles.large_mutation import get_ratio
 
 
 def _slab_hit(o, d, lo, hi):

@@ -20,7 +20,6 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .constraints import ANGLE_DIFF, HALF_VECTOR
 from ..shading.light_samples import LightEnd
 from ..scene.geometry import vertex_view
 from ..core import embree, lanes
@@ -28,8 +27,11 @@ from ..kernels import records
 from ..kernels.chain import end_mismatch as mismatch_lanes, trace_lanes
 from ..kernels.walk import backlit_lanes, walk_lanes
 from ..kernels.records import NF, TRIGGERS, TRIG_BACKLIT, TRIG_SLOW, TRIG_TIR
-from .large_mutation import MAX_HALVINGS
 
+
+
+HALF_VECTOR, ANGLE_DIFF = "hv", "ad"  # the constraint forms: MNEE's half-vector, SMS's and SMBS's angle difference
+MAX_HALVINGS = 10  # a below 2^-10 counts as 0: keep the current direction
 
 
 @dataclass

@@ -10,10 +10,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from .constraints import specular_map
-from ..core.vec import dot, normalize
-
-MAX_HALVINGS = 10  # a below 2^-10 counts as 0: keep the current direction
+from oracles.constraints import specular_map
+from smbs_addon.core.vec import dot, normalize
+from smbs_addon.walks.walk import MAX_HALVINGS
 
 
 def get_next_dir(types: str, verts: list, etas: list, light):

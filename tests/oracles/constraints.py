@@ -22,10 +22,10 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..core.vec import dot, frame, normalize
-from ..shading.light_samples import LightEnd
+from smbs_addon.core.vec import dot, frame, normalize
+from smbs_addon.shading.light_samples import LightEnd
+from smbs_addon.walks.walk import ANGLE_DIFF
 
-HALF_VECTOR, ANGLE_DIFF = "hv", "ad"
 _R_MIN = 1e-6  # refraction at grazing exit: the derivative of sqrt blows up below this
 
 

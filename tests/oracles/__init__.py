@@ -1,0 +1,1 @@
+"""Numpy forms of compiled physics, written independently, that the tests check the kernels against."""
