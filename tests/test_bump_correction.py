@@ -16,7 +16,7 @@ import numpy as np
 from smbs_addon.scene import builder
 from smbs_addon.shading import optics
 from smbs_addon.scene import arrays as S
-from smbs_addon.walks.estimators import chain_throughput
+from smbs_addon.walks.contribution import chain_throughput
 from smbs_addon.scene.geometry import Vertex
 
 

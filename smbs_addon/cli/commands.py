@@ -4,13 +4,14 @@ from __future__ import annotations
 
 import sys
 from pathlib import Path
-from .exits import EXIT_NOT_READY, EXIT_OK
+
+from ..baking import prepare
 from ..baking.compare import Reference, compare, json_report, table_lines
-from .arguments import bake_settings
-from .inputs import check_writable, load_input
 from ..core.compiles import counted
-from ..baking.prepare import prepare
 from ..io.exr import write_json
+from .arguments import bake_settings
+from .exits import EXIT_NOT_READY, EXIT_OK
+from .inputs import check_writable, load_input
 
 def prepare_command(args, say) -> int:
     """python -m smbs_addon prepare: compile the kernels (smbs_addon.baking.prepare)."""
