@@ -49,7 +49,7 @@ class Job:
     watch: object  # core.compiles.CompileWatch: the time compiling takes is not the bake's
     prog: Progress = None
     light_stats: dict = field(default_factory=dict)  # per light name
-    indirect_stats: dict = field(default_factory=dict)  # per light name: indirect.trace_photons' photons
+    indirect_stats: dict = field(default_factory=dict)  # per light name: indirect.trace_indirect_photons' photons
     extra: dict = field(default_factory=dict)  # the statistics beside the lights'
 
     def __post_init__(self):

@@ -92,7 +92,7 @@ def photon_pass(job, b, lp, per_batch, st, stream_kind=PHOTONS, handoff=None, st
 
 def indirect_batch(job, b) -> None:
     """Light tracing of the caustic light that meets more than one diffuse surface, for the
-    receivers the camera sees directly (indirect.trace_photons): photons over the whole
+    receivers the camera sees directly (indirect.trace_indirect_photons): photons over the whole
     scene, spp per pixel and light."""
     scene, plan, settings = job.scene, job.plan, job.settings
     for li in job.indirect_lights():
@@ -109,7 +109,7 @@ def indirect_batch(job, b) -> None:
             rng = job.rng(INDIRECT, light_key(scene.light_names[li]), b, c)
             ph = emit(scene, li, target, n, rng)
             ph.w *= n / per_batch
-            indirect.trace_photons(scene, job.tracer, job.cam, film_c, plan, ph, rng, st_c, physical=job.physical)
+            indirect.trace_indirect_photons(scene, job.tracer, job.cam, film_c, plan, ph, rng, st_c, physical=job.physical)
 
         threaded_chunks(job, -(-per_batch // CHUNK), run_chunk, st)
         st["time_s"] += time.perf_counter() - t

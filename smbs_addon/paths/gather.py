@@ -12,7 +12,7 @@ lands on the floor again (camera -> water -> floor -> water -> floor -> water ->
 sun). On a pool with a floor of albedo 0.8 that is a third of the layer.
 
 Two estimators, split by how the camera sees x0:
-- directly: light tracing (``trace_photons``). Photons leave the lights in every
+- directly: light tracing (``trace_indirect_photons``). Photons leave the lights in every
   direction, bounce off diffuse surfaces (cosine, Russian roulette on the
   albedo) and through specular ones, and splat at each receiver the camera sees
   once their history holds a specular vertex and a diffuse one;
@@ -86,7 +86,7 @@ def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
                                 bool(adjoint))
 
 
-def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False):
+def trace_indirect_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False):
     """Light tracing of the layer's paths through two or more diffuse vertices, splatted
     at the receivers the camera sees directly (photons from lights.emit over the whole
     scene, not only towards the casters), within the scene's Light Paths limits
