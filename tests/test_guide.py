@@ -74,7 +74,7 @@ def test_a_faint_wide_glow_is_weak_on_every_random_stream():
     focus's over seeds 1-8 at 512 x 512 (few photons per tile: the tile they happened to crowd),
     so the noise decided whether the walks or the photons served it (walks 390k against 227k
     on one 1-spp bake). Averaged, it reads 0.006-0.012: weak on every seed, with room to spare."""
-    from smbs_addon.baking.bake import _trace_plan
+    from smbs_addon.baking.engine import trace_plan
     from smbs_addon.walks.guide import WEAK_PEAK, build_guide, photon_budget
     from smbs_addon.walks.manifold import chain_types
     from smbs_addon.baking.plan import _rng, make_plan
@@ -82,7 +82,7 @@ def test_a_faint_wide_glow_is_weak_on_every_random_stream():
     scene = scenes.glass_sphere_scene(resolution=(512, 384))
     settings = BakeSettings(method="sms", spp=1, seed=1)
     plan, cam = make_plan(scene, settings.use_cycles_flags), CameraModel(scene.camera)
-    tracer = _trace_plan(plan, scene, settings, cam)
+    tracer = trace_plan(plan, scene, settings, cam)
     types = chain_types(scene, plan, settings.manifold_options())
     assert "R" in types and "TT" in types
     peaks = []

@@ -193,7 +193,7 @@ def test_scratch_arrays_are_kept_per_thread_and_name_until_freed():
 def test_light_tracing_chunks_on_threads_give_the_image_of_chunks_in_turn(monkeypatch):
     """The light tracer's chunks (its photons, the eye pass seen through glass, the indirect
     photons; and the manifold bakes' photon hand-off) run as many at a time as there are
-    threads, each splatting into a deferred film (bake._threaded_chunks): the splats are made in
+    threads, each splatting into a deferred film (passes.threaded_chunks): the splats are made in
     chunk order, so 1 and 2 threads give one image, bit for bit, and the same counts. Chunks of
     500 lanes: a small bake runs several chunks per pass."""
     monkeypatch.setattr(bake_module, "CHUNK", 500)
