@@ -119,7 +119,7 @@ def _pool(absorb, light="point", above=False, resolution=24):
 
 
 def scenes_water(light, resolution):
-    import scenes
+    from testkit import scenes
 
     if light == "point":
         return scenes.water_scene("point", size=8.0, resolution=resolution)

@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.baking.result import region_mean_error
 from smbs_addon.baking.convergence import caustic_region

@@ -18,16 +18,16 @@ import zipfile
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeCancelled, BakeSettings, Scene, SceneError, bake
 bake_module = importlib.import_module("smbs_addon.baking.engine")  # where the film's memory is checked
 from smbs_addon.scene.builder import SceneBuilder
 from smbs_addon.io.exr import read_exr, write_exr
-from test_cli import one_error_line, run
+from testkit.cli import one_error_line, run
 
 
 def mirror_parts(b, light=True, caster=True, receiver=True):
-    """The tiny mirror scene of tests/scenes.py, piece by piece."""
+    """The tiny mirror scene of testkit/scenes.py, piece by piece."""
     b.material("floor", "diffuse", color=(0.8,) * 3)
     b.material("mirror", "conductor", color=(0.9,) * 3)
     if receiver:

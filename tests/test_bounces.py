@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene.light_paths import Limits, UNLIMITED
 from smbs_addon.scene.arrays import Scene

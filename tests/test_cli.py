@@ -5,34 +5,19 @@ cannot be baked, 2 bad arguments, 3 unreadable input or unwritable output.
 Errors are one line on stderr: ``smbs_addon: error: <message>``.
 """
 import json
-import os
 import re
-import subprocess
 import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon.io.exr import read_exr
+from testkit.cli import one_error_line, run
 
 ROOT = Path(__file__).resolve().parent.parent
 MIRROR_BLEND = ROOT / "sample_blends" / "mirror.blend"
-
-
-def run(*args, timeout=120):
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    return subprocess.run([sys.executable, "-m", "smbs_addon", *map(str, args)], cwd=ROOT, env=env,
-                          capture_output=True, text=True, timeout=timeout)
-
-
-def one_error_line(proc) -> str:
-    lines = proc.stderr.strip().splitlines()
-    assert len(lines) == 1, f"expected one line on stderr, got:\n{proc.stderr}"
-    assert lines[0].startswith("smbs_addon: error: "), lines[0]
-    assert "Traceback" not in proc.stderr
-    return lines[0]
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.baking.compare import Reference, compare, json_report, table_lines
 from smbs_addon.baking.convergence import caustic_region, relative_error

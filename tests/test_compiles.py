@@ -9,7 +9,7 @@ from smbs_addon.cli.report import summary_lines
 from smbs_addon.baking.bake import _Reporter
 from smbs_addon.core.compiles import CompileWatch
 
-import scenes
+from testkit import scenes
 
 
 def _fresh_kernel():

@@ -19,7 +19,7 @@ from smbs_addon import BakeSettings, bake  # noqa: E402
 from smbs_addon.baking.convergence import caustic_region, convergence, relative_error  # noqa: E402
 from smbs_addon.trace.film import MAX_GROUPS, Film  # noqa: E402
 
-import scenes  # noqa: E402
+from testkit import scenes  # noqa: E402
 
 
 def _true_error(res, ref):

@@ -21,11 +21,11 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
-from test_manifold_analytic import water_sun_expected
-from test_reference_analytic import check_against, pixel_floor_points
+from testkit.checks import check_against
+from testkit.scenes import pixel_floor_points, water_sun_expected
 
 
 # SMBS at 12 spp: at 8 its standard error was 0.69% where check_against asks under 0.67%

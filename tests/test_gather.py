@@ -8,7 +8,7 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon.core import embree
 from smbs_addon.kernels import gather, handoff, records
 from smbs_addon.paths import gather as indirect

@@ -2,7 +2,7 @@
 only by Russian roulette (probability Q, weighted 1/Q, so the estimate stays unbiased)."""
 import numpy as np
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.trace.camera import CameraModel
 from smbs_addon.walks.guide import Q, TILE, Guide

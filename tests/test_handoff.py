@@ -9,7 +9,7 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.paths import photons as reference
 from smbs_addon.scene import arrays as S
@@ -19,7 +19,7 @@ from smbs_addon.trace.film import Film
 from smbs_addon.shading.lights import emit
 from smbs_addon.baking.plan import make_plan
 from smbs_addon.trace.tracer import Tracer
-from test_manifold_vs_reference import _compare
+from testkit.checks import against_reference as _compare
 
 
 def _trace(scene, tau, seed=3, n=20000):

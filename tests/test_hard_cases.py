@@ -27,15 +27,14 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
 from smbs_addon.baking.result import caustic_region
 from smbs_addon.scene.builder import SceneBuilder
 from smbs_addon.shading.fresnel import fresnel_dielectric
 from smbs_addon.shading.optics import refract
-from test_manifold_analytic import mirror_expected, water_point_expected
-from test_reference_analytic import pixel_floor_points
+from testkit.scenes import mirror_expected, pixel_floor_points, water_point_expected
 
 METHODS = ("reference", "mnee", "sms", "smbs")
 

@@ -16,7 +16,7 @@ from smbs_addon.kernels import records
 
 from smbs_addon.kernels import typed
 from smbs_addon.walks.walk import ANGLE_DIFF, HALF_VECTOR
-from oracles.constraints import block_solve, blocks, specular_map
+from testkit.oracles.constraints import block_solve, blocks, specular_map
 from smbs_addon.shading.light_samples import LightEnd
 from smbs_addon.scene.geometry import Vertex, pack
 from smbs_addon.core.vec import cross, frame, normalize
@@ -140,7 +140,7 @@ def test_specular_map_kernel_matches_numpy():
 @pytest.mark.parametrize("directional", [False, True])
 def test_large_proposal_matches_numpy(types, directional):
     from smbs_addon.walks.walk import MAX_HALVINGS
-    from oracles.large_mutation import large_direction
+    from testkit.oracles.large_mutation import large_direction
 
     rng = np.random.default_rng(len(types) + 10 * directional)
     n = 1000
@@ -355,7 +355,7 @@ def test_bakes_leave_no_runtime_memory_behind(method):
     photons, gathering, the eye pass) frees what numba's runtime allocated: the loops over lanes
     compiled without reference counting (jit.LANES) neither leak nor free an array twice. The
     second of two equal bakes leaves the runtime's outstanding blocks exactly as it found them."""
-    from scenes import glass_sphere_scene
+    from testkit.scenes import glass_sphere_scene
 
     from smbs_addon import BakeSettings, bake
 

@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 
 bake_module = importlib.import_module("smbs_addon.baking.passes")  # where the chunk sizes are

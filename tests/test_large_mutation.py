@@ -3,9 +3,9 @@ where trigger 2 (back-lit) looks."""
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon.walks.walk import MAX_HALVINGS
-from oracles.large_mutation import get_ratio
+from testkit.oracles.large_mutation import get_ratio
 
 
 def _slab_hit(o, d, lo, hi):

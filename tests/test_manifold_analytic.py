@@ -5,43 +5,13 @@ A flat caster has one solution per receiver and light sample, so the unbiased
 and biased estimators agree and both must match the analytic answer within 2%
 (checked beyond four standard errors of the bake's own noise estimate).
 """
-import math
-
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
-from test_reference_analytic import check_against, pixel_floor_points
-
-
-def mirror_expected(scene):
-    pts, ok = pixel_floor_points(scene)
-    region = ok & (np.hypot(pts[..., 0], pts[..., 1]) < 0.6)  # the whole disk is seen in the mirror
-    radiance = 100.0 / (math.pi * math.pi * 0.25**2)
-    E = scenes.disk_irradiance(pts[region], center=np.array([0, 0, 3.5]), normal=[0, 0, -1], radius=0.25,
-                               radiance=radiance, n=64)
-    expected = np.zeros(region.shape)
-    expected[region] = scenes.MIRROR_RHO * scenes.FLOOR_ALBEDO / math.pi * E
-    return expected, region
-
-
-def water_point_expected(scene):
-    pts, ok = pixel_floor_points(scene)
-    rho = np.hypot(pts[..., 0], pts[..., 1])
-    region = ok & (rho < 0.9)
-    E = np.array([scenes.point_through_water(x, 1000.0 / (4 * math.pi), 3.0, 1.0, 1.33) for x in rho[region]])
-    expected = np.zeros(region.shape)
-    expected[region] = scenes.FLOOR_ALBEDO / math.pi * E
-    return expected, region
-
-
-def water_sun_expected(scene):
-    region = np.zeros((scene.camera.height, scene.camera.width), bool)
-    region[4:-4, 4:-4] = True  # inside the lit part of the floor with the filter's reach
-    c = math.cos(math.radians(30))
-    E = 3.0 * c * (1 - scenes.fresnel(c, 1.33))
-    return np.full(region.shape, scenes.FLOOR_ALBEDO / math.pi * E), region
+from testkit.checks import check_against
+from testkit.scenes import mirror_expected, pixel_floor_points, water_point_expected, water_sun_expected
 
 
 @pytest.mark.parametrize("method", ["mnee", "sms", "smbs"])

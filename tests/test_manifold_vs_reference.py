@@ -7,14 +7,13 @@ pixel by pixel within the combined statistical error; the biased estimator
 (unique solutions of M walks) may lose energy but never exceed the reference
 beyond noise.
 """
-import math
-
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.baking.result import caustic_region
+from testkit.checks import against_reference
 
 
 @pytest.fixture(scope="module")
@@ -22,14 +21,6 @@ def sphere():
     scene = scenes.glass_sphere_scene(resolution=(48, 36))
     ref = bake(scene, BakeSettings(method="reference", spp=1024, seed=9))
     return scene, ref, caustic_region(ref.image)
-
-
-def _compare(res, ref, region):
-    m, se = res.region_mean(region)
-    mr, ser = ref.region_mean(region)
-    z = (res.image - ref.image).mean(axis=2)[region] / np.sqrt(
-        (res.variance + ref.variance).mean(axis=2)[region] + 1e-30)
-    return m / mr - 1, math.hypot(se, ser) / mr, float(np.mean(np.abs(z) > 3))
 
 
 # SMBS's Bernoulli counts have the heavier tail here (large mutations make some
@@ -43,7 +34,7 @@ def test_glass_sphere_unbiased_matches_reference(sphere, method, spp):
     # its light back up (the pre-pass finds none on the floor), so only T R R T is walked
     assert res.stats["chain_types"] == ["R", "TT", "TRRT"]
     assert res.stats["guide"]["not_walked"] == ["TRT"]
-    rel, noise, beyond = _compare(res, ref, region)
+    rel, noise, beyond = against_reference(res, ref, region)
     assert noise < 0.015, f"too noisy to judge: {noise:.2%}"
     assert abs(rel) < 0.03, f"{method}: {rel:+.2%} against the reference (noise {noise:.2%})"
     # batch variances have 7 degrees of freedom: a t-distribution puts ~2% beyond 3
@@ -54,7 +45,7 @@ def test_glass_sphere_unbiased_matches_reference(sphere, method, spp):
 def test_glass_sphere_biased_never_exceeds_reference(sphere, method):
     scene, ref, region = sphere
     res = bake(scene, BakeSettings(method=method, estimator="biased", trials=4, spp=16, seed=2))
-    rel, noise, _ = _compare(res, ref, region)
+    rel, noise, _ = against_reference(res, ref, region)
     assert rel < 3 * noise, f"biased {method} above the reference: {rel:+.2%} (noise {noise:.2%})"
 
 
@@ -97,12 +88,12 @@ def test_ring_unbiased_matches_reference(ring, method):
     scene, ref, region, fold = ring
     res = bake(scene, BakeSettings(method=method, spp=64, seed=1))
     assert res.stats["lights"]["Area"]["handoff"]["handoff_paths"] > 0
-    rel, noise, beyond = _compare(res, ref, region)
+    rel, noise, beyond = against_reference(res, ref, region)
     # measured: SMS +0.2% +- 1.7%, SMBS -1.6% +- 1.1% (SMS's Bernoulli counts have the longer tail)
     assert noise < 0.02, f"too noisy to judge: {noise:.2%}"
     assert abs(rel) < 0.03, f"{method}: {rel:+.2%} over the caustic (noise {noise:.2%})"
     assert beyond < 0.05, f"{beyond:.1%} of pixels beyond 3 sigma"
-    rel_f, noise_f, _ = _compare(res, ref, fold)
+    rel_f, noise_f, _ = against_reference(res, ref, fold)
     assert abs(rel_f) < 3 * noise_f + 0.01, f"{method}: {rel_f:+.2%} on the folds (noise {noise_f:.2%})"
 
 
@@ -123,7 +114,7 @@ def test_normal_mapped_mirror_light_tracer_takes_the_adjoint_correction():
     ref = bake(scene, BakeSettings(method="reference", spp=2048, seed=10, batches=16, **kw))
     region = caustic_region(pick.image)
     res = bake(scene, BakeSettings(method="sms", spp=48, seed=1, batches=16, **kw))
-    rel, noise, _ = _compare(res, ref, region)
+    rel, noise, _ = against_reference(res, ref, region)
     assert noise < 0.05, f"too noisy to judge: {noise:.2%}"
     print(f"SMS {rel:+.2%} +- {noise:.2%}")
     assert abs(rel) < 0.03 + 3 * noise, f"SMS {rel:+.2%} against the light tracer (noise {noise:.2%})"

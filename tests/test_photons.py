@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.core import embree
 from smbs_addon.kernels import eye

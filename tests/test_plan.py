@@ -16,7 +16,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
+from testkit.scenes import lens_scene
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
 from smbs_addon.cli.main import main
@@ -27,28 +28,6 @@ from smbs_addon.baking.plan import describe_chain, make_plan, refine_plan
 from smbs_addon.trace.tracer import Tracer
 
 ROOT = Path(__file__).resolve().parents[1]
-
-
-def lens_scene(extra: bool, resolution=(96, 72), far=(0, 0, -3), world=0.0):
-    """The glass ball of scenes.glass_sphere_scene; with extra, a spot aimed at the empty
-    sky (first in the list of lights, so every light after it moves one place) and a glass
-    ball at ``far``: under the floor (hidden from the light and the camera), or out of the
-    frame beyond the floor's edge. world: a world of that constant grey (first of the lights, as
-    the export puts it), if above 0."""
-    b = SceneBuilder("lens")
-    if world > 0:
-        b.world((world,) * 3)
-    floor = b.material("floor", "diffuse", color=(0.8,) * 3)
-    glass = b.material("glass", "dielectric", color=(1, 1, 1), ior=1.5)
-    if extra:
-        b.light("SkySpot", "SPOT", location=(0, 0, 3), target=(0, 0, 10), power=500, spot_size=math.radians(30))
-    b.plane("Floor", (0, 0, 0), 10, floor)
-    b.uv_sphere("Ball", (0, 0, 1.2), 0.5, glass, segments=64, rings=32)
-    if extra:
-        b.uv_sphere("FarGlass", far, 0.5, glass, segments=32, rings=16)
-    b.light("Area", "AREA", location=(0.3, 0.2, 5.0), target=(0.3, 0.2, 0), power=400, size=1.0)
-    b.set_camera((0, -2.0, 3.0), (0, 0, 0.0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
-    return b.build()
 
 
 BALL = ["Area -> Ball (refraction, 2 vertices 93%; reflection 7%; rarer paths <1%) -> Floor",

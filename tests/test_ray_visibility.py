@@ -172,7 +172,7 @@ def test_a_ball_diffuse_rays_do_not_see_casts_no_caustic():
 def test_a_world_seen_by_glossy_rays_alone_lights_its_mirror_the_same(method):
     """A world mirrored onto the floor (scenes.world_mirror_scene): leaving out transmission rays, which
     no path of a mirror casts, gives the same image bit for bit; leaving out glossy rays, no caustic."""
-    import scenes
+    from testkit import scenes
 
     cfg = BakeSettings(method=method, spp=2, seed=4)
     sc = scenes.world_mirror_scene(resolution=(24, 18))

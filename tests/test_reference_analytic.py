@@ -8,31 +8,10 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.trace.camera import CameraModel
-
-
-def pixel_floor_points(scene):
-    """Floor (z=0) point seen through each pixel centre: (H,W,3) and a mask."""
-    cam = CameraModel(scene.camera)
-    jj, ii = np.mgrid[0:cam.H, 0:cam.W]
-    o, d, _ = cam.rays(ii.ravel() + 0.5, jj.ravel() + 0.5)
-    t = -o[:, 2] / np.where(d[:, 2] != 0, d[:, 2], 1e-30)
-    ok = (t > 0) & (d[:, 2] < 0)
-    return (o + t[:, None] * d).reshape(cam.H, cam.W, 3), ok.reshape(cam.H, cam.W)
-
-
-def check_against(result, expected, region, tol):
-    """Mean over the region within tol (relative); the noise (standard error from
-    the spread of independent batches) must be small enough to judge."""
-    mean, se = result.region_mean(region)
-    ref = expected[region].mean()
-    assert se < tol * ref / 3, f"too noisy to judge: standard error {se / ref:.2%}"
-    assert abs(mean - ref) <= tol * ref, (
-        f"mean {mean:.5f} vs analytic {ref:.5f}: off by {(mean - ref) / ref:+.2%} (tolerance {tol:.0%}, "
-        f"noise {se / ref:.2%})")
-    return (mean - ref) / ref
+from testkit.checks import check_against
+from testkit.scenes import pixel_floor_points
 
 
 def test_flat_mirror_matches_mirrored_disk_light():

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.baking.result import caustic_region
 from smbs_addon.scene.builder import SceneBuilder, look_at
@@ -114,7 +114,7 @@ def test_eye_pass_from_its_cells_is_the_whole_film_s():
     second glass ball hidden under its floor, whose box the camera's view covers: no sample
     there sees it first)."""
     from smbs_addon.trace import eye
-    from test_plan import lens_scene
+    from testkit.scenes import lens_scene
 
     for scene in (scenes.glass_sphere_scene(resolution=(64, 48)), lens_scene(True, (64, 48))):
         s = dict(method="reference", spp=64, batches=2, seed=4)

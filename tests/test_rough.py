@@ -4,8 +4,6 @@ Cycles' conventions), integrated over cones of directions by uniform sampling.""
 from __future__ import annotations
 
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -14,6 +12,7 @@ from smbs_addon import BakeSettings, bake
 from smbs_addon.shading import optics, microfacet as rough
 from smbs_addon.scene import arrays as S
 from smbs_addon.scene.builder import SceneBuilder
+from testkit import scenes
 
 N = 400_000
 
@@ -261,9 +260,6 @@ def test_grazing_and_degenerate_stay_finite():
 
 
 def _rough_ball(roughness=0.3):
-    sys.path.insert(0, str(Path(__file__).parent))
-    import scenes
-
     sc = scenes.glass_sphere_scene(resolution=(48, 36))
     sc.mat_roughness = np.where(sc.mat_kind == S.DIELECTRIC, roughness, sc.mat_roughness)
     return sc

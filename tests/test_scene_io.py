@@ -7,7 +7,7 @@ import zipfile
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
 from smbs_addon.scene.builder import SceneBuilder, look_at

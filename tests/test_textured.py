@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
 from smbs_addon.io.exr import exr_channels

@@ -7,7 +7,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.core.errors import SceneError
 

@@ -11,11 +11,12 @@ import math
 import numpy as np
 import pytest
 
-import scenes
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene.builder import SceneBuilder
 from smbs_addon.shading.lights import EnvMap, emit
-from test_reference_analytic import check_against, pixel_floor_points
+from testkit.checks import TARGETS, check_against, hits_spheres, mean_se, uniform_sphere
+from testkit.scenes import pixel_floor_points
 
 H, W = 32, 64
 
@@ -95,26 +96,22 @@ def test_a_constant_map_is_a_constant_world():
 def _targets_flux_mc(radiance, targets, rng, n=2_000_000):
     """Flux from the world into the union of the target spheres, independently: uniform directions,
     uniform points on a disc across a sphere holding them all, whether the line meets one."""
-    from test_photons import _hits_spheres, _uniform_sphere
-
     c = targets[:, :3].mean(0)
     R = float(np.max(np.linalg.norm(targets[:, :3] - c, axis=1) + targets[:, 3]))
-    to = _uniform_sphere(rng, n)  # towards the light
+    to = uniform_sphere(rng, n)  # towards the light
     a = np.where(np.abs(to[:, :1]) < 0.9, np.array([[1.0, 0, 0]]), np.array([[0, 1.0, 0]]))
     s = np.cross(to, a)
     s /= np.linalg.norm(s, axis=1, keepdims=True)
     t = np.cross(to, s)
     r, phi = R * np.sqrt(rng.random(n)), 2 * math.pi * rng.random(n)
     p = c + (r * np.cos(phi))[:, None] * s + (r * np.sin(phi))[:, None] * t
-    hit = _hits_spheres(p + 10 * R * to, -to, targets)
+    hit = hits_spheres(p + 10 * R * to, -to, targets)
     x = radiance(to)[:, 0] * 4 * math.pi * math.pi * R * R * hit
     return x.mean(), x.std(ddof=1) / math.sqrt(n)
 
 
 @pytest.mark.parametrize("textured", [False, True])
 def test_the_worlds_photons_carry_its_flux_into_the_targets(textured):
-    from test_photons import TARGETS, _mean_se
-
     b = SceneBuilder("sky")
     b.plane("Floor", (0, 0, 0), 10, b.material("floor", "diffuse"))
     u, v = _coords()
@@ -124,7 +121,7 @@ def test_the_worlds_photons_carry_its_flux_into_the_targets(textured):
     scene = b.build()
     ph = emit(scene, 0, TARGETS, 400_000, np.random.default_rng(1))
     assert np.all(np.isfinite(ph.w)) and np.allclose(np.linalg.norm(ph.d, axis=1), 1.0)
-    got, got_se = _mean_se(ph.w[:, 0] * len(ph.w))
+    got, got_se = mean_se(ph.w[:, 0] * len(ph.w))
     env = EnvMap(img, _turn_z(25.0), np.full(3, 0.5))
     radiance = env.radiance if textured else (lambda d: np.full((len(d), 3), 0.5))
     want, want_se = _targets_flux_mc(radiance, TARGETS, np.random.default_rng(2))

@@ -6,6 +6,7 @@ import math
 import numpy as np
 
 from smbs_addon.scene.builder import SceneBuilder
+from smbs_addon.trace.camera import CameraModel
 
 MIRROR_RHO, FLOOR_ALBEDO = 0.9, 0.8
 
@@ -240,3 +241,68 @@ def seed_chains(scene, types: str, x0, rng):
     light = sample_light(scene, 0, n, rng)
     chain = Seeder(scene, plan.casters, types, "sms").seed(ctx, rng, types, x0, ng0, light)
     return ctx, ng0, light, chain
+
+
+def lens_scene(extra: bool, resolution=(96, 72), far=(0, 0, -3), world=0.0):
+    """The glass ball of glass_sphere_scene; with extra, a spot aimed at the empty
+    sky (first in the list of lights, so every light after it moves one place) and a glass
+    ball at ``far``: under the floor (hidden from the light and the camera), or out of the
+    frame beyond the floor's edge. world: a world of that constant grey (first of the lights, as
+    the export puts it), if above 0."""
+    b = SceneBuilder("lens")
+    if world > 0:
+        b.world((world,) * 3)
+    floor = b.material("floor", "diffuse", color=(0.8,) * 3)
+    glass = b.material("glass", "dielectric", color=(1, 1, 1), ior=1.5)
+    if extra:
+        b.light("SkySpot", "SPOT", location=(0, 0, 3), target=(0, 0, 10), power=500, spot_size=math.radians(30))
+    b.plane("Floor", (0, 0, 0), 10, floor)
+    b.uv_sphere("Ball", (0, 0, 1.2), 0.5, glass, segments=64, rings=32)
+    if extra:
+        b.uv_sphere("FarGlass", far, 0.5, glass, segments=32, rings=16)
+    b.light("Area", "AREA", location=(0.3, 0.2, 5.0), target=(0.3, 0.2, 0), power=400, size=1.0)
+    b.set_camera((0, -2.0, 3.0), (0, 0, 0.0), lens=35, resolution_x=resolution[0], resolution_y=resolution[1])
+    return b.build()
+
+
+# ------------------------------------------------------------ what the floor's pixels should hold
+def pixel_floor_points(scene):
+    """Floor (z=0) point seen through each pixel centre: (H,W,3) and a mask."""
+    cam = CameraModel(scene.camera)
+    jj, ii = np.mgrid[0:cam.H, 0:cam.W]
+    o, d, _ = cam.rays(ii.ravel() + 0.5, jj.ravel() + 0.5)
+    t = -o[:, 2] / np.where(d[:, 2] != 0, d[:, 2], 1e-30)
+    ok = (t > 0) & (d[:, 2] < 0)
+    return (o + t[:, None] * d).reshape(cam.H, cam.W, 3), ok.reshape(cam.H, cam.W)
+
+
+def mirror_expected(scene):
+    """mirror_scene's floor under the mirrored disk light: (expected image (H,W), region)."""
+    pts, ok = pixel_floor_points(scene)
+    region = ok & (np.hypot(pts[..., 0], pts[..., 1]) < 0.6)  # the whole disk is seen in the mirror
+    radiance = 100.0 / (math.pi * math.pi * 0.25**2)
+    E = disk_irradiance(pts[region], center=np.array([0, 0, 3.5]), normal=[0, 0, -1], radius=0.25,
+                        radiance=radiance, n=64)
+    expected = np.zeros(region.shape)
+    expected[region] = MIRROR_RHO * FLOOR_ALBEDO / math.pi * E
+    return expected, region
+
+
+def water_point_expected(scene):
+    """water_scene("point")'s floor under the water: (expected image (H,W), region)."""
+    pts, ok = pixel_floor_points(scene)
+    rho = np.hypot(pts[..., 0], pts[..., 1])
+    region = ok & (rho < 0.9)
+    E = np.array([point_through_water(x, 1000.0 / (4 * math.pi), 3.0, 1.0, 1.33) for x in rho[region]])
+    expected = np.zeros(region.shape)
+    expected[region] = FLOOR_ALBEDO / math.pi * E
+    return expected, region
+
+
+def water_sun_expected(scene):
+    """water_scene("sun")'s floor, lit evenly through the flat water: (expected image (H,W), region)."""
+    region = np.zeros((scene.camera.height, scene.camera.width), bool)
+    region[4:-4, 4:-4] = True  # inside the lit part of the floor with the filter's reach
+    c = math.cos(math.radians(30))
+    E = 3.0 * c * (1 - fresnel(c, 1.33))
+    return np.full(region.shape, FLOOR_ALBEDO / math.pi * E), region

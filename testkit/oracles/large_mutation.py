@@ -10,7 +10,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from oracles.constraints import specular_map
+from .constraints import specular_map
 from smbs_addon.core.vec import dot, normalize
 from smbs_addon.walks.walk import MAX_HALVINGS
 
