@@ -1,28 +1,10 @@
 """Shared fixtures. The repository root is the extension package; tests import it as
 ``smbs_caustics``, the way Blender imports it as ``bl_ext.<repo>.smbs_caustics``."""
-import importlib.util
-import sys
-from pathlib import Path
+import importlib
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
-EXTENSION = "smbs_caustics"
-
-
-def load_extension():
-    """Import the repository root as the package ``smbs_caustics`` (once)."""
-    if EXTENSION not in sys.modules:
-        spec = importlib.util.spec_from_file_location(
-            EXTENSION, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[EXTENSION] = module
-        try:
-            spec.loader.exec_module(module)
-        except BaseException:
-            del sys.modules[EXTENSION]
-            raise
-    return sys.modules[EXTENSION]
+from testkit.extension import load_extension
 
 
 @pytest.fixture
@@ -41,3 +23,9 @@ def addon():
     module.register()
     yield module
     module.unregister()
+
+
+@pytest.fixture
+def composite(empty_bpy):
+    """The extension's blender/composite.py (the caustic layer in the compositor), in a fresh session."""
+    return importlib.import_module(load_extension().__name__ + ".smbs_addon.blender.composite")

@@ -7,10 +7,10 @@ import time
 
 import pytest
 
-from test_addon_modal import _Reports, _scene_state
-from test_addon_register import _mirror_scene
-
 bpy = pytest.importorskip("bpy")
+
+from testkit.addon import Reports, draw_all, scene_state  # noqa: E402
+from testkit.blend import mirror_scene  # noqa: E402
 
 
 @pytest.fixture
@@ -22,15 +22,15 @@ def ops(empty_bpy, addon):
 
 def test_compare_operator_fills_the_table_and_changes_nothing_else(ops, tmp_path, capsys):
     _, _, panels = ops
-    scene = _mirror_scene(32, 24)
+    scene = mirror_scene(32, 24)
     s = scene.smbs_caustics
     s.compare_methods = {"reference", "sms"}
     s.compare_seconds = 1.0
     s.batches, s.seed = 4, 3
     s.output_path = str(tmp_path / "layer.exr")
-    before = _scene_state(scene)
+    before = scene_state(scene)
     assert bpy.ops.smbs.compare_methods() == {'FINISHED'}
-    assert _scene_state(scene) == before  # compare_report is not part of it
+    assert scene_state(scene) == before  # compare_report is not part of it
     assert not any(tmp_path.iterdir()), "Compare Methods wrote a file"
     report = json.loads(s.compare_report)
     assert report["seconds"] == 1.0 and report["region_pixels"] > 0
@@ -48,7 +48,7 @@ def test_compare_operator_fills_the_table_and_changes_nothing_else(ops, tmp_path
 
 
 def test_compare_without_a_method_is_refused(ops):
-    scene = _mirror_scene(16, 12)
+    scene = mirror_scene(16, 12)
     scene.smbs_caustics.compare_methods = set()
     with pytest.raises(RuntimeError, match="choose at least one method"):
         bpy.ops.smbs.compare_methods()
@@ -75,11 +75,11 @@ def test_a_cancelled_comparison_changes_nothing(ops, tmp_path):
     """In the interface the comparison runs as a bake does (ModalBake with CompareTask): the
     panel's Cancel stops it at the core's next check and the last report stays."""
     compare, bake, _ = ops
-    scene = _mirror_scene(48, 32)
+    scene = mirror_scene(48, 32)
     s = scene.smbs_caustics
     s.compare_report = '{"rows": [], "seconds": 1}'
-    before = _scene_state(scene)
-    reports = _Reports()
+    before = scene_state(scene)
+    reports = Reports()
     job = bake.ModalBake(reports, compare.CompareTask(("sms", "smbs"), 600.0))
     assert job.start(bpy.context)
     assert bake.running_bake(scene) is job
@@ -92,21 +92,19 @@ def test_a_cancelled_comparison_changes_nothing(ops, tmp_path):
     assert job.step(bpy.context, 'TIMER') == {'CANCELLED'}
     assert reports.of('WARNING') == ["Method comparison cancelled; nothing was changed"]
     assert bake.running_bake(scene) is None
-    assert _scene_state(scene) == before and s.compare_report == '{"rows": [], "seconds": 1}'
+    assert scene_state(scene) == before and s.compare_report == '{"rows": [], "seconds": 1}'
 
 
 def test_the_panel_draws_the_last_comparison(ops, addon):
-    from test_addon_register import _draw_all
-
     scene = bpy.context.scene
     drawn = []
-    _draw_all(addon, scene, drawn)
+    draw_all(addon, scene, drawn)
     assert {"compare_methods", "compare_seconds", "smbs.compare_methods"} <= set(drawn)
     assert "Time for Same Noise" not in drawn  # no comparison yet
     scene.smbs_caustics.compare_report = json.dumps({"seconds": 2.0, "region_pixels": 50, "rows": [
         {"method": "reference", "error": 0.02, "time_for_same_error": 1.0, "leaves_out": []},
         {"method": "smbs", "error": 0.05, "time_for_same_error": 6.25, "leaves_out": []}]})
     drawn = []
-    _draw_all(addon, scene, drawn)
+    draw_all(addon, scene, drawn)
     assert {"2 s each, over 50 caustic pixels", "Time for Same Noise", "reference", "\u00b12.0%", "1.00x time",
             "smbs", "6.25x time", "Fastest to a given noise: reference"} <= set(drawn)

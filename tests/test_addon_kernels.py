@@ -8,10 +8,10 @@ import importlib
 
 import pytest
 
-from test_addon_modal import _Reports, _run_to_end, _scene_state
-from test_addon_register import _mirror_scene
-
 bpy = pytest.importorskip("bpy")
+
+from testkit.addon import Reports, draw_all, run_to_end, scene_state  # noqa: E402
+from testkit.blend import mirror_scene  # noqa: E402
 
 
 @pytest.fixture
@@ -22,10 +22,10 @@ def ops(empty_bpy, addon):
 
 def test_prepare_kernels_in_background_reports_and_changes_nothing(ops, capsys):
     kernels, _ = ops
-    scene = _mirror_scene(16, 12)
-    before = _scene_state(scene)
+    scene = mirror_scene(16, 12)
+    before = scene_state(scene)
     assert bpy.ops.smbs.prepare_kernels() == {'FINISHED'}
-    assert _scene_state(scene) == before
+    assert scene_state(scene) == before
     out = capsys.readouterr().out
     assert "SMBS Caustics: the kernels were compiled already" in out or "SMBS Caustics: compiled " in out
     assert kernels.message({"kernels": 0, "seconds": 3.0}).endswith("bakes load them from the cache")
@@ -50,22 +50,22 @@ def test_prepare_kernels_runs_like_a_bake_in_the_interface(ops):
     kernels in 2 processes: i of n bakes done"), one job per scene at a time, ended by the timer
     with a report; Esc stops it like a bake (the processes killed)."""
     kernels, bake_op = ops
-    scene = _mirror_scene(16, 12)
-    before = _scene_state(scene)
-    reports = _Reports()
+    scene = mirror_scene(16, 12)
+    before = scene_state(scene)
+    reports = Reports()
     job = bake_op.ModalBake(reports, kernels.PrepareTask())
     assert job.start(bpy.context)
     assert bake_op.running_bake(scene) is job and not bpy.ops.smbs.bake_caustics.poll()
-    result, texts = _run_to_end(job, 900)
+    result, texts = run_to_end(job, 900)
     assert result == {'FINISHED'}, reports
     assert all(t.startswith("SMBS Caustics: Kernel preparation: ") for t in texts if t), texts
     assert reports.of('INFO') and reports.of('INFO')[0].startswith("SMBS Caustics: ")
-    assert bake_op.running_bake(scene) is None and _scene_state(scene) == before
+    assert bake_op.running_bake(scene) is None and scene_state(scene) == before
 
-    cancelled = bake_op.ModalBake(_Reports(), kernels.PrepareTask())
+    cancelled = bake_op.ModalBake(Reports(), kernels.PrepareTask())
     assert cancelled.start(bpy.context)
     assert cancelled.step(bpy.context, 'ESC', 'PRESS') == {'CANCELLED'}
-    assert bake_op.running_bake(scene) is None and _scene_state(scene) == before
+    assert bake_op.running_bake(scene) is None and scene_state(scene) == before
 
 
 def test_the_panel_says_whether_the_kernels_are_compiled(ops, addon, monkeypatch):
@@ -73,8 +73,6 @@ def test_the_panel_says_whether_the_kernels_are_compiled(ops, addon, monkeypatch
     machine (prepare.ready, under the extension's name: compiled once Prepare Kernels has run),
     and says nothing where it cannot tell. The answer is read once per STATE_RECHECK_S (panels
     redraw often) and afresh after Prepare Kernels."""
-    from test_addon_register import _draw_all
-
     kernels, _ = ops
     panels = addon.ui.panels
     prep = importlib.import_module(addon.__name__ + ".smbs_addon.baking.prepare")
@@ -89,7 +87,7 @@ def test_the_panel_says_whether_the_kernels_are_compiled(ops, addon, monkeypatch
             kernels.forget_state()
         drawn = []
         for _ in range(3):
-            _draw_all(addon, bpy.context.scene, drawn)
+            draw_all(addon, bpy.context.scene, drawn)
         assert labels & set(drawn) == ({want} if want else set()), drawn
         assert "smbs.prepare_kernels" in drawn
         assert len(calls) == (0 if answer is True else 1)  # read once, not once per draw

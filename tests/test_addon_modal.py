@@ -10,31 +10,16 @@ import time
 
 import pytest
 
-from conftest import load_extension
-from test_addon_register import LAYER, _layer_images, _mirror_scene
-
 bpy = pytest.importorskip("bpy")
+
+from testkit.addon import LAYER, Reports, layer_images, run_to_end, scene_state  # noqa: E402
+from testkit.blend import mirror_scene  # noqa: E402
+from testkit.extension import load_extension  # noqa: E402
 
 
 @pytest.fixture
 def bake_op(empty_bpy, addon):
     return importlib.import_module(addon.__name__ + ".operators.bake")
-
-
-def _scene_state(scene):
-    """Everything a bake may change."""
-    s = scene.smbs_caustics
-    return (len(bpy.data.images), len(bpy.data.node_groups), scene.compositing_node_group,
-            s.last_stats, s.cycles_note, s.cycles_kept_out,
-            scene.cycles.caustics_reflective, scene.cycles.caustics_refractive)
-
-
-class _Reports(list):
-    def __call__(self, level, message):
-        self.append((next(iter(level)), message))
-
-    def of(self, level):
-        return [m for lv, m in self if lv == level]
 
 
 def _long_bake(scene, tmp_path):
@@ -52,23 +37,10 @@ def _wait_for_progress(bake, timeout=60.0):
     return bake.job.status()
 
 
-def _run_to_end(bake, timeout):
-    """Timer events until the modal job ends: (its result, the status texts it showed)."""
-    texts = set()
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        result = bake.step(bpy.context, 'TIMER')
-        if result != {'PASS_THROUGH'}:
-            return result, texts
-        texts.add(bake.text)
-        time.sleep(0.01)
-    return None, texts
-
-
 def test_worker_thread_is_cancelled_between_chunks(bake_op, tmp_path):
     """BakeJob runs the core in a thread, reports its progress and stops on cancel()."""
     core = bake_op._core()
-    scene = _mirror_scene(48, 32)
+    scene = mirror_scene(48, 32)
     _long_bake(scene, tmp_path)
     prep = bake_op.prepare(bpy.context, core)
     job = bake_op.BakeJob(core.bake, prep.data, prep.settings).start()
@@ -85,33 +57,33 @@ def test_worker_thread_is_cancelled_between_chunks(bake_op, tmp_path):
 
 
 def test_modal_bake_runs_to_the_end(bake_op, tmp_path):
-    scene = _mirror_scene(24, 16)
+    scene = mirror_scene(24, 16)
     s = scene.smbs_caustics
     s.method, s.spp, s.batches = "reference", 2, 4
     s.output_path = str(tmp_path / "layer.exr")
-    reports = _Reports()
+    reports = Reports()
     bake = bake_op.ModalBake(reports)
     assert bake.start(bpy.context)
     assert bake_op.running_bake(scene) is bake
     assert not bpy.ops.smbs.bake_caustics.poll()  # one bake per scene at a time
     assert bpy.ops.smbs.cancel_bake.poll()
     assert bake.step(bpy.context, 'MOUSEMOVE') == {'PASS_THROUGH'}  # the interface stays live
-    result, texts = _run_to_end(bake, 120)
+    result, texts = run_to_end(bake, 120)
     assert result == {'FINISHED'}, reports
     assert any("%" in t and "Esc to cancel" in t for t in texts), texts
     assert bake_op.running_bake(scene) is None and bpy.ops.smbs.bake_caustics.poll()
     assert (tmp_path / "layer.exr").is_file() and (tmp_path / "layer.json").is_file()
-    assert [im.name for im in _layer_images()] == [LAYER]
+    assert [im.name for im in layer_images()] == [LAYER]
     assert "Disk" in s.last_stats
     assert reports.of('INFO') and not reports.of('ERROR')
 
 
 @pytest.mark.parametrize("how", ["esc", "button"])
 def test_modal_bake_cancel_leaves_the_scene_as_it_was(bake_op, tmp_path, how):
-    scene = _mirror_scene(48, 32)
+    scene = mirror_scene(48, 32)
     _long_bake(scene, tmp_path)
-    before = _scene_state(scene)
-    reports = _Reports()
+    before = scene_state(scene)
+    reports = Reports()
     bake = bake_op.ModalBake(reports)
     assert bake.start(bpy.context)
     assert bake.step(bpy.context, 'TIMER') == {'PASS_THROUGH'}
@@ -125,25 +97,25 @@ def test_modal_bake_cancel_leaves_the_scene_as_it_was(bake_op, tmp_path, how):
     assert result == {'CANCELLED'}
     assert job.wait(30.0) and job.result is None
     assert reports.of('WARNING') == ["Caustics bake cancelled; nothing was changed"]
-    assert _scene_state(scene) == before
+    assert scene_state(scene) == before
     assert not (tmp_path / "layer.exr").exists()
     assert bake_op.running_bake(scene) is None
 
 
 def test_modal_bake_reports_scene_errors(bake_op, tmp_path):
     """An error found by the core in the worker thread (here: a film too big) reaches the reports."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     scene.render.resolution_x, scene.render.resolution_y = 16000, 9000
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
-    before = _scene_state(scene)
-    reports = _Reports()
+    before = scene_state(scene)
+    reports = Reports()
     bake = bake_op.ModalBake(reports)
     assert bake.start(bpy.context)
     assert bake.job.wait(60.0)
     assert bake.step(bpy.context, 'TIMER') == {'CANCELLED'}
     (error,) = reports.of('ERROR')
     assert "caustic layer needs about" in error, reports
-    assert _scene_state(scene) == before and bake_op.running_bake(scene) is None
+    assert scene_state(scene) == before and bake_op.running_bake(scene) is None
 
 
 def test_unregister_stops_a_running_bake(empty_bpy, tmp_path):
@@ -151,9 +123,9 @@ def test_unregister_stops_a_running_bake(empty_bpy, tmp_path):
     extension.register()
     try:
         bake_op = importlib.import_module(extension.__name__ + ".operators.bake")
-        scene = _mirror_scene(48, 32)
+        scene = mirror_scene(48, 32)
         _long_bake(scene, tmp_path)
-        bake = bake_op.ModalBake(_Reports())
+        bake = bake_op.ModalBake(Reports())
         assert bake.start(bpy.context)
     finally:
         extension.unregister()

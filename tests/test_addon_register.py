@@ -7,18 +7,19 @@ import math
 import numpy as np
 import pytest
 
-from conftest import load_extension
+from testkit.extension import load_extension
 
 bpy = pytest.importorskip("bpy")
 
-from blend_helpers import image_pixels as _pixels, layer_image as _layer, our_nodes as _our_nodes, users_compositor  # noqa: E402,E501
+from testkit.addon import (LAYER, Layout, draw_all, image_pixels, layer_image, layer_images,  # noqa: E402
+                           our_nodes, users_compositor)
+from testkit.blend import material, mirror_scene, plane  # noqa: E402
 
 # Operators and panels show up in bpy.types; property groups do not.
 TYPES = ("SMBS_OT_bake_caustics", "SMBS_OT_cancel_bake", "SMBS_OT_remove_caustic_layer",
          "SMBS_PT_caustics", "SMBS_UL_participants", "SMBS_PT_caustics_participants",
          "SMBS_PT_caustics_advanced", "SMBS_PT_caustics_statistics")
 OPERATORS = ("bake_caustics", "cancel_bake", "remove_caustic_layer", "show_plan")
-LAYER = "SMBS Caustics"
 
 
 def _handlers():
@@ -87,7 +88,7 @@ def test_register_unregister_leaves_nothing(empty_bpy, tmp_path, capfd):
         try:
             _assert_registered(extension)
             assert not _cli_command_free(capfd), "smbs_bake is not registered"
-            scene = _mirror_scene(12, 8)
+            scene = mirror_scene(12, 8)
             s = scene.smbs_caustics
             s.method, s.spp, s.batches = "reference", 1, 2
             s.output_path = str(tmp_path / f"layer{round_}.exr")
@@ -217,74 +218,12 @@ def test_capped_trials_show_what_they_leave_out(addon):
     assert dict(panels.summarize_stats({"trials": trials}))["Bernoulli Trials"] == "mean 2.36, max 8, capped 0"
 
 
-_ICONS = None
-
-
-def _valid_icon(icon):
-    global _ICONS
-    if _ICONS is None:
-        _ICONS = set(bpy.types.UILayout.bl_rna.functions["prop"].parameters["icon"].enum_items.keys())
-    return icon in _ICONS
-
-
-class _Layout:
-    """Stands in for UILayout when calling a panel's draw(): checks every prop(), operator(),
-    icon and list it is given."""
-
-    def __init__(self, drawn):
-        self.drawn = drawn
-
-    def _sub(self, *args, **kwargs):
-        return _Layout(self.drawn)
-
-    column = row = split = box = _sub
-
-    def _icon(self, kwargs):
-        assert _valid_icon(kwargs.get("icon", "NONE")), f"no icon {kwargs['icon']!r}"
-
-    def prop(self, data, name, **kwargs):
-        assert name in data.bl_rna.properties, f"no property {name!r}"
-        self._icon(kwargs)
-        self.drawn.append(name)
-
-    def operator(self, idname, **kwargs):
-        module, name = idname.split(".")
-        assert name in dir(getattr(bpy.ops, module)), f"no operator {idname!r}"
-        self._icon(kwargs)
-        self.drawn.append(idname)
-
-    def label(self, text="", **kwargs):
-        self._icon(kwargs)
-        self.drawn.append(text)
-
-    def progress(self, factor=0.0, type='BAR', text=""):
-        assert 0.0 <= factor <= 1.0
-        self.drawn.append(("progress", text))
-
-    def template_list(self, list_type, list_id, dataptr, propname, active_dataptr, active_propname,
-                      **kwargs):
-        assert hasattr(bpy.types, list_type), f"no UIList {list_type!r}"
-        assert propname in dataptr.bl_rna.properties
-        assert active_propname in active_dataptr.bl_rna.properties
-        self.drawn.append(list_type)
-
-
-def _draw_all(addon, scene, drawn):
-    from types import SimpleNamespace
-
-    context = SimpleNamespace(scene=scene, region=None, preferences=bpy.context.preferences)
-    for panel in addon.ui.panels.classes:
-        if issubclass(panel, bpy.types.Panel):
-            panel.draw(SimpleNamespace(layout=_Layout(drawn)), context)
-    return context
-
-
 @pytest.mark.parametrize("last_stats", ["", '{"time_s": 2.0, "lights": {"Key": {"rays": 10}}}'])
 def test_panels_draw(empty_bpy, addon, last_stats):
     scene = bpy.context.scene
     scene.smbs_caustics.last_stats = last_stats
     drawn = []
-    _draw_all(addon, scene, drawn)
+    draw_all(addon, scene, drawn)
     assert {"method", "estimator", "max_trials", "spp", "time_budget", "noise_target", "stop_rule", "seed",
             "use_cycles_flags",
             "keep_out_of_cycles", "output_path", "smbs.bake_caustics", "batches", "threads", "guide",
@@ -298,7 +237,7 @@ def test_panels_draw(empty_bpy, addon, last_stats):
     scene.smbs_caustics.estimator = "biased"
     scene.smbs_caustics.cycles_note = "The layer holds ...\nCycles' own caustics are off"
     drawn = []
-    _draw_all(addon, scene, drawn)
+    draw_all(addon, scene, drawn)
     assert "trials" in drawn and "max_trials" not in drawn
     assert "The layer holds ..." in drawn and "Cycles' own caustics are off" in drawn
 
@@ -307,7 +246,7 @@ def test_participants_list_shows_cycles_flags(empty_bpy, addon):
     """The list holds the scene's renderable objects and lights, each with Cycles' own flags."""
     from types import SimpleNamespace
 
-    scene = _mirror_scene()
+    scene = mirror_scene()
     hidden = bpy.data.objects.new("Hidden", bpy.data.meshes.new("Hidden"))
     hidden.hide_render = True
     scene.collection.objects.link(hidden)
@@ -319,7 +258,7 @@ def test_participants_list_shows_cycles_flags(empty_bpy, addon):
     assert shown == {"Floor", "Mirror", "Disk"}
     for ob in (scene.objects[name] for name in shown):
         drawn = []
-        ul.draw_item(None, bpy.context, _Layout(drawn), scene, ob, 0, None, "", 0)
+        ul.draw_item(None, bpy.context, Layout(drawn), scene, ob, 0, None, "", 0)
         expected = (["is_caustics_light"] if ob.type == 'LIGHT'
                     else ["is_caustics_caster", "is_caustics_receiver"])
         assert [d for d in drawn if d.startswith("is_caustics")] == expected
@@ -328,20 +267,11 @@ def test_participants_list_shows_cycles_flags(empty_bpy, addon):
     for world, rows in ((None, []), ("Sky", ["Sky", "is_caustics_light"])):
         scene.world = world and bpy.data.worlds.new(world)
         drawn = []
-        panel.draw(SimpleNamespace(layout=_Layout(drawn)), SimpleNamespace(scene=scene))
+        panel.draw(SimpleNamespace(layout=Layout(drawn)), SimpleNamespace(scene=scene))
         assert [d for d in drawn if d in ("Sky", "is_caustics_light")] == rows
 
 
 # ---------------------------------------------------------------------------- compositor
-
-
-@pytest.fixture
-def composite(empty_bpy):
-    return importlib.import_module(load_extension().__name__ + ".smbs_addon.blender.composite")
-
-
-def _layer_images():
-    return [im for im in bpy.data.images if im.name.startswith(LAYER)]
 
 
 def _source(socket):
@@ -352,18 +282,18 @@ def _source(socket):
 def test_apply_layer_twice_makes_one_image_and_one_group(composite):
     scene = bpy.context.scene
     assert scene.compositing_node_group is None
-    composite.apply_layer(scene, _layer(value=1.0))
-    img = composite.apply_layer(scene, _layer(value=2.0))
+    composite.apply_layer(scene, layer_image(value=1.0))
+    img = composite.apply_layer(scene, layer_image(value=2.0))
 
-    assert [im.name for im in _layer_images()] == [LAYER] and img.name == LAYER
+    assert [im.name for im in layer_images()] == [LAYER] and img.name == LAYER
     assert img.is_float and img.colorspace_settings.name == "Linear Rec.709"
-    px = _pixels(img)  # Blender's rows run bottom to top
+    px = image_pixels(img)  # Blender's rows run bottom to top
     assert np.allclose(px[0, :, :3], (0, 0, 2)) and np.allclose(px[-1, :, :3], (2, 0, 0))
     assert np.all(px[..., 3] == 1.0)
 
     tree = scene.compositing_node_group
     assert tree is not None and len(bpy.data.node_groups) == 1
-    (add,), (image_node,), (rl,) = (_our_nodes(tree, r) for r in ("add", "image", "render_layers"))
+    (add,), (image_node,), (rl,) = (our_nodes(tree, r) for r in ("add", "image", "render_layers"))
     assert image_node.image == img
     (out,) = [n for n in tree.nodes if n.bl_idname == "NodeGroupOutput"]
     assert _source(out.inputs[0]) == add
@@ -372,7 +302,7 @@ def test_apply_layer_twice_makes_one_image_and_one_group(composite):
 
     composite.remove_layer(scene)
     assert scene.compositing_node_group is None
-    assert len(bpy.data.node_groups) == 0 and not _layer_images()
+    assert len(bpy.data.node_groups) == 0 and not layer_images()
 
 
 def test_apply_layer_joins_the_users_compositor(composite):
@@ -380,25 +310,25 @@ def test_apply_layer_joins_the_users_compositor(composite):
     tree, rl, blur, out = users_compositor(scene)
     mine = {n.name for n in tree.nodes}
 
-    composite.apply_layer(scene, _layer())
-    composite.apply_layer(scene, _layer(value=3.0))
+    composite.apply_layer(scene, layer_image())
+    composite.apply_layer(scene, layer_image(value=3.0))
 
     assert scene.compositing_node_group == tree and len(bpy.data.node_groups) == 1
-    assert len(_layer_images()) == 1
-    (add,), (image_node,) = _our_nodes(tree, "add"), _our_nodes(tree, "image")
-    assert not _our_nodes(tree, "render_layers")
+    assert len(layer_images()) == 1
+    (add,), (image_node,) = our_nodes(tree, "add"), our_nodes(tree, "image")
+    assert not our_nodes(tree, "render_layers")
     assert {n.name for n in tree.nodes} == mine | {add.name, image_node.name}
     assert _source(blur.inputs["Image"]) == rl  # the user's link is untouched
     assert _source(out.inputs[0]) == add
     a, b, _ = composite._add_sockets(add)
     assert _source(a) == blur and _source(b) == image_node
-    assert np.allclose(_pixels(image_node.image)[-1, :, :3], (3, 0, 0))
+    assert np.allclose(image_pixels(image_node.image)[-1, :, :3], (3, 0, 0))
 
     composite.remove_layer(scene)
     assert scene.compositing_node_group == tree
     assert {n.name for n in tree.nodes} == mine
     assert _source(out.inputs[0]) == blur and _source(blur.inputs["Image"]) == rl
-    assert not _layer_images()
+    assert not layer_images()
 
 
 def test_apply_layer_feeds_an_unlinked_output_from_render_layers(composite):
@@ -407,8 +337,8 @@ def test_apply_layer_feeds_an_unlinked_output_from_render_layers(composite):
     tree.interface.new_socket(name="Image", in_out='OUTPUT', socket_type="NodeSocketColor")
     out = tree.nodes.new("NodeGroupOutput")
     scene.compositing_node_group = tree
-    composite.apply_layer(scene, _layer())
-    (add,), (rl,) = _our_nodes(tree, "add"), _our_nodes(tree, "render_layers")
+    composite.apply_layer(scene, layer_image())
+    (add,), (rl,) = our_nodes(tree, "add"), our_nodes(tree, "render_layers")
     assert _source(out.inputs[0]) == add and _source(composite._add_sockets(add)[0]) == rl
     composite.remove_layer(scene)
     assert [n.name for n in tree.nodes] == [out.name] and not out.inputs[0].is_linked
@@ -417,15 +347,15 @@ def test_apply_layer_feeds_an_unlinked_output_from_render_layers(composite):
 def test_apply_layer_reads_the_written_exr(composite, tmp_path):
     imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.io.exr")
     path = tmp_path / "caustics.exr"
-    layer = _layer(value=5.0)
+    layer = layer_image(value=5.0)
     imageio.write_exr(path, layer, {"method": "test"})
     img = composite.apply_layer(bpy.context.scene, layer, filepath=str(path))
     assert img.source == 'FILE' and bpy.path.abspath(img.filepath) == str(path)
     assert not img.packed_file
-    assert np.allclose(_pixels(img)[::-1, :, :3], layer)
+    assert np.allclose(image_pixels(img)[::-1, :, :3], layer)
     # Without a file the next bake is packed into the same datablock name.
-    img = composite.apply_layer(bpy.context.scene, _layer(value=1.0))
-    assert [im.name for im in _layer_images()] == [LAYER] and img.packed_file
+    img = composite.apply_layer(bpy.context.scene, layer_image(value=1.0))
+    assert [im.name for im in layer_images()] == [LAYER] and img.packed_file
 
 
 def test_cycles_render_shows_the_layer(composite, tmp_path):
@@ -467,36 +397,13 @@ def test_output_path_resolution(empty_bpy, addon, tmp_path, monkeypatch):
 
 
 
-def _mirror_scene(width=24, height=16):
-    """A disk light, a mirror tilted 45 degrees, a floor: a bright reflected spot."""
-    scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = width, height
-    scene.render.resolution_percentage = 100
-
-    from blend_helpers import material, plane
-
-    plane(scene, "Floor", 10, material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0), (0, 0, 0))
-    plane(scene, "Mirror", 1.5, material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0),
-          (0, 0, 1.5), (0, math.radians(-135), 0))
-    light = bpy.data.lights.new("Disk", 'AREA')
-    light.shape, light.size, light.energy = 'DISK', 0.5, 100.0
-    ob = bpy.data.objects.new("Disk", light)
-    ob.location, ob.rotation_euler = (-2, 0, 1.5), (0, math.radians(-90), 0)
-    scene.collection.objects.link(ob)
-    cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-    cam.location, cam.rotation_euler = (0, -6, 5), (math.radians(50), 0, 0)
-    scene.collection.objects.link(cam)
-    scene.camera = cam
-    return scene
-
-
 def test_bake_operator_end_to_end(empty_bpy, addon, tmp_path, capsys):
     try:
         importlib.import_module(addon.__name__ + ".smbs_addon.baking.bake")
         importlib.import_module(addon.__name__ + ".smbs_addon.blender.export")
     except ImportError as e:
         pytest.skip(f"the render core cannot be imported yet: {e}")
-    scene = _mirror_scene()
+    scene = mirror_scene()
     settings = scene.smbs_caustics
     settings.method, settings.spp, settings.seed = "reference", 1, 3
     settings.output_path = str(tmp_path / "layer.exr")
@@ -512,25 +419,25 @@ def test_bake_operator_end_to_end(empty_bpy, addon, tmp_path, capsys):
     assert stats and "Disk" in stats.get("lights", {"Disk": 1})
     img = bpy.data.images[LAYER]
     assert img.size[:] == (24, 16) and img.source == 'FILE' and not img.packed_file
-    assert _pixels(img)[..., :3].max() > 0.0, "the mirror should throw a caustic on the floor"
-    assert _our_nodes(scene.compositing_node_group, "image")[0].image == img
+    assert image_pixels(img)[..., :3].max() > 0.0, "the mirror should throw a caustic on the floor"
+    assert our_nodes(scene.compositing_node_group, "image")[0].image == img
 
     assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}  # a re-bake reuses everything
-    assert len(_layer_images()) == 1 and len(bpy.data.node_groups) == 1
+    assert len(layer_images()) == 1 and len(bpy.data.node_groups) == 1
 
 
 def test_show_plan_before_baking(empty_bpy, addon, tmp_path):
     """Show Plan: the plan in words in the panel, nothing baked, nothing else changed."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     assert bpy.ops.smbs.show_plan() == {'FINISHED'}
     assert scene.smbs_caustics.plan_text.splitlines() == ["Disk -> Mirror (reflection) -> Floor",
                                                           "Disk -> diffuse -> Mirror -> Floor (after a diffuse bounce)"]
-    assert not _layer_images() and scene.smbs_caustics.last_stats == ""
+    assert not layer_images() and scene.smbs_caustics.last_stats == ""
 
 
 def test_bake_operator_with_nothing_to_bake(empty_bpy, addon, tmp_path):
     """No light: not a failure; an all-zero layer, a warning saying why, and the panel's plan."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     bpy.data.objects.remove(scene.objects["Disk"])
     settings = scene.smbs_caustics
     settings.spp, settings.output_path = 1, str(tmp_path / "layer.exr")
@@ -541,7 +448,7 @@ def test_bake_operator_with_nothing_to_bake(empty_bpy, addon, tmp_path):
     assert panels.plan_lines(stats) == ["Nothing to bake: scene 'Scene' has no light. "
                                                "The caustic layer is all zero."]
     img = bpy.data.images[LAYER]
-    assert img.size[:] == (24, 16) and not _pixels(img)[..., :3].any()
+    assert img.size[:] == (24, 16) and not image_pixels(img)[..., :3].any()
 
 
 def test_bake_operator_reports_scene_errors(empty_bpy, addon, tmp_path):
@@ -556,12 +463,12 @@ def test_bake_operator_reports_scene_errors(empty_bpy, addon, tmp_path):
 
 
 def test_bake_operator_error_names_the_object(empty_bpy, addon, tmp_path):
-    scene = _mirror_scene()
+    scene = mirror_scene()
     scene.camera.data.type = 'PANO'
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     with pytest.raises(RuntimeError, match="camera 'Camera': panoramic cameras are not supported"):
         bpy.ops.smbs.bake_caustics()
-    assert not (tmp_path / "layer.exr").exists() and not _layer_images()
+    assert not (tmp_path / "layer.exr").exists() and not layer_images()
 
 
 # ---------------------------------------------------------------------------- nothing counted twice
@@ -586,7 +493,7 @@ def _bake(scene, tmp_path, **settings):
 def test_covered_scene_keeps_caustics_out_of_cycles(empty_bpy, addon, tmp_path):
     """No flags (AUTO): the bake covers the mirror, the floor and the light, so Cycles' own
     caustics go off; Remove Caustic Layer turns them back on. No flag of the user's changes."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     flags = _flags(scene)
     cycles = scene.cycles
     assert cycles.caustics_reflective and cycles.caustics_refractive
@@ -601,7 +508,7 @@ def test_covered_scene_keeps_caustics_out_of_cycles(empty_bpy, addon, tmp_path):
     assert bpy.ops.smbs.remove_caustic_layer() == {'FINISHED'}
     assert cycles.caustics_reflective and cycles.caustics_refractive
     assert not s.cycles_kept_out and s.cycles_note == ""
-    assert not _layer_images() and scene.compositing_node_group is None
+    assert not layer_images() and scene.compositing_node_group is None
     assert _flags(scene) == flags
 
 
@@ -609,15 +516,8 @@ def test_a_mesh_light_is_covered_by_the_layer(empty_bpy, addon, tmp_path):
     """The mirror scene lit by an Emission panel beside its lamp: the panel is a mesh light of the layer,
     so the layer covers every light and Cycles' caustics go off (an emissive material kept them on, the
     note saying 'the layer has no mesh lights', before)."""
-    from blend_helpers import plane
-
-    scene = _mirror_scene()
-    glow = bpy.data.materials.new("Glow")
-    nt = glow.node_tree
-    nt.nodes.clear()
-    em = nt.nodes.new("ShaderNodeEmission")
-    em.inputs["Strength"].default_value = 20.0
-    nt.links.new(em.outputs[0], nt.nodes.new("ShaderNodeOutputMaterial").inputs["Surface"])
+    scene = mirror_scene()
+    glow = material("Glow", "ShaderNodeEmission", Strength=20.0)
     plane(scene, "Panel", 0.5, glow, (-2, 0.8, 1.5), (0, math.radians(-90), 0))
     s = _bake(scene, tmp_path)
     stats = json.loads(s.last_stats)
@@ -631,7 +531,7 @@ def test_the_last_bakes_warnings_stay_in_the_panel(empty_bpy, addon, tmp_path):
     scroll away, the first few listed; a clean re-bake and Remove Caustic Layer clear them."""
     from types import SimpleNamespace
 
-    scene = _mirror_scene()
+    scene = mirror_scene()
     mirror = bpy.data.materials["Mirror"].node_tree.nodes["Glossy BSDF"]
     mirror.inputs["Roughness"].default_value = 0.3
     mirror.distribution = "BECKMANN"
@@ -640,12 +540,12 @@ def test_the_last_bakes_warnings_stay_in_the_panel(empty_bpy, addon, tmp_path):
         "material 'Mirror': the Beckmann distribution of 'Glossy BSDF' is baked as GGX (its blur of the caustic a "
         "little different from Cycles')"]
     drawn = []
-    _draw_all(addon, scene, drawn)
+    draw_all(addon, scene, drawn)
     assert "Last bake: 1 warning" in drawn and any("Beckmann" in str(d) for d in drawn)
     panels = addon.ui.panels
     many = "\n".join(f"warning {i}" for i in range(panels.WARNINGS_SHOWN + 3))
     drawn = []
-    panels._draw_warnings(_Layout(drawn), SimpleNamespace(region=None), many)
+    panels._draw_warnings(Layout(drawn), SimpleNamespace(region=None), many)
     assert f"Last bake: {panels.WARNINGS_SHOWN + 3} warnings" in drawn and "and 3 more (Info editor)" in drawn
     assert f"warning {panels.WARNINGS_SHOWN}" not in drawn
     mirror.inputs["Roughness"].default_value = 0.0
@@ -657,7 +557,7 @@ def test_the_last_bakes_warnings_stay_in_the_panel(empty_bpy, addon, tmp_path):
 
 
 def test_users_switches_come_back_as_they_were(empty_bpy, addon, tmp_path):
-    scene = _mirror_scene()
+    scene = mirror_scene()
     scene.cycles.caustics_reflective, scene.cycles.caustics_refractive = True, False
     _bake(scene, tmp_path)
     assert not scene.cycles.caustics_reflective
@@ -668,7 +568,7 @@ def test_users_switches_come_back_as_they_were(empty_bpy, addon, tmp_path):
 def test_partial_plan_leaves_cycles_alone_and_says_why(empty_bpy, addon, tmp_path):
     """A second, unflagged mirror while the first is flagged (AUTO honours caster flags): the layer
     does not cover it, so Cycles keeps its caustics and the note says what is counted where."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     mirror = scene.objects["Mirror"]
     other = mirror.copy()
     other.name = "Mirror2"
@@ -705,7 +605,7 @@ def _sky(scene, value):
 def test_a_bright_world_is_a_light_of_the_layer(empty_bpy, addon, tmp_path):
     """A world of constant colour bright enough that its light through the mirror shows is baked
     as a light of its own (the layer then covers every light), so Cycles' caustics go off."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     _sky(scene, 0.5)
     s = _bake(scene, tmp_path)
     stats = json.loads(s.last_stats)
@@ -719,7 +619,7 @@ def test_a_bright_world_is_a_light_of_the_layer(empty_bpy, addon, tmp_path):
 def test_a_faint_world_does_not_keep_cycles_caustics_on(empty_bpy, addon, tmp_path):
     """A world of constant grey whose caustic can be at most 1% of the lamps' by the plan's pilots
     is not baked (plan.WORLD_MIN_SHARE), it is said so, and Cycles' caustics go off as without it."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     _sky(scene, 0.0005)
     s = _bake(scene, tmp_path)
     stats = json.loads(s.last_stats)
@@ -734,7 +634,7 @@ def test_an_unflagged_world_beside_flagged_lights_is_left_to_cycles(empty_bpy, a
     """Cycles' flags select the lights once one is flagged (AUTO): a bright world left unflagged
     is not baked, and Cycles keeps its caustics to render it; the note says how to change that.
     Under 1% of the layer's caustic at most (its colour x the floor's 0.8) it is dropped instead."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     scene.objects["Disk"].data.cycles.is_caustics_light = True
     _sky(scene, 0.5)
     s = _bake(scene, tmp_path)
@@ -752,7 +652,7 @@ def test_a_world_the_layer_cannot_read_is_named(empty_bpy, addon, tmp_path):
     """A Sky Texture world is black to the layer (warned at export): Cycles' caustics still go off
     (keeping them on would count the lamp's caustic twice), and the note names what neither
     renders then."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     _sky(scene, 0.5)
     nt = scene.world.node_tree
     sky = nt.nodes.new("ShaderNodeTexSky")
@@ -765,7 +665,7 @@ def test_a_world_the_layer_cannot_read_is_named(empty_bpy, addon, tmp_path):
 
 
 def test_keep_out_of_cycles_off(empty_bpy, addon, tmp_path):
-    scene = _mirror_scene()
+    scene = mirror_scene()
     s = _bake(scene, tmp_path, keep_out_of_cycles=False)
     assert scene.cycles.caustics_reflective and not s.cycles_kept_out
     assert "Keep Out of Cycles is off" in s.cycles_note
@@ -795,7 +695,7 @@ def _button_then_prepared(addon, settings, unsaid):
     then the modal bake's start: the scene it prepared (cancelled again at once)."""
     assert bpy.ops.smbs.bake_caustics() == {'FINISHED'}
     assert not any(word in settings.bake_warnings for word in unsaid), settings.bake_warnings
-    assert _pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
+    assert image_pixels(bpy.data.images[LAYER])[..., :3].max() > 0.0
     bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
     bake = bake_op.ModalBake(lambda level, message: None)
     assert bake.start(bpy.context)
@@ -809,7 +709,7 @@ def test_bake_operator_bakes_a_bumped_mirror(empty_bpy, addon, tmp_path):
     """The button on a mirror whose Normal is a Bump node of a Noise Texture: the export's own Cycles
     bake of the Height (bump.py) runs inside the operator, synchronous here and from the modal
     operator's start, and leaves no scene, object, mesh or material of its own behind."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     settings = _bumped(scene, "Mirror", "Glossy BSDF", tmp_path)
     before = _data()
     sc = _button_then_prepared(addon, settings, ("Bump", "could not be baked"))
@@ -822,7 +722,7 @@ def test_bake_operator_bakes_a_bumped_floor(empty_bpy, addon, tmp_path):
     """The button on a floor whose Diffuse BSDF's Normal is a Bump node of a Noise Texture: the
     export's render of the camera's view (cycles_passes.view_maps) runs inside the operator and leaves no
     scene, object, mesh, material or image of its own behind; the floor is read as bumped."""
-    scene = _mirror_scene()
+    scene = mirror_scene()
     settings = _bumped(scene, "Floor", "Diffuse BSDF", tmp_path)
     before = _data()
     sc = _button_then_prepared(addon, settings, ("Floor", "could not be rendered"))

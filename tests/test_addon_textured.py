@@ -8,21 +8,13 @@ import time
 import numpy as np
 import pytest
 
-from conftest import load_extension
-from test_addon_register import _mirror_scene
-
 bpy = pytest.importorskip("bpy")
 
-from blend_helpers import image_pixels as _pixels, layer_image as _layer, our_nodes as _our_nodes, users_compositor  # noqa: E402,E501
+from testkit.addon import ALBEDO, LAYER, image_pixels, layer_image, our_nodes, users_compositor  # noqa: E402
+from testkit.blend import material, mirror_scene, plane  # noqa: E402
+from testkit.extension import load_extension  # noqa: E402
 
-LAYER = "SMBS Caustics"
-ALBEDO = "SMBS Caustics per Albedo"
 ALBEDO_ROLES = ("albedo_image", "diffuse_color", "multiply", "albedo_add")
-
-
-@pytest.fixture
-def composite(empty_bpy):
-    return importlib.import_module(load_extension().__name__ + ".smbs_addon.blender.composite")
 
 
 def _per_albedo(h=4, w=6, value=0.2):
@@ -32,7 +24,7 @@ def _per_albedo(h=4, w=6, value=0.2):
 
 
 def _one(tree, role):
-    (node,) = _our_nodes(tree, role)
+    (node,) = our_nodes(tree, role)
     return node
 
 
@@ -78,13 +70,13 @@ def test_per_albedo_is_multiplied_by_the_diffuse_color_pass(composite):
     scene = bpy.context.scene
     vl = scene.view_layers[0]
     assert not vl.use_pass_diffuse_color
-    img = composite.apply_layer(scene, _layer(), per_albedo=_per_albedo())
+    img = composite.apply_layer(scene, layer_image(), per_albedo=_per_albedo())
 
     assert img.name == LAYER and _images() == [LAYER, ALBEDO]
     albedo = bpy.data.images[ALBEDO]
     assert albedo.get("smbs_caustics") == ALBEDO and albedo.is_float and albedo.packed_file
     assert albedo.colorspace_settings.name == "Linear Rec.709"
-    px = _pixels(albedo)  # Blender's rows run bottom to top
+    px = image_pixels(albedo)  # Blender's rows run bottom to top
     assert np.allclose(px[-1, :, :3], (0, 0.2, 0)) and np.allclose(px[0, :, :3], 0.2)
 
     tree = scene.compositing_node_group
@@ -106,27 +98,27 @@ def test_per_albedo_updates_in_place_and_goes_again(composite, tmp_path):
     scene = bpy.context.scene
     tree = _users_tree(scene)
     mine, links = {n.name for n in tree.nodes}, _links(tree)
-    composite.apply_layer(scene, _layer(), per_albedo=_per_albedo())
+    composite.apply_layer(scene, layer_image(), per_albedo=_per_albedo())
     nodes = {n.name for n in tree.nodes}
     assert len(nodes) == len(mine) + 6
 
     # Again, from the written EXRs this time: the same nodes, one image of each, new pixels.
     imageio = importlib.import_module(load_extension().__name__ + ".smbs_addon.io.exr")
     path, albedo_path = tmp_path / "caustics.exr", tmp_path / "caustics_per_albedo.exr"
-    imageio.write_exr(path, _layer(value=3.0))
+    imageio.write_exr(path, layer_image(value=3.0))
     imageio.write_exr(albedo_path, _per_albedo(value=0.7))
-    composite.apply_layer(scene, _layer(value=3.0), filepath=str(path), per_albedo=_per_albedo(value=0.7),
+    composite.apply_layer(scene, layer_image(value=3.0), filepath=str(path), per_albedo=_per_albedo(value=0.7),
                           per_albedo_filepath=str(albedo_path))
     assert {n.name for n in tree.nodes} == nodes and _images() == [LAYER, ALBEDO]
     _assert_albedo_chain(composite, tree, scene)
     albedo = bpy.data.images[ALBEDO]
     assert albedo.source == 'FILE' and not albedo.packed_file
     assert bpy.path.abspath(albedo.filepath) == str(albedo_path)
-    assert np.allclose(_pixels(albedo)[::-1, :, :3], _per_albedo(value=0.7))
+    assert np.allclose(image_pixels(albedo)[::-1, :, :3], _per_albedo(value=0.7))
     assert scene.view_layers[0].use_pass_diffuse_color
 
     # Without per_albedo: the per-albedo nodes and image go, the pass is off again.
-    composite.apply_layer(scene, _layer())
+    composite.apply_layer(scene, layer_image())
     add, image_node = _one(tree, "add"), _one(tree, "image")
     assert {n.name for n in tree.nodes} == mine | {add.name, image_node.name}
     assert _link(composite._add_sockets(add)[1]).node == image_node
@@ -134,9 +126,9 @@ def test_per_albedo_updates_in_place_and_goes_again(composite, tmp_path):
     assert composite.diffuse_color_switched_on(scene) is None
 
     # Back again, then a user deleting one of our nodes: rebuilt, never duplicated.
-    composite.apply_layer(scene, _layer(), per_albedo=_per_albedo())
+    composite.apply_layer(scene, layer_image(), per_albedo=_per_albedo())
     tree.nodes.remove(_one(tree, "multiply"))
-    composite.apply_layer(scene, _layer(), per_albedo=_per_albedo())
+    composite.apply_layer(scene, layer_image(), per_albedo=_per_albedo())
     assert len(tree.nodes) == len(nodes) and _images() == [LAYER, ALBEDO]
     _assert_albedo_chain(composite, tree, scene)
 
@@ -152,21 +144,21 @@ def test_remove_layer_switches_off_only_the_pass_it_switched_on(composite):
     tree = _users_tree(scene)
     mine, links = {n.name for n in tree.nodes}, _links(tree)
 
-    composite.apply_layer(scene, _layer(), per_albedo=_per_albedo())
+    composite.apply_layer(scene, layer_image(), per_albedo=_per_albedo())
     assert composite.diffuse_color_switched_on(scene) is None  # it was on already
     _assert_albedo_chain(composite, tree, scene)
     composite.remove_layer(scene)
     assert {n.name for n in tree.nodes} == mine and _links(tree) == links
     assert first.use_pass_diffuse_color  # the user's pass stays on
-    composite.apply_layer(scene, _layer(), per_albedo=_per_albedo())
-    composite.apply_layer(scene, _layer())
+    composite.apply_layer(scene, layer_image(), per_albedo=_per_albedo())
+    composite.apply_layer(scene, layer_image())
     assert first.use_pass_diffuse_color
 
     # The first view layer not rendered: the one that is; our pass goes off with the layer.
     composite.remove_layer(scene)
     first.use = False
     second = scene.view_layers.new("Second")
-    composite.apply_layer(scene, _layer(), per_albedo=_per_albedo())
+    composite.apply_layer(scene, layer_image(), per_albedo=_per_albedo())
     _assert_albedo_chain(composite, tree, scene, view_layer="Second")
     assert second.use_pass_diffuse_color and composite.diffuse_color_switched_on(scene) == "Second"
     composite.remove_layer(scene)
@@ -178,8 +170,6 @@ def test_remove_layer_switches_off_only_the_pass_it_switched_on(composite):
 def test_cycles_render_adds_per_albedo_times_diffuse_color(composite, tmp_path):
     """render + layer + per_albedo x Diffuse Color, pixel by pixel: a flat diffuse plane of
     colour 0.5 under a grey sky, seen from above by an orthographic camera."""
-    from blend_helpers import material, plane
-
     scene = bpy.context.scene
     scene.render.engine = 'CYCLES'
     scene.cycles.samples, scene.cycles.use_denoising = 4, False
@@ -207,7 +197,7 @@ def test_cycles_render_adds_per_albedo_times_diffuse_color(composite, tmp_path):
 
     plain = render("plain.exr", False)  # the same seed: the same render
     assert plain.min() > 0.05
-    layer, per_albedo = _layer(8, 8), _per_albedo(8, 8)
+    layer, per_albedo = layer_image(8, 8), _per_albedo(8, 8)
     composite.apply_layer(scene, layer, per_albedo=per_albedo)
     composited = render("composited.exr", True)
     assert np.allclose(composited, plain + layer + per_albedo * 0.5, atol=1e-5)
@@ -224,12 +214,12 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     bake_op = importlib.import_module(addon.__name__ + ".operators.bake")
     core_bake = importlib.import_module(addon.__name__ + ".smbs_addon.baking.result")
     imageio = importlib.import_module(addon.__name__ + ".smbs_addon.io.exr")
-    scene = _mirror_scene(6, 4)
+    scene = mirror_scene(6, 4)
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     core = bake_op._core()
     prep = bake_op.prepare(bpy.context, core)
     stats = {"time_s": 1.0, "rays": 10, "noise": {"relative_noise": 0.1}}
-    image, textured = _layer(value=2.0), _layer(value=0.5)
+    image, textured = layer_image(value=2.0), layer_image(value=0.5)
     result = core_bake.BakeResult(image=image, variance=np.zeros_like(image), stats=stats,
                                   textured=textured, per_albedo=_per_albedo())
     reports = []
@@ -245,8 +235,8 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     img, albedo = bpy.data.images[LAYER], bpy.data.images[ALBEDO]
     assert img.source == albedo.source == 'FILE' and not albedo.packed_file
     # Blender reads the colour of the EXR, not its extra channels (std, per_albedo_R, ...)
-    assert np.allclose(_pixels(img)[::-1, :, :3], image - textured)
-    assert np.allclose(_pixels(albedo)[::-1, :, :3], _per_albedo())
+    assert np.allclose(image_pixels(img)[::-1, :, :3], image - textured)
+    assert np.allclose(image_pixels(albedo)[::-1, :, :3], _per_albedo())
     assert bpy.path.abspath(albedo.filepath) == str(tmp_path / "layer_per_albedo.exr")
     _assert_albedo_chain(importlib.import_module(addon.__name__ + ".smbs_addon.blender.composite"),
                          scene.compositing_node_group, scene)
@@ -264,14 +254,14 @@ def test_finish_writes_and_composites_the_per_albedo_image(empty_bpy, addon, tmp
     assert bake_op.finish(scene, prep, plain, core, report)
     assert np.allclose(imageio.read_exr(tmp_path / "layer.exr")[0][..., :3], image)
     assert _images() == [LAYER] and not scene.view_layers[0].use_pass_diffuse_color
-    assert not any(_our_nodes(scene.compositing_node_group, role) for role in ALBEDO_ROLES)
+    assert not any(our_nodes(scene.compositing_node_group, role) for role in ALBEDO_ROLES)
 
 
 def test_the_operator_bakes_a_textured_floor_into_the_compositor(empty_bpy, addon, tmp_path):
     """Bake Caustics on the mirror scene whose floor's colour is a Checker Texture: the layer EXR,
     its per-albedo EXR beside it, both images in the compositor with the Diffuse Color pass
     switched on, and the panel's statistics say the share; Remove Caustic Layer takes it all out."""
-    scene = _mirror_scene(24, 16)
+    scene = mirror_scene(24, 16)
     floor = bpy.data.materials["Floor"]
     nt = floor.node_tree
     tex = nt.nodes.new("ShaderNodeTexChecker")
@@ -288,6 +278,6 @@ def test_the_operator_bakes_a_textured_floor_into_the_compositor(empty_bpy, addo
     stats = json.loads(s.last_stats)
     assert 0.9 < stats["textured_share"] <= 1.0 + 1e-6  # the floor is seen directly everywhere
     tree = scene.compositing_node_group
-    assert len(_our_nodes(tree, "multiply")) == 1 and len(_our_nodes(tree, "albedo_image")) == 1
+    assert len(our_nodes(tree, "multiply")) == 1 and len(our_nodes(tree, "albedo_image")) == 1
     assert bpy.ops.smbs.remove_caustic_layer() == {'FINISHED'}
     assert not vl.use_pass_diffuse_color and bpy.data.images.get(ALBEDO) is None

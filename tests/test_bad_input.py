@@ -395,29 +395,7 @@ def test_rebake_on_the_command_line_replaces(npz, tmp_path):
 bpy = pytest.importorskip("bpy")
 
 
-from blend_helpers import material as material1, plane as _plane  # noqa: E402
-
-
-def blender_mirror_scene(light=True, camera=True, width=24, height=16):
-    """Floor, a mirror tilted 45 degrees and a disk light beside it, as in tests/scenes.py."""
-    scene = bpy.context.scene
-    scene.render.resolution_x, scene.render.resolution_y = width, height
-    scene.render.resolution_percentage = 100
-    _plane(scene, "Floor", 10, material1("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0))
-    _plane(scene, "Mirror", 1.5, material1("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0), (0, 0, 1.5),
-           (0, math.radians(-135), 0))
-    if light:
-        data = bpy.data.lights.new("Disk", 'AREA')
-        data.shape, data.size, data.energy = 'DISK', 0.5, 100.0
-        ob = bpy.data.objects.new("Disk", data)
-        ob.location, ob.rotation_euler = (-2, 0, 1.5), (0, math.radians(-90), 0)
-        scene.collection.objects.link(ob)
-    if camera:
-        cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
-        cam.location, cam.rotation_euler = (0, -6, 5), (math.radians(50), 0, 0)
-        scene.collection.objects.link(cam)
-        scene.camera = cam
-    return scene
+from testkit.blend import material, mirror_scene, plane  # noqa: E402
 
 
 def snapshot(matrices=True):
@@ -458,7 +436,7 @@ def fresh_bpy():
 def test_no_camera(fresh_bpy):
     from smbs_addon.blender.export import export_scene
 
-    scene = blender_mirror_scene(camera=False)
+    scene = mirror_scene(camera=False)
     scene.name = "Camera-less"
     with pytest.raises(SceneError) as e:
         export_scene(scene)
@@ -468,14 +446,14 @@ def test_no_camera(fresh_bpy):
 def test_unsupported_material_nodes_are_named(fresh_bpy):
     from smbs_addon.blender.export import export_scene
 
-    scene = blender_mirror_scene()
-    toon = material1("Cartoon", "ShaderNodeBsdfToon", (1.0, 0.5, 0.2))
-    _plane(scene, "Toon", 1, toon, (2, 2, 0.5))
-    textured = material1("Marbled Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0))
+    scene = mirror_scene()
+    toon = material("Cartoon", "ShaderNodeBsdfToon", (1.0, 0.5, 0.2))
+    plane(scene, "Toon", 1, toon, (2, 2, 0.5))
+    textured = material("Marbled Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0))
     tex = textured.node_tree.nodes.new("ShaderNodeTexNoise")
     glass_node = next(n for n in textured.node_tree.nodes if n.type == "BSDF_GLASS")
     textured.node_tree.links.new(tex.outputs["Color"], glass_node.inputs["Color"])
-    _plane(scene, "Pane", 1, textured, (-2, 2, 0.5))
+    plane(scene, "Pane", 1, textured, (-2, 2, 0.5))
     warnings = []
     data = export_scene(scene, warn=warnings.append)
     assert warnings == [
@@ -492,7 +470,7 @@ def test_library_linked_scene_exports_read_only(fresh_bpy, tmp_path):
     the export evaluates it without touching it, and it bakes like a local one."""
     from smbs_addon.blender.export import export_scene
 
-    scene = blender_mirror_scene()
+    scene = mirror_scene()
     scene.name = "Library Scene"
     lib = tmp_path / "library.blend"
     bpy.ops.wm.save_as_mainfile(filepath=str(lib))
@@ -518,7 +496,7 @@ def test_library_linked_scene_exports_read_only(fresh_bpy, tmp_path):
 def test_zero_size_light_from_blender_is_skipped_with_its_reason(fresh_bpy):
     from smbs_addon.blender.export import export_scene
 
-    scene = blender_mirror_scene()
+    scene = mirror_scene()
     data = bpy.data.lights.new("Sliver", 'AREA')
     data.shape, data.size, data.size_y = 'RECTANGLE', 0.5, 0.0
     ob = bpy.data.objects.new("Sliver", data)
@@ -534,7 +512,7 @@ def _extension_core(addon):
 
 
 def test_failed_bake_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path):
-    scene = blender_mirror_scene()
+    scene = mirror_scene()
     scene.camera = None
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     before = snapshot()
@@ -545,7 +523,7 @@ def test_failed_bake_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path):
 
 
 def test_too_large_resolution_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path):
-    scene = blender_mirror_scene()
+    scene = mirror_scene()
     scene.render.resolution_x, scene.render.resolution_y = 16000, 9000
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     scene.smbs_caustics.batches = 8
@@ -568,7 +546,7 @@ def test_bake_that_crashes_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path
         return real(data, settings, progress=progress_then_crash, cancel=cancel)
 
     monkeypatch.setattr(core, "bake", crashing)
-    scene = blender_mirror_scene()
+    scene = mirror_scene()
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     scene.smbs_caustics.method, scene.smbs_caustics.spp = "mnee", 1
     before = snapshot()
@@ -581,7 +559,7 @@ def test_bake_that_crashes_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path
 def test_cancelled_bake_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path, monkeypatch):
     from smbs_addon.blender.export import export_scene
 
-    scene = blender_mirror_scene()
+    scene = mirror_scene()
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     before = snapshot()
     data = export_scene(scene)
@@ -600,7 +578,7 @@ def test_cancelled_bake_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_path, m
 
 
 def test_operator_rebake_replaces(fresh_bpy, addon, tmp_path):
-    scene = blender_mirror_scene()
+    scene = mirror_scene()
     props = scene.smbs_caustics
     props.output_path = str(tmp_path / "layer.exr")
     props.method, props.spp, props.batches = "mnee", 1, 2

@@ -29,8 +29,7 @@ from pathlib import Path
 
 import bpy
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-import build as B  # noqa: E402  (the sample scenes' helpers)
+from testkit import blend as B
 
 WIDTH, HEIGHT = 96, 72
 
@@ -45,7 +44,7 @@ def _scene(name):
 
 
 def _floor(scene, size=10.0, albedo=0.8, z=0.0):
-    mat = B.material("Floor", "diffuse", (albedo,) * 3)
+    mat = B.bsdf("Floor", "diffuse", (albedo,) * 3)
     v, f = B.grid(size, size)
     return B.mesh_object(scene, "Floor", v, f, mat, location=(0, 0, z), receiver=True)
 
@@ -58,19 +57,6 @@ def principled(name, base=(1.0, 1.0, 1.0), metallic=0.0, transmission=0.0, ior=1
     p.inputs["Transmission Weight"].default_value = transmission
     p.inputs["Roughness"].default_value = roughness
     p.inputs["IOR"].default_value = ior
-    return m
-
-
-def refraction(name, color, ior):
-    m = bpy.data.materials.new(name)
-    nt = m.node_tree
-    nt.nodes.clear()
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    node = nt.nodes.new("ShaderNodeBsdfRefraction")
-    node.inputs["Color"].default_value = (*color, 1.0)
-    node.inputs["Roughness"].default_value = 0.0
-    node.inputs["IOR"].default_value = ior
-    nt.links.new(node.outputs[0], out.inputs["Surface"])
     return m
 
 
@@ -164,10 +150,10 @@ def lens_area():
     """Biconvex Glass BSDF lens (IOR 1.5) 1.6 m above the floor, 0.4 m square area light."""
     scene = _scene("lens_area")
     _floor(scene)
-    glass = B.material("LensGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.bsdf("LensGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     v, f = _lens(1.2, 0.5, 0.01)
     B.mesh_object(scene, "Lens", v, f, glass, smooth=True, location=(0, 0, 1.6), caster=True)
-    B.add_light(scene, "Key", "AREA", (0.3, 0.2, 4.0), energy=150.0, shape="SQUARE", size=0.4)
+    B.add_light(scene, "Key", "AREA", (0.3, 0.2, 4.0), energy=150.0, shape="SQUARE", size=0.4, caustics=True)
     B.add_camera(scene, (0, -4.0, 3.2), (0, 0, 0.2), lens=40)
     return scene
 
@@ -175,21 +161,6 @@ def lens_area():
 def gold_cylinder():
     """Open Principled-metallic gold cylinder on the floor, disk area light from the side."""
     return _ring_of("gold_cylinder", lambda: principled("Gold", base=(1.0, 0.766, 0.336), metallic=1.0))
-
-
-def _metallic_bsdf(name, mode, **inputs):
-    """A material whose Surface is a Metallic BSDF (Blender 4.3 on) of fresnel_type mode, Roughness 0."""
-    m = bpy.data.materials.new(name)
-    nt = m.node_tree
-    nt.nodes.clear()
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    node = nt.nodes.new("ShaderNodeBsdfMetallic")
-    node.fresnel_type = mode
-    node.inputs["Roughness"].default_value = 0.0
-    for k, v in inputs.items():
-        node.inputs[k].default_value = (*v, 1.0) if node.inputs[k].type == "RGBA" else v
-    nt.links.new(node.outputs[0], out.inputs["Surface"])
-    return m
 
 
 def _ring_of(name, metal):
@@ -200,7 +171,7 @@ def _ring_of(name, metal):
     B.mesh_object(scene, "Ring", v, f, metal(), smooth=True, caster=True)
     # local -Z towards the ring: from (-2.4, 0, 1.4) aimed at the ring's centre
     B.add_light(scene, "Side", "AREA", (-2.4, 0.3, 1.4), (0.0, math.radians(-58), math.radians(7)),
-                energy=300.0, shape="DISK", size=0.5)
+                energy=300.0, shape="DISK", size=0.5, caustics=True)
     B.add_camera(scene, (0.4, -2.6, 2.6), (0.1, 0, 0.1), lens=35)
     return scene
 
@@ -209,14 +180,14 @@ def metallic_edge_ring():
     """gold_cylinder's ring as a Metallic BSDF in its F82 mode: gold's Base Color, an Edge Tint (0.9, 0.5,
     0.15) that darkens its grazing reflections (Cycles' F82-Tint; the node was 'not supported, treated as
     diffuse' before: no caustic)."""
-    return _ring_of("metallic_edge_ring", lambda: _metallic_bsdf("EdgeGold", "F82", **{
+    return _ring_of("metallic_edge_ring", lambda: B.metallic("EdgeGold", "F82", **{"Roughness": 0.0, 
         "Base Color": (1.0, 0.766, 0.336), "Edge Tint": (0.9, 0.5, 0.15)}))
 
 
 def conductor_ring():
     """gold_cylinder's ring as a Metallic BSDF in its Physical Conductor mode, the node's own index and
     extinction (IOR 2.757 2.513 2.231, Extinction 3.867 3.404 3.009): the Fresnel equations of a conductor."""
-    return _ring_of("conductor_ring", lambda: _metallic_bsdf("Conductor", "PHYSICAL_CONDUCTOR", **{
+    return _ring_of("conductor_ring", lambda: B.metallic("Conductor", "PHYSICAL_CONDUCTOR", **{"Roughness": 0.0, 
         "IOR": (2.757, 2.513, 2.231), "Extinction": (3.867, 3.404, 3.009)}))
 
 
@@ -224,7 +195,7 @@ def film_ring():
     """metallic_edge_ring's ring as a pale Metallic BSDF (F82 mode, Base Color 0.95/0.93/0.88, Edge Tint white)
     under a thin film of 350 nm and index 1.5: Cycles' iridescence (the film over the metal's n and k, which it
     estimates from F0 and F82) colours the ring's caustic."""
-    return _ring_of("film_ring", lambda: _metallic_bsdf("FilmMetal", "F82", **{
+    return _ring_of("film_ring", lambda: B.metallic("FilmMetal", "F82", **{"Roughness": 0.0, 
         "Base Color": (0.95, 0.93, 0.88), "Edge Tint": (1.0, 1.0, 1.0), "Thin Film Thickness": 350.0,
         "Thin Film IOR": 1.5}))
 
@@ -241,7 +212,7 @@ def anodized_ring():
     """gold_cylinder's ring as a Metallic BSDF in its Physical Conductor mode (IOR 2.5/2.3/2.1, Extinction
     3.3/3.0/2.7: a grey metal reflecting about half) under a film of 180 nm and index 2.2, as anodised titanium:
     the film turns its reflection violet at normal incidence, other colours towards grazing."""
-    return _ring_of("anodized_ring", lambda: _metallic_bsdf("Anodized", "PHYSICAL_CONDUCTOR", **{
+    return _ring_of("anodized_ring", lambda: B.metallic("Anodized", "PHYSICAL_CONDUCTOR", **{"Roughness": 0.0, 
         "IOR": (2.5, 2.3, 2.1), "Extinction": (3.3, 3.0, 2.7), "Thin Film Thickness": 180.0, "Thin Film IOR": 2.2}))
 
 
@@ -257,7 +228,7 @@ def film_ball():
     (a titania-like coat): the film reflects several times the bare glass's share, per channel, at both
     faces (from inside, Cycles takes the film and the air relative to the glass), so less and coloured light
     comes through."""
-    return _ball_under_bulb("film_ball", lambda: _filmed(B.material("FilmGlass", "glass", (1.0, 1.0, 1.0), ior=1.5),
+    return _ball_under_bulb("film_ball", lambda: _filmed(B.bsdf("FilmGlass", "glass", (1.0, 1.0, 1.0), ior=1.5),
                                                           280.0, 2.2))
 
 
@@ -275,7 +246,7 @@ def spec_tint_ball():
 def pool_sun4():
     """Wavy water (Glass BSDF, IOR 1.33, smooth 120 x 120 grid of 6 x 6 m) 1 m above the
     floor, sun of strength 3 and angle 4 deg; the camera looks down through the water."""
-    return _pool("pool_sun4", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33))
+    return _pool("pool_sun4", lambda: B.bsdf("Water", "glass", (1.0, 1.0, 1.0), ior=1.33))
 
 
 def _pool(name, water, wave=_water_wave, cells=120, floor=None):
@@ -290,7 +261,7 @@ def _pool(name, water, wave=_water_wave, cells=120, floor=None):
     v, f = B.grid(6, 6, cells, cells, wave)
     B.mesh_object(scene, "Water", v, f, water(), smooth=True, location=(0, 0, 1.0), caster=True)
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(20), math.radians(10), 0), energy=3.0,
-                angle=math.radians(4.0))
+                angle=math.radians(4.0), caustics=True)
     B.add_camera(scene, (0, 0, 6), (0, 0, 0), lens=80)
     return scene
 
@@ -298,7 +269,7 @@ def _pool(name, water, wave=_water_wave, cells=120, floor=None):
 def rough_pool_sun():
     """pool_sun4's water as a rough Glass BSDF (Roughness 0.15, Multiscatter GGX): the camera sees the floor
     through rough water, where a photon cannot reach it and the caustic at each floor point is gathered."""
-    return _pool("rough_pool_sun", lambda: B.material("RoughWater", "glass", (1.0, 1.0, 1.0), roughness=0.15,
+    return _pool("rough_pool_sun", lambda: B.bsdf("RoughWater", "glass", (1.0, 1.0, 1.0), roughness=0.15,
                                                       ior=1.33, distribution="MULTI_GGX"))
 
 
@@ -320,7 +291,7 @@ def bumped_slab_sun():
     v, f = _box(0.6, 0.6, 0.1)
     B.mesh_object(scene, "Slab", v, f, B.bumped_glass("BumpedGlass", 0.1, 2.0, "Object"), smooth=False,
                   location=(0, 0, 2.5), caster=True)
-    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0))
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0), caustics=True)
     B.add_camera(scene, (-2.4, 0, 4.5), (-1.44, 0, 0), lens=35)
     return scene
 
@@ -355,7 +326,7 @@ def normal_mapped_pool_sun():
     """bumped_pool_sun's flat water with its waves a Normal Map node (tangent space, the quad's UV map
     running 0 to 1 over it) of a packed image of three sine waves (_normal_map_image) instead of a Bump."""
     def water():
-        m = B.material("MappedWater", "glass", (1.0, 1.0, 1.0), ior=1.33)
+        m = B.bsdf("MappedWater", "glass", (1.0, 1.0, 1.0), ior=1.33)
         nt = m.node_tree
         glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
         tex, nm = nt.nodes.new("ShaderNodeTexImage"), nt.nodes.new("ShaderNodeNormalMap")
@@ -379,7 +350,7 @@ def cube_grey():
     _floor(scene)
     glass = principled("GreyGlass", base=(0.8, 0.8, 0.8), transmission=1.0, ior=1.5)
     _bevelled_cube(scene, "Cube", glass, 1.2, (0, 0, 0.95), (math.radians(35), math.radians(20), 0))
-    B.add_light(scene, "Key", "AREA", (0.6, -0.4, 4.0), energy=300.0, shape="SQUARE", size=0.5)
+    B.add_light(scene, "Key", "AREA", (0.6, -0.4, 4.0), energy=300.0, shape="SQUARE", size=0.5, caustics=True)
     B.add_camera(scene, (0, -5.5, 4.5), (0, 0, 0.4), lens=40)
     return scene
 
@@ -417,7 +388,7 @@ def _ball_under_bulb(name, ball):
     _floor(scene)
     _sphere(scene, "Ball", ball(), 0.5, (0, 0, 0.9))
     B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
-                use_soft_falloff=True)
+                use_soft_falloff=True, caustics=True)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 
@@ -428,7 +399,7 @@ def tinted_ball():
     under sphere_point_soft's bulb and camera, which sees part of the caustic through the ball."""
     scene = _scene("tinted_ball")
     _floor(scene)
-    glass = B.material("TintedGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.bsdf("TintedGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     nt = glass.node_tree
     vol = nt.nodes.new("ShaderNodeVolumeAbsorption")
     vol.inputs["Color"].default_value = (0.9, 0.6, 0.3, 1.0)
@@ -436,7 +407,7 @@ def tinted_ball():
     nt.links.new(vol.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
     B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
-                use_soft_falloff=True)
+                use_soft_falloff=True, caustics=True)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 
@@ -445,11 +416,11 @@ def sphere_refraction_spot():
     """Refraction BSDF sphere (tinted, IOR 1.33) under a spot light of radius 0.2."""
     scene = _scene("sphere_refraction_spot")
     _floor(scene)
-    mat = refraction("Refractor", (0.85, 0.9, 1.0), 1.33)
+    mat = B.material("Refractor", "ShaderNodeBsdfRefraction", (0.85, 0.9, 1.0), Roughness=0.0, IOR=1.33)
     _sphere(scene, "Ball", mat, 0.45, (0, 0, 0.8))
     B.add_light(scene, "Spot", "SPOT", (-0.5, 0.3, 3.0), (math.radians(-6), math.radians(-9), 0),
                 energy=1500.0, shadow_soft_size=0.2, use_soft_falloff=False,
-                spot_size=math.radians(50), spot_blend=0.3)
+                spot_size=math.radians(50), spot_blend=0.3, caustics=True)
     B.add_camera(scene, (0, -3.4, 2.6), (0, 0, 0.2), lens=40)
     return scene
 
@@ -459,7 +430,7 @@ def _standing_mirror(name, mirror=None):
     once the scene is new; default Glossy BSDF 0.9)."""
     scene = _scene(name)
     _floor(scene)
-    mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9)) if mirror is None else mirror()
+    mirror = B.bsdf("Mirror", "glossy", (0.9, 0.9, 0.9)) if mirror is None else mirror()
     v, f = B.grid(1.6, 1.0)
     # local +Z -> -X: the mirror stands at x = 1.2 and faces the light and the camera
     B.mesh_object(scene, "Mirror", v, f, mirror, location=(1.2, 0, 0.55),
@@ -479,7 +450,7 @@ def _mirror_under_bulb(name, mirror=None):
     reflected light on the floor directly and in the mirror."""
     scene = _standing_mirror(name, mirror)
     B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
-                use_soft_falloff=False)
+                use_soft_falloff=False, caustics=True)
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
     return scene
 
@@ -493,11 +464,11 @@ def linked_lamps():
     receiver collection with the ball set to Exclude): its caustic off the mirror stays, the one through
     the ball goes, and its light that the floor sends through the ball stays."""
     scene = _standing_mirror("linked_lamps")
-    ball = _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.4, (-0.2, 0.1, 0.75))
+    ball = _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.4, (-0.2, 0.1, 0.75))
     over = B.add_light(scene, "BallLamp", "POINT", (0.2, -0.1, 2.8), energy=500.0, shadow_soft_size=0.2,
-                       use_soft_falloff=False)
+                       use_soft_falloff=False, caustics=True)
     low = B.add_light(scene, "MirrorLamp", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
-                      use_soft_falloff=False)
+                      use_soft_falloff=False, caustics=True)
     only_ball, not_ball = bpy.data.collections.new("OnlyBall"), bpy.data.collections.new("NotBall")
     only_ball.objects.link(ball)
     not_ball.objects.link(ball)
@@ -515,7 +486,7 @@ def shadow_linked_ball():
     that comes back through the ball are those without the plate, while the plate still stands in every
     other path."""
     return _unshadowed_ball("shadow_linked_ball", lambda scene: B.add_light(
-        scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, use_soft_falloff=True))
+        scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, use_soft_falloff=True, caustics=True))
 
 
 def shadow_linked_glow():
@@ -524,7 +495,7 @@ def shadow_linked_glow():
     surfaces: past the plate, the light is found again where they lie."""
     def glow(scene):
         v, f = B.uv_sphere(0.25, 32, 16)
-        return B.mesh_object(scene, "Glow", v, f, _emission("Lamp", (1.0, 1.0, 1.0), 250.0), smooth=True,
+        return B.mesh_object(scene, "Glow", v, f, B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0), smooth=True,
                              location=(0.4, -0.2, 3.0))
     return _unshadowed_ball("shadow_linked_glow", glow)
 
@@ -534,9 +505,9 @@ def _unshadowed_ball(name, lamp):
     not shadow it (its blocker collection sets the plate to Exclude)."""
     scene = _scene(name)
     _floor(scene)
-    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     v, f = B.grid(1.4, 1.4)
-    shade = B.mesh_object(scene, "Shade", v, f, B.material("Grey", "diffuse", (0.5, 0.5, 0.5)),
+    shade = B.mesh_object(scene, "Shade", v, f, B.bsdf("Grey", "diffuse", (0.5, 0.5, 0.5)),
                           location=(0.28, -0.14, 2.3))
     bulb = lamp(scene)
     blockers = bpy.data.collections.new("NotTheShade")
@@ -582,7 +553,7 @@ def mirror_spread30():
     scene = _standing_mirror("mirror_spread30")
     at, target = Vector((-0.2, -0.4, 1.5)), Vector((1.2, 0.35, 0.75))
     B.add_light(scene, "Softbox", "AREA", tuple(at), (target - at).to_track_quat("-Z", "Y").to_euler(),
-                energy=60.0, shape="SQUARE", size=0.5, spread=math.radians(30))
+                energy=60.0, shape="SQUARE", size=0.5, spread=math.radians(30), caustics=True)
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
     return scene
 
@@ -593,10 +564,10 @@ def water_flat_sun0():
     point-like sun behind glass: the reference is Cycles' MNEE, exact here (one solution)."""
     scene = _scene("water_flat_sun0")
     _floor(scene, size=8.0)
-    water = B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33)
+    water = B.bsdf("Water", "glass", (1.0, 1.0, 1.0), ior=1.33)
     v, f = B.grid(6, 6)
     B.mesh_object(scene, "Water", v, f, water, smooth=True, location=(0, 0, 0.5), caster=True)
-    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(25), 0, 0), energy=2.0, angle=0.0)
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(25), 0, 0), energy=2.0, angle=0.0, caustics=True)
     B.add_camera(scene, (0, 0, 5), (0, 0, 0), lens=80)
     return scene
 
@@ -605,7 +576,7 @@ def wavy_mirror_sun2():
     """Wavy Glossy BSDF sheet (tinted) under a sun of angle 2 deg."""
     scene = _scene("wavy_mirror_sun2")
     _floor(scene)
-    mat = B.material("WavyMirror", "glossy", (0.95, 0.85, 0.7))
+    mat = B.bsdf("WavyMirror", "glossy", (0.95, 0.85, 0.7))
     v, f = B.grid(1.6, 1.6, 64, 64, _sheet_wave)
     # nearly upright, facing +x and tilted 7 deg down
     B.mesh_object(scene, "Sheet", v, f, mat, smooth=True, location=(-0.9, 0, 0.9),
@@ -613,7 +584,7 @@ def wavy_mirror_sun2():
     # sunlight travels towards -x, 40 deg below the horizon; the sheet sends it back down
     # towards +x, onto the floor in front of it
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(50), 0), energy=3.0,
-                angle=math.radians(2.0))
+                angle=math.radians(2.0), caustics=True)
     B.add_camera(scene, (0.3, -3.2, 2.4), (-0.3, 0, 0.3), lens=35)
     return scene
 
@@ -623,12 +594,12 @@ def through_glass_disk():
     of glass (a closed 3 cm slab, IOR 1.5) standing between it and the camera."""
     scene = _scene("through_glass_disk")
     _floor(scene)
-    tinted = B.material("TintedGlass", "glass", (0.95, 0.8, 0.6), ior=1.33)
+    tinted = B.bsdf("TintedGlass", "glass", (0.95, 0.8, 0.6), ior=1.33)
     _sphere(scene, "Ball", tinted, 0.45, (0, 0, 0.75))
-    pane_glass = B.material("Pane", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    pane_glass = B.bsdf("Pane", "glass", (1.0, 1.0, 1.0), ior=1.5)
     v, f = _box(1.2, 0.015, 0.7)
     B.mesh_object(scene, "Pane", v, f, pane_glass, location=(0, -1.6, 0.7), caster=True)
-    B.add_light(scene, "Key", "AREA", (0.3, 0.4, 3.2), energy=250.0, shape="DISK", size=0.5)
+    B.add_light(scene, "Key", "AREA", (0.3, 0.4, 3.2), energy=250.0, shape="DISK", size=0.5, caustics=True)
     B.add_camera(scene, (0, -3.4, 1.5), (0, 0, 0.2), lens=40)
     return scene
 
@@ -639,7 +610,7 @@ def prism_tir():
     (T R T) and leaves through the other towards the floor."""
     scene = _scene("prism_tir")
     _floor(scene)
-    glass = B.material("PrismGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.bsdf("PrismGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     h, L = 0.35, 0.5  # legs along +x and +z, length 2h; extrusion along y
     v = [(-h, -L, -h), (h, -L, -h), (-h, -L, h), (-h, L, -h), (h, L, -h), (-h, L, h)]
     f = [(0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (0, 3, 5, 2), (1, 2, 5, 4)]
@@ -647,7 +618,7 @@ def prism_tir():
                   rotation=(0, math.radians(-20), 0), caster=True)
     # light from above-left: enters through the top leg face, reflects off the hypotenuse
     B.add_light(scene, "Key", "AREA", (-2.0, 0.0, 3.0), (0, math.radians(-35), 0), energy=400.0,
-                shape="SQUARE", size=0.4)
+                shape="SQUARE", size=0.4, caustics=True)
     B.add_camera(scene, (0.6, -3.6, 2.8), (0.6, 0, 0.2), lens=35)
     return scene
 
@@ -661,7 +632,7 @@ def cube_white_rect(name="cube_white_rect", base=1.0):
                        transmission=1.0, ior=1.5)
     _bevelled_cube(scene, "Cube", glass, 0.9, (0.1, 0, 0.8), (math.radians(20), math.radians(40), 0))
     B.add_light(scene, "Key", "AREA", (-0.5, 0.3, 3.5), (0, math.radians(-10), 0), energy=250.0,
-                shape="RECTANGLE", size=0.6, size_y=0.3)
+                shape="RECTANGLE", size=0.6, size_y=0.3, caustics=True)
     B.add_camera(scene, (0.2, -4.2, 3.4), (0.1, 0, 0.3), lens=40)
     return scene
 
@@ -689,15 +660,15 @@ def egg_sun_spot():
     of angle 6 deg and a blue spot of radius 0.15 with blend 0.5."""
     scene = _scene("egg_sun_spot")
     _floor(scene)
-    glass = B.material("EggGlass", "glass", (0.95, 0.9, 0.8), ior=1.45)
+    glass = B.bsdf("EggGlass", "glass", (0.95, 0.9, 0.8), ior=1.45)
     egg = _sphere(scene, "Egg", glass, 0.5, (0, 0, 0.9))
     egg.scale = (1.4, 0.8, 0.9)
     egg.rotation_euler = (math.radians(15), 0, math.radians(30))
     sun = B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(12), math.radians(-8), 0), energy=2.0,
-                      angle=math.radians(6.0))
+                      angle=math.radians(6.0), caustics=True)
     sun.data.color = (1.0, 0.85, 0.7)
     spot = B.add_light(scene, "Spot", "SPOT", (1.2, -0.6, 3.2), (math.radians(10), math.radians(20), 0),
-                       energy=900.0, shadow_soft_size=0.15, spot_size=math.radians(45), spot_blend=0.5)
+                       energy=900.0, shadow_soft_size=0.15, spot_size=math.radians(45), spot_blend=0.5, caustics=True)
     spot.data.color = (0.6, 0.8, 1.0)
     B.add_camera(scene, (0, -3.6, 3.0), (0, 0, 0.2), lens=38)
     return scene
@@ -712,7 +683,7 @@ def _slanted_ball(name, floor):
     B.mesh_object(scene, "Floor", v, f, floor(), receiver=True)
     glass = principled("WhiteGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
-    B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25)
+    B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, caustics=True)
     B.add_camera(scene, (0, -4.2, 1.6), (0, 0, 0.0), lens=40)
     return scene
 
@@ -739,7 +710,7 @@ def coated_floor():
 def rough_floor():
     """The slanted glass ball over a Diffuse BSDF floor of Roughness 1 (Cycles' Oren-Nayar: at this
     slant 0.4-1.5 of Lambert, by where the light comes from)."""
-    return _slanted_ball("rough_floor", lambda: B.material("RoughFloor", "diffuse", (0.8,) * 3, roughness=1.0))
+    return _slanted_ball("rough_floor", lambda: B.bsdf("RoughFloor", "diffuse", (0.8,) * 3, roughness=1.0))
 
 
 def _checker():
@@ -768,52 +739,24 @@ def checker_floor():
     return _slanted_ball("checker_floor", _checker)
 
 
-def _bumpy():
-    m = B.material("BumpyFloor", "diffuse", (0.8,) * 3)
-    nt = m.node_tree
-    diffuse = next(n for n in nt.nodes if n.type == "BSDF_DIFFUSE")
-    noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
-    nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
-    noise.inputs["Scale"].default_value = 8.0  # bumps of ~0.1 m, a few across the caustic
-    noise.inputs["Detail"].default_value = 2.0
-    bump.inputs["Distance"].default_value = 0.1
-    nt.links.new(noise.outputs["Fac"], bump.inputs["Height"])
-    nt.links.new(bump.outputs["Normal"], diffuse.inputs["Normal"])
-    return m
+def _bumpy_floor():
+    """A Diffuse BSDF floor (0.8) whose Normal is a Bump of a Noise Texture: bumps of ~0.1 m, a few across the
+    caustic."""
+    return B.bumpy("BumpyFloor", color=(0.8,) * 3)
 
 
 def pool_bumped_floor():
     """pool_sun4 over bumped_floor's floor (a Diffuse BSDF whose Normal is a Bump of a Noise Texture): the
     camera sees the bumps through the water."""
-    return _pool("pool_bumped_floor", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33),
-                 floor=_bumpy)
+    return _pool("pool_bumped_floor", lambda: B.bsdf("Water", "glass", (1.0, 1.0, 1.0), ior=1.33),
+                 floor=_bumpy_floor)
 
 
 def bumped_floor():
     """The slanted glass ball over a Diffuse BSDF floor (0.8) whose Normal is a Bump node (Distance 0.1)
     of a Noise Texture (Scale 8, Detail 2, Object coordinates): the caustic follows the bumps' shading,
     Cycles' shadowing term of a bent normal included."""
-    return _slanted_ball("bumped_floor", _bumpy)
-
-
-def _mix(name, first, second, factor):
-    """A material whose Surface is Mix Shader(first, second) at Factor factor (first and second:
-    (bl_idname, {input: value}))."""
-    m = bpy.data.materials.new(name)
-    nt = m.node_tree
-    nt.nodes.clear()
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    mix = nt.nodes.new("ShaderNodeMixShader")
-    mix.inputs["Factor"].default_value = factor
-    for sock, (idname, inputs) in zip(mix.inputs[1:], (first, second)):
-        node = nt.nodes.new(idname)
-        for k, v in inputs.items():
-            node.inputs[k].default_value = (*v, 1.0) if isinstance(v, tuple) else v
-        if hasattr(node, "distribution") and idname != "ShaderNodeBsdfDiffuse":
-            node.distribution = "GGX"
-        nt.links.new(node.outputs[0], sock)
-    nt.links.new(mix.outputs[0], out.inputs["Surface"])
-    return m
+    return _slanted_ball("bumped_floor", _bumpy_floor)
 
 
 def mix_frosted_ball():
@@ -821,9 +764,9 @@ def mix_frosted_ball():
     (IOR 1.5) at Factor 0.75: Cycles weighs the glass closure by 0.75 at each vertex (0.56 of the clear
     ball's T T caustic). The diffuse part is dark because it is not ours: light it scatters inside the
     ball and out through its glass adds to Cycles' caustic (2.9% of it with a diffuse of 0.8)."""
-    return _ball_under_bulb("mix_frosted_ball", lambda: _mix(
+    return _ball_under_bulb("mix_frosted_ball", lambda: B.mixed(
         "Frosted", ("ShaderNodeBsdfDiffuse", {"Color": (0.2, 0.2, 0.2)}),
-        ("ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0), "IOR": 1.5, "Roughness": 0.0}), 0.75))
+        ("ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0), "IOR": 1.5, "Roughness": 0.0}), 0.75, distribution="GGX"))
 
 
 def mix_alloy_mirror():
@@ -831,36 +774,26 @@ def mix_alloy_mirror():
     0.9, Roughness 0) and a dark Diffuse BSDF (0.05): Cycles weighs the metal lobe and its dielectric coat
     alike by the mix's 0.5, so the coat reflects 0.25 of the dielectric Fresnel, not the 0.75 that
     1 - Metallic x 0.5 would give."""
-    return _mirror_under_bulb("mix_alloy_mirror", lambda: _mix(
+    return _mirror_under_bulb("mix_alloy_mirror", lambda: B.mixed(
         "MixAlloy", ("ShaderNodeBsdfPrincipled", {"Base Color": (0.9, 0.9, 0.9), "Metallic": 0.5, "Roughness": 0.0}),
-        ("ShaderNodeBsdfDiffuse", {"Color": (0.05, 0.05, 0.05)}), 0.5))
+        ("ShaderNodeBsdfDiffuse", {"Color": (0.05, 0.05, 0.05)}), 0.5, distribution="GGX"))
 
 
 def mix_floor():
     """The slanted glass ball over a floor of Mix Shader(Diffuse BSDF 0.8, Glossy BSDF white of
     Roughness 0.3) at Factor 0.25, the old way to make a glossy floor: its diffuse weighs 0.75, and
     Cycles samples the glossy closure beside it."""
-    return _slanted_ball("mix_floor", lambda: _mix(
+    return _slanted_ball("mix_floor", lambda: B.mixed(
         "MixFloor", ("ShaderNodeBsdfDiffuse", {"Color": (0.8, 0.8, 0.8)}),
-        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.3}), 0.25))
-
-
-def _by_fresnel(m, ior):
-    """m's Mix Shader's Factor from a Fresnel node of index ior (the classic node setups before the
-    Principled BSDF)."""
-    nt = m.node_tree
-    fr = nt.nodes.new("ShaderNodeFresnel")
-    fr.inputs["IOR"].default_value = ior
-    nt.links.new(fr.outputs[0], nt.nodes["Mix Shader"].inputs["Factor"])
-    return m
+        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.3}), 0.25, distribution="GGX"))
 
 
 def fresnel_glass_ball():
     """sphere_point_soft's ball and bulb with the old glass: a Mix Shader of a Refraction BSDF (pale green,
     IOR 1.5) and a white Glossy BSDF (Roughness 0) by a Fresnel node of IOR 1.5."""
-    return _ball_under_bulb("fresnel_glass_ball", lambda: _by_fresnel(_mix(
+    return _ball_under_bulb("fresnel_glass_ball", lambda: B.by_fresnel(B.mixed(
         "OldGlass", ("ShaderNodeBsdfRefraction", {"Color": (0.85, 1.0, 0.85), "IOR": 1.5, "Roughness": 0.0}),
-        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.0}), 0.5), 1.5))
+        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.0}), 0.5, distribution="GGX"), 1.5))
 
 
 def rough_glass_ball():
@@ -874,14 +807,14 @@ def rough_glass_ball():
 def rough_glass_ggx():
     """sphere_point_soft's ball as a Glass BSDF (IOR 1.5) of Roughness 0.3 with the single-scattering GGX
     distribution: the microfacet sampling and shadowing alone, without Cycles' energy compensation."""
-    return _ball_under_bulb("rough_glass_ggx", lambda: B.material("GgxGlass", "glass", (1.0, 1.0, 1.0),
+    return _ball_under_bulb("rough_glass_ggx", lambda: B.bsdf("GgxGlass", "glass", (1.0, 1.0, 1.0),
                                                                   roughness=0.3, ior=1.5))
 
 
 def rough_tinted_mirror():
     """mirror_point_hard's mirror as a Glossy BSDF of colour (0.9, 0.6, 0.3), Roughness 0.3, Multiscatter
     GGX: Cycles' energy compensation brightens and saturates a coloured metal's reflection."""
-    return _mirror_under_bulb("rough_tinted_mirror", lambda: B.material(
+    return _mirror_under_bulb("rough_tinted_mirror", lambda: B.bsdf(
         "TintedGlossy", "glossy", (0.9, 0.6, 0.3), roughness=0.3, distribution="MULTI_GGX"))
 
 
@@ -889,7 +822,7 @@ def rough_tinted_glass():
     """sphere_point_soft's ball as a coloured Glass BSDF (0.9, 0.6, 0.3; IOR 1.5) of Roughness 0.5, Multiscatter
     GGX: Cycles' energy compensation takes the glass's colour for F_ss, so it restores less of the blue that
     the microfacets lose than of the red."""
-    return _ball_under_bulb("rough_tinted_glass", lambda: B.material(
+    return _ball_under_bulb("rough_tinted_glass", lambda: B.bsdf(
         "TintedRoughGlass", "glass", (0.9, 0.6, 0.3), roughness=0.5, ior=1.5, distribution="MULTI_GGX"))
 
 
@@ -897,8 +830,8 @@ def fake_shadow_ball():
     """sphere_point_soft's ball with the fake-shadow trick: a Mix Shader of a Glass BSDF (IOR 1.5) and a
     Transparent BSDF by Light Path's Is Shadow Ray (shadow rays pass, every other ray meets the glass)."""
     def trick():
-        m = _mix("FakeShadows", ("ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0), "IOR": 1.5, "Roughness": 0.0}),
-                 ("ShaderNodeBsdfTransparent", {"Color": (1.0, 1.0, 1.0)}), 0.0)
+        m = B.mixed("FakeShadows", ("ShaderNodeBsdfGlass", {"Color": (1.0, 1.0, 1.0), "IOR": 1.5, "Roughness": 0.0}),
+                 ("ShaderNodeBsdfTransparent", {"Color": (1.0, 1.0, 1.0)}), 0.0, distribution="GGX")
         lp = m.node_tree.nodes.new("ShaderNodeLightPath")
         m.node_tree.links.new(lp.outputs["Is Shadow Ray"], m.node_tree.nodes["Mix Shader"].inputs["Factor"])
         return m
@@ -908,18 +841,9 @@ def fake_shadow_ball():
 def fresnel_floor():
     """The slanted glass ball over the old coated floor: a Mix Shader of a Diffuse BSDF (0.8) and a white
     Glossy BSDF (Roughness 0.2) by a Fresnel node of IOR 1.5 (the diffuse keeps 1 - F towards the eye)."""
-    return _slanted_ball("fresnel_floor", lambda: _by_fresnel(_mix(
+    return _slanted_ball("fresnel_floor", lambda: B.by_fresnel(B.mixed(
         "OldFloor", ("ShaderNodeBsdfDiffuse", {"Color": (0.8, 0.8, 0.8)}),
-        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.2}), 0.5), 1.5))
-
-
-def _sky(scene, color, strength):
-    """The scene's world a constant colour (its Background node's Color and Strength)."""
-    w = scene.world
-    w.color = color
-    bg = w.node_tree.nodes["Background"]
-    bg.inputs["Color"].default_value = (*color, 1.0)
-    bg.inputs["Strength"].default_value = strength
+        ("ShaderNodeBsdfGlossy", {"Color": (1.0, 1.0, 1.0), "Roughness": 0.2}), 0.5, distribution="GGX"), 1.5))
 
 
 def world_ball():
@@ -927,9 +851,9 @@ def world_ball():
     the floor under the ball sees the sky through it."""
     scene = _scene("world_ball")
     _floor(scene)
-    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
-    _sky(scene, (0.6, 0.75, 1.0), 1.5)
+    B.sky(scene, (0.6, 0.75, 1.0), 1.5)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 
@@ -940,23 +864,9 @@ def world_mirror_bulb():
     beside the bulb's."""
     scene = mirror_point_hard()
     scene.name = "world_mirror_bulb"
-    _sky(scene, (0.4, 0.4, 0.4), 1.0)
+    B.sky(scene, (0.4, 0.4, 0.4), 1.0)
     scene.world.cycles.is_caustics_light = True  # flagged like the bulb (Cycles' flags select the lights)
     return scene
-
-
-def _emission(name, color, strength):
-    """A material whose Surface is an Emission node (Color, Strength): a mesh light."""
-    m = bpy.data.materials.new(name)
-    nt = m.node_tree
-    for n in list(nt.nodes):
-        nt.nodes.remove(n)
-    out = nt.nodes.new("ShaderNodeOutputMaterial")
-    em = nt.nodes.new("ShaderNodeEmission")
-    em.inputs["Color"].default_value = (*color, 1.0)
-    em.inputs["Strength"].default_value = strength
-    nt.links.new(em.outputs[0], out.inputs["Surface"])
-    return m
 
 
 def mesh_light_ball():
@@ -965,9 +875,9 @@ def mesh_light_ball():
     lights shine from both sides)."""
     scene = _scene("mesh_light_ball")
     _floor(scene)
-    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     v, f = B.grid(0.8, 0.8)
-    B.mesh_object(scene, "Panel", v, f, _emission("Glow", (1.0, 0.9, 0.75), 60.0), location=(0.3, -0.2, 3.0))
+    B.mesh_object(scene, "Panel", v, f, B.material("Glow", "ShaderNodeEmission", (1.0, 0.9, 0.75), Strength=60.0), location=(0.3, -0.2, 3.0))
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 
@@ -977,7 +887,7 @@ def principled_glow_ball():
     Strength 60, tinted: its faces shine and receive."""
     scene = _scene("principled_glow_ball")
     _floor(scene)
-    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     glow = principled("Glow", base=(0.8, 0.8, 0.8), roughness=0.5)
     node = next(n for n in glow.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     node.inputs["Emission Color"].default_value = (1.0, 0.9, 0.75, 1.0)
@@ -994,7 +904,7 @@ def mesh_light_mirror():
     mirror."""
     scene = _standing_mirror("mesh_light_mirror")
     v, f = B.uv_sphere(0.2, 32, 16)
-    B.mesh_object(scene, "Bulb", v, f, _emission("Lamp", (1.0, 1.0, 1.0), 250.0), smooth=True,
+    B.mesh_object(scene, "Bulb", v, f, B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0), smooth=True,
                   location=(0.5, 0.0, 1.4))
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
     return scene
@@ -1006,7 +916,7 @@ def hdri_ball():
     by a Mapping node: the sun's caustic lands behind the ball, where the map's lookup puts it."""
     scene = _scene("hdri_ball")
     _floor(scene)
-    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
     B.hdri_world(scene, B.hdri_image(), turn_deg=40.0)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
@@ -1021,15 +931,15 @@ def ray_visibility():
     the invisible-to-lighting trick). Seen from above at a slant, the mirror's caustic in the frame."""
     scene = _standing_mirror("ray_visibility")
     bulb = B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
-                       use_soft_falloff=True)
+                       use_soft_falloff=True, caustics=True)
     bulb.visible_glossy = False
-    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     _sphere(scene, "Ball", glass, 0.45, (0, 0, 0.9))
     ghost = _sphere(scene, "Ghost", glass, 0.35, (-1.1, 0.5, 0.6))
     ghost.visible_diffuse = False
     ghost.visible_shadow = False
     lamp = B.add_light(scene, "Lamp", "POINT", (-0.2, -1.0, 1.6), energy=300.0, shadow_soft_size=0.15,
-                       use_soft_falloff=False)
+                       use_soft_falloff=False, caustics=True)
     lamp.visible_transmission = False
     B.add_camera(scene, (-1.2, -3.6, 3.2), (0.3, 0.2, 0.2), lens=30)
     return scene
@@ -1041,11 +951,11 @@ def hidden_kinds():
     rays do meet it: the floor's direct light does not), and a glass ball transmission rays do not
     meet (a refraction's ray passes the ball's own far side: one refraction, then the light)."""
     scene = _mirror_under_bulb("hidden_kinds")
-    card = B.material("Card", "diffuse", (0.2, 0.2, 0.2))
+    card = B.bsdf("Card", "diffuse", (0.2, 0.2, 0.2))
     v, f = B.grid(0.5, 0.7)
     ob = B.mesh_object(scene, "Card", v, f, card, location=(0.85, 0.0, 1.15), rotation=(0, math.radians(50), 0))
     ob.visible_glossy = False
-    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     ball = _sphere(scene, "Ball", glass, 0.3, (-0.2, 0.6, 0.55))
     ball.visible_transmission = False
     return scene
@@ -1058,7 +968,7 @@ def hidden_ball():
     scene = _ball_under_bulb("hidden_ball", lambda: principled("WhiteGlass", base=(1.0, 1.0, 1.0),
                                                                transmission=1.0, ior=1.5))
     bpy.data.objects["Ball"].visible_camera = False
-    card = B.material("Card", "diffuse", (0.5, 0.3, 0.2))
+    card = B.bsdf("Card", "diffuse", (0.5, 0.3, 0.2))
     v, f = B.grid(0.9, 0.6)
     ob = B.mesh_object(scene, "Card", v, f, card, location=(-0.35, -2.2, 1.55), rotation=(math.radians(60), 0, 0))
     ob.visible_camera = False
