@@ -7,8 +7,10 @@ Timings of separate processes on a shared 2-core machine drift by 20-50% within 
 same walks of the glass sphere took 13 and 20 us each half an hour apart), which hides the few
 percent a change to the kernels makes. Here both trees live in one process: REV's
 ``smbs_addon`` is extracted (``git archive``) into a folder of its own under the temporary
-directory and imported as ``smbs_base`` (its numba cache kept there per revision, so a second
-run loads it), each tree builds the scenes of its own ``tests/scenes.py`` and records its own
+directory and imported from there as ``smbs_base``, this tree's from its own folder as ``smbs_addon``
+(each loaded from its folder by name, sys.path untouched; REV's numba cache kept beside it per
+revision, so a second run loads it), each tree builds the scenes of its own ``testkit/scenes.py``
+(``tests/scenes.py`` in revisions before the test-kit) and records its own
 primary walks of a one-sample SMBS bake (as bench/walk_steps.py), and the two trees' walks then
 run in turn, one thread, ``--reps`` times, the order swapped every round. Printed per scene and
 chain type: microseconds per walk (minimum and median) and the median of the rounds' ratios
@@ -19,6 +21,7 @@ from __future__ import annotations
 
 import argparse
 import importlib
+import importlib.util
 import io
 import subprocess
 import sys
@@ -32,10 +35,14 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = {"sphere": "glass_sphere_scene", "ring": "ring_scene", "hammered": "hammered_mirror_scene"}
+# where a tree keeps the scenes, the walk and the module that calls it by name (newest layout first)
+SCENES_PATHS = ("testkit/scenes.py", "tests/scenes.py")
+WALK = ("walks.walk", "walk")
+WALK_CALLER = ("walks.estimators", "manifold")
 
 
 def extract(rev: str) -> tuple[Path, str]:
-    """REV's smbs_addon as smbs_base in <tmp>/smbs_ab/<sha>/, and REV's tests/scenes.py source."""
+    """REV's smbs_addon as smbs_base in <tmp>/smbs_ab/<sha>/, and REV's builder scenes' source."""
     sha = subprocess.check_output(["git", "rev-parse", rev], cwd=ROOT, text=True).strip()
     home = Path(tempfile.gettempdir()) / "smbs_ab" / sha[:12]
     if not (home / "smbs_base" / "__init__.py").exists():
@@ -43,8 +50,31 @@ def extract(rev: str) -> tuple[Path, str]:
         with tarfile.open(fileobj=io.BytesIO(data)) as tar:
             tar.extractall(home / "unpack")
         (home / "unpack" / "smbs_addon").rename(home / "smbs_base")
-    scenes = subprocess.check_output(["git", "show", f"{sha}:tests/scenes.py"], cwd=ROOT, text=True)
-    return home, scenes
+    for path in SCENES_PATHS:
+        shown = subprocess.run(["git", "show", f"{sha}:{path}"], cwd=ROOT, capture_output=True, text=True)
+        if shown.returncode == 0:
+            return home, shown.stdout
+    raise SystemExit(f"{rev} has none of {', '.join(SCENES_PATHS)}")
+
+
+def load_package(name: str, folder: Path):
+    """The package in folder imported under name (its modules import each other relatively), without
+    putting its parent on sys.path."""
+    spec = importlib.util.spec_from_file_location(name, folder / "__init__.py", submodule_search_locations=[str(folder)])
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    spec.loader.exec_module(module)
+    return module
+
+
+def submodule(P, candidates):
+    """The first of P's modules named in candidates that exists (layouts differ between revisions)."""
+    for name in candidates:
+        try:
+            return importlib.import_module(f"{P.__name__}.{name}")
+        except ModuleNotFoundError:
+            continue
+    raise ModuleNotFoundError(f"{P.__name__} has none of {candidates}")
 
 
 def scenes_module(source: str, package: str):
@@ -55,18 +85,19 @@ def scenes_module(source: str, package: str):
 
 def captured(P, scene) -> list:
     """The primary walks' arguments of a one-sample SMBS bake, one per chain type."""
-    seen, orig = [], P.walk.newton_walk
+    caller = submodule(P, WALK_CALLER)
+    seen, orig = [], caller.newton_walk
 
     def rec(ctx, cfg, chain_types, x0, ng0, light, chain=None, large_ok=None, seed=None):
         if seed is not None and chain_types not in [c[2] for c in seen]:
             seen.append((ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed))
         return orig(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
 
-    P.manifold.newton_walk = rec
+    caller.newton_walk = rec
     try:
         P.bake(scene, P.BakeSettings(method="smbs", spp=1, batches=1, seed=1))
     finally:
-        P.manifold.newton_walk = orig
+        caller.newton_walk = orig
     for c in seen:
         c[0].tracer.threads = 1
     return seen
@@ -87,13 +118,10 @@ def main(argv=None) -> None:
     ap.add_argument("--spp", type=int, default=1)
     a = ap.parse_args(argv)
     home, base_scenes = extract(a.base)
-    sys.path.insert(0, str(home))
-    sys.path.insert(0, str(ROOT))
-    pk = {n: importlib.import_module(n) for n in ("smbs_base", "smbs_addon")}
-    for P in pk.values():
-        importlib.import_module(P.__name__ + ".walk")
-        importlib.import_module(P.__name__ + ".manifold")
-    src = {"smbs_base": base_scenes, "smbs_addon": (ROOT / "tests" / "scenes.py").read_text()}
+    pk = {"smbs_base": load_package("smbs_base", home / "smbs_base"),
+          "smbs_addon": load_package("smbs_addon", ROOT / "smbs_addon")}
+    walks = {n: submodule(P, WALK) for n, P in pk.items()}
+    src = {"smbs_base": base_scenes, "smbs_addon": (ROOT / SCENES_PATHS[0]).read_text()}
     unit = "s per bake" if a.bakes else "us per walk"
     print(f"this: {ROOT}, base: {a.base} ({home}); min and median {unit}, {a.reps} rounds")
     for item in a.scenes.split(","):
@@ -115,7 +143,7 @@ def main(argv=None) -> None:
                 for n in (("smbs_base", "smbs_addon") if r % 2 == 0 else ("smbs_addon", "smbs_base")):
                     for ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed in caps[n]:
                         t = time.perf_counter()
-                        pk[n].walk.newton_walk(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
+                        walks[n].newton_walk(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
                         times.setdefault((chain_types, n), []).append((time.perf_counter() - t) / len(x0) * 1e6)
         for key in dict.fromkeys(k[0] for k in times):
             report(f"{item} {key}", times[(key, "smbs_base")], times[(key, "smbs_addon")])

@@ -31,7 +31,6 @@ import argparse
 import csv
 import functools
 import math
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -39,13 +38,10 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-sys.path.insert(0, str(ROOT / "sample_blends"))
-sys.path.insert(0, str(ROOT))
 
-import conformance as conf  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
-from smbs_addon.baking.convergence import caustic_region  # noqa: E402
+from testkit import conformance as conf
+from smbs_addon import BakeSettings, bake
+from smbs_addon.baking.convergence import caustic_region
 
 METHODS = {
     "reference": dict(method="reference"),
@@ -144,19 +140,19 @@ def cycles(scene, budget, seed):
     """Cycles' caustic component in `budget` seconds of rendering: on (its time limit) - off."""
     import bpy
     import conformance_scenes as scenes
-    from cycles_reference import _read_exr, _set_render
+    from testkit.cycles import read_exr_rgb, set_render
 
     ref = conf.load_reference(scene)
     with tempfile.TemporaryDirectory() as tmp:
         bpy.ops.wm.open_mainfile(filepath=str(conf.blend_of(scene, Path(tmp))))
         s = bpy.context.scene
-        _set_render(s, 1 << 20, seed, True, 2, keep_mnee=scene in scenes.MNEE_REFERENCE)
+        set_render(s, 1 << 20, seed, True, 2, keep_mnee=scene in scenes.MNEE_REFERENCE)
         s.cycles.time_limit = budget
         s.render.filepath = str(Path(tmp) / "on.exr")
         t = time.perf_counter()
         bpy.ops.render.render(write_still=True)
         wall = time.perf_counter() - t
-        img = (_read_exr(Path(tmp) / "on.exr") - ref["off"]).mean(axis=2)
+        img = (read_exr_rgb(Path(tmp) / "on.exr") - ref["off"]).mean(axis=2)
     name = "cycles-mnee" if scene in scenes.MNEE_REFERENCE else "cycles"
     return {"scene": scene, "method": name, "budget": budget, "wall": wall, "spp": None, "rays": None, "SR": None,
             "mps": None, "rmse": conf.relative_rmse(img, ref), "floor": conf.noise_floor(ref), "est": None, "halve": None, "image": img}

@@ -19,16 +19,13 @@ from __future__ import annotations
 import argparse
 import dataclasses
 import importlib
-import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-sys.path.insert(0, str(ROOT))
 
-import conformance as conf  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from testkit import conformance as conf
+from smbs_addon import BakeSettings, bake
 
 bake_module = importlib.import_module("smbs_addon.baking.settings")
 SCENES = ("through_glass_disk", "cube_white_rect", "cube_grey", "lens_area", "sphere_refraction_spot",

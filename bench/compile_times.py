@@ -23,7 +23,6 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = r'''
 import collections, sys, time
-sys.path.insert(0, ".")
 from numba.core import event
 
 stack, incl, excl, count = [], collections.Counter(), collections.Counter(), collections.Counter()

@@ -23,13 +23,10 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-sys.path.insert(0, str(ROOT / "sample_blends"))
-sys.path.insert(0, str(ROOT))
 
-import conformance as conf  # noqa: E402
-import conformance_scenes as scenes  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from testkit import conformance as conf
+from testkit import conformance_scenes as scenes
+from smbs_addon import BakeSettings, bake
 
 METHODS = ("reference", "sms", "smbs", "mnee")
 BIASED = {"mnee"}

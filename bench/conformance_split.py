@@ -26,12 +26,9 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-sys.path.insert(0, str(ROOT / "sample_blends"))
-sys.path.insert(0, str(ROOT))
 
-import conformance as conf  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from testkit import conformance as conf
+from smbs_addon import BakeSettings, bake
 
 PARTS = ("all", "direct", "through")
 MIN_PIXELS = 20  # of the caustic region, for a part to be judged

@@ -12,16 +12,13 @@ ratio (with three standard errors) and the relative RMSE per pixel over the caus
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-sys.path.insert(0, str(ROOT))
 
-import conformance as conf  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from testkit import conformance as conf
+from smbs_addon import BakeSettings, bake
 
 
 def run(name, method, budget, seed):

@@ -14,21 +14,17 @@ lets none of the edge rays through (bench/results/throughput.md, 2026-11-29)."""
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "bench"))
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT))
 
-import throughput  # noqa: E402
+import throughput  # bench/throughput.py, beside this script
 from smbs_addon import BakeSettings, bake
-from smbs_addon.core import embree  # noqa: E402
-from smbs_addon.scene.builder import SceneBuilder  # noqa: E402
+from smbs_addon.core import embree
+from smbs_addon.scene.builder import SceneBuilder
 
 ROBUST = embree._SCENE_FLAG_ROBUST
 VARIANTS = {"robust, medium (ours)": (ROBUST, embree.BUILD_MEDIUM), "robust, high": (ROBUST, embree.BUILD_HIGH),

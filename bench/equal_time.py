@@ -17,18 +17,15 @@ from __future__ import annotations
 import argparse
 import csv
 import math
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT))
 
-import scenes  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from testkit import scenes
+from smbs_addon import BakeSettings, bake
 
 
 def water_case():

@@ -23,8 +23,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 
 SAMPLE_BAKES = r'''
-import glob, sys
-sys.path.insert(0, ".")
+import glob
 from smbs_addon.cli.inputs import load_input
 from smbs_addon import BakeSettings, bake
 total = 0

@@ -18,10 +18,9 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path[:0] = [str(ROOT / "tools"), str(ROOT / "sample_blends"), str(ROOT)]
 
-import conformance as conf  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from testkit import conformance as conf
+from smbs_addon import BakeSettings, bake
 
 indirect = importlib.import_module("smbs_addon.paths.gather")
 

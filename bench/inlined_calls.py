@@ -30,7 +30,6 @@ ROOT = Path(__file__).resolve().parents[1]
 
 CHILD = r'''
 import importlib, json, re, sys
-sys.path.insert(0, ".")
 from numba.core.registry import CPUDispatcher
 from smbs_addon import BakeSettings, bake
 from smbs_addon.baking import prepare

@@ -13,15 +13,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT))
 
-import scenes  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from testkit import scenes
+from smbs_addon import BakeSettings, bake
 
 GRID = [  # (amplitude, wavelength, n)
     (0.005, 0.3, 96), (0.01, 0.3, 96), (0.02, 0.3, 96), (0.04, 0.3, 96), (0.08, 0.3, 96),

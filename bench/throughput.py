@@ -36,7 +36,6 @@ from __future__ import annotations
 
 import argparse
 import resource
-import sys
 import time
 from concurrent.futures import ThreadPoolExecutor
 from pathlib import Path
@@ -44,13 +43,11 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT))
 
-import scenes  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
-import smbs_addon.trace.tracer as tracer_mod  # noqa: E402
-from smbs_addon.trace.tracer import default_threads  # noqa: E402
+from testkit import scenes
+from smbs_addon import BakeSettings, bake
+import smbs_addon.trace.tracer as tracer_mod
+from smbs_addon.trace.tracer import default_threads
 
 SCENES = {
     "sphere": lambda res: scenes.glass_sphere_scene(resolution=res),

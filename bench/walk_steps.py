@@ -15,20 +15,17 @@ walk_steps.md.
 from __future__ import annotations
 
 import argparse
-import sys
 import time
 from pathlib import Path
 
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
-sys.path.insert(0, str(ROOT))
 
-import scenes  # noqa: E402
+from testkit import scenes
 from smbs_addon import BakeSettings, bake
-from smbs_addon.kernels import records  # noqa: E402
-from smbs_addon.walks import walk  # noqa: E402
+from smbs_addon.kernels import records
+from smbs_addon.walks import walk
 
 SCENES = {"sphere": scenes.glass_sphere_scene, "ring": scenes.ring_scene, "hammered": scenes.hammered_mirror_scene}
 

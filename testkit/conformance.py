@@ -1,21 +1,12 @@
-"""The conformance suite: Cycles references of the scenes in sample_blends/conformance_scenes.py,
-and the one way we judge a bake against them.
-
-    python tools/conformance.py reference NAME [NAME ...] --spp 8192 [--fresh]   # add a round
-    python tools/conformance.py status                                 # what is stored
+"""The conformance suite's library: the exported arrays of a scene of testkit/conformance_scenes.py, its
+Cycles reference, and the one way we judge a bake against it (tools/conformance.py renders the references).
 
 A reference is Cycles' caustic component, caustics on minus off, rendered with the
 bpy module (CPU, 2 threads) in two independent halves A and B (different seeds),
 stored in ``tests/data/conformance/NAME.npz`` (float32 halves, the mean "off" render,
 their sample counts) with a JSON note beside it. Each half is an "on" render less an
 "off" render of the same seed and samples, so that light the camera sees through glass
-or in a mirror cancels exactly (see add_round). Each ``reference`` call renders one more
-round of ``--spp`` samples per half (seeds 2k+1 and 2k+2 in round k) and merges it
-into the stored halves, so a noisy reference can be refined later (``--fresh`` starts
-over).
-
-Where path tracing cannot find the light (a sun of angle 0 behind water), the "on"
-render is Cycles' MNEE (the scene's caustic flags as saved) and "off" clears them.
+or in a mirror cancels exactly (tools/conformance.py, add_round).
 
 Judging (``judge``): the region is chosen on one half, blurred (5 x 5), where it
 exceeds 5% of its 99.5th percentile, and the means are taken on the other half, and
@@ -25,23 +16,16 @@ one averages keeps the pixels that happen to be noisy-high: on a glass cube at
 """
 from __future__ import annotations
 
-import argparse
 import json
 import math
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = ROOT / "tests" / "data" / "conformance"
-sys.path.insert(0, str(ROOT / "sample_blends"))
-sys.path.insert(0, str(ROOT / "tools"))
-sys.path.insert(0, str(ROOT))
+from . import ROOT, SAMPLE_BLENDS, TEST_DATA
 
-
+DATA = TEST_DATA / "conformance"
 CACHE = ROOT / ".cache" / "conformance"
 
 # (scene, method) pairs that cannot work, and why: the benches show the reason instead of a number
@@ -61,8 +45,8 @@ SAMPLES = {"sample_mirror": "mirror", "sample_glass_sphere": "glass_sphere", "sa
 def blend_of(name: str, folder: Path) -> Path:
     """The .blend of scene NAME: a sample scene's own file, or a conformance scene built into folder."""
     if name in SAMPLES:
-        return ROOT / "sample_blends" / f"{SAMPLES[name]}.blend"
-    import conformance_scenes as scenes
+        return SAMPLE_BLENDS / f"{SAMPLES[name]}.blend"
+    from . import conformance_scenes as scenes
 
     return scenes.build(name, Path(folder))
 
@@ -75,8 +59,8 @@ def scene_arrays(name: str):
 
     from smbs_addon.scene.arrays import Scene
 
-    src = (ROOT / "sample_blends" / "conformance_scenes.py").read_bytes() + \
-        (ROOT / "sample_blends" / "build.py").read_bytes()
+    here = Path(__file__).resolve().parent
+    src = (here / "conformance_scenes.py").read_bytes() + (here / "blend.py").read_bytes()
     # the export: every module of the blender package (export.py and the modules it calls; the few that
     # do not, such as composite.py, only cost a fresh export when they change) and of the scene package
     # it builds the arrays with
@@ -84,7 +68,7 @@ def scene_arrays(name: str):
             sorted((ROOT / "smbs_addon" / "scene").glob("*.py")):
         src += module.read_bytes()
     if name in SAMPLES:
-        src += (ROOT / "sample_blends" / f"{SAMPLES[name]}.blend").read_bytes()
+        src += (SAMPLE_BLENDS / f"{SAMPLES[name]}.blend").read_bytes()
     key = hashlib.sha1(src).hexdigest()[:12]
     path = CACHE / f"{name}-{key}.npz"
     if path.exists():
@@ -121,10 +105,10 @@ def load_reference(name: str) -> dict:
 def _sample_reference(sample: str) -> dict:
     """A sample scene's Cycles reference in the conformance form: halves A and B, each its "on"
     render less its paired "off" one."""
-    from cycles_reference import _read_exr
+    from .cycles import read_exr_rgb
 
-    base = ROOT / "tests" / "data" / f"cycles_{sample}"
-    on_a, on_b, off_a, off_b = (_read_exr(f"{base}_{t}.exr") for t in ("on_a", "on_b", "off_a", "off_b"))
+    base = TEST_DATA / f"cycles_{sample}"
+    on_a, on_b, off_a, off_b = (read_exr_rgb(f"{base}_{t}.exr") for t in ("on_a", "on_b", "off_a", "off_b"))
     meta = json.loads(Path(f"{base}.json").read_text())
     return {"a": on_a - off_a, "b": on_b - off_b, "off": 0.5 * (off_a + off_b),
             "spp_half": meta["renders"]["on_a"]["spp"], "meta": meta}
@@ -241,48 +225,8 @@ def view_masks(scene, sub: int = 4) -> tuple[np.ndarray, np.ndarray]:
     return specular == 0, specular == 1
 
 
-# ------------------------------------------------------------------------- rendering
-def _render(blend, spp, seed, caustics, mnee, path, threads=2):
-    import bpy
-    from cycles_reference import _set_render
-
-    bpy.ops.wm.open_mainfile(filepath=str(blend))
-    scene = bpy.context.scene
-    _set_render(scene, spp, seed, caustics, threads, keep_mnee=mnee)
-    scene.render.filepath = str(path)
-    t = time.perf_counter()
-    bpy.ops.render.render(write_still=True)
-    return time.perf_counter() - t
-
-
 def diffcol_path(name: str) -> Path:
     return DATA / f"{name}_diffcol.npz"
-
-
-def render_diffuse_color(name: str, blend: Path, spp: int = 64, threads: int = 2) -> np.ndarray:
-    """Cycles' Diffuse Color pass of scene NAME ((H,W,3), top row first): where a receiver's colour
-    is a texture, the albedo our per-albedo layer is multiplied by, as the add-on's compositor does
-    (BakeResult.per_albedo). Stored beside the reference (diffcol_path)."""
-    import bpy
-    from cycles_reference import _set_render
-
-    from smbs_addon.io.exr import read_passes
-
-    bpy.ops.wm.open_mainfile(filepath=str(blend))
-    scene = bpy.context.scene
-    _set_render(scene, spp, 1, False, threads)
-    scene.view_layers[0].use_pass_diffuse_color = True
-    scene.render.image_settings.media_type = "MULTI_LAYER_IMAGE"
-    with tempfile.TemporaryDirectory() as tmp:
-        path = Path(tmp) / "diffcol.exr"
-        scene.render.filepath = str(path)
-        bpy.ops.render.render(write_still=True)
-        chans = read_passes(path)
-        if "Diffuse Color.R" not in chans:
-            raise RuntimeError(f"{name}: the render has no Diffuse Color pass")
-        dc = np.stack([chans[f"Diffuse Color.{ch}"] for ch in "RGB"], axis=-1).astype(np.float64)
-    np.savez_compressed(diffcol_path(name), diffcol=dc.astype(np.float32), spp=np.asarray(spp))
-    return dc
 
 
 def composed_luminance(result, diffcol) -> np.ndarray:
@@ -299,66 +243,6 @@ def composed_luminance(result, diffcol) -> np.ndarray:
     return result.batch_luminance * scale[None].astype(np.float32)
 
 
-def add_round(name: str, spp: int, threads: int = 2, fresh: bool = False) -> dict:
-    """Render one more round of the reference of scene NAME and merge it in (fresh: start over).
-
-    Each half's "on" render is paired with an "off" render of the same seed and samples, and the
-    half is their difference: Cycles draws the same random numbers for a camera path until its
-    first diffuse vertex, so light the camera sees through glass or in a mirror (a light's image
-    in a glass cube, a sun's glint on water) is the same sample for sample in both and cancels
-    exactly. With one "off" render shared by both halves (as references were made before) that
-    light's noise stayed in the reference, the same in both halves, so their spread did not show
-    it: on a bevelled glass cube, where the camera sees the area light through the cube, a shared
-    1024-spp "off" put 10-15% too much caustic in the pixels seen through the cube."""
-    import conformance_scenes as scenes
-    from cycles_reference import _read_exr
-
-    mnee = name in scenes.MNEE_REFERENCE
-    DATA.mkdir(parents=True, exist_ok=True)
-    old = None if fresh or not reference_path(name).exists() else load_reference(name)
-    k = 0 if old is None else int(old["rounds"])
-    with tempfile.TemporaryDirectory() as tmp:
-        blend = scenes.build(name, Path(tmp))
-        if np.any(scene_arrays(name).mat_textured) and (fresh or not diffcol_path(name).exists()):
-            render_diffuse_color(name, blend, threads=threads)
-        secs = {}
-        halves, offs = {}, []
-        for tag, seed in (("a", 2 * k + 1), ("b", 2 * k + 2)):
-            p_on, p_off = Path(tmp) / f"on_{tag}.exr", Path(tmp) / f"off_{tag}.exr"
-            secs["on_" + tag] = _render(blend, spp, seed, True, mnee, p_on, threads)
-            secs["off_" + tag] = _render(blend, spp, seed, False, False, p_off, threads)
-            on, off_half = _read_exr(p_on), _read_exr(p_off)
-            halves[tag] = on - off_half
-            offs.append(off_half)
-    off_new = 0.5 * (offs[0] + offs[1])
-    if old is None:
-        a, b, off, n = halves["a"], halves["b"], off_new, spp
-        meta = {"scene": name, "method": "Cycles MNEE (shadow caustics)" if mnee else "Cycles path tracing",
-                "paired_off": True, "seconds": 0.0, "rounds_spp": []}
-    else:
-        n0 = int(old["spp_half"])
-        n = n0 + spp
-        a = (old["a"] * n0 + halves["a"] * spp) / n
-        b = (old["b"] * n0 + halves["b"] * spp) / n
-        off = (old["off"] * n0 + off_new * spp) / n
-        meta = old["meta"]
-    meta["seconds"] = round(meta["seconds"] + sum(secs.values()), 1)
-    meta["rounds_spp"].append(spp)
-    import bpy
-
-    meta.update(blender=bpy.app.version_string, threads=threads, device="CPU",
-                how="a, b: two independent halves of Cycles' caustics on - off, each 'off' render with the "
-                    "seed and samples of its 'on' render (seeds 2k+1, 2k+2 in round k); clamps, Filter "
-                    "Glossy, denoising and adaptive sampling off")
-    np.savez_compressed(reference_path(name), a=a.astype(np.float32), b=b.astype(np.float32),
-                        off=off.astype(np.float32), spp_half=np.asarray(n), rounds=np.asarray(k + 1),
-                        meta=np.asarray(json.dumps(meta)))
-    s = summary(name)
-    meta["summary"] = s
-    (DATA / f"{name}.json").write_text(json.dumps(meta, indent=2) + "\n")
-    return s
-
-
 def summary(name: str) -> dict:
     ref = load_reference(name)
     A, Bh = ref["a"].mean(axis=2), ref["b"].mean(axis=2)
@@ -369,42 +253,3 @@ def summary(name: str) -> dict:
     return {"spp": 2 * int(ref["spp_half"]), "region_pixels": n, "mean": mean,
             "relative_se": se / mean if mean > 0 else float("inf"),
             "halves_ratio": float(A[region].mean() / Bh[region].mean())}
-
-
-def main(argv=None):
-    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    sub = ap.add_subparsers(dest="cmd", required=True)
-    r = sub.add_parser("reference", help="render one more round of references")
-    r.add_argument("names", nargs="+")
-    r.add_argument("--spp", type=int, required=True, help="samples per half in this round")
-    r.add_argument("--fresh", action="store_true", help="start the reference over (its stored rounds are dropped)")
-    r.add_argument("--threads", type=int, default=2)
-    sub.add_parser("status", help="print what is stored")
-    args = ap.parse_args(argv)
-    import conformance_scenes as scenes
-
-    if args.cmd == "reference":
-        names = list(scenes.SCENES) if args.names == ["all"] else args.names
-        for name in names:
-            if name not in scenes.SCENES:
-                ap.error(f"unknown scene '{name}'")
-            s = add_round(name, args.spp, args.threads, args.fresh)
-            print(f"{name}: {s['spp']} spp, relative standard error {s['relative_se']:.2%}, "
-                  f"halves {s['halves_ratio']:.3f}", flush=True)
-    else:
-        for name in scenes.SCENES:
-            if reference_path(name).exists():
-                try:
-                    s = summary(name)
-                except ValueError:
-                    print(f"{name:24s} (shared 'off' render: render it again with --fresh)")
-                    continue
-                meta = load_reference(name)["meta"]
-                print(f"{name:24s} {s['spp']:7d} spp  se {s['relative_se']:6.2%}  halves "
-                      f"{s['halves_ratio']:.3f}  {meta['seconds']:7.0f} s  {meta['method']}")
-            else:
-                print(f"{name:24s} (no reference)")
-
-
-if __name__ == "__main__":
-    main()

@@ -6,16 +6,14 @@ scene's Diffuse, Glossy, Transmission and Max bounces. Measured on the conforman
 Cycles: Diffuse 0 leaves no caustic at all, Glossy 0 keeps 0.657 of it and Glossy 1 0.861
 (tests/test_conformance.py holds our layer to a Cycles reference made with Glossy 1).
 """
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene.light_paths import Limits, UNLIMITED
 from smbs_addon.scene.arrays import Scene
+from testkit import scenes
+from testkit.conformance import view_masks
 
 
 def test_the_last_event_is_free():
@@ -74,9 +72,6 @@ def test_walks_and_photons_keep_the_same_limits():
     floor the camera sees directly, the light tracer with and without the limit on the same
     random numbers (the same photons, but for what the limit cuts) differ by more than 3
     standard errors of their paired batches."""
-    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tools"))
-    from conformance import view_masks
-
     sc = scenes.glass_sphere_scene(resolution=(48, 36))
     full = bake(sc, BakeSettings(method="reference", spp=256, seed=2))
     sc.light_paths = np.array([12, 4, 0, 12])

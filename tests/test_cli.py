@@ -6,7 +6,6 @@ Errors are one line on stderr: ``smbs_addon: error: <message>``.
 """
 import json
 import re
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -186,8 +185,7 @@ def test_bake_a_textured_floor_blend(tmp_path):
     checker_floor), baked by the command line: it says how much of the layer lies on textured
     receivers, and the EXR carries that part per unit albedo beside the rest."""
     pytest.importorskip("bpy")
-    sys.path.insert(0, str(ROOT / "sample_blends"))
-    import conformance_scenes
+    from testkit import conformance_scenes
 
     blend = conformance_scenes.build("checker_floor", tmp_path)
     out = tmp_path / "checker.exr"

@@ -1,24 +1,18 @@
 """The fast subset of the conformance suite: our layer against Cycles' own caustics.
 
-Each scene (sample_blends/conformance_scenes.py) is built with the bpy module and exported the
+Each scene (testkit/conformance_scenes.py) is built with the bpy module and exported the
 way the add-on exports; its reference is Cycles' caustic component (caustics on minus off, two
-independent halves, tests/data/conformance/). The judge (tools/conformance.py) compares the
+independent halves, tests/data/conformance/). The judge (testkit/conformance.py) compares the
 means over the caustic region, chosen on one half of the reference and averaged on the other,
 and passes within 3% + 3 sigma (our standard error from the independent batches and the
 reference's from its halves combined). The whole suite, every scene x method, is
 ``bench/conformance.py`` (results in bench/results/conformance.md).
 """
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-
-import conformance as conf  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
+from smbs_addon import BakeSettings, bake
+from testkit import conformance as conf
 
 pytestmark = pytest.mark.bpy
 
@@ -302,8 +296,9 @@ def test_an_off_render_of_the_same_seed_cancels_light_seen_through_glass(tmp_pat
     is zero in every pixel, exactly, while an "off" render of another seed differs by that
     light's noise (the noise a shared "off" render left in both halves of the old references)."""
     import bpy
-    import conformance_scenes as scenes
-    from cycles_reference import _read_exr, _set_render
+
+    from testkit import conformance_scenes as scenes
+    from testkit.cycles import read_exr_rgb, set_render
 
     blend = scenes.build("cube_grey", tmp_path)
     imgs = {}
@@ -315,10 +310,10 @@ def test_an_off_render_of_the_same_seed_cancels_light_seen_through_glass(tmp_pat
                 if socket in node.inputs:
                     node.inputs[socket].default_value = (0.0, 0.0, 0.0, 1.0)
         sc = bpy.context.scene
-        _set_render(sc, 16, seed, caustics, 2)
+        set_render(sc, 16, seed, caustics, 2)
         sc.render.filepath = str(tmp_path / f"{tag}.exr")
         bpy.ops.render.render(write_still=True)
-        imgs[tag] = _read_exr(tmp_path / f"{tag}.exr").mean(axis=2)
+        imgs[tag] = read_exr_rgb(tmp_path / f"{tag}.exr").mean(axis=2)
     seen = imgs["on"] > 0  # the light's image in the cube
     assert seen.sum() > 10, seen.sum()
     assert np.array_equal(imgs["on"], imgs["off"])

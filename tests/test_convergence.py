@@ -5,21 +5,14 @@ conformance scenes (tests/data/conformance), the reference's own noise taken out
 seconds_to_halve_error is judged against the batches the error really took to halve.
 """
 import math
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-
-import conformance as conf  # noqa: E402
-from smbs_addon import BakeSettings, bake  # noqa: E402
-from smbs_addon.baking.convergence import caustic_region, convergence, relative_error  # noqa: E402
-from smbs_addon.trace.film import MAX_GROUPS, Film  # noqa: E402
-
-from testkit import scenes  # noqa: E402
+from smbs_addon import BakeSettings, bake
+from smbs_addon.baking.convergence import caustic_region, convergence, relative_error
+from smbs_addon.trace.film import MAX_GROUPS, Film
+from testkit import conformance as conf, scenes
 
 
 def _true_error(res, ref):

@@ -3,9 +3,7 @@ depend on it: one seed gives the same image bit for bit with 1 or 2 threads, for
 method and estimator, with one manifold chunk per batch or several, and with the walks (and
 the hand-off's cosine bounces) cut in blocks or not."""
 import importlib
-import sys
 import threading
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -246,11 +244,8 @@ def test_one_chunks_photons_split_over_threads_give_the_records_of_one_call(monk
 
 
 def _conformance():
-    """tools/conformance.py (its scenes are built with bpy)."""
-    tools = str(Path(__file__).resolve().parents[1] / "tools")
-    if tools not in sys.path:
-        sys.path.insert(0, tools)
-    return importlib.import_module("conformance")
+    """testkit/conformance.py (its scenes are built with bpy)."""
+    return importlib.import_module("testkit.conformance")
 
 
 @pytest.mark.parametrize("make, methods", [

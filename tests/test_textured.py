@@ -3,21 +3,13 @@ them directly, their caustic per unit albedo (BakeResult.per_albedo) for the ren
 Color pass to multiply, and takes it out of the layer added as it is (BakeResult.layer)."""
 from __future__ import annotations
 
-import sys
-from pathlib import Path
-
 import numpy as np
 import pytest
 
-from testkit import scenes
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
 from smbs_addon.io.exr import exr_channels
-
-ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tools"))
-
-import conformance as conf  # noqa: E402
+from testkit import conformance as conf, scenes
 
 
 def _eroded(mask, k):

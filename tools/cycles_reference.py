@@ -30,75 +30,11 @@ import argparse
 import json
 import os
 import sys
-import time
 from pathlib import Path
 
 import numpy as np
 
-
-def _set_render(scene, spp, seed, caustics, threads, keep_mnee=False):
-    scene.render.engine = "CYCLES"
-    if not keep_mnee:
-        # Cycles turns on MNEE ("shadow caustics") when a caster, a receiver and a caustics
-        # light all exist, and then DROPS every path receiver -> caster -> caustics light
-        # found by BSDF sampling (it expects MNEE to have handled it). MNEE only solves
-        # refraction, so e.g. the mirror's caustic disappears entirely. The reference must be
-        # plain path tracing, so clear the caster flags in this in-memory copy (the .blend
-        # file is not saved).
-        for ob in scene.objects:
-            ob.cycles.is_caustics_caster = False
-    c = scene.cycles
-    c.device = "CPU"
-    c.samples = int(spp)
-    c.seed = int(seed)
-    c.use_animated_seed = False
-    c.use_adaptive_sampling = False
-    c.use_denoising = False
-    c.sample_clamp_direct = 0.0
-    c.sample_clamp_indirect = 0.0
-    c.blur_glossy = 0.0
-    c.caustics_reflective = bool(caustics)
-    c.caustics_refractive = bool(caustics)
-    r = scene.render
-    r.threads_mode = "FIXED"
-    r.threads = int(threads)
-    r.film_transparent = False
-    r.use_compositing = False
-    r.use_sequencer = False
-    r.image_settings.file_format = "OPEN_EXR"
-    r.image_settings.color_depth = "32"
-    r.image_settings.exr_codec = "ZIP"
-    r.image_settings.color_mode = "RGB"
-    scene.view_settings.view_transform = "Standard"
-    scene.view_settings.look = "None"
-    scene.view_settings.exposure = 0.0
-    scene.view_settings.gamma = 1.0
-
-
-def _read_exr(path):
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise RuntimeError(f"cannot read {path}: {oiio.geterror()}")
-    spec = inp.spec()
-    img = np.asarray(inp.read_image(oiio.FLOAT), np.float32).reshape(
-        spec.height, spec.width, spec.nchannels)
-    inp.close()
-    return img[:, :, :3]
-
-
-def render(blend, spp, seed, caustics, threads, path, keep_mnee=False):
-    import bpy
-
-    bpy.ops.wm.open_mainfile(filepath=str(blend))
-    scene = bpy.context.scene
-    _set_render(scene, spp, seed, caustics, threads, keep_mnee)
-    scene.render.filepath = str(path)
-    t = time.perf_counter()
-    bpy.ops.render.render(write_still=True)
-    dt = time.perf_counter() - t
-    return dt
+from testkit.cycles import read_exr_rgb, render
 
 
 def caustic_stats(on_a, on_b, off_a, off_b, frac=0.05, pct=99.5):
@@ -148,7 +84,7 @@ def main(argv=None):
         print(f"{tag}: {spp} spp, seed {seed}, caustics {'on' if caustics else 'off'}: "
               f"{dt:.1f} s -> {path.name}", flush=True)
 
-    stats = caustic_stats(*(_read_exr(f"{out}_{t}.exr") for t in ("on_a", "on_b", "off_a", "off_b")))
+    stats = caustic_stats(*(read_exr_rgb(f"{out}_{t}.exr") for t in ("on_a", "on_b", "off_a", "off_b")))
     import bpy
 
     scene = bpy.context.scene
