@@ -60,7 +60,8 @@ def extract(rev: str) -> tuple[Path, str]:
 def load_package(name: str, folder: Path):
     """The package in folder imported under name (its modules import each other relatively), without
     putting its parent on sys.path."""
-    spec = importlib.util.spec_from_file_location(name, folder / "__init__.py", submodule_search_locations=[str(folder)])
+    spec = importlib.util.spec_from_file_location(name, folder / "__init__.py",
+                                                  submodule_search_locations=[str(folder)])
     module = importlib.util.module_from_spec(spec)
     sys.modules[name] = module
     spec.loader.exec_module(module)

@@ -417,3 +417,13 @@ def obj_tris(sc, name):
     """The exported triangles of object name: (vertices (T,3,3), normals (T,3,3))."""
     i = sc.object_names.index(name)
     return sc.tri_vertices[sc.tri_object == i], sc.tri_normals[sc.tri_object == i]
+
+
+def one_material(mat):
+    """A camera and a cube of material mat, exported: (Scene, warnings), the scene asserted to hold
+    one material."""
+    add_camera()
+    mesh_with(mat)
+    sc, warnings = export()
+    assert len(sc.mat_names) == 1
+    return sc, warnings

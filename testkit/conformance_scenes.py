@@ -180,14 +180,14 @@ def metallic_edge_ring():
     """gold_cylinder's ring as a Metallic BSDF in its F82 mode: gold's Base Color, an Edge Tint (0.9, 0.5,
     0.15) that darkens its grazing reflections (Cycles' F82-Tint; the node was 'not supported, treated as
     diffuse' before: no caustic)."""
-    return _ring_of("metallic_edge_ring", lambda: B.metallic("EdgeGold", "F82", **{"Roughness": 0.0, 
+    return _ring_of("metallic_edge_ring", lambda: B.metallic("EdgeGold", "F82", **{"Roughness": 0.0,
         "Base Color": (1.0, 0.766, 0.336), "Edge Tint": (0.9, 0.5, 0.15)}))
 
 
 def conductor_ring():
     """gold_cylinder's ring as a Metallic BSDF in its Physical Conductor mode, the node's own index and
     extinction (IOR 2.757 2.513 2.231, Extinction 3.867 3.404 3.009): the Fresnel equations of a conductor."""
-    return _ring_of("conductor_ring", lambda: B.metallic("Conductor", "PHYSICAL_CONDUCTOR", **{"Roughness": 0.0, 
+    return _ring_of("conductor_ring", lambda: B.metallic("Conductor", "PHYSICAL_CONDUCTOR", **{"Roughness": 0.0,
         "IOR": (2.757, 2.513, 2.231), "Extinction": (3.867, 3.404, 3.009)}))
 
 
@@ -195,7 +195,7 @@ def film_ring():
     """metallic_edge_ring's ring as a pale Metallic BSDF (F82 mode, Base Color 0.95/0.93/0.88, Edge Tint white)
     under a thin film of 350 nm and index 1.5: Cycles' iridescence (the film over the metal's n and k, which it
     estimates from F0 and F82) colours the ring's caustic."""
-    return _ring_of("film_ring", lambda: B.metallic("FilmMetal", "F82", **{"Roughness": 0.0, 
+    return _ring_of("film_ring", lambda: B.metallic("FilmMetal", "F82", **{"Roughness": 0.0,
         "Base Color": (0.95, 0.93, 0.88), "Edge Tint": (1.0, 1.0, 1.0), "Thin Film Thickness": 350.0,
         "Thin Film IOR": 1.5}))
 
@@ -212,7 +212,7 @@ def anodized_ring():
     """gold_cylinder's ring as a Metallic BSDF in its Physical Conductor mode (IOR 2.5/2.3/2.1, Extinction
     3.3/3.0/2.7: a grey metal reflecting about half) under a film of 180 nm and index 2.2, as anodised titanium:
     the film turns its reflection violet at normal incidence, other colours towards grazing."""
-    return _ring_of("anodized_ring", lambda: B.metallic("Anodized", "PHYSICAL_CONDUCTOR", **{"Roughness": 0.0, 
+    return _ring_of("anodized_ring", lambda: B.metallic("Anodized", "PHYSICAL_CONDUCTOR", **{"Roughness": 0.0,
         "IOR": (2.5, 2.3, 2.1), "Extinction": (3.3, 3.0, 2.7), "Thin Film Thickness": 180.0, "Thin Film IOR": 2.2}))
 
 
@@ -291,7 +291,8 @@ def bumped_slab_sun():
     v, f = _box(0.6, 0.6, 0.1)
     B.mesh_object(scene, "Slab", v, f, B.bumped_glass("BumpedGlass", 0.1, 2.0, "Object"), smooth=False,
                   location=(0, 0, 2.5), caster=True)
-    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0), caustics=True)
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0),
+                caustics=True)
     B.add_camera(scene, (-2.4, 0, 4.5), (-1.44, 0, 0), lens=35)
     return scene
 
@@ -486,7 +487,8 @@ def shadow_linked_ball():
     that comes back through the ball are those without the plate, while the plate still stands in every
     other path."""
     return _unshadowed_ball("shadow_linked_ball", lambda scene: B.add_light(
-        scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, use_soft_falloff=True, caustics=True))
+        scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, use_soft_falloff=True,
+        caustics=True))
 
 
 def shadow_linked_glow():
@@ -495,8 +497,8 @@ def shadow_linked_glow():
     surfaces: past the plate, the light is found again where they lie."""
     def glow(scene):
         v, f = B.uv_sphere(0.25, 32, 16)
-        return B.mesh_object(scene, "Glow", v, f, B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0), smooth=True,
-                             location=(0.4, -0.2, 3.0))
+        lamp = B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0)
+        return B.mesh_object(scene, "Glow", v, f, lamp, smooth=True, location=(0.4, -0.2, 3.0))
     return _unshadowed_ball("shadow_linked_glow", glow)
 
 
@@ -877,7 +879,8 @@ def mesh_light_ball():
     _floor(scene)
     _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     v, f = B.grid(0.8, 0.8)
-    B.mesh_object(scene, "Panel", v, f, B.material("Glow", "ShaderNodeEmission", (1.0, 0.9, 0.75), Strength=60.0), location=(0.3, -0.2, 3.0))
+    glow = B.material("Glow", "ShaderNodeEmission", (1.0, 0.9, 0.75), Strength=60.0)
+    B.mesh_object(scene, "Panel", v, f, glow, location=(0.3, -0.2, 3.0))
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 
@@ -904,8 +907,8 @@ def mesh_light_mirror():
     mirror."""
     scene = _standing_mirror("mesh_light_mirror")
     v, f = B.uv_sphere(0.2, 32, 16)
-    B.mesh_object(scene, "Bulb", v, f, B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0), smooth=True,
-                  location=(0.5, 0.0, 1.4))
+    lamp = B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0)
+    B.mesh_object(scene, "Bulb", v, f, lamp, smooth=True, location=(0.5, 0.0, 1.4))
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
     return scene
 
