@@ -11,12 +11,11 @@ from __future__ import annotations
 
 import math
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from testkit import scenes
+from testkit import ROOT, scenes
 from testkit.scenes import lens_scene
 from smbs_addon import BakeSettings, bake
 from smbs_addon.scene import arrays as S
@@ -26,8 +25,6 @@ from smbs_addon.trace.camera import CameraModel
 from smbs_addon.baking.pilots import PILOT_PHOTONS
 from smbs_addon.baking.plan import describe_chain, make_plan, refine_plan
 from smbs_addon.trace.tracer import Tracer
-
-ROOT = Path(__file__).resolve().parents[1]
 
 
 BALL = ["Area -> Ball (refraction, 2 vertices 93%; reflection 7%; rarer paths <1%) -> Floor",

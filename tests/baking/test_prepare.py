@@ -4,7 +4,6 @@ What it saves is measured in bench/ (a cold cache is minutes of compiling, too l
 here: its bakes run and are shared out between processes exactly, and the command reports."""
 import subprocess
 import sys
-from pathlib import Path
 
 import numpy as np
 
@@ -12,7 +11,7 @@ from smbs_addon.baking import prepare
 from smbs_addon.baking.settings import BakeSettings
 from smbs_addon.baking.bake import bake
 
-ROOT = Path(__file__).resolve().parents[1]
+from testkit import ROOT
 
 
 def test_parts_share_out_every_bake_once():

@@ -18,7 +18,8 @@ import pytest
 
 bpy = pytest.importorskip("bpy")
 
-ROOT = Path(__file__).resolve().parent.parent
+from testkit import ROOT  # noqa: E402
+
 MIRROR = ROOT / "sample_blends" / "mirror.blend"
 ARGS = ("--method", "smbs", "--spp", "2", "--batches", "2", "--seed", "7")
 

@@ -13,11 +13,11 @@ import os
 import subprocess
 import sys
 import zipfile
-from pathlib import Path
 
 import pytest
 
-ROOT = Path(__file__).resolve().parent.parent
+from testkit import ROOT
+
 MIRROR = ROOT / "sample_blends" / "mirror.blend"
 EXIT_DOWNLOAD = 4
 

@@ -7,14 +7,14 @@ leaves one image, one EXR and one compositor setup.
 """
 import importlib
 import os
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 bpy = pytest.importorskip("bpy")
 
-ROOT = Path(__file__).resolve().parent.parent
+from testkit import ROOT  # noqa: E402
+
 MIRROR = ROOT / "sample_blends" / "mirror.blend"
 
 

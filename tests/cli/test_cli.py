@@ -6,16 +6,14 @@ Errors are one line on stderr: ``smbs_addon: error: <message>``.
 """
 import json
 import re
-from pathlib import Path
 
 import numpy as np
 import pytest
 
-from testkit import scenes
 from smbs_addon.io.exr import read_exr
+from testkit import ROOT, scenes
 from testkit.cli import one_error_line, run
 
-ROOT = Path(__file__).resolve().parent.parent
 MIRROR_BLEND = ROOT / "sample_blends" / "mirror.blend"
 
 

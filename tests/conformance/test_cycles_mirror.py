@@ -13,7 +13,6 @@ choosing pixels by thresholding the very image one averages keeps the pixels
 that happen to be noisy-high and biased Cycles' mean up by 2.4% (measured).
 """
 import math
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -24,7 +23,8 @@ from smbs_addon.baking.result import caustic_region
 from smbs_addon.baking.convergence import box5
 from smbs_addon.io.exr import read_exr
 
-ROOT = Path(__file__).resolve().parents[1]
+from testkit import ROOT
+
 DATA = ROOT / "tests" / "data"
 
 

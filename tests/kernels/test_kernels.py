@@ -188,7 +188,7 @@ def test_disk_cache_survives_two_module_names(tmp_path):
     import sys
     from pathlib import Path
 
-    root = Path(__file__).resolve().parent.parent
+    root = Path(__file__).resolve().parents[2]
     path = str(root / "smbs_addon")
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
     for name in ("smbs_caustics_test.smbs_addon.kernels.chain", "smbs_addon.kernels.chain", "smbs_caustics_test.smbs_addon.kernels.chain",
@@ -208,7 +208,7 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
     import sys
     from pathlib import Path
 
-    src = Path(__file__).resolve().parent.parent / "smbs_addon"
+    src = Path(__file__).resolve().parents[2] / "smbs_addon"
     pkg = tmp_path / "copy" / "smbs_addon"
     shutil.copytree(src, pkg, ignore=shutil.ignore_patterns("__pycache__"))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
