@@ -268,9 +268,9 @@ def test_sample_scene_plans(name):
 
 
 def test_chain_flux_adds_up_as_a_loop_over_the_paths():
-    """plan._chain_flux (np.unique and np.bincount) against the loop over pilot paths it replaced:
+    """pilots._chain_flux (np.unique and np.bincount) against the loop over pilot paths it replaced:
     the same chains in the order they first appear, and the same sums to the last bit."""
-    from smbs_addon.baking.plan import _chain_flux
+    from smbs_addon.baking.pilots import _chain_flux
     from smbs_addon.baking.pilots import chain_letters
 
     rng = np.random.default_rng(11)

@@ -155,7 +155,7 @@ def test_a_rough_conductors_mean_fresnel_is_cycles_f82_fit():
     independent quadrature), and exact for a Schlick metal, whose fit is itself (F0 + (1 - F0) / 21)."""
     from smbs_addon.scene import arrays as S
     from smbs_addon.shading.fresnel import specular_weights
-    from smbs_addon.shading.microfacet import _f82_fit_mean
+    from smbs_addon.shading.energy import _f82_fit_mean
 
     sc = _metal_scene(S.FRESNEL_CONDUCTOR, (0.5,) * 3, (0.27, 0.68, 1.32, 3.61, 2.63, 2.29))
     mu = (np.arange(20000) + 0.5) / 20000

@@ -75,9 +75,10 @@ def test_a_faint_wide_glow_is_weak_on_every_random_stream():
     so the noise decided whether the walks or the photons served it (walks 390k against 227k
     on one 1-spp bake). Averaged, it reads 0.006-0.012: weak on every seed, with room to spare."""
     from smbs_addon.baking.engine import trace_plan
+    from smbs_addon.core.random import stream
     from smbs_addon.walks.guide import WEAK_PEAK, build_guide, photon_budget
     from smbs_addon.walks.manifold import chain_types
-    from smbs_addon.baking.plan import _rng, make_plan
+    from smbs_addon.baking.plan import make_plan
 
     scene = scenes.glass_sphere_scene(resolution=(512, 384))
     settings = BakeSettings(method="sms", spp=1, seed=1)
@@ -87,7 +88,7 @@ def test_a_faint_wide_glow_is_weak_on_every_random_stream():
     assert "R" in types and "TT" in types
     peaks = []
     for seed in range(1, 5):
-        _, stats, weak = build_guide(scene, tracer, cam, plan, types, _rng(seed, 3, 0), photon_budget(cam))
+        _, stats, weak = build_guide(scene, tracer, cam, plan, types, stream(seed, 3, 0), photon_budget(cam))
         peak = stats["peak_share"]["Area"]
         assert peak["TT"] == 1.0 and (0, "TT") not in weak
         assert (0, "R") in weak
