@@ -3,7 +3,7 @@
     .venv/bin/python bench/accuracy_time.py [--scenes lens_area,pool_sun4] [--methods reference,smbs]
         [--budgets 2,5,12,30,60,120] [--seeds 1] [--cycles] [--out bench/results]
 
-For each conformance scene (sample_blends/conformance_scenes.py; its converged Cycles reference
+For each conformance scene (testkit/conformance_scenes.py; its converged Cycles reference
 is the truth, tests/data/conformance) or sample scene with a reference (sample_mirror,
 sample_glass_sphere, sample_glass_spot: sample_blends/*.blend, tests/data/cycles_*; see
 tools/conformance.SAMPLES), each method and each budget: one bake with that time

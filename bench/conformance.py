@@ -2,10 +2,10 @@
 
     .venv/bin/python bench/conformance.py [--scenes a,b] [--methods sms,smbs] [--out bench/results]
 
-Each scene of ``sample_blends/conformance_scenes.py`` is exported the way the add-on exports
+Each scene of ``testkit/conformance_scenes.py`` is exported the way the add-on exports
 (cached in .cache/conformance/), baked with each method at a fixed sample count per method and
 scene (below; chosen so the bake's own noise is a few per cent), and judged with
-``tools/conformance.py``'s ``judge``: our mean over the caustic region / Cycles' mean, the region
+``testkit/conformance.py``'s ``judge``: our mean over the caustic region / Cycles' mean, the region
 chosen on one half of the reference and the mean taken on the other. A row passes when
 |ratio - 1| <= 3% + 3 sigma, sigma combining our standard error (from the independent batches)
 and the reference's (from its two halves). MNEE is biased (it finds one solution per light

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/cube_tir.py [--budget 60] [--scenes cube_grey,cube_white_rect]
 
-The conformance suite's two bevelled cubes (sample_blends/conformance_scenes.py), baked by SMS
+The conformance suite's two bevelled cubes (testkit/conformance_scenes.py), baked by SMS
 and SMBS (unbiased) for the same wall-clock budget. Per method: success rate and mutations per
 solution overall and per chain type (T T, T R T, T R R T), large mutations and what set them
 off, Bernoulli trials per lane, and the error against Cycles' reference: the region mean's

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/embree_flags.py [--scenes sphere:512:sms,ring:512:smbs,hammered:48:sms] [--reps 3]
 
-Per scene (tests/scenes.py, ``name:size:method``): one bake of one sample per pixel records every 4th
+Per scene (testkit/scenes.py, ``name:size:method``): one bake of one sample per pixel records every 4th
 ray it casts (bench/throughput.py's RayRecorder), and the recorded rays are cast again, on one
 thread, through embree scenes built from the same triangles with each variant's flags and build
 quality (smbs_addon/embree.py builds with RTC_SCENE_FLAG_ROBUST at the default, medium, quality).

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/equal_time.py [--budget 20] [--out bench/results]
 
-Scenes (tests/scenes.py; --cases picks some): under water with a sun (most SMS
+Scenes (testkit/scenes.py; --cases picks some): under water with a sun (most SMS
 seeds die of total internal reflection); four back-lit reflection scenes: a bumpy
 mirror sheet (many seeds land on facets facing away from the light), the same
 sheet flat but normal-mapped, the ring (half its wall is lit from behind), and

@@ -2,7 +2,7 @@
 
     .venv/bin/python bench/normal_map_sweep.py [--spp 1] [--out bench/results]
 
-The caster is tests/scenes.py's wavy_mirror_scene with normal_mapped=True: a flat
+The caster is testkit/scenes.py's wavy_mirror_scene with normal_mapped=True: a flat
 metal sheet whose shading normals follow a sin x sin bump field, sampled on a grid
 of n x n cells. Amplitude a and wavelength L give a largest normal tilt of
 atan(2 pi a / L). R chains only, biased estimator with one trial (the walks' own

@@ -25,7 +25,7 @@ Per scene and method, in one run on the same geometry:
   (2.0 means both cores busy the whole time); peak memory (the process's maximum resident set;
   the recorded rays add about 7 bytes per ray cast).
 
-Scenes (tests/scenes.py): the glass sphere under an area light, the gold ring lit from the side,
+Scenes (testkit/scenes.py): the glass sphere under an area light, the gold ring lit from the side,
 the hammered mirror; at --size x --size pixels (``name:size`` for one scene: the hammered mirror's
 unbiased walks need thousands of Bernoulli trials per lane, 285 s for SMS at 128 x 128).
 Writes throughput_last.md under --out, a run's table (the next run overwrites it); the results

@@ -3,7 +3,7 @@
     .venv/bin/python bench/walk_steps.py [--scenes sphere,ring] [--method sms]
         [--variants "first_step=1,stall_stop=0;first_step=0.125;"] [--out bench/results/walk_steps]
 
-Per scene (tests/scenes.py, 256 x 256 unless ``name:size``): one bake of one sample per pixel
+Per scene (testkit/scenes.py, 256 x 256 unless ``name:size``): one bake of one sample per pixel
 records the primary walks' seed chains (walk.newton_walk's lanes, one call per chain type);
 each variant then walks exactly those lanes again with its BakeSettings (first_step,
 stall_stop; empty: the defaults), on one thread. Reported: walks, solutions found, Newton

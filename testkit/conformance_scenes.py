@@ -1,6 +1,6 @@
 """The conformance suite's scenes: small scenes where Cycles is the judge.
 
-    python sample_blends/conformance_scenes.py OUTDIR [NAME ...]     (default: every scene)
+    python -m testkit.conformance_scenes OUTDIR [NAME ...]     (default: every scene)
 
 Each scene is built from nothing with the bpy data API (deterministic: the same
 bpy gives the same file), at 96 x 72 pixels with a black world (but the world_ scenes,
