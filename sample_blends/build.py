@@ -17,8 +17,8 @@ from pathlib import Path
 
 import bpy
 
-from testkit.blend import (add_camera, add_light, black_world, bsdf, bumped_glass, grid, hdri_image, hdri_world,
-                           material, mesh_object, render_settings, reset, save, uv_sphere)
+from testkit.blend import (add_camera, add_light, black_world, bumped_glass, grid, hdri_image, hdri_world, material,
+                           mesh_object, node_material, render_settings, reset, save, uv_sphere)
 
 HERE = Path(__file__).resolve().parent
 
@@ -34,8 +34,8 @@ def build_mirror(out):
     scene.name = "Mirror"
     render_settings(scene, 160, 120)
     black_world(scene)
-    floor_mat = bsdf("Floor", "diffuse", (0.8, 0.8, 0.8))
-    mirror_mat = bsdf("Mirror", "glossy", (0.9, 0.9, 0.9), roughness=0.0)
+    floor_mat = material("Floor", "diffuse", (0.8, 0.8, 0.8))
+    mirror_mat = material("Mirror", "glossy", (0.9, 0.9, 0.9), roughness=0.0)
     v, f = grid(12, 10)
     mesh_object(scene, "Floor", v, f, floor_mat, location=(0.5, 0, 0), receiver=True)
     # local +Z rotated 157.5 deg about Y -> (0.383, 0, -0.924): up-going light leaves 45 deg down, towards +x
@@ -44,7 +44,7 @@ def build_mirror(out):
                 rotation=(0, math.radians(157.5), 0), caster=True)
     # local -Z rotated 180 deg about X -> +Z: the light faces up
     add_light(scene, "Light", "AREA", (-3, 0, 2), (math.pi, 0, 0), energy=1000.0,
-              shape="DISK", size=0.5, spread=math.pi, caustics=True)
+              shape="DISK", size=0.5, spread=math.pi)
     add_camera(scene, (1.3, -8.5, 6.5), (1.3, 0, 0), lens=35)
     save(out / "mirror.blend")
 
@@ -55,8 +55,8 @@ def _glass_ball_scene(name, height):
     scene.name = name
     render_settings(scene, 160, 120)
     black_world(scene)
-    floor_mat = bsdf("Floor", "diffuse", (0.8, 0.8, 0.8))
-    glass = bsdf("Glass", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.45)
+    floor_mat = material("Floor", "diffuse", (0.8, 0.8, 0.8))
+    glass = material("Glass", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.45)
     v, f = grid(10, 10)
     mesh_object(scene, "Floor", v, f, floor_mat, receiver=True)
     v, f = uv_sphere(0.5, 64, 32)
@@ -67,7 +67,7 @@ def _glass_ball_scene(name, height):
 def build_glass_sphere(out):
     scene = _glass_ball_scene("GlassSphere", 1.0)
     add_light(scene, "Light", "AREA", (0, 0, 4), energy=200.0, shape="SQUARE", size=0.5,
-              spread=math.pi, caustics=True)
+              spread=math.pi)
     add_camera(scene, (0, -4, 3), (0, 0, 0.3), lens=50)
     save(out / "glass_sphere.blend")
 
@@ -80,7 +80,7 @@ def build_glass_spot(out):
     scene = _glass_ball_scene("GlassSpot", 1.0)
     # the ball subtends 9.6 deg (half-angle) from the light; the cone's half-angle is 8 deg
     add_light(scene, "Spot", "SPOT", (0, 0, 4), energy=2000.0, shadow_soft_size=0.3,
-              spot_size=math.radians(16.0), spot_blend=0.0, caustics=True)
+              spot_size=math.radians(16.0), spot_blend=0.0)
     add_camera(scene, (0, -3.2, 2.6), (0, 0, 0.2), lens=50)
     save(out / "glass_spot.blend")
 
@@ -90,25 +90,25 @@ def build_water(out):
     scene.name = "Water"
     render_settings(scene, 64, 64)
     black_world(scene)
-    floor_mat = bsdf("Floor", "diffuse", (0.8, 0.8, 0.8))
-    water = bsdf("Water", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.33)
+    floor_mat = material("Floor", "diffuse", (0.8, 0.8, 0.8))
+    water = material("Water", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.33)
     v, f = grid(20, 20)
     mesh_object(scene, "Floor", v, f, floor_mat, receiver=True)
     v, f = grid(20, 20)
     mesh_object(scene, "Water", v, f, water, smooth=False, location=(0, 0, 1), caster=True)
     add_light(scene, "Point", "POINT", (0, 0, 4), energy=1000.0, shadow_soft_size=0.05,
-              use_soft_falloff=False, caustics=True)
+              use_soft_falloff=False)
     # a sun's light travels along its local -Z; rotating +30 deg about Y tilts it towards -x
     add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0,
-              angle=math.radians(0.5), caustics=True)
+              angle=math.radians(0.5))
     add_camera(scene, (0, 0, 0.9), (0, 0, 0), ortho_scale=2.0)
     save(out / "water.blend")
 
 
 def _tiled_floor(scene, n=8, size=4.0):
     """A floor of n x n tiles over size x size m, two materials in a checker, a caustics receiver."""
-    tile_a = bsdf("TileLight", "diffuse", (0.8, 0.8, 0.8))
-    tile_b = bsdf("TileDark", "diffuse", (0.3, 0.45, 0.6))
+    tile_a = material("TileLight", "diffuse", (0.8, 0.8, 0.8))
+    tile_b = material("TileDark", "diffuse", (0.3, 0.45, 0.6))
     v, f = grid(size, size, n, n)
     me = bpy.data.meshes.new("PoolFloor")
     me.from_pydata(v, [], f)
@@ -129,7 +129,7 @@ def build_pool(out):
     render_settings(scene, 160, 120)
     black_world(scene)
     _tiled_floor(scene)
-    water = bsdf("Water", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.33)
+    water = material("Water", "glass", (1.0, 1.0, 1.0), roughness=0.0, ior=1.33)
 
     def wave(x, y):
         return 0.03 * math.sin(3.1 * x + 0.4) * math.cos(2.3 * y) + 0.02 * math.sin(4.7 * (x + y))
@@ -137,7 +137,7 @@ def build_pool(out):
     v, f = grid(4, 4, 64, 64, wave)
     mesh_object(scene, "WaterSurface", v, f, water, smooth=True, location=(0, 0, 0.6), caster=True)
     add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(10), math.radians(15), 0), energy=4.0,
-              angle=math.radians(0.5), caustics=True)
+              angle=math.radians(0.5))
     add_camera(scene, (0, -3.2, 3.0), (0, 0, 0), lens=35)
     save(out / "pool.blend")
 
@@ -155,7 +155,7 @@ def build_waves(out):
     mesh_object(scene, "WaterSurface", v, f, bumped_glass("BumpedWater", 0.05, scale=10.0), location=(0, 0, 0.6),
                 caster=True)
     add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(10), math.radians(15), 0), energy=4.0,
-              angle=math.radians(0.5), caustics=True)
+              angle=math.radians(0.5))
     add_camera(scene, (0, -3.2, 3.0), (0, 0, 0), lens=35)
     save(out / "waves.blend")
 
@@ -175,7 +175,7 @@ def build_softbox(out):
     """The glass ball lit by a softbox as artists make one: a 1.2 x 0.8 m plane of an Emission shader
     (Strength 30, warm) up and to the side, turned towards the ball: a mesh light, no lamp."""
     scene = _glass_ball_scene("Softbox", 0.6)
-    glow = material("SoftboxGlow", "ShaderNodeEmission", (1.0, 0.92, 0.8), Strength=30.0)
+    glow = node_material("SoftboxGlow", "ShaderNodeEmission", (1.0, 0.92, 0.8), Strength=30.0)
     v, f = grid(1.2, 0.8)
     mesh_object(scene, "Softbox", v, f, glow, location=(1.6, -0.6, 2.4),
                 rotation=(math.radians(10), math.radians(-40), math.radians(-20)))

@@ -125,7 +125,7 @@ def set_input(socket, value):
         else value
 
 
-def material(name, node_type, color=None, **inputs):
+def node_material(name, node_type, color=None, **inputs):
     """A node material whose Surface is one shader node of node_type (a bl_idname), its Color
     (color) and other inputs set."""
     m = bpy.data.materials.new(name)
@@ -150,11 +150,12 @@ def surface_node(m):
 BSDFS = {"diffuse": "ShaderNodeBsdfDiffuse", "glossy": "ShaderNodeBsdfGlossy", "glass": "ShaderNodeBsdfGlass"}
 
 
-def bsdf(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45, distribution="GGX"):
+def material(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45, distribution="GGX"):
     """A material of one BSDF of kind 'diffuse', 'glossy' or 'glass' (a glossy's or glass's microfacet
-    distribution: distribution), the viewport colour its colour."""
+    distribution: distribution), the viewport colour its colour: the sample and conformance scenes'
+    materials (node_material makes one node of any type)."""
     inputs = {"Roughness": roughness, **({"IOR": ior} if kind == "glass" else {})}
-    m = material(name, BSDFS[kind], color, **inputs)
+    m = node_material(name, BSDFS[kind], color, **inputs)
     if kind != "diffuse":
         surface_node(m).distribution = distribution
     m.diffuse_color = (*color, 1.0)
@@ -163,7 +164,7 @@ def bsdf(name, kind, color=(0.8, 0.8, 0.8), roughness=0.0, ior=1.45, distributio
 
 def metallic(name, mode="F82", **inputs):
     """A material whose Surface is a Metallic BSDF (Blender 4.3 on) of fresnel_type mode, its inputs set."""
-    m = material(name, "ShaderNodeBsdfMetallic")
+    m = node_material(name, "ShaderNodeBsdfMetallic")
     node = surface_node(m)
     node.fresnel_type = mode
     for k, v in inputs.items():
@@ -212,7 +213,7 @@ def bumped_glass(name, distance, scale=5.0, coords=None, ior=1.33):
     """Waves as artists make them: a Glass BSDF whose Normal is a Bump node (Distance `distance`) of a
     Noise Texture (Scale `scale`, Detail 2, Generated coordinates, or the Texture Coordinate node's
     output `coords`)."""
-    m = bsdf(name, "glass", (1.0, 1.0, 1.0), ior=ior)
+    m = material(name, "glass", (1.0, 1.0, 1.0), ior=ior)
     nt = m.node_tree
     glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
     noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
@@ -229,7 +230,7 @@ def bumped_glass(name, distance, scale=5.0, coords=None, ior=1.33):
 def bumpy(name, node_type="ShaderNodeBsdfDiffuse", color=None):
     """A receiver's material whose Normal is a Bump node (Distance 0.1) of a Noise Texture (Scale 8,
     Detail 2, Object coordinates)."""
-    m = material(name, node_type, color)
+    m = node_material(name, node_type, color)
     nt = m.node_tree
     noise, bump = nt.nodes.new("ShaderNodeTexNoise"), nt.nodes.new("ShaderNodeBump")
     nt.links.new(nt.nodes.new("ShaderNodeTexCoord").outputs["Object"], noise.inputs["Vector"])
@@ -347,15 +348,16 @@ def mesh_with(mat, name="Thing"):
 
 
 # ------------------------------------------------------------------------------- lights and cameras
-def add_light(scene, name, kind, location=(0, 0, 3), rotation=(0, 0, 0), scale=(1, 1, 1), caustics=None,
-              **props):
-    """A light of kind 'POINT', 'SPOT', 'AREA' or 'SUN' (its data's properties props, such as
-    energy) linked into scene; caustics: Cycles' caustic-light flag (None: Blender's default)."""
+def add_light(scene, name, kind, location=(0, 0, 3), rotation=(0, 0, 0), energy=100.0, caustics=True,
+              scale=(1, 1, 1), **props):
+    """A light of kind 'POINT', 'SPOT', 'AREA' or 'SUN' of energy (W; a sun's: W/m^2) and its data's
+    properties props, flagged for Cycles' caustics (caustics), linked into scene. Blender's own
+    defaults are energy 10 and caustics False."""
     lt = bpy.data.lights.new(name, kind)
+    lt.energy = energy
     for k, v in props.items():
         setattr(lt, k, v)
-    if caustics is not None:
-        lt.cycles.is_caustics_light = caustics
+    lt.cycles.is_caustics_light = caustics
     ob = bpy.data.objects.new(name, lt)
     ob.location, ob.rotation_euler, ob.scale = location, rotation, scale
     scene.collection.objects.link(ob)
@@ -392,12 +394,12 @@ def mirror_scene(light=True, camera=True, width=24, height=16):
     scene = bpy.context.scene
     scene.render.resolution_x, scene.render.resolution_y = width, height
     scene.render.resolution_percentage = 100
-    plane(scene, "Floor", 10, material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0))
-    plane(scene, "Mirror", 1.5, material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0),
+    plane(scene, "Floor", 10, node_material("Floor", "ShaderNodeBsdfDiffuse", (0.8,) * 3), (0, 0, 0))
+    plane(scene, "Mirror", 1.5, node_material("Mirror", "ShaderNodeBsdfGlossy", (0.9,) * 3, Roughness=0.0),
           (0, 0, 1.5), (0, math.radians(-135), 0))
     if light:
-        add_light(scene, "Disk", "AREA", (-2, 0, 1.5), (0, math.radians(-90), 0), shape="DISK", size=0.5,
-                  energy=100.0)
+        add_light(scene, "Disk", "AREA", (-2, 0, 1.5), (0, math.radians(-90), 0), energy=100.0, caustics=False,
+                  shape="DISK", size=0.5)
     if camera:
         add_camera(scene, (0, -6, 5), rotation=(math.radians(50), 0, 0))
     return scene

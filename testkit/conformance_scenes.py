@@ -44,7 +44,7 @@ def _scene(name):
 
 
 def _floor(scene, size=10.0, albedo=0.8, z=0.0):
-    mat = B.bsdf("Floor", "diffuse", (albedo,) * 3)
+    mat = B.material("Floor", "diffuse", (albedo,) * 3)
     v, f = B.grid(size, size)
     return B.mesh_object(scene, "Floor", v, f, mat, location=(0, 0, z), receiver=True)
 
@@ -150,10 +150,10 @@ def lens_area():
     """Biconvex Glass BSDF lens (IOR 1.5) 1.6 m above the floor, 0.4 m square area light."""
     scene = _scene("lens_area")
     _floor(scene)
-    glass = B.bsdf("LensGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.material("LensGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     v, f = _lens(1.2, 0.5, 0.01)
     B.mesh_object(scene, "Lens", v, f, glass, smooth=True, location=(0, 0, 1.6), caster=True)
-    B.add_light(scene, "Key", "AREA", (0.3, 0.2, 4.0), energy=150.0, shape="SQUARE", size=0.4, caustics=True)
+    B.add_light(scene, "Key", "AREA", (0.3, 0.2, 4.0), energy=150.0, shape="SQUARE", size=0.4)
     B.add_camera(scene, (0, -4.0, 3.2), (0, 0, 0.2), lens=40)
     return scene
 
@@ -171,7 +171,7 @@ def _ring_of(name, metal):
     B.mesh_object(scene, "Ring", v, f, metal(), smooth=True, caster=True)
     # local -Z towards the ring: from (-2.4, 0, 1.4) aimed at the ring's centre
     B.add_light(scene, "Side", "AREA", (-2.4, 0.3, 1.4), (0.0, math.radians(-58), math.radians(7)),
-                energy=300.0, shape="DISK", size=0.5, caustics=True)
+                energy=300.0, shape="DISK", size=0.5)
     B.add_camera(scene, (0.4, -2.6, 2.6), (0.1, 0, 0.1), lens=35)
     return scene
 
@@ -228,7 +228,7 @@ def film_ball():
     (a titania-like coat): the film reflects several times the bare glass's share, per channel, at both
     faces (from inside, Cycles takes the film and the air relative to the glass), so less and coloured light
     comes through."""
-    return _ball_under_bulb("film_ball", lambda: _filmed(B.bsdf("FilmGlass", "glass", (1.0, 1.0, 1.0), ior=1.5),
+    return _ball_under_bulb("film_ball", lambda: _filmed(B.material("FilmGlass", "glass", (1.0, 1.0, 1.0), ior=1.5),
                                                           280.0, 2.2))
 
 
@@ -246,7 +246,7 @@ def spec_tint_ball():
 def pool_sun4():
     """Wavy water (Glass BSDF, IOR 1.33, smooth 120 x 120 grid of 6 x 6 m) 1 m above the
     floor, sun of strength 3 and angle 4 deg; the camera looks down through the water."""
-    return _pool("pool_sun4", lambda: B.bsdf("Water", "glass", (1.0, 1.0, 1.0), ior=1.33))
+    return _pool("pool_sun4", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33))
 
 
 def _pool(name, water, wave=_water_wave, cells=120, floor=None):
@@ -261,7 +261,7 @@ def _pool(name, water, wave=_water_wave, cells=120, floor=None):
     v, f = B.grid(6, 6, cells, cells, wave)
     B.mesh_object(scene, "Water", v, f, water(), smooth=True, location=(0, 0, 1.0), caster=True)
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(20), math.radians(10), 0), energy=3.0,
-                angle=math.radians(4.0), caustics=True)
+                angle=math.radians(4.0))
     B.add_camera(scene, (0, 0, 6), (0, 0, 0), lens=80)
     return scene
 
@@ -269,7 +269,7 @@ def _pool(name, water, wave=_water_wave, cells=120, floor=None):
 def rough_pool_sun():
     """pool_sun4's water as a rough Glass BSDF (Roughness 0.15, Multiscatter GGX): the camera sees the floor
     through rough water, where a photon cannot reach it and the caustic at each floor point is gathered."""
-    return _pool("rough_pool_sun", lambda: B.bsdf("RoughWater", "glass", (1.0, 1.0, 1.0), roughness=0.15,
+    return _pool("rough_pool_sun", lambda: B.material("RoughWater", "glass", (1.0, 1.0, 1.0), roughness=0.15,
                                                       ior=1.33, distribution="MULTI_GGX"))
 
 
@@ -291,8 +291,7 @@ def bumped_slab_sun():
     v, f = _box(0.6, 0.6, 0.1)
     B.mesh_object(scene, "Slab", v, f, B.bumped_glass("BumpedGlass", 0.1, 2.0, "Object"), smooth=False,
                   location=(0, 0, 2.5), caster=True)
-    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0),
-                caustics=True)
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(30), 0), energy=3.0, angle=math.radians(2.0))
     B.add_camera(scene, (-2.4, 0, 4.5), (-1.44, 0, 0), lens=35)
     return scene
 
@@ -327,7 +326,7 @@ def normal_mapped_pool_sun():
     """bumped_pool_sun's flat water with its waves a Normal Map node (tangent space, the quad's UV map
     running 0 to 1 over it) of a packed image of three sine waves (_normal_map_image) instead of a Bump."""
     def water():
-        m = B.bsdf("MappedWater", "glass", (1.0, 1.0, 1.0), ior=1.33)
+        m = B.material("MappedWater", "glass", (1.0, 1.0, 1.0), ior=1.33)
         nt = m.node_tree
         glass = next(n for n in nt.nodes if n.type == "BSDF_GLASS")
         tex, nm = nt.nodes.new("ShaderNodeTexImage"), nt.nodes.new("ShaderNodeNormalMap")
@@ -351,7 +350,7 @@ def cube_grey():
     _floor(scene)
     glass = principled("GreyGlass", base=(0.8, 0.8, 0.8), transmission=1.0, ior=1.5)
     _bevelled_cube(scene, "Cube", glass, 1.2, (0, 0, 0.95), (math.radians(35), math.radians(20), 0))
-    B.add_light(scene, "Key", "AREA", (0.6, -0.4, 4.0), energy=300.0, shape="SQUARE", size=0.5, caustics=True)
+    B.add_light(scene, "Key", "AREA", (0.6, -0.4, 4.0), energy=300.0, shape="SQUARE", size=0.5)
     B.add_camera(scene, (0, -5.5, 4.5), (0, 0, 0.4), lens=40)
     return scene
 
@@ -389,7 +388,7 @@ def _ball_under_bulb(name, ball):
     _floor(scene)
     _sphere(scene, "Ball", ball(), 0.5, (0, 0, 0.9))
     B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
-                use_soft_falloff=True, caustics=True)
+                use_soft_falloff=True)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 
@@ -400,7 +399,7 @@ def tinted_ball():
     under sphere_point_soft's bulb and camera, which sees part of the caustic through the ball."""
     scene = _scene("tinted_ball")
     _floor(scene)
-    glass = B.bsdf("TintedGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.material("TintedGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     nt = glass.node_tree
     vol = nt.nodes.new("ShaderNodeVolumeAbsorption")
     vol.inputs["Color"].default_value = (0.9, 0.6, 0.3, 1.0)
@@ -408,7 +407,7 @@ def tinted_ball():
     nt.links.new(vol.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
     B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
-                use_soft_falloff=True, caustics=True)
+                use_soft_falloff=True)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
 
@@ -417,11 +416,11 @@ def sphere_refraction_spot():
     """Refraction BSDF sphere (tinted, IOR 1.33) under a spot light of radius 0.2."""
     scene = _scene("sphere_refraction_spot")
     _floor(scene)
-    mat = B.material("Refractor", "ShaderNodeBsdfRefraction", (0.85, 0.9, 1.0), Roughness=0.0, IOR=1.33)
+    mat = B.node_material("Refractor", "ShaderNodeBsdfRefraction", (0.85, 0.9, 1.0), Roughness=0.0, IOR=1.33)
     _sphere(scene, "Ball", mat, 0.45, (0, 0, 0.8))
     B.add_light(scene, "Spot", "SPOT", (-0.5, 0.3, 3.0), (math.radians(-6), math.radians(-9), 0),
                 energy=1500.0, shadow_soft_size=0.2, use_soft_falloff=False,
-                spot_size=math.radians(50), spot_blend=0.3, caustics=True)
+                spot_size=math.radians(50), spot_blend=0.3)
     B.add_camera(scene, (0, -3.4, 2.6), (0, 0, 0.2), lens=40)
     return scene
 
@@ -431,7 +430,7 @@ def _standing_mirror(name, mirror=None):
     once the scene is new; default Glossy BSDF 0.9)."""
     scene = _scene(name)
     _floor(scene)
-    mirror = B.bsdf("Mirror", "glossy", (0.9, 0.9, 0.9)) if mirror is None else mirror()
+    mirror = B.material("Mirror", "glossy", (0.9, 0.9, 0.9)) if mirror is None else mirror()
     v, f = B.grid(1.6, 1.0)
     # local +Z -> -X: the mirror stands at x = 1.2 and faces the light and the camera
     B.mesh_object(scene, "Mirror", v, f, mirror, location=(1.2, 0, 0.55),
@@ -451,7 +450,7 @@ def _mirror_under_bulb(name, mirror=None):
     reflected light on the floor directly and in the mirror."""
     scene = _standing_mirror(name, mirror)
     B.add_light(scene, "Bulb", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
-                use_soft_falloff=False, caustics=True)
+                use_soft_falloff=False)
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
     return scene
 
@@ -465,11 +464,11 @@ def linked_lamps():
     receiver collection with the ball set to Exclude): its caustic off the mirror stays, the one through
     the ball goes, and its light that the floor sends through the ball stays."""
     scene = _standing_mirror("linked_lamps")
-    ball = _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.4, (-0.2, 0.1, 0.75))
+    ball = _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.4, (-0.2, 0.1, 0.75))
     over = B.add_light(scene, "BallLamp", "POINT", (0.2, -0.1, 2.8), energy=500.0, shadow_soft_size=0.2,
-                       use_soft_falloff=False, caustics=True)
+                       use_soft_falloff=False)
     low = B.add_light(scene, "MirrorLamp", "POINT", (0.5, 0.0, 1.4), energy=400.0, shadow_soft_size=0.2,
-                      use_soft_falloff=False, caustics=True)
+                      use_soft_falloff=False)
     only_ball, not_ball = bpy.data.collections.new("OnlyBall"), bpy.data.collections.new("NotBall")
     only_ball.objects.link(ball)
     not_ball.objects.link(ball)
@@ -487,8 +486,7 @@ def shadow_linked_ball():
     that comes back through the ball are those without the plate, while the plate still stands in every
     other path."""
     return _unshadowed_ball("shadow_linked_ball", lambda scene: B.add_light(
-        scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, use_soft_falloff=True,
-        caustics=True))
+        scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, use_soft_falloff=True))
 
 
 def shadow_linked_glow():
@@ -497,7 +495,7 @@ def shadow_linked_glow():
     surfaces: past the plate, the light is found again where they lie."""
     def glow(scene):
         v, f = B.uv_sphere(0.25, 32, 16)
-        lamp = B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0)
+        lamp = B.node_material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0)
         return B.mesh_object(scene, "Glow", v, f, lamp, smooth=True, location=(0.4, -0.2, 3.0))
     return _unshadowed_ball("shadow_linked_glow", glow)
 
@@ -507,9 +505,9 @@ def _unshadowed_ball(name, lamp):
     not shadow it (its blocker collection sets the plate to Exclude)."""
     scene = _scene(name)
     _floor(scene)
-    _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     v, f = B.grid(1.4, 1.4)
-    shade = B.mesh_object(scene, "Shade", v, f, B.bsdf("Grey", "diffuse", (0.5, 0.5, 0.5)),
+    shade = B.mesh_object(scene, "Shade", v, f, B.material("Grey", "diffuse", (0.5, 0.5, 0.5)),
                           location=(0.28, -0.14, 2.3))
     bulb = lamp(scene)
     blockers = bpy.data.collections.new("NotTheShade")
@@ -555,7 +553,7 @@ def mirror_spread30():
     scene = _standing_mirror("mirror_spread30")
     at, target = Vector((-0.2, -0.4, 1.5)), Vector((1.2, 0.35, 0.75))
     B.add_light(scene, "Softbox", "AREA", tuple(at), (target - at).to_track_quat("-Z", "Y").to_euler(),
-                energy=60.0, shape="SQUARE", size=0.5, spread=math.radians(30), caustics=True)
+                energy=60.0, shape="SQUARE", size=0.5, spread=math.radians(30))
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
     return scene
 
@@ -566,10 +564,10 @@ def water_flat_sun0():
     point-like sun behind glass: the reference is Cycles' MNEE, exact here (one solution)."""
     scene = _scene("water_flat_sun0")
     _floor(scene, size=8.0)
-    water = B.bsdf("Water", "glass", (1.0, 1.0, 1.0), ior=1.33)
+    water = B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33)
     v, f = B.grid(6, 6)
     B.mesh_object(scene, "Water", v, f, water, smooth=True, location=(0, 0, 0.5), caster=True)
-    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(25), 0, 0), energy=2.0, angle=0.0, caustics=True)
+    B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(25), 0, 0), energy=2.0, angle=0.0)
     B.add_camera(scene, (0, 0, 5), (0, 0, 0), lens=80)
     return scene
 
@@ -578,7 +576,7 @@ def wavy_mirror_sun2():
     """Wavy Glossy BSDF sheet (tinted) under a sun of angle 2 deg."""
     scene = _scene("wavy_mirror_sun2")
     _floor(scene)
-    mat = B.bsdf("WavyMirror", "glossy", (0.95, 0.85, 0.7))
+    mat = B.material("WavyMirror", "glossy", (0.95, 0.85, 0.7))
     v, f = B.grid(1.6, 1.6, 64, 64, _sheet_wave)
     # nearly upright, facing +x and tilted 7 deg down
     B.mesh_object(scene, "Sheet", v, f, mat, smooth=True, location=(-0.9, 0, 0.9),
@@ -586,7 +584,7 @@ def wavy_mirror_sun2():
     # sunlight travels towards -x, 40 deg below the horizon; the sheet sends it back down
     # towards +x, onto the floor in front of it
     B.add_light(scene, "Sun", "SUN", (0, 0, 10), (0, math.radians(50), 0), energy=3.0,
-                angle=math.radians(2.0), caustics=True)
+                angle=math.radians(2.0))
     B.add_camera(scene, (0.3, -3.2, 2.4), (-0.3, 0, 0.3), lens=35)
     return scene
 
@@ -596,12 +594,12 @@ def through_glass_disk():
     of glass (a closed 3 cm slab, IOR 1.5) standing between it and the camera."""
     scene = _scene("through_glass_disk")
     _floor(scene)
-    tinted = B.bsdf("TintedGlass", "glass", (0.95, 0.8, 0.6), ior=1.33)
+    tinted = B.material("TintedGlass", "glass", (0.95, 0.8, 0.6), ior=1.33)
     _sphere(scene, "Ball", tinted, 0.45, (0, 0, 0.75))
-    pane_glass = B.bsdf("Pane", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    pane_glass = B.material("Pane", "glass", (1.0, 1.0, 1.0), ior=1.5)
     v, f = _box(1.2, 0.015, 0.7)
     B.mesh_object(scene, "Pane", v, f, pane_glass, location=(0, -1.6, 0.7), caster=True)
-    B.add_light(scene, "Key", "AREA", (0.3, 0.4, 3.2), energy=250.0, shape="DISK", size=0.5, caustics=True)
+    B.add_light(scene, "Key", "AREA", (0.3, 0.4, 3.2), energy=250.0, shape="DISK", size=0.5)
     B.add_camera(scene, (0, -3.4, 1.5), (0, 0, 0.2), lens=40)
     return scene
 
@@ -612,7 +610,7 @@ def prism_tir():
     (T R T) and leaves through the other towards the floor."""
     scene = _scene("prism_tir")
     _floor(scene)
-    glass = B.bsdf("PrismGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.material("PrismGlass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     h, L = 0.35, 0.5  # legs along +x and +z, length 2h; extrusion along y
     v = [(-h, -L, -h), (h, -L, -h), (-h, -L, h), (-h, L, -h), (h, L, -h), (-h, L, h)]
     f = [(0, 2, 1), (3, 4, 5), (0, 1, 4, 3), (0, 3, 5, 2), (1, 2, 5, 4)]
@@ -620,7 +618,7 @@ def prism_tir():
                   rotation=(0, math.radians(-20), 0), caster=True)
     # light from above-left: enters through the top leg face, reflects off the hypotenuse
     B.add_light(scene, "Key", "AREA", (-2.0, 0.0, 3.0), (0, math.radians(-35), 0), energy=400.0,
-                shape="SQUARE", size=0.4, caustics=True)
+                shape="SQUARE", size=0.4)
     B.add_camera(scene, (0.6, -3.6, 2.8), (0.6, 0, 0.2), lens=35)
     return scene
 
@@ -634,7 +632,7 @@ def cube_white_rect(name="cube_white_rect", base=1.0):
                        transmission=1.0, ior=1.5)
     _bevelled_cube(scene, "Cube", glass, 0.9, (0.1, 0, 0.8), (math.radians(20), math.radians(40), 0))
     B.add_light(scene, "Key", "AREA", (-0.5, 0.3, 3.5), (0, math.radians(-10), 0), energy=250.0,
-                shape="RECTANGLE", size=0.6, size_y=0.3, caustics=True)
+                shape="RECTANGLE", size=0.6, size_y=0.3)
     B.add_camera(scene, (0.2, -4.2, 3.4), (0.1, 0, 0.3), lens=40)
     return scene
 
@@ -662,15 +660,15 @@ def egg_sun_spot():
     of angle 6 deg and a blue spot of radius 0.15 with blend 0.5."""
     scene = _scene("egg_sun_spot")
     _floor(scene)
-    glass = B.bsdf("EggGlass", "glass", (0.95, 0.9, 0.8), ior=1.45)
+    glass = B.material("EggGlass", "glass", (0.95, 0.9, 0.8), ior=1.45)
     egg = _sphere(scene, "Egg", glass, 0.5, (0, 0, 0.9))
     egg.scale = (1.4, 0.8, 0.9)
     egg.rotation_euler = (math.radians(15), 0, math.radians(30))
     sun = B.add_light(scene, "Sun", "SUN", (0, 0, 10), (math.radians(12), math.radians(-8), 0), energy=2.0,
-                      angle=math.radians(6.0), caustics=True)
+                      angle=math.radians(6.0))
     sun.data.color = (1.0, 0.85, 0.7)
     spot = B.add_light(scene, "Spot", "SPOT", (1.2, -0.6, 3.2), (math.radians(10), math.radians(20), 0),
-                       energy=900.0, shadow_soft_size=0.15, spot_size=math.radians(45), spot_blend=0.5, caustics=True)
+                       energy=900.0, shadow_soft_size=0.15, spot_size=math.radians(45), spot_blend=0.5)
     spot.data.color = (0.6, 0.8, 1.0)
     B.add_camera(scene, (0, -3.6, 3.0), (0, 0, 0.2), lens=38)
     return scene
@@ -685,7 +683,7 @@ def _slanted_ball(name, floor):
     B.mesh_object(scene, "Floor", v, f, floor(), receiver=True)
     glass = principled("WhiteGlass", base=(1.0, 1.0, 1.0), transmission=1.0, ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
-    B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25, caustics=True)
+    B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25)
     B.add_camera(scene, (0, -4.2, 1.6), (0, 0, 0.0), lens=40)
     return scene
 
@@ -712,7 +710,7 @@ def coated_floor():
 def rough_floor():
     """The slanted glass ball over a Diffuse BSDF floor of Roughness 1 (Cycles' Oren-Nayar: at this
     slant 0.4-1.5 of Lambert, by where the light comes from)."""
-    return _slanted_ball("rough_floor", lambda: B.bsdf("RoughFloor", "diffuse", (0.8,) * 3, roughness=1.0))
+    return _slanted_ball("rough_floor", lambda: B.material("RoughFloor", "diffuse", (0.8,) * 3, roughness=1.0))
 
 
 def _checker():
@@ -750,7 +748,7 @@ def _bumpy_floor():
 def pool_bumped_floor():
     """pool_sun4 over bumped_floor's floor (a Diffuse BSDF whose Normal is a Bump of a Noise Texture): the
     camera sees the bumps through the water."""
-    return _pool("pool_bumped_floor", lambda: B.bsdf("Water", "glass", (1.0, 1.0, 1.0), ior=1.33),
+    return _pool("pool_bumped_floor", lambda: B.material("Water", "glass", (1.0, 1.0, 1.0), ior=1.33),
                  floor=_bumpy_floor)
 
 
@@ -809,14 +807,14 @@ def rough_glass_ball():
 def rough_glass_ggx():
     """sphere_point_soft's ball as a Glass BSDF (IOR 1.5) of Roughness 0.3 with the single-scattering GGX
     distribution: the microfacet sampling and shadowing alone, without Cycles' energy compensation."""
-    return _ball_under_bulb("rough_glass_ggx", lambda: B.bsdf("GgxGlass", "glass", (1.0, 1.0, 1.0),
+    return _ball_under_bulb("rough_glass_ggx", lambda: B.material("GgxGlass", "glass", (1.0, 1.0, 1.0),
                                                                   roughness=0.3, ior=1.5))
 
 
 def rough_tinted_mirror():
     """mirror_point_hard's mirror as a Glossy BSDF of colour (0.9, 0.6, 0.3), Roughness 0.3, Multiscatter
     GGX: Cycles' energy compensation brightens and saturates a coloured metal's reflection."""
-    return _mirror_under_bulb("rough_tinted_mirror", lambda: B.bsdf(
+    return _mirror_under_bulb("rough_tinted_mirror", lambda: B.material(
         "TintedGlossy", "glossy", (0.9, 0.6, 0.3), roughness=0.3, distribution="MULTI_GGX"))
 
 
@@ -824,7 +822,7 @@ def rough_tinted_glass():
     """sphere_point_soft's ball as a coloured Glass BSDF (0.9, 0.6, 0.3; IOR 1.5) of Roughness 0.5, Multiscatter
     GGX: Cycles' energy compensation takes the glass's colour for F_ss, so it restores less of the blue that
     the microfacets lose than of the red."""
-    return _ball_under_bulb("rough_tinted_glass", lambda: B.bsdf(
+    return _ball_under_bulb("rough_tinted_glass", lambda: B.material(
         "TintedRoughGlass", "glass", (0.9, 0.6, 0.3), roughness=0.5, ior=1.5, distribution="MULTI_GGX"))
 
 
@@ -853,7 +851,7 @@ def world_ball():
     the floor under the ball sees the sky through it."""
     scene = _scene("world_ball")
     _floor(scene)
-    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
     B.sky(scene, (0.6, 0.75, 1.0), 1.5)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
@@ -877,9 +875,9 @@ def mesh_light_ball():
     lights shine from both sides)."""
     scene = _scene("mesh_light_ball")
     _floor(scene)
-    _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     v, f = B.grid(0.8, 0.8)
-    glow = B.material("Glow", "ShaderNodeEmission", (1.0, 0.9, 0.75), Strength=60.0)
+    glow = B.node_material("Glow", "ShaderNodeEmission", (1.0, 0.9, 0.75), Strength=60.0)
     B.mesh_object(scene, "Panel", v, f, glow, location=(0.3, -0.2, 3.0))
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
     return scene
@@ -890,7 +888,7 @@ def principled_glow_ball():
     Strength 60, tinted: its faces shine and receive."""
     scene = _scene("principled_glow_ball")
     _floor(scene)
-    _sphere(scene, "Ball", B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
+    _sphere(scene, "Ball", B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5), 0.5, (0, 0, 0.9))
     glow = principled("Glow", base=(0.8, 0.8, 0.8), roughness=0.5)
     node = next(n for n in glow.node_tree.nodes if n.type == "BSDF_PRINCIPLED")
     node.inputs["Emission Color"].default_value = (1.0, 0.9, 0.75, 1.0)
@@ -907,7 +905,7 @@ def mesh_light_mirror():
     mirror."""
     scene = _standing_mirror("mesh_light_mirror")
     v, f = B.uv_sphere(0.2, 32, 16)
-    lamp = B.material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0)
+    lamp = B.node_material("Lamp", "ShaderNodeEmission", (1.0, 1.0, 1.0), Strength=250.0)
     B.mesh_object(scene, "Bulb", v, f, lamp, smooth=True, location=(0.5, 0.0, 1.4))
     B.add_camera(scene, (-2.6, -1.3, 1.7), (1.2, 0.1, 0.45), lens=35)
     return scene
@@ -919,7 +917,7 @@ def hdri_ball():
     by a Mapping node: the sun's caustic lands behind the ball, where the map's lookup puts it."""
     scene = _scene("hdri_ball")
     _floor(scene)
-    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     _sphere(scene, "Ball", glass, 0.5, (0, 0, 0.9))
     B.hdri_world(scene, B.hdri_image(), turn_deg=40.0)
     B.add_camera(scene, (0, -3.6, 2.8), (0, 0, 0.2), lens=40)
@@ -934,15 +932,15 @@ def ray_visibility():
     the invisible-to-lighting trick). Seen from above at a slant, the mirror's caustic in the frame."""
     scene = _standing_mirror("ray_visibility")
     bulb = B.add_light(scene, "Bulb", "POINT", (0.4, -0.2, 3.0), energy=600.0, shadow_soft_size=0.25,
-                       use_soft_falloff=True, caustics=True)
+                       use_soft_falloff=True)
     bulb.visible_glossy = False
-    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     _sphere(scene, "Ball", glass, 0.45, (0, 0, 0.9))
     ghost = _sphere(scene, "Ghost", glass, 0.35, (-1.1, 0.5, 0.6))
     ghost.visible_diffuse = False
     ghost.visible_shadow = False
     lamp = B.add_light(scene, "Lamp", "POINT", (-0.2, -1.0, 1.6), energy=300.0, shadow_soft_size=0.15,
-                       use_soft_falloff=False, caustics=True)
+                       use_soft_falloff=False)
     lamp.visible_transmission = False
     B.add_camera(scene, (-1.2, -3.6, 3.2), (0.3, 0.2, 0.2), lens=30)
     return scene
@@ -954,11 +952,11 @@ def hidden_kinds():
     rays do meet it: the floor's direct light does not), and a glass ball transmission rays do not
     meet (a refraction's ray passes the ball's own far side: one refraction, then the light)."""
     scene = _mirror_under_bulb("hidden_kinds")
-    card = B.bsdf("Card", "diffuse", (0.2, 0.2, 0.2))
+    card = B.material("Card", "diffuse", (0.2, 0.2, 0.2))
     v, f = B.grid(0.5, 0.7)
     ob = B.mesh_object(scene, "Card", v, f, card, location=(0.85, 0.0, 1.15), rotation=(0, math.radians(50), 0))
     ob.visible_glossy = False
-    glass = B.bsdf("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
+    glass = B.material("Glass", "glass", (1.0, 1.0, 1.0), ior=1.5)
     ball = _sphere(scene, "Ball", glass, 0.3, (-0.2, 0.6, 0.55))
     ball.visible_transmission = False
     return scene
@@ -971,7 +969,7 @@ def hidden_ball():
     scene = _ball_under_bulb("hidden_ball", lambda: principled("WhiteGlass", base=(1.0, 1.0, 1.0),
                                                                transmission=1.0, ior=1.5))
     bpy.data.objects["Ball"].visible_camera = False
-    card = B.bsdf("Card", "diffuse", (0.5, 0.3, 0.2))
+    card = B.material("Card", "diffuse", (0.5, 0.3, 0.2))
     v, f = B.grid(0.9, 0.6)
     ob = B.mesh_object(scene, "Card", v, f, card, location=(-0.35, -2.2, 1.55), rotation=(math.radians(60), 0, 0))
     ob.visible_camera = False

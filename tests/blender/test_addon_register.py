@@ -13,7 +13,7 @@ bpy = pytest.importorskip("bpy")
 
 from testkit.addon import (LAYER, Layout, draw_all, image_pixels, layer_image, layer_images,  # noqa: E402
                            our_nodes, users_compositor)
-from testkit.blend import material, mirror_scene, plane  # noqa: E402
+from testkit.blend import mirror_scene, node_material, plane  # noqa: E402
 
 # Operators and panels show up in bpy.types; property groups do not.
 TYPES = ("SMBS_OT_bake_caustics", "SMBS_OT_cancel_bake", "SMBS_OT_remove_caustic_layer",
@@ -517,7 +517,7 @@ def test_a_mesh_light_is_covered_by_the_layer(empty_bpy, addon, tmp_path):
     so the layer covers every light and Cycles' caustics go off (an emissive material kept them on, the
     note saying 'the layer has no mesh lights', before)."""
     scene = mirror_scene()
-    glow = material("Glow", "ShaderNodeEmission", Strength=20.0)
+    glow = node_material("Glow", "ShaderNodeEmission", Strength=20.0)
     plane(scene, "Panel", 0.5, glow, (-2, 0.8, 1.5), (0, math.radians(-90), 0))
     s = _bake(scene, tmp_path)
     stats = json.loads(s.last_stats)

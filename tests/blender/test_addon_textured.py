@@ -11,7 +11,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from testkit.addon import ALBEDO, LAYER, image_pixels, layer_image, our_nodes, users_compositor  # noqa: E402
-from testkit.blend import material, mirror_scene, plane  # noqa: E402
+from testkit.blend import mirror_scene, node_material, plane  # noqa: E402
 from testkit.extension import load_extension  # noqa: E402
 
 ALBEDO_ROLES = ("albedo_image", "diffuse_color", "multiply", "albedo_add")
@@ -180,7 +180,7 @@ def test_cycles_render_adds_per_albedo_times_diffuse_color(composite, tmp_path):
     background = scene.world.node_tree and scene.world.node_tree.nodes.get("Background")
     if background:
         background.inputs["Color"].default_value = (0.3, 0.3, 0.3, 1.0)
-    plane(scene, "Floor", 10, material("Floor", "ShaderNodeBsdfDiffuse", (0.5,) * 3), (0, 0, 0))
+    plane(scene, "Floor", 10, node_material("Floor", "ShaderNodeBsdfDiffuse", (0.5,) * 3), (0, 0, 0))
     cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
     cam.data.type, cam.data.ortho_scale, cam.location = 'ORTHO', 2.0, (0, 0, 3)
     scene.collection.objects.link(cam)

@@ -11,20 +11,20 @@ bpy = pytest.importorskip("bpy")
 
 from smbs_addon.scene import arrays as S  # noqa: E402
 from smbs_addon.shading.microfacet import distributions  # noqa: E402
-from testkit.blend import add_camera, export, material, mesh_with, metallic, one_material  # noqa: E402
+from testkit.blend import add_camera, export, mesh_with, metallic, node_material, one_material  # noqa: E402
 
 pytestmark = [pytest.mark.bpy, pytest.mark.usefixtures("empty_bpy")]
 
 
 def test_principled_diffuse():
-    sc, w = one_material(material("P", "ShaderNodeBsdfPrincipled", **{
+    sc, w = one_material(node_material("P", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.2, 0.3, 0.4), "Roughness": 0.7}))
     assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], [0.2, 0.3, 0.4])
     assert np.isclose(sc.mat_roughness[0], 0.7) and w == []
 
 
 def test_principled_metallic_is_a_schlick_conductor():
-    sc, _ = one_material(material("Gold", "ShaderNodeBsdfPrincipled", **{
+    sc, _ = one_material(node_material("Gold", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (1.0, 0.8, 0.3), "Metallic": 1.0, "Roughness": 0.1}))
     assert sc.mat_kind[0] == S.CONDUCTOR and sc.mat_fresnel[0] == S.FRESNEL_SCHLICK
     assert np.allclose(sc.mat_color[0], [1.0, 0.8, 0.3]) and np.isclose(sc.mat_roughness[0], 0.1)
@@ -37,7 +37,7 @@ def test_a_partly_metallic_or_transmissive_principled_weighs_its_lobe():
     (mirror_alloy, Metallic 0.7: 1.44 of Cycles before, 0.95 with the metal's weight alone)."""
     from smbs_addon.shading.fresnel import fresnel_dielectric, fresnel_schlick, specular_weights
 
-    sc, w = one_material(material("Alloy", "ShaderNodeBsdfPrincipled", **{
+    sc, w = one_material(node_material("Alloy", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 0.6, 0.3), "Metallic": 0.8, "Roughness": 0.0}))
     assert sc.mat_kind[0] == S.CONDUCTOR and np.allclose(sc.mat_reflect_color[0], 0.8)
     assert w == ["material 'Alloy': Principled BSDF Metallic 0.8: the diffuse under its coat (20% of it) "
@@ -102,7 +102,7 @@ def test_a_principled_metals_specular_tint_is_its_edge_tint():
 
     from smbs_addon.shading.fresnel import fresnel_schlick, specular_weights
 
-    sc, w = one_material(material("Tinted", "ShaderNodeBsdfPrincipled", **{
+    sc, w = one_material(node_material("Tinted", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 0.8, 0.5), "Metallic": 1.0, "Roughness": 0.2, "Specular Tint": (0.4, 0.7, 1.0),
         "Anisotropic": 0.5, "Thin Film Thickness": 250.0}))
     assert sc.mat_film[0, 0] == 250.0
@@ -116,7 +116,7 @@ def test_a_principled_metals_specular_tint_is_its_edge_tint():
 def test_a_principled_metals_textured_specular_tint_is_left_white():
     """A texture on a metal's Specular Tint cannot be baked: the metal stays a metal (plain Schlick), said so;
     reading the tint must not turn it into a diffuse."""
-    m = material("Brushed", "ShaderNodeBsdfPrincipled", **{"Base Color": (0.9, 0.8, 0.5), "Metallic": 1.0})
+    m = node_material("Brushed", "ShaderNodeBsdfPrincipled", **{"Base Color": (0.9, 0.8, 0.5), "Metallic": 1.0})
     nt = m.node_tree
     noise = nt.nodes.new("ShaderNodeTexNoise")
     nt.links.new(noise.outputs["Color"], nt.nodes["Principled BSDF"].inputs["Specular Tint"])
@@ -126,19 +126,19 @@ def test_a_principled_metals_textured_specular_tint_is_left_white():
 
 
 def _streaky_glass():
-    m = material("Streaky", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0})
+    m = node_material("Streaky", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0})
     nt = m.node_tree
     nt.links.new(nt.nodes.new("ShaderNodeTexNoise").outputs["Fac"], nt.nodes["Glass BSDF"].inputs["Thin Film Thickness"])
     return m
 
 
 @pytest.mark.parametrize("make,film,warnings", [
-    (lambda: material("Soap", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0, "Thin Film IOR": 1.4}),
+    (lambda: node_material("Soap", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 400.0, "Thin Film IOR": 1.4}),
      (400.0, 1.4), []),
-    (lambda: material("Thin", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 0.1}), None, []),
+    (lambda: node_material("Thin", "ShaderNodeBsdfGlass", **{"Thin Film Thickness": 0.1}), None, []),
     (_streaky_glass, None, ["material 'Streaky': the thin film of 'Glass BSDF' is driven by nodes (a textured "
                             "thickness or index): its iridescence is not baked"]),
-    (lambda: material("Plastic", "ShaderNodeBsdfPrincipled", **{"Thin Film Thickness": 300.0}), None,
+    (lambda: node_material("Plastic", "ShaderNodeBsdfPrincipled", **{"Thin Film Thickness": 300.0}), None,
      ["material 'Plastic': Principled BSDF thin film (over a diffuse) ignored"])],
     ids=["glass", "at_the_cutoff", "textured", "over_a_diffuse"])
 def test_a_thin_film_is_read_where_it_is_baked_and_said_to_be_ignored_elsewhere(make, film, warnings):
@@ -154,7 +154,7 @@ def test_a_thin_film_is_read_where_it_is_baked_and_said_to_be_ignored_elsewhere(
 
 
 def test_a_partly_transmissive_principled_glass_weighs_both_lobes():
-    sc, w = one_material(material("Frost", "ShaderNodeBsdfPrincipled", **{
+    sc, w = one_material(node_material("Frost", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.81, 1.0, 0.64), "Metallic": 0.1, "Transmission Weight": 0.9, "Roughness": 0.0}))
     assert sc.mat_kind[0] == S.DIELECTRIC
     np.testing.assert_allclose(sc.mat_color[0], np.sqrt([0.81, 1.0, 0.64]) * 0.81, rtol=1e-6)
@@ -168,7 +168,7 @@ def test_a_principled_glass_specular_tint_scales_its_fresnel_at_normal_incidence
     1 under total internal reflection, T = (1 - R) sqrt(base). It was ignored (and said so)."""
     from smbs_addon.shading.fresnel import fresnel_dielectric, specular_weights
 
-    sc, w = one_material(material("Tinted", "ShaderNodeBsdfPrincipled", **{
+    sc, w = one_material(node_material("Tinted", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.64, 1.0, 0.81), "Transmission Weight": 1.0, "IOR": 1.5, "Roughness": 0.0,
         "Specular Tint": (2.5, 1.0, 0.2, 1.0)}))
     assert w == [] and sc.mat_kind[0] == S.DIELECTRIC
@@ -193,7 +193,7 @@ def test_a_principled_glass_specular_tint_under_a_thin_film():
     from smbs_addon.shading.thinfilm import dielectric_film1
 
     tint = np.array([0.3, 1.0, 3.0])
-    sc, _ = one_material(material("FilmTint", "ShaderNodeBsdfPrincipled", **{
+    sc, _ = one_material(node_material("FilmTint", "ShaderNodeBsdfPrincipled", **{
         "Transmission Weight": 1.0, "IOR": 1.5, "Specular Tint": (*tint, 1.0), "Thin Film Thickness": 300.0,
         "Thin Film IOR": 1.8}))
     F0 = 0.04
@@ -229,7 +229,7 @@ def test_glasses_under_different_specular_tints_do_not_add_up(second, same):
 
 
 def test_principled_transmission_is_a_dielectric():
-    sc, _ = one_material(material("PGlass", "ShaderNodeBsdfPrincipled", **{
+    sc, _ = one_material(node_material("PGlass", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.9, 1.0, 0.95), "Transmission Weight": 1.0, "IOR": 1.33,
         "Roughness": 0.0}))
     assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.33)
@@ -239,7 +239,7 @@ def test_principled_transmission_is_a_dielectric():
 
 
 def test_glass_bsdf_tints_reflection_and_transmission():
-    sc, _ = one_material(material("Glass", "ShaderNodeBsdfGlass", Color=(0.5, 0.6, 0.7), IOR=1.5,
+    sc, _ = one_material(node_material("Glass", "ShaderNodeBsdfGlass", Color=(0.5, 0.6, 0.7), IOR=1.5,
                                   Roughness=0.05))
     assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.5)
     assert np.allclose(sc.mat_color[0], [0.5, 0.6, 0.7])
@@ -251,8 +251,8 @@ def test_bump_map_correction_is_read_per_material():
     """Cycles' Bump Map Correction (Material > Settings, on by default) is exported per material:
     a glass left at the default keeps it, a mirror with it turned off does not, and a scene with
     one material of each says so material by material."""
-    glass = material("Glass", "ShaderNodeBsdfGlass", Color=(1.0, 1.0, 1.0), IOR=1.5)
-    mirror = material("Mirror", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.0)
+    glass = node_material("Glass", "ShaderNodeBsdfGlass", Color=(1.0, 1.0, 1.0), IOR=1.5)
+    mirror = node_material("Mirror", "ShaderNodeBsdfGlossy", Color=(0.9, 0.9, 0.9), Roughness=0.0)
     assert glass.cycles.use_bump_map_correction  # Blender's default
     mirror.cycles.use_bump_map_correction = False
     mesh_with(glass, "A")
@@ -265,7 +265,7 @@ def test_bump_map_correction_is_read_per_material():
 
 
 def test_refraction_bsdf_has_no_reflection():
-    sc, _ = one_material(material("Refr", "ShaderNodeBsdfRefraction", Color=(1.0, 1.0, 1.0),
+    sc, _ = one_material(node_material("Refr", "ShaderNodeBsdfRefraction", Color=(1.0, 1.0, 1.0),
                                   IOR=1.33))
     assert sc.mat_kind[0] == S.DIELECTRIC and np.isclose(sc.mat_ior[0], 1.33)
     assert np.allclose(sc.mat_reflect_color[0], 0) and np.allclose(sc.mat_color[0], 1)
@@ -273,18 +273,18 @@ def test_refraction_bsdf_has_no_reflection():
 
 @pytest.mark.parametrize("idname", ["ShaderNodeBsdfGlossy", "ShaderNodeBsdfAnisotropic"])
 def test_glossy_is_a_plain_conductor(idname):
-    sc, _ = one_material(material("Mirror", idname, Color=(0.9, 0.9, 0.9), Roughness=0.0))
+    sc, _ = one_material(node_material("Mirror", idname, Color=(0.9, 0.9, 0.9), Roughness=0.0))
     assert sc.mat_kind[0] == S.CONDUCTOR and sc.mat_fresnel[0] == S.FRESNEL_NONE
     assert np.allclose(sc.mat_color[0], 0.9) and sc.mat_roughness[0] == 0
 
 
 def test_diffuse_bsdf():
-    sc, _ = one_material(material("D", "ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.3)))
+    sc, _ = one_material(node_material("D", "ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.3)))
     assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], [0.1, 0.2, 0.3])
 
 
 def test_emission():
-    sc, _ = one_material(material("Lamp", "ShaderNodeEmission", Color=(1.0, 0.5, 0.25),
+    sc, _ = one_material(node_material("Lamp", "ShaderNodeEmission", Color=(1.0, 0.5, 0.25),
                                   Strength=7.0))
     assert sc.mat_kind[0] == S.EMITTER and np.isclose(sc.mat_strength[0], 7.0)
     assert np.allclose(sc.mat_color[0], [1.0, 0.5, 0.25])
@@ -300,7 +300,7 @@ def test_a_rough_caster_keeps_its_roughness_and_distribution(node, dist, rough, 
     Multiscatter GGX (Blender's default) or GGX; Beckmann and Ashikhmin-Shirley are baked as GGX, said
     where the surface is rough (alpha^2 = Roughness^4 above Cycles' 1e-7)."""
     kw = {"Metallic": 1.0} if node == "ShaderNodeBsdfPrincipled" else {}
-    m = material("Frosted", node, Roughness=rough, **kw)
+    m = node_material("Frosted", node, Roughness=rough, **kw)
     next(n for n in m.node_tree.nodes if n.type != "OUTPUT_MATERIAL").distribution = dist
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] in (S.DIELECTRIC, S.CONDUCTOR) and np.isclose(sc.mat_roughness[0], rough)
@@ -326,7 +326,7 @@ def test_principled_diffuse_keeps_what_metallic_transmission_and_its_glossy_laye
     Level, tinted by Specular Tint (layer.principled_layer); Level 0 takes the layer away."""
     from smbs_addon.shading.coat import ior_from_f0
 
-    sc, w = one_material(material("Half", "ShaderNodeBsdfPrincipled", **{
+    sc, w = one_material(node_material("Half", "ShaderNodeBsdfPrincipled", **{
         "Base Color": (0.5, 0.6, 0.7), "Metallic": 0.2, "Transmission Weight": 0.25, "Roughness": 0.3,
         "IOR": 1.4, "Specular IOR Level": 0.25, "Specular Tint": (0.5, 0.9, 0.2, 1.0)}))
     assert sc.mat_kind[0] == S.DIFFUSE and w == []
@@ -338,13 +338,13 @@ def test_principled_diffuse_keeps_what_metallic_transmission_and_its_glossy_laye
 def test_rough_diffuse_is_oren_nayar():
     """Cycles shades a Diffuse BSDF of Roughness 1e-5 or more, and a Principled BSDF's Diffuse
     Roughness, by Oren-Nayar (layer.oren_nayar_ratio): its sigma is mat_layer's last column."""
-    sc, w = one_material(material("Rough", "ShaderNodeBsdfDiffuse", Color=(0.5, 0.5, 0.5), Roughness=0.6))
+    sc, w = one_material(node_material("Rough", "ShaderNodeBsdfDiffuse", Color=(0.5, 0.5, 0.5), Roughness=0.6))
     assert sc.mat_kind[0] == S.DIFFUSE and w == []
     assert np.allclose(sc.mat_layer[0], [0.0, 0.0, 0.0, 1.0, 0.6, 0.0, 0.0, 0.0], atol=1e-6)
 
 
 def test_principled_diffuse_roughness_is_oren_nayar_under_the_coat():
-    sc, w = one_material(material("RoughP", "ShaderNodeBsdfPrincipled", **{"Diffuse Roughness": 0.4}))
+    sc, w = one_material(node_material("RoughP", "ShaderNodeBsdfPrincipled", **{"Diffuse Roughness": 0.4}))
     assert w == [] and np.allclose(sc.mat_layer[0], [1.5, 0.5, 1.0, 1.0, 0.4, 0.0, 1.5, 0.03], atol=1e-6)
 
 
@@ -353,7 +353,7 @@ def test_principled_clear_coat_over_a_receiver():
     too (layer.clearcoat_table); a tinted one, or one over metal, is warned about."""
     from smbs_addon.shading import coat as layer
 
-    sc, w = one_material(material("Varnish", "ShaderNodeBsdfPrincipled", **{"Coat Weight": 1.0}))
+    sc, w = one_material(node_material("Varnish", "ShaderNodeBsdfPrincipled", **{"Coat Weight": 1.0}))
     assert w == [] and np.allclose(sc.mat_layer[0, 5:], [1.0, 1.5, 0.03], atol=1e-6)
     # Cycles' plane under a sun, the default coat under Coat Weight 1 (tests/test_layer.py's way)
     got = layer.weight(layer.table(sc), np.zeros(2, np.int64), np.array([1.0, 0.356]))
@@ -361,18 +361,18 @@ def test_principled_clear_coat_over_a_receiver():
 
 
 def test_a_clear_coat_over_metal_or_tinted_is_said_to_be_ignored():
-    sc, w = one_material(material("CarPaint", "ShaderNodeBsdfPrincipled", **{
+    sc, w = one_material(node_material("CarPaint", "ShaderNodeBsdfPrincipled", **{
         "Coat Weight": 1.0, "Coat Tint": (0.8, 0.2, 0.2, 1.0)}))
     assert w == ["material 'CarPaint': Principled BSDF coat ignored"] and sc.mat_layer[0, 5] == 0.0
 
 
 def test_principled_without_specular_has_no_glossy_layer():
-    sc, _ = one_material(material("Matte", "ShaderNodeBsdfPrincipled", **{"Specular IOR Level": 0.0}))
+    sc, _ = one_material(node_material("Matte", "ShaderNodeBsdfPrincipled", **{"Specular IOR Level": 0.0}))
     assert sc.mat_kind[0] == S.DIFFUSE and sc.mat_layer.shape == (0, 8)  # no layer anywhere
 
 
 def test_principled_extras_are_reported_as_ignored():
-    sc, warnings = one_material(material("Glow", "ShaderNodeBsdfPrincipled", **{
+    sc, warnings = one_material(node_material("Glow", "ShaderNodeBsdfPrincipled", **{
         "Emission Strength": 2.0, "Emission Color": (1.0, 1.0, 1.0), "Alpha": 0.5, "Sheen Weight": 0.3}))
     assert sc.mat_kind[0] == S.DIFFUSE and sc.n_lights == 0
     assert warnings == ["material 'Glow': Principled BSDF emission (under a coat or sheen), sheen, alpha ignored"]

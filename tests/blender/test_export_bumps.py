@@ -11,7 +11,7 @@ bpy = pytest.importorskip("bpy")
 from smbs_addon.scene import bump  # noqa: E402
 from smbs_addon.scene import arrays as S  # noqa: E402
 from smbs_addon.blender import cycles_passes  # noqa: E402
-from testkit.blend import add_camera, bumpy, export, link, material, obj_tris, one_material  # noqa: E402
+from testkit.blend import add_camera, bumpy, export, link, node_material, obj_tris, one_material  # noqa: E402
 
 pytestmark = [pytest.mark.bpy, pytest.mark.usefixtures("empty_bpy")]
 
@@ -19,7 +19,7 @@ pytestmark = [pytest.mark.bpy, pytest.mark.usefixtures("empty_bpy")]
 def _height_glass(name, node_type="ShaderNodeBsdfGlass", coords="Object", **inputs):
     """A mirror or glass whose Normal is a Bump node (Distance 0.5, Strength 0.8) of the Height
     0.3 x - 0.2 y^2 in the Texture Coordinate node's coords."""
-    m = material(name, node_type, **inputs)
+    m = node_material(name, node_type, **inputs)
     nt = m.node_tree
     bsdf = next(n for n in nt.nodes if n.type != "OUTPUT_MATERIAL")
     bump, tc, sep = (nt.nodes.new(t) for t in ("ShaderNodeBump", "ShaderNodeTexCoord", "ShaderNodeSeparateXYZ"))
@@ -221,7 +221,7 @@ def test_a_bump_inside_a_mix_is_said():
 
 def test_a_bump_whose_height_reads_a_mesh_attribute_is_said():
     """Cycles' bake of the Height would read the copy's attributes, which the export does not carry over."""
-    m = material("Painted", "ShaderNodeBsdfGlossy", Roughness=0.0)
+    m = node_material("Painted", "ShaderNodeBsdfGlossy", Roughness=0.0)
     nt = m.node_tree
     bump = nt.nodes.new("ShaderNodeBump")
     nt.links.new(bump.outputs[0], nt.nodes["Glossy BSDF"].inputs["Normal"])
@@ -236,7 +236,7 @@ def test_a_bump_whose_height_reads_a_mesh_attribute_is_said():
     ("Displaced", "ShaderNodeBsdfGlass", "ShaderNodeDisplacement", "Material Output", "its Displacement is linked")])
 def test_nested_bumps_or_a_displacement_are_said(name, node_type, driver, socket, said):
     """A Bump node whose Normal is another Bump's (Cycles' bake has no differentials), or a linked Displacement."""
-    m = material(name, node_type, Roughness=0.0)
+    m = node_material(name, node_type, Roughness=0.0)
     nt = m.node_tree
     if socket == "Bump":
         outer = nt.nodes.new("ShaderNodeBump")
@@ -254,7 +254,7 @@ def test_a_normal_map_on_a_mirror_is_baked_as_cycles_evaluates_it():
     output, a world-space normal, at every corner of the finer mesh; the exported corner normals are it.
     A constant colour (0.8, 0.5, 1) tilts the normal towards the tangent (+U, here the object's +X) by
     atan(0.6); the object is turned, and so is the normal."""
-    m = material("Hammered", "ShaderNodeBsdfGlossy", Roughness=0.0)
+    m = node_material("Hammered", "ShaderNodeBsdfGlossy", Roughness=0.0)
     nt = m.node_tree
     nm, rgb = nt.nodes.new("ShaderNodeNormalMap"), nt.nodes.new("ShaderNodeRGB")
     rgb.outputs[0].default_value = (0.8, 0.5, 1.0, 1.0)

@@ -12,7 +12,8 @@ bpy = pytest.importorskip("bpy")
 from smbs_addon.scene import bump  # noqa: E402
 from smbs_addon.scene import arrays as S  # noqa: E402
 from testkit import SAMPLE_BLENDS  # noqa: E402
-from testkit.blend import add_camera, add_light, cube_mesh, export, link, material, mesh_with, obj_tris  # noqa: E402
+from testkit.blend import (add_camera, add_light, cube_mesh, export, link, mesh_with, node_material,  # noqa: E402
+                           obj_tris)
 
 pytestmark = [pytest.mark.bpy, pytest.mark.usefixtures("empty_bpy")]
 
@@ -82,8 +83,8 @@ def test_export_does_not_change_the_scene():
     add_camera()
     ob = link(bpy.data.objects.new("Cube", cube_mesh()))
     ob.modifiers.new("Subdivision", "SUBSURF").levels = 1
-    ob.data.materials.append(material("Foo", "ShaderNodeMixShader"))
-    add_light(bpy.context.scene, "Area", "AREA", scale=(2, 2, 2))
+    ob.data.materials.append(node_material("Foo", "ShaderNodeMixShader"))
+    add_light(bpy.context.scene, "Area", "AREA", scale=(2, 2, 2), energy=10.0, caustics=False)
     col = bpy.data.collections.new("Parts")
     col.objects.link(bpy.data.objects.new("Part", cube_mesh("PartMesh")))
     e = link(bpy.data.objects.new("Inst", None))
@@ -109,7 +110,7 @@ def test_library_linked_objects_are_exported(tmp_path):
     ob = link(bpy.data.objects.new("LibCube", cube_mesh("LibCubeMesh")))
     ob.location = (0, 0, 7)
     ob.cycles.is_caustics_caster = True
-    ob.data.materials.append(material("LibGlass", "ShaderNodeBsdfGlass", IOR=1.5))
+    ob.data.materials.append(node_material("LibGlass", "ShaderNodeBsdfGlass", IOR=1.5))
     bpy.ops.wm.save_as_mainfile(filepath=str(lib))
     bpy.ops.wm.read_factory_settings(use_empty=True)
     with bpy.data.libraries.load(str(lib), link=True) as (src, dst):

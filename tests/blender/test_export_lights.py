@@ -10,7 +10,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from smbs_addon.scene import arrays as S  # noqa: E402
-from testkit.blend import add_camera, add_light, export, material, mesh_with, one_material  # noqa: E402
+from testkit.blend import add_camera, add_light, export, mesh_with, node_material, one_material  # noqa: E402
 
 pytestmark = [pytest.mark.bpy, pytest.mark.usefixtures("empty_bpy")]
 
@@ -19,7 +19,7 @@ def test_an_emission_object_is_a_mesh_light_of_its_own():
     """Cycles lights the scene with an Emission shader's object (a mesh light): the export makes it a
     light named after the object, of radiance Color x Strength, taking the object's Ray Visibility."""
     add_camera()
-    lamp = mesh_with(material("Lamp", "ShaderNodeEmission", Color=(1.0, 0.5, 0.25), Strength=7.0), "Softbox")
+    lamp = mesh_with(node_material("Lamp", "ShaderNodeEmission", Color=(1.0, 0.5, 0.25), Strength=7.0), "Softbox")
     lamp.visible_glossy = False
     lamp.location = (0.0, 0.0, 3.0)
     sc, warnings = export()
@@ -44,9 +44,9 @@ def test_light_linking_receivers_are_read_as_blender_resolves_them():
     collection's own objects theirs, the later (the object's own) where one is met twice. A mesh light
     reads its object's; an unlinked light lights every object; a scene without links keeps none."""
     add_camera()
-    glass = material("Glass", "ShaderNodeBsdfGlass")
+    glass = node_material("Glass", "ShaderNodeBsdfGlass")
     ball, pane, floor, wall = (mesh_with(glass, n) for n in ("Ball", "Pane", "Floor", "Wall"))
-    add_light(bpy.context.scene, "Point", "POINT", energy=10.0)
+    add_light(bpy.context.scene, "Point", "POINT", energy=10.0, caustics=False)
     sc, warnings = export()
     assert warnings == [] and sc.light_links.size == 0
     inc, exc = bpy.data.collections.new("Inc"), bpy.data.collections.new("Exc")
@@ -59,11 +59,11 @@ def test_light_linking_receivers_are_read_as_blender_resolves_them():
     exc.objects.link(wall)  # its own state (Include) after its child collection's (Exclude)
     exc.collection_children[0].light_linking.link_state = "EXCLUDE"
     exc.collection_objects[0].light_linking.link_state = "EXCLUDE"
-    lamp = add_light(bpy.context.scene, "Spot", "SPOT", energy=10.0)
+    lamp = add_light(bpy.context.scene, "Spot", "SPOT", energy=10.0, caustics=False)
     lamp.light_linking.receiver_collection = inc
-    sun = add_light(bpy.context.scene, "Sun", "SUN", energy=1.0)
+    sun = add_light(bpy.context.scene, "Sun", "SUN", energy=1.0, caustics=False)
     sun.light_linking.receiver_collection = exc
-    glow = mesh_with(material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
+    glow = mesh_with(node_material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
     glow.light_linking.receiver_collection = inc
     sc, warnings = export()
     assert warnings == []
@@ -80,13 +80,13 @@ def test_shadow_linking_blockers_are_read_as_the_receivers_are():
     Scene.light_blockers: with the wall set to Include, only the wall shadows the lamp; a mesh light reads
     its object's; nothing is said about either."""
     add_camera()
-    glass = material("Glass", "ShaderNodeBsdfGlass")
+    glass = node_material("Glass", "ShaderNodeBsdfGlass")
     ball, wall = mesh_with(glass, "Ball"), mesh_with(glass, "Wall")
-    lamp = add_light(bpy.context.scene, "Point", "POINT", energy=10.0)
+    lamp = add_light(bpy.context.scene, "Point", "POINT", energy=10.0, caustics=False)
     only = bpy.data.collections.new("OnlyWall")
     only.objects.link(wall)
     lamp.light_linking.blocker_collection = only
-    glow = mesh_with(material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
+    glow = mesh_with(node_material("Lamp", "ShaderNodeEmission", Strength=3.0), "Panel")
     glow.light_linking.blocker_collection = only
     glow.light_linking.receiver_collection = only
     sc, warnings = export()
@@ -102,10 +102,10 @@ def test_ray_visibility_of_objects_and_lights_is_read():
     """Diffuse rays off on a glass (no caustic of it) and shadow rays off (in no caustic path) say nothing;
     the objects' and lights' Ray Visibility is exported as S.RAY_* bits (shadow rays are in no caustic
     path: a light's bits keep them)."""
-    ob = mesh_with(material("G", "ShaderNodeBsdfGlass"))
+    ob = mesh_with(node_material("G", "ShaderNodeBsdfGlass"))
     ob.visible_diffuse = False
     ob.visible_shadow = False
-    lamp = add_light(bpy.context.scene, "Point", "POINT")
+    lamp = add_light(bpy.context.scene, "Point", "POINT", energy=10.0, caustics=False)
     lamp.visible_glossy = False
     add_camera()
     sc, warnings = export()
@@ -118,7 +118,7 @@ def test_ray_visibility_of_objects_and_lights_is_read():
 def test_point_light():
     add_camera()
     add_light(bpy.context.scene, "Point", "POINT", energy=250.0, color=(1.0, 0.5, 0.5), shadow_soft_size=0.1,
-              use_soft_falloff=False)
+              use_soft_falloff=False, caustics=False)
     sc, _ = export()
     assert sc.light_type.tolist() == [S.POINT] and sc.light_names == ["Point"]
     assert np.allclose(sc.light_color[0], [250, 125, 125])
@@ -130,7 +130,7 @@ def test_point_light():
 def test_spot_light_and_exposure():
     add_camera()
     ob = add_light(bpy.context.scene, "Spot", "SPOT", energy=100.0, exposure=1.0, spot_size=math.radians(60),
-                   spot_blend=0.3, shadow_soft_size=0.2)
+                   spot_blend=0.3, shadow_soft_size=0.2, caustics=False)
     ob.data.cycles.is_caustics_light = True
     sc, _ = export()
     assert sc.light_type[0] == S.SPOT and np.allclose(sc.light_color[0], 200.0)
@@ -142,9 +142,9 @@ def test_spot_light_and_exposure():
 def test_area_light_size_takes_object_scale():
     add_camera()
     add_light(bpy.context.scene, "Area", "AREA", rotation=(0.2, 0.0, 0.5), scale=(2.0, 3.0, 4.0), energy=50.0,
-              shape="RECTANGLE", size=0.5, size_y=0.25, spread=math.radians(90))
+              shape="RECTANGLE", size=0.5, size_y=0.25, spread=math.radians(90), caustics=False)
     add_light(bpy.context.scene, "Area", "AREA", scale=(2.0, 2.0, 1.0), energy=10.0, shape="DISK",
-              size=0.5).name = "Disk"
+              size=0.5, caustics=False).name = "Disk"
     sc, _ = export()
     i = sc.light_names.index("Area")
     assert sc.light_type[i] == S.AREA and sc.light_shape[i] == S.RECTANGLE
@@ -159,21 +159,23 @@ def test_area_light_size_takes_object_scale():
 
 def test_square_area_light_with_unequal_scale_becomes_a_rectangle():
     add_camera()
-    add_light(bpy.context.scene, "Area", "AREA", scale=(1.0, 2.0, 1.0), shape="SQUARE", size=0.5)
+    add_light(bpy.context.scene, "Area", "AREA", scale=(1.0, 2.0, 1.0), shape="SQUARE", size=0.5, energy=10.0,
+              caustics=False)
     sc, _ = export()
     assert sc.light_shape[0] == S.RECTANGLE and np.allclose(sc.light_size[0], [0.5, 1.0])
 
 
 def test_unnormalized_area_light_power_scales_with_area():
     add_camera()
-    add_light(bpy.context.scene, "Area", "AREA", energy=10.0, shape="SQUARE", size=2.0, normalize=False)
+    add_light(bpy.context.scene, "Area", "AREA", energy=10.0, shape="SQUARE", size=2.0, normalize=False, caustics=False)
     sc, _ = export()
     assert np.allclose(sc.light_color[0], 40.0)  # Cycles: strength not divided by area 4 m^2
 
 
 def test_sun_light():
     add_camera()
-    add_light(bpy.context.scene, "Sun", "SUN", rotation=(0, math.radians(30), 0), energy=3.0, angle=math.radians(0.5))
+    add_light(bpy.context.scene, "Sun", "SUN", rotation=(0, math.radians(30), 0), energy=3.0, angle=math.radians(0.5),
+              caustics=False)
     sc, _ = export()
     assert sc.light_type[0] == S.SUN and np.allclose(sc.light_color[0], 3.0)
     assert np.isclose(sc.light_angle[0], math.radians(0.5))
@@ -183,7 +185,7 @@ def test_sun_light():
 
 def test_light_node_tree_emission_scales_the_light():
     add_camera()
-    ob = add_light(bpy.context.scene, "Point", "POINT", energy=10.0)
+    ob = add_light(bpy.context.scene, "Point", "POINT", energy=10.0, caustics=False)
     ob.data.use_nodes = True
     em = ob.data.node_tree.nodes["Emission"]
     em.inputs["Strength"].default_value = 3.0
@@ -199,13 +201,13 @@ def test_principled_emission_makes_a_mesh_light_of_the_receiver():
     """A Principled BSDF's Emission Color x Strength: its faces shine as a mesh light (Cycles adds the
     emission to the BSDF), and the surface stays what its BSDF makes it; in a Mix Shader the emission
     counts by the part's weight."""
-    sc, warnings = one_material(material("Glow", "ShaderNodeBsdfPrincipled", **{
+    sc, warnings = one_material(node_material("Glow", "ShaderNodeBsdfPrincipled", **{
         "Emission Strength": 2.0, "Emission Color": (1.0, 0.5, 0.25)}))
     assert warnings == [] and sc.mat_kind[0] == S.DIFFUSE
     assert sc.light_names == ["Thing"] and sc.light_type.tolist() == [S.MESH]
     assert np.allclose(sc.light_color[0], [2.0, 1.0, 0.5]) and np.allclose(sc.mat_emission[0], [2.0, 1.0, 0.5])
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    m = material("Half", "ShaderNodeMixShader", Fac=0.75)
+    m = node_material("Half", "ShaderNodeMixShader", Fac=0.75)
     nt = m.node_tree
     glow = nt.nodes.new("ShaderNodeBsdfPrincipled")
     glow.inputs["Emission Strength"].default_value = 4.0
@@ -217,7 +219,7 @@ def test_principled_emission_makes_a_mesh_light_of_the_receiver():
     sc, _ = one_material(m)
     assert sc.mat_kind[0] == S.DIELECTRIC and np.allclose(sc.light_color[0], 1.0)  # (1 - 0.75) x 4
     bpy.ops.wm.read_factory_settings(use_empty=True)
-    m = material("Sign", "ShaderNodeMixShader", Fac=0.25)  # 0.75 diffuse, 0.25 an Emission node
+    m = node_material("Sign", "ShaderNodeMixShader", Fac=0.25)  # 0.75 diffuse, 0.25 an Emission node
     nt = m.node_tree
     em = nt.nodes.new("ShaderNodeEmission")
     em.inputs["Strength"].default_value = 8.0

@@ -9,7 +9,8 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from smbs_addon.scene import arrays as S  # noqa: E402
-from testkit.blend import add_camera, cube_mesh, export, link, material, mesh_with, obj_tris, sphere_mesh  # noqa: E402
+from testkit.blend import (add_camera, cube_mesh, export, link, mesh_with, node_material, obj_tris,  # noqa: E402
+                           sphere_mesh)
 
 pytestmark = [pytest.mark.bpy, pytest.mark.usefixtures("empty_bpy")]
 
@@ -234,8 +235,8 @@ def test_hidden_for_render_objects_are_skipped():
 def test_per_face_materials():
     add_camera()
     me = cube_mesh()
-    me.materials.append(material("Red", "ShaderNodeBsdfDiffuse", Color=(1.0, 0.0, 0.0)))
-    me.materials.append(material("Blue", "ShaderNodeBsdfDiffuse", Color=(0.0, 0.0, 1.0)))
+    me.materials.append(node_material("Red", "ShaderNodeBsdfDiffuse", Color=(1.0, 0.0, 0.0)))
+    me.materials.append(node_material("Blue", "ShaderNodeBsdfDiffuse", Color=(0.0, 0.0, 1.0)))
     for p in me.polygons:
         p.material_index = 1 if p.index < 2 else 0
     link(bpy.data.objects.new("Cube", me))

@@ -9,7 +9,7 @@ import pytest
 bpy = pytest.importorskip("bpy")
 
 from smbs_addon.scene import arrays as S  # noqa: E402
-from testkit.blend import add_camera, by_fresnel, export, material, mesh_with, mixed, one_material  # noqa: E402
+from testkit.blend import add_camera, by_fresnel, export, mesh_with, mixed, node_material, one_material  # noqa: E402
 
 pytestmark = [pytest.mark.bpy, pytest.mark.usefixtures("empty_bpy")]
 
@@ -45,7 +45,7 @@ def test_a_principled_metal_in_a_mix_weighs_its_coat_by_its_weight():
 
     cos = np.array([1.0, 0.5, 0.1, 0.02])
     metal = {"Base Color": (0.9, 0.6, 0.3, 1.0), "Metallic": 0.8, "Roughness": 0.0, "IOR": 1.6}
-    sc, _ = one_material(material("Alone", "ShaderNodeBsdfPrincipled", **metal))
+    sc, _ = one_material(node_material("Alone", "ShaderNodeBsdfPrincipled", **metal))
     alone, _ = specular_weights(sc, np.zeros(4, np.int64), cos)
     bpy.ops.wm.read_factory_settings(use_empty=True)
     sc, _ = one_material(mixed("Mixed", ("ShaderNodeBsdfPrincipled", metal), ("ShaderNodeBsdfDiffuse", {}),
@@ -55,7 +55,7 @@ def test_a_principled_metal_in_a_mix_weighs_its_coat_by_its_weight():
 
 
 def test_unsupported_node_warns_naming_the_material():
-    m = material("Foo", "ShaderNodeBsdfTransparent")
+    m = node_material("Foo", "ShaderNodeBsdfTransparent")
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] == S.DIFFUSE and np.allclose(sc.mat_color[0], 0.8)
     assert warnings == ["material 'Foo': node 'Transparent BSDF' is not supported; "
@@ -63,7 +63,7 @@ def test_unsupported_node_warns_naming_the_material():
 
 
 def test_an_empty_mix_shader_renders_black():
-    sc, warnings = one_material(material("Foo", "ShaderNodeMixShader", Factor=0.5))
+    sc, warnings = one_material(node_material("Foo", "ShaderNodeMixShader", Factor=0.5))
     assert sc.mat_kind[0] == S.DIFFUSE and np.all(sc.mat_color[0] == 0)
     assert warnings == ["material 'Foo': its shader mix has no closures (renders black in Cycles); "
                         "treated as black diffuse"]
@@ -199,7 +199,7 @@ def test_a_mix_factor_driven_by_a_node_is_named():
 
 
 def test_linked_input_where_a_constant_is_needed_warns():
-    m = material("Textured", "ShaderNodeBsdfGlass")
+    m = node_material("Textured", "ShaderNodeBsdfGlass")
     tex = m.node_tree.nodes.new("ShaderNodeTexChecker")
     m.node_tree.links.new(tex.outputs["Color"], m.node_tree.nodes["Glass BSDF"].inputs["Color"])
     sc, warnings = one_material(m)
@@ -209,7 +209,7 @@ def test_linked_input_where_a_constant_is_needed_warns():
 
 
 def _textured(name, shader, socket, texture):
-    m = material(name, shader)
+    m = node_material(name, shader)
     nt = m.node_tree
     tex = nt.nodes.new(texture)
     bsdf = next(n for n in nt.nodes if n.bl_idname == shader)
@@ -271,7 +271,7 @@ def _with_volume(m, node_type, **inputs):
 
 def test_a_glass_volume_absorption_is_its_absorption():
     """Cycles absorbs (1 - Color) x Density per unit length inside the glass."""
-    m = _with_volume(material("Wine", "ShaderNodeBsdfGlass"), "ShaderNodeVolumeAbsorption",
+    m = _with_volume(node_material("Wine", "ShaderNodeBsdfGlass"), "ShaderNodeVolumeAbsorption",
                      Color=(0.9, 0.3, 0.1, 1.0), Density=2.5)
     sc, warnings = one_material(m)
     assert sc.mat_kind[0] == S.DIELECTRIC and warnings == []
@@ -282,14 +282,14 @@ def test_a_glass_volume_absorption_is_its_absorption():
     ("ShaderNodeBsdfGlass", "ShaderNodeVolumeScatter", "only Volume Absorption is supported"),
     ("ShaderNodeBsdfGlossy", "ShaderNodeVolumeAbsorption", "only a glass's volume is ours")])
 def test_other_volumes_are_said_to_be_ignored(surface, volume, why):
-    sc, warnings = one_material(_with_volume(material("Smoke", surface, Roughness=0.0), volume))
+    sc, warnings = one_material(_with_volume(node_material("Smoke", surface, Roughness=0.0), volume))
     assert not np.any(sc.mat_absorb)
     assert len(warnings) == 1 and warnings[0].startswith("material 'Smoke': its Volume (") and why in warnings[0]
 
 
 def test_holdout_and_shadow_catcher_are_said_to_be_unread():
     """The Ray Visibility is read (nothing to say of it); a shadow catcher is not."""
-    ob = mesh_with(material("D", "ShaderNodeBsdfDiffuse"))
+    ob = mesh_with(node_material("D", "ShaderNodeBsdfDiffuse"))
     ob.visible_camera = False
     ob.visible_shadow = False
     ob.visible_glossy = False
@@ -311,7 +311,7 @@ def test_a_textured_metal_is_still_a_diffuse_stand_in():
 
 
 def test_rgb_and_value_nodes_count_as_constants():
-    m = material("Const", "ShaderNodeBsdfGlass")
+    m = node_material("Const", "ShaderNodeBsdfGlass")
     nt = m.node_tree
     rgb = nt.nodes.new("ShaderNodeRGB")
     rgb.outputs[0].default_value = (0.25, 0.5, 0.75, 1.0)

@@ -395,7 +395,7 @@ def test_rebake_on_the_command_line_replaces(npz, tmp_path):
 bpy = pytest.importorskip("bpy")
 
 
-from testkit.blend import material, mirror_scene, plane  # noqa: E402
+from testkit.blend import mirror_scene, node_material, plane  # noqa: E402
 
 
 def snapshot(matrices=True):
@@ -447,9 +447,9 @@ def test_unsupported_material_nodes_are_named(fresh_bpy):
     from smbs_addon.blender.export import export_scene
 
     scene = mirror_scene()
-    toon = material("Cartoon", "ShaderNodeBsdfToon", (1.0, 0.5, 0.2))
+    toon = node_material("Cartoon", "ShaderNodeBsdfToon", (1.0, 0.5, 0.2))
     plane(scene, "Toon", 1, toon, (2, 2, 0.5))
-    textured = material("Marbled Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0))
+    textured = node_material("Marbled Glass", "ShaderNodeBsdfGlass", (1.0, 1.0, 1.0))
     tex = textured.node_tree.nodes.new("ShaderNodeTexNoise")
     glass_node = next(n for n in textured.node_tree.nodes if n.type == "BSDF_GLASS")
     textured.node_tree.links.new(tex.outputs["Color"], glass_node.inputs["Color"])
