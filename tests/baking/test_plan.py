@@ -356,11 +356,11 @@ def test_pilots_on_one_thread_or_two_plan_the_same():
 
 
 def test_a_closed_mesh_is_told_from_an_open_one():
-    """manifold._watertight (which chain types a caster gets: a closed glass has inside paths): every
+    """seeds._watertight (which chain types a caster gets: a closed glass has inside paths): every
     edge shared by exactly two triangles, vertices merged by coordinates (flat-shaded meshes repeat
     them per face; -0.0 is 0.0). A cube of 12 triangles, each with its own corners: closed; one
     triangle less: open; a glass ball closed, a pane's box closed, a plane open."""
-    from smbs_addon.walks import manifold
+    from smbs_addon.walks import seeds
 
     corners = np.array([[x, y, z] for x in (0.0, 1.0) for y in (0.0, 1.0) for z in (0.0, 1.0)])
     quads = [(0, 1, 3, 2), (4, 6, 7, 5), (0, 4, 5, 1), (2, 3, 7, 6), (0, 2, 6, 4), (1, 5, 7, 3)]
@@ -375,9 +375,9 @@ def test_a_closed_mesh_is_told_from_an_open_one():
                        np.full(len(t), glass(b)))
         sc = b.build()
         sc.validate()
-        return manifold._watertight(sc, 0)
+        return seeds._watertight(sc, 0)
 
     assert one(tris) is True and one(tris[1:]) is False
     ball, pane = scenes.glass_sphere_scene(), scenes.pane_scene()
-    assert [manifold._watertight(ball, o) for o in range(2)] == [False, True]
-    assert [manifold._watertight(pane, o) for o in range(len(pane.object_names))] == [False, True]
+    assert [seeds._watertight(ball, o) for o in range(2)] == [False, True]
+    assert [seeds._watertight(pane, o) for o in range(len(pane.object_names))] == [False, True]

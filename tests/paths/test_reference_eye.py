@@ -113,18 +113,18 @@ def test_eye_pass_from_its_cells_is_the_whole_film_s():
     pass makes, bit for bit, from a third of its eye paths (glass ball; and the lens scene with a
     second glass ball hidden under its floor, whose box the camera's view covers: no sample
     there sees it first)."""
-    from smbs_addon.trace import eye
+    from smbs_addon.baking import light_tracing  # it holds eye.specular_cells by name
     from testkit.scenes import lens_scene
 
     for scene in (scenes.glass_sphere_scene(resolution=(64, 48)), lens_scene(True, (64, 48))):
         s = dict(method="reference", spp=64, batches=2, seed=4)
         cells = bake(scene, BakeSettings(**s))
-        real = eye.specular_cells
-        eye.specular_cells = lambda *a: None
+        real = light_tracing.specular_cells
+        light_tracing.specular_cells = lambda *a: None
         try:
             whole = bake(scene, BakeSettings(**s))
         finally:
-            eye.specular_cells = real
+            light_tracing.specular_cells = real
         assert cells.stats["eye_pass"]["eye_splats"] > 30
         assert np.array_equal(cells.image, whole.image) and np.array_equal(cells.variance, whole.variance)
         assert cells.stats["eye_pass"]["eye_splats"] == whole.stats["eye_pass"]["eye_splats"]

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from smbs_addon import BakeSettings, bake
-from smbs_addon.shading import optics, microfacet as rough
+from smbs_addon.shading import energy, fresnel, optics, microfacet as rough
 from smbs_addon.scene import arrays as S
 from smbs_addon.scene.builder import SceneBuilder
 from testkit import scenes
@@ -52,7 +52,7 @@ def bsdf_cos(wi, wo, alpha, ior, glass, R=None):
     h = _unit(wi + wo)
     ch = np.abs(h[:, 2])
     g2 = 1.0 / (1.0 + _lam(ci, a2) + _lam(co, a2))
-    F = optics.fresnel_dielectric((wi * h).sum(1) * np.sign(h[:, 2]), ior) if glass else None
+    F = fresnel.fresnel_dielectric((wi * h).sum(1) * np.sign(h[:, 2]), ior) if glass else None
     fr = (F[:, None] if glass else np.broadcast_to(R, (len(wi), 3))) * (_ggx_d(ch, a2) * g2 / (4.0 * ci))[:, None]
     out[refl] = fr[refl]
     if glass:
@@ -61,7 +61,7 @@ def bsdf_cos(wi, wo, alpha, ior, glass, R=None):
         ht = ht / ln[:, None] * np.sign(ht[:, 2])[:, None]
         c_hi, c_ho = (wi * ht).sum(1), (wo * ht).sum(1)
         ok = (~refl) & (c_hi > 0) & (c_ho < 0)
-        Ft = optics.fresnel_dielectric(c_hi, ior)
+        Ft = fresnel.fresnel_dielectric(c_hi, ior)
         ft = (1.0 - Ft) * _ggx_d(ht[:, 2], a2) * g2 * np.abs(c_hi * c_ho) * ior * ior / (ci * ln * ln)
         out[ok] = ft[ok][:, None]
     return out
@@ -167,7 +167,7 @@ def test_multiscatter_glass_keeps_all_the_light():
             w = np.array([math.sqrt(1 - mu * mu), 0.0, side * mu])
             multi, m = _scene("dielectric", 0.6, distribution=rough.MULTI_GGX)
             single, _ = _scene("dielectric", 0.6, distribution=rough.GGX)
-            e = rough.glass_albedo(np.array([mu]), 0.36, 1.5 if side > 0 else 1 / 1.5)[0]
+            e = energy.glass_albedo(np.array([mu]), 0.36, 1.5 if side > 0 else 1 / 1.5)[0]
             _, b1 = _scattered(single, m, w, rng)
             _, bm = _scattered(multi, m, w, rng)
             s1, sm = b1[:, 0].sum() / N, bm[:, 0].sum() / N
@@ -185,9 +185,9 @@ def test_multiscatter_mirror_gain_is_cycles_form():
     _, b = _scattered(white, m, w, rng)
     assert abs(b[:, 0].sum() / N - 1.0) < 5e-3
     tinted, m = _scene("conductor", 0.7, color=(0.9, 0.5, 0.2))
-    table = rough.energy_tables(tinted)[m, 0]
+    table = energy.energy_tables(tinted)[m, 0]
     mu = np.linspace(0, 1, table.shape[0])
-    E = rough.visible_albedo(mu, 0.49)
+    E = energy.visible_albedo(mu, 0.49)
     e_avg = 2 * (getattr(np, "trapezoid", None) or np.trapz)(E * mu, mu)
     for c, fss in enumerate((0.9, 0.5, 0.2)):
         fms = fss * e_avg / (1 - fss * (1 - e_avg))
@@ -203,23 +203,23 @@ def test_multiscatter_glass_gain_takes_its_colour():
     mu = np.linspace(0, 1, 65)
     colour = (0.9, 0.6, 0.3)
     for side, eta in ((0, 1.5), (1, 1 / 1.5)):
-        E = np.maximum(rough.glass_albedo(mu, 0.25, eta), 1e-4)
+        E = np.maximum(energy.glass_albedo(mu, 0.25, eta), 1e-4)
         e_avg = 2 * (getattr(np, "trapezoid", None) or np.trapz)(E * mu, mu)
         tinted, m = _scene("dielectric", 0.5, color=colour)
-        table = rough.energy_tables(tinted)[m, side]
+        table = energy.energy_tables(tinted)[m, side]
         for c, fss in enumerate(colour + (1.0,)):
             fms = fss * e_avg / (1 - fss * (1 - e_avg))
             want = 1 + fms * (1 - E) / E
-            got = table[:, c] if c < 3 else rough.energy_tables(_scene("dielectric", 0.5)[0])[m, side, :, 0]
+            got = table[:, c] if c < 3 else energy.energy_tables(_scene("dielectric", 0.5)[0])[m, side, :, 0]
             np.testing.assert_allclose(got, want, rtol=3e-3, err_msg=f"side {side} channel {c}")
         np.testing.assert_allclose(want, 1 / E, rtol=1e-9)  # white: F_ms = 1
     black, m = _scene("dielectric", 0.5, color=(0.0, 0.0, 0.0))
-    f_avg = 2 * (getattr(np, "trapezoid", None) or np.trapz)(optics.fresnel_dielectric(mu, 1.5) * mu, mu)
+    f_avg = 2 * (getattr(np, "trapezoid", None) or np.trapz)(fresnel.fresnel_dielectric(mu, 1.5) * mu, mu)
     assert 0.08 < f_avg < 0.1
-    E = np.maximum(rough.glass_albedo(mu, 0.25, 1.5), 1e-4)
+    E = np.maximum(energy.glass_albedo(mu, 0.25, 1.5), 1e-4)
     e_avg = 2 * (getattr(np, "trapezoid", None) or np.trapz)(E * mu, mu)
     fms = f_avg * e_avg / (1 - f_avg * (1 - e_avg))
-    np.testing.assert_allclose(rough.energy_tables(black)[m, 0, :, 1], 1 + fms * (1 - E) / E, rtol=3e-3)
+    np.testing.assert_allclose(energy.energy_tables(black)[m, 0, :, 1], 1 + fms * (1 - E) / E, rtol=3e-3)
     # under a Specular Tint (Principled glass) the mean maps as F does (Cycles' generalized Schlick F_ss):
     # f0 x tint + (1 - f0 x tint) (f_avg - f0) / (1 - f0), f0 = 0.04; a white channel keeps f_avg
     import dataclasses
@@ -229,7 +229,7 @@ def test_multiscatter_glass_gain_takes_its_colour():
     f0t = 0.04 * tint
     f_tint = f0t + (1 - f0t) * (f_avg - 0.04) / 0.96
     fms = f_tint * e_avg / (1 - f_tint * (1 - e_avg))
-    np.testing.assert_allclose(rough.energy_tables(dataclasses.replace(black, mat_metal=metal))[m, 0],
+    np.testing.assert_allclose(energy.energy_tables(dataclasses.replace(black, mat_metal=metal))[m, 0],
                                1 + fms[None, :] * ((1 - E) / E)[:, None], rtol=3e-3)
 
 

@@ -10,7 +10,7 @@ import math
 import numpy as np
 import pytest
 
-from smbs_addon.shading import optics
+from smbs_addon.shading import fresnel
 from smbs_addon.scene import arrays as S
 from smbs_addon.shading import thinfilm as T
 from smbs_addon.scene.builder import SceneBuilder
@@ -64,11 +64,11 @@ def test_a_strong_film_still_follows_the_spectrum():
 def test_no_film_is_the_bare_fresnel_and_total_internal_reflection_stays_whole():
     """At thickness 0 the film's index fades to the medium's: the dielectric's own Fresnel (0.04 for glass
     1.5), the physical conductor's, F82-Tint's; from inside the glass past the critical angle, 1."""
-    bare = optics.fresnel_dielectric1(0.8, 1.5)
+    bare = fresnel.fresnel_dielectric1(0.8, 1.5)
     assert np.allclose(T.dielectric_film1(0.0, 1.8, 0.8, 1.5), bare, atol=1e-12)
-    assert np.allclose(T.dielectric_film1(0.0, 1.8, -0.8, 1.5), optics.fresnel_dielectric1(-0.8, 1.5), atol=1e-12)
+    assert np.allclose(T.dielectric_film1(0.0, 1.8, -0.8, 1.5), fresnel.fresnel_dielectric1(-0.8, 1.5), atol=1e-12)
     nk = (0.2, 0.9, 1.1, 3.9, 2.4, 2.2)
-    want = [optics.fresnel_conductor1(0.6, nk[c], nk[c + 3]) for c in range(3)]
+    want = [fresnel.fresnel_conductor1(0.6, nk[c], nk[c + 3]) for c in range(3)]
     assert np.allclose(T.conductor_film1(0.0, 1.5, 0.6, nk), want, atol=1e-12)
     f0, b = (0.9, 0.7, 0.3), (0.1, 0.2, 0.0)
     want = [T._f82(0.6, f0[c], b[c]) for c in range(3)]
@@ -96,12 +96,12 @@ def test_a_filmed_glass_transmits_what_it_does_not_reflect():
     sc = b.build()
     assert sc.mat_film.shape == (2, 2) and sc.mat_film[1, 0] == 0
     cos = np.array([0.9, -0.9, 0.3])
-    R, Tr = optics.specular_weights(sc, np.zeros(3, int), cos)
+    R, Tr = fresnel.specular_weights(sc, np.zeros(3, int), cos)
     assert np.allclose(R + Tr, 1.0)
     assert np.allclose(R, [T.dielectric_film1(280.0, 2.2, c, 1.5) for c in cos])
     assert np.ptp(R[0]) > 0.05  # coloured
-    R, Tr = optics.specular_weights(sc, np.ones(3, int), cos)
-    assert np.allclose(R[:, 0], [optics.fresnel_dielectric1(c, 1.5) for c in cos]) and np.ptp(R, axis=1).max() == 0
+    R, Tr = fresnel.specular_weights(sc, np.ones(3, int), cos)
+    assert np.allclose(R[:, 0], [fresnel.fresnel_dielectric1(c, 1.5) for c in cos]) and np.ptp(R, axis=1).max() == 0
 
 
 def test_a_film_that_cannot_be_is_refused_with_the_material_named():
