@@ -11,7 +11,7 @@ fi
 [ -x .venv/bin/python ] || "$PY" -m venv .venv
 .venv/bin/python -m pip install -q --disable-pip-version-check -r requirements.txt
 .venv/bin/python -m pip install -q --disable-pip-version-check --no-deps -e . 2>&1 | grep -v -e '^\s*$' -e '!!' -e 'WheelFile' || true
-.venv/bin/python -c "import smbs_addon, bpy, embreex, OpenImageIO" 
+.venv/bin/python -c "import smbs_addon, testkit, bpy, embreex, OpenImageIO"
 # compile the kernels now, in a process per core (once after installing or updating; cached on disk)
 .venv/bin/python -m smbs_addon prepare
 mkdir -p out
