@@ -270,7 +270,7 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     uniform numbers are the kernel's own (keyed_uniform of the receiver, sample and dimension)."""
     from smbs_addon.core import embree
     from smbs_addon.kernels import handoff
-    from smbs_addon.kernels import keyed
+    from smbs_addon.kernels import keyed, records
     from smbs_addon.shading import optics
     from smbs_addon.core.vec import cosine_hemisphere, dot, frame, to_world
 
@@ -290,13 +290,14 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     key, a0 = 12345, 7  # lane l: sample l % samples of receiver a0 + l // samples
     u = np.array([[keyed.keyed_uniform(key, a0 + lane // samples, lane % samples, j) for j in range(3 + K)]
                   for lane in range(m)])
-    seg, seg_n = np.zeros((m, K, 10)), np.zeros(m, np.int64)
-    hist, h_prim = np.zeros((m, K, 8)), np.zeros((m, K), np.int64)
+    seg, seg_n = np.zeros((m, K, records.SEG_BETA + 3)), np.zeros(m, np.int64)
+    hist, h_prim = np.zeros((m, K, records.HIST_F)), np.zeros((m, K), np.int64)
     rt = tracer.rays()
-    counts = handoff.handoff_lanes(rt, key, a0, samples, K, x0, ng, ns, ns, w0, beta0, alb,
-                                   scene.tri_material[h0.prim].astype(np.int64), tracer.kernel_geometry(plan.casters),
-                                   optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim,
-                                   np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+    receivers = records.HandoffReceivers(x0, ng, ns, ns, w0, beta0, alb, scene.tri_material[h0.prim].astype(np.int64))
+    counts = handoff.handoff_lanes(rt, key, a0, samples, K, receivers, tracer.kernel_geometry(plan.casters),
+                                   optics.materials(scene), False, tracer.eps,
+                                   records.HandoffOut(seg, seg_n, hist, h_prim),
+                                   records.BentTargets(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)))
     # numpy, step by step
     i = np.arange(m) // samples
     side = np.where(dot(w0[i], ng[i]) >= 0, 1.0, -1.0)[:, None]

@@ -35,6 +35,9 @@ from ..core import embree
 from ..kernels.gather import gather_lanes
 from ..kernels import handoff
 from ..kernels import records
+from ..kernels.records import (HIST_B, HIST_BENT, HIST_CASTER, HIST_F, HIST_P, HIST_REFL, SEG_BETA, SEG_D, SEG_O,
+                               SEG_T, BentTargets, EyePaths, GatherOut, GatherReceivers, GatherRules, HandoffOut,
+                               HandoffReceivers)
 from ..core import lanes
 from ..shading import coat as layer, optics
 from ..scene import arrays as S
@@ -121,7 +124,7 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats, obj=None):
         dist = np.sqrt(dot(to, to))
         dirs = to / np.maximum(dist, 1e-300)[:, None]
         if typ == S.AREA:
-            nrm = area_light_shape(scene, li)[3]
+            nrm = area_light_shape(scene, li).nrm
             cos_y = np.maximum(0.0, -dot(dirs, nrm))
         elif typ == S.MESH:  # both sides shine
             cos_y = np.abs(dot(dirs, cross(light.ys, light.yt)))
@@ -357,10 +360,11 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
     lim = Limits.of(scene)
     hit_lights = [li for li in lights_hit if light_can_be_hit(scene, li)]
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
-    args = (f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye), f64(rc.beta), np.ascontiguousarray(rc.mat, np.int64),
-            np.ascontiguousarray(rc.prior, np.int64), tracer.kernel_geometry(plan.casters), optics.materials(scene),
-            lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), bool(hit_lights), bool(lights_direct),
-            tracer.eps)
+    args = (GatherReceivers(f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye), f64(rc.beta),
+                            np.ascontiguousarray(rc.mat, np.int64), np.ascontiguousarray(rc.prior, np.int64)),
+            tracer.kernel_geometry(plan.casters), optics.materials(scene),
+            GatherRules(lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), bool(hit_lights),
+                        bool(lights_direct)), tracer.eps)
     key = int(rng.integers(2**63))
     # a lane records at most MAX_SPECULAR segments and one vertex per diffuse vertex: every call moves on
     cap = max(n, (int(lim.diffuse) + 2) * (MAX_SPECULAR + 2))
@@ -370,7 +374,7 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
         seg, seg_i = np.empty((n_seg, records.SEG_F)), np.empty(n_seg, np.int64)
         vx, vx_i = np.empty((n_vx, records.VX_F)), np.empty(n_vx, np.int64)
         rt = tracer.rays()
-        lane, ms, mv, counts = gather_lanes(rt, key, lane, *args, seg, seg_i, vx, vx_i)
+        lane, ms, mv, counts = gather_lanes(rt, key, lane, *args, GatherOut(seg, seg_i, vx, vx_i))
         tracer.cast_by_kernel(rt, counts)
         stats["rays_gather"] = stats.get("rays_gather", 0) + int(counts[embree.KINDS:].sum())
         parts.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
@@ -550,17 +554,17 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     m = n * samples
     # the kernel writes every entry read below (a lane's first seg_n segments, and the specular
     # vertices before each of them)
-    seg, seg_n = lanes.scratch("handoff_seg", (m, K, 10)), np.zeros(m, np.int64)
-    hist, h_prim = lanes.scratch("handoff_hist", (m, K, 8)), lanes.scratch("handoff_prim", (m, K), np.int64)
+    seg, seg_n = lanes.scratch("handoff_seg", (m, K, SEG_BETA + 3)), np.zeros(m, np.int64)
+    hist, h_prim = lanes.scratch("handoff_hist", (m, K, HIST_F)), lanes.scratch("handoff_prim", (m, K), np.int64)
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     rt = tracer.rays()
     none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
-    cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
-    counts = handoff.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye),
-                                   f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
-                                   np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters),
-                                   optics.materials(scene), bool(physical),
-                                   tracer.eps, seg, seg_n, hist, h_prim, cand, cdf, guide)
+    targets = BentTargets(*(bent_candidates(scene, tracer, plan) if bent and aim else none))
+    receivers = HandoffReceivers(f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye), f64(rc.beta / samples),
+                                 f64(_albedo(scene, rc.mat)), np.ascontiguousarray(rc.mat, np.int64))
+    counts = handoff.handoff_lanes(rt, key, a0, samples, K, receivers, tracer.kernel_geometry(plan.casters),
+                                   optics.materials(scene), bool(physical), tracer.eps,
+                                   HandoffOut(seg, seg_n, hist, h_prim), targets)
     tracer.cast_by_kernel(rt, counts)
     name = "bent" if bent else "handoff"
     stats["rays_" + name] = stats.get("rays_" + name, 0) + int(counts[embree.KINDS:].sum())
@@ -577,15 +581,15 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
             continue
         bounce = k + 1
         sk = seg[row, k]
-        o, d, surf_t, beta = sk[:, 0:3], sk[:, 3:6], sk[:, 6], sk[:, 7:10]
+        o, d, surf_t, beta = sk[:, SEG_O:SEG_O + 3], sk[:, SEG_D:SEG_D + 3], sk[:, SEG_T], sk[:, SEG_BETA:SEG_BETA + 3]
         # Light Paths: the camera's events before x0, x0's diffuse bounce and the specular vertices
         # before the last (bounces.py)
-        refl = hist[row, :k, 5].sum(axis=1) if k else np.zeros(row.size)
+        refl = hist[row, :k, HIST_REFL].sum(axis=1) if k else np.zeros(row.size)
         fits = lim.fits(rc.prior[row // samples] + ONE_DIFFUSE + np.stack([np.zeros(row.size), refl, k - refl], axis=1))
         # bent paths are bent_gather's alone (handoff_gather's docstring)
-        fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
+        fits &= (hist[row, :bounce, HIST_BENT].max(axis=1) > 0) == bent
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
-            refl = hist[row, k, 5] > 0
+            refl = hist[row, k, HIST_REFL] > 0
             # Light Linking: of the vertex the light leaves last, the segment's own
             seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, scene.tri_object[h_prim[row, k]])
             seen = np.flatnonzero(seen & fits)
@@ -600,10 +604,10 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
             # handoff_select reads the history light side first: reverse the bounces
             rev = np.arange(bounce)[::-1]
             hr = hist[r][:, rev]
-            kb, refl = np.full(seen.size, bounce), hr[:, :, 5].astype(np.int64)
-            caster = walked_casters(scene, h_prim[r][:, rev], hr[:, :, 6] > 0)
-            take = handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev], hr[:, :, 0:3],
-                                   hr[:, :, 3:5], refl, caster, y)
+            kb, refl = np.full(seen.size, bounce), hr[:, :, HIST_REFL].astype(np.int64)
+            caster = walked_casters(scene, h_prim[r][:, rev], hr[:, :, HIST_CASTER] > 0)
+            take = handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev],
+                                   hr[:, :, HIST_P:HIST_P + 3], hr[:, :, HIST_B:HIST_B + 2], refl, caster, y)
             t = seen[take]
             np.add.at(radiance, row[t] // samples, beta[t] * L[t])
             # the focusing paths of walked types (what tells later chunks to hand off) apart from
@@ -630,8 +634,8 @@ def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, 
     angle 0. cells: a mask over the film cells whose samples are traced (eye.specular_cells:
     those that can see a mirror or glass first; None: all)."""
 
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=1,
-                       max_bounces=max_bounces, scale_eta=physical, cells=cells)
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
+                       EyePaths(max_bounces=max_bounces, min_specular=1, scale_eta=physical), cells=cells)
     gather(scene, tracer, film, plan, rc, rng, stats, lights_direct, physical=physical,
            lights_hit=light_indices, count_first=True)
 
@@ -643,7 +647,7 @@ def trace_bent(scene, tracer, cam, film, plan, lights, start, n, n_batch, rng, s
     them): eye samples start..start+n of the batch to their first surface, kept where it is a
     diffuse receiver seen directly."""
 
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
-                       scale_eta=physical)
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
+                       EyePaths(min_specular=0, scale_eta=physical))
     bent_gather(scene, tracer, film, plan, rc.take(np.flatnonzero(rc.eye_specular == 0)), rng, stats, lights,
                 physical=physical)

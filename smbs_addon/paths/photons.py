@@ -19,6 +19,8 @@ from ..core import embree
 from ..kernels import eye
 from ..kernels.photons import photon_lanes
 from ..kernels import records
+from ..kernels.records import (HIST_B, HIST_BENT, HIST_CASTER, HIST_P, HIST_REFL, REC_P, CameraHiding, PhotonBatch,
+                               PhotonOut, PhotonRules, Splats)
 from ..core import lanes
 from ..shading.optics import materials, scatter_rows
 from ..shading.microfacet import rough_materials
@@ -79,13 +81,14 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     lit = np.zeros(0, bool) if photons.lit is None else np.ascontiguousarray(photons.lit, bool)
     unshadowing = np.zeros(0, bool) if photons.unshadowing is None else np.ascontiguousarray(photons.unshadowing,
                                                                                              bool)
-    hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
+    hist, h_prim = np.zeros((n, K, HIST_BENT)), np.zeros((n, K), np.int64)
     tally = np.zeros(records.PH_TALLY, np.int64)
     # a record is a photon's diffuse vertex the camera may see directly (splat_records): none on an object
     # camera rays do not meet (its light seen in a mirror is the eye pass's)
     receivers = plan.receivers if not tracer.hidden.size else plan.receivers & ~tracer.hidden
     args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(receivers, bool), materials(scene),
-            Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical), tracer.eps)
+            PhotonRules(bool(indirect), Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical)),
+            tracer.eps)
     key = int(rng.integers(2**63))
 
     def part(a, b):
@@ -95,9 +98,9 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
         while lane < b:
             rec, rec_i = np.empty((cap, records.REC_F)), np.empty((cap, 3), np.int64)
             rt = tracer.rays()
-            lane, m, counts = photon_lanes(rt, bool(indirect), o0[:b], d0[:b], w0[:b], soft, lvis, lit,
-                                                   unshadowing, key, lane,
-                                                   *args, rec, rec_i, hist[:b], h_prim[:b], tally_p)
+            batch = PhotonBatch(o0[:b], d0[:b], w0[:b], soft, lvis, lit, unshadowing)
+            lane, m, counts = photon_lanes(rt, batch, key, lane, *args,
+                                           PhotonOut(rec, rec_i, hist[:b], h_prim[:b], tally_p))
             tracer.cast_by_kernel(rt, counts)
             rays += int(counts[embree.KINDS:].sum())
             recs.append(rec[:m])
@@ -137,9 +140,9 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()
         rays, m, counts = eye.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], mats,
-                                                bool(first_order), tracer.eps, textured, view,
-                                                (tracer.ng, scene.tri_object, tracer.hid), rx[a:b], ry[a:b],
-                                                val[a:b], alb[a:b] if textured.size else alb)
+                                            bool(first_order), tracer.eps, textured, view,
+                                            CameraHiding(tracer.ng, scene.tri_object, tracer.hid),
+                                            Splats(rx[a:b], ry[a:b], val[a:b], alb[a:b] if textured.size else alb))
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays
 
@@ -171,9 +174,9 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         ln = ids[:, 0]
         y_end = -photons.d[ln] if handoff.directional else photons.o[ln]
         h = hist[ln]
-        take = handoff_select(scene, tracer, handoff, rec[:, 0:3], ids[:, 1], h_prim[ln], h[:, :, 0:3],
-                               h[:, :, 3:5], h[:, :, 5].astype(np.int64),
-                               walked_casters(scene, h_prim[ln], h[:, :, 6] > 0), y_end)
+        take = handoff_select(scene, tracer, handoff, rec[:, REC_P:REC_P + 3], ids[:, 1], h_prim[ln],
+                               h[:, :, HIST_P:HIST_P + 3], h[:, :, HIST_B:HIST_B + 2], h[:, :, HIST_REFL].astype(np.int64),
+                               walked_casters(scene, h_prim[ln], h[:, :, HIST_CASTER] > 0), y_end)
         rec, ids = rec[take], ids[take]
         stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(take.sum())
     splat_records(scene, tracer, cam, film, rec, ids, stats)

@@ -32,7 +32,7 @@ from ..shading.fresnel import has_reflection
 from ..shading.microfacet import rough_casters, walk_casters
 from .trials import bernoulli_trials
 from ..core.vec import channel_mean, dot, normalize
-from ..kernels.records import OUTCOMES, TRIGGERS
+from ..kernels.records import OUTCOMES, TRIGGERS, EyePaths
 from .walk import WalkConfig, newton_walk, propagate
 from ..shading.light_samples import light_can_be_hit, sample_light, sphere_cap
 from ..paths.gather import (HANDOFF_SAMPLES, UNWALKED_SAMPLES, bending_lights, bent_gather, bent_receivers, gather,
@@ -491,8 +491,8 @@ def manifold_chunk(scene, tracer, cam, film, plan, opts, types_list, start, n, n
     diffuse surfaces (indirect.gather, with these walks at every diffuse vertex);
     lights_direct: the lights whose direct light counts there (empty: none of it);
     opts_by_light: {light index: ManifoldOptions} where a light walks otherwise (method auto)."""
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats, min_specular=0,
-                       scale_eta=opts.physical)
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, eye_stats,
+                       EyePaths(min_specular=0, scale_eta=opts.physical))
     ctxs = {}
     for lp in plan.lights:
         ctx = Ctx(scene, tracer, plan, stats_per_light[lp.name])
