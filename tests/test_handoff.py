@@ -236,7 +236,7 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
             calls.append(len(a[4].p))
         return gather(*a, **k)
 
-    monkeypatch.setattr(indirect, "handoff_gather", counted)
+    monkeypatch.setattr(manifold, "handoff_gather", counted)  # (manifold holds it by name)
     chunks = []  # per chunk: does it have receivers seen through the ball?
     eye_receivers = manifold.eye_receivers
 
@@ -254,7 +254,8 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     assert st["seen_focus"] == 0 and st["seen_handoff_paths"] > 0
     assert sum(chunks) >= 4 and len(calls) == sum(chunks)
     calls.clear()
-    monkeypatch.setattr(reference, "concentration", lambda types, x0, *a: np.zeros(len(x0)))
+    monkeypatch.setattr(importlib.import_module("smbs_addon.paths.handoff"), "concentration",
+                        lambda types, x0, *a: np.zeros(len(x0)))  # the hand-off's (handoff_select)
     st = bake(ball, s).stats["lights"]["Area"]
     assert st["seen_focus"] == 0 and st["seen_handoff_paths"] == 0
     assert len(calls) == 1

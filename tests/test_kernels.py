@@ -197,8 +197,8 @@ def test_disk_cache_survives_two_module_names(tmp_path):
 
 
 def test_disk_cache_follows_every_file_with_kernels(tmp_path):
-    """A kernel of kernels.py inlines embree.py's ray calls, and numba's own stamp covers only
-    the kernel's file: jit.py's stamp covers every file with kernels, so after an edit of
+    """A kernel of kernels/chain.py inlines core/embree.py's ray calls, and numba's own stamp covers
+    only the kernel's file: jit.py's stamp covers every file with kernels, so after an edit of
     embree.py alone a cached kernel is compiled again instead of loaded stale."""
     import os
     import shutil
@@ -210,7 +210,7 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
     pkg = tmp_path / "copy" / "smbs_addon"
     shutil.copytree(src, pkg, ignore=shutil.ignore_patterns("__pycache__"))
     env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache")}
-    use = _CACHE_USE + "print('HITS', sum(chain.end_mismatch.stats.cache_hits.values()))\n"
+    use = _CACHE_USE + "print('HITS', sum(K.end_mismatch.stats.cache_hits.values()))\n"
 
     def hits():
         proc = subprocess.run([sys.executable, "-c", use, "copied.smbs_addon.kernels.chain", str(pkg)], env=env,
@@ -219,7 +219,7 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
         return int(proc.stdout.split("HITS")[1])
 
     assert hits() == 0 and hits() == 1  # compiled, then loaded
-    with open(pkg / "kernels" / "embree.py", "a") as f:
+    with open(pkg / "core" / "embree.py", "a") as f:
         f.write("# an edit\n")
     assert hits() == 0 and hits() == 1
 

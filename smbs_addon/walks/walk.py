@@ -25,6 +25,7 @@ from ..shading.light_samples import LightEnd
 from ..scene.geometry import vertex_view
 from ..core import embree
 from ..kernels import chain
+from ..kernels.chain import end_mismatch as _mismatch_rows  # (end_mismatch's argument chain hides the module)
 from ..kernels import records
 from ..kernels import walk
 from ..core import lanes
@@ -141,7 +142,7 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
 def end_mismatch(chain: Chain, light: LightEnd):
     """|w_o' - w_o| at the last vertex: the propagated direction against the
     direction to the light end; and whether it points to the light's side."""
-    return chain.end_mismatch(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
+    return _mismatch_rows(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
 
 
 def backlit(cfg: WalkConfig, types: str, x0, chain: Chain, light: LightEnd) -> np.ndarray:
