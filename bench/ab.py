@@ -55,18 +55,18 @@ def scenes_module(source: str, package: str):
 
 def captured(P, scene) -> list:
     """The primary walks' arguments of a one-sample SMBS bake, one per chain type."""
-    seen, orig = [], P.walk.newton_walk
+    seen, orig = [], P.walks.walk.newton_walk
 
     def rec(ctx, cfg, chain_types, x0, ng0, light, chain=None, large_ok=None, seed=None):
         if seed is not None and chain_types not in [c[2] for c in seen]:
             seen.append((ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed))
         return orig(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
 
-    P.manifold.newton_walk = rec
+    P.walks.manifold.newton_walk = rec
     try:
         P.bake(scene, P.BakeSettings(method="smbs", spp=1, batches=1, seed=1))
     finally:
-        P.manifold.newton_walk = orig
+        P.walks.manifold.newton_walk = orig
     for c in seen:
         c[0].tracer.threads = 1
     return seen
@@ -91,8 +91,8 @@ def main(argv=None) -> None:
     sys.path.insert(0, str(ROOT))
     pk = {n: importlib.import_module(n) for n in ("smbs_base", "smbs_addon")}
     for P in pk.values():
-        importlib.import_module(P.__name__ + ".walk")
-        importlib.import_module(P.__name__ + ".manifold")
+        importlib.import_module(P.__name__ + ".walks.walk")
+        importlib.import_module(P.__name__ + ".walks.manifold")
     src = {"smbs_base": base_scenes, "smbs_addon": (ROOT / "tests" / "scenes.py").read_text()}
     unit = "s per bake" if a.bakes else "us per walk"
     print(f"this: {ROOT}, base: {a.base} ({home}); min and median {unit}, {a.reps} rounds")
@@ -115,7 +115,7 @@ def main(argv=None) -> None:
                 for n in (("smbs_base", "smbs_addon") if r % 2 == 0 else ("smbs_addon", "smbs_base")):
                     for ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed in caps[n]:
                         t = time.perf_counter()
-                        pk[n].walk.newton_walk(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
+                        pk[n].walks.walk.newton_walk(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
                         times.setdefault((chain_types, n), []).append((time.perf_counter() - t) / len(x0) * 1e6)
         for key in dict.fromkeys(k[0] for k in times):
             report(f"{item} {key}", times[(key, "smbs_base")], times[(key, "smbs_addon")])

@@ -186,7 +186,7 @@ _rtc_occluded1 = _call("rtcOccluded1")
 
 # counters of a kernel call's ray_state: rays logged, rays seen by the log's stride, then rays
 # cast per kind (the kernels' own kinds: seed, walk, ...; up to 6)
-_LOGGED, _SEEN, KINDS = 0, 1, 2
+LOGGED, SEEN, KINDS = 0, 1, 2
 COUNTERS = KINDS + 6
 
 
@@ -218,14 +218,14 @@ def _setup(ray, o, d, tmax, kind, occl):
     ri[_PRIM] = ri[_GEOM] = ri[_INST] = _INVALID_ID
     counts[KINDS + kind] += 1
     if log.shape[0]:
-        seen = counts[_SEEN]
-        counts[_SEEN] = seen + 1
-        n = counts[_LOGGED]
+        seen = counts[SEEN]
+        counts[SEEN] = seen + 1
+        n = counts[LOGGED]
         if seen % ray.stride == 0 and n < log.shape[0]:
             for c in range(7):
                 log[n, c] = rh[c if c < 3 else (c + 1 if c < 6 else _TFAR)]
             log[n, 7] = 1.0 if occl else 0.0
-            counts[_LOGGED] = n + 1
+            counts[LOGGED] = n + 1
 
 
 @njit(inline="always", **_JIT)

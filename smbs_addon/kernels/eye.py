@@ -11,6 +11,7 @@ from numba import njit
 from ..core.jit import JIT, LANES
 from .records import CAM_AXES, CAM_CLIP, CAM_CLIP_END, CAM_H, CAM_INV, CAM_ORIGIN, CAM_ORTHO, CAM_PIX_AREA, CAM_PIX_H, CAM_PIX_W, CAM_REGION, CAM_XMIN, CAM_YMIN, HIDDEN_PASSES, REC_BETA, REC_NG, REC_NS, REC_P, REC_W, VIEW_NEAR, VIEW_PLANE
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, DIFFUSE, RAY_CAMERA, RAY_GLOSSY, RAY_TRANSMISSION
+from ..scene.light_paths import DIFFUSE_EVENTS, GLOSSY_EVENTS, TRANSMISSION_EVENTS
 from .typed import TypedOnce
 
 from ..shading.absorption import absorbed1, medium_after1
@@ -242,7 +243,7 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, o
             if kind == DIFFUSE:
                 if depth >= min_specular and receivers[tri_object[pr]]:
                     put_record(rec, rec_i, nrec, p, g, n, neg3(d), b, lane, depth, m)
-                    prior[nrec, 0], prior[nrec, 1], prior[nrec, 2] = 0, ngl, nt
+                    prior[nrec, DIFFUSE_EVENTS], prior[nrec, GLOSSY_EVENTS], prior[nrec, TRANSMISSION_EVENTS] = 0, ngl, nt
                     nrec += 1
                 break
             if depth >= max_bounces or not (kind == CONDUCTOR or kind == DIELECTRIC):

@@ -8,7 +8,8 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, DIFFUSE, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
-from ..core.embree import KINDS, ray_state
+from ..scene.light_paths import DIFFUSE_EVENTS, GLOSSY_EVENTS, TRANSMISSION_EVENTS
+from ..core.embree import KINDS, LOGGED, SEEN, ray_state
 from .records import SEG_BETA, SEG_D, SEG_O, SEG_OBJ, SEG_REFL, SEG_T, VX_BETA, VX_NG, VX_NS, VX_OBJ, VX_P, VX_W
 from .typed import TypedOnce
 from .handoff import diffuse_scatter
@@ -140,7 +141,7 @@ def _gather_rows(ray, key, lane0, receivers, geo, mats, rules, eps, out):
     nseg = nvx = 0
     for lane in range(lane0, x0.shape[0]):
         # what to restore if this lane's records do not fit (it is traced again in the next call)
-        s0, v0_, c0, c1, c2 = nseg, nvx, counts[0], counts[1], counts[KINDS]
+        s0, v0_, c0, c1, c2 = nseg, nvx, counts[LOGGED], counts[SEEN], counts[KINDS]
         full = False
         v = _Vertex(cols3(x0, lane, 0), cols3(receivers.ng, lane, 0), cols3(receivers.ns, lane, 0),
                     cols3(receivers.w_eye, lane, 0), receivers.mat[lane])
@@ -148,7 +149,8 @@ def _gather_rows(ray, key, lane0, receivers, geo, mats, rules, eps, out):
         prior = receivers.prior
         # every event so far; a specular vertex on a planned caster so far; diffuse vertices after x0;
         # the lane's events, keying its random numbers
-        cnt = _Counts(prior[lane, 0], prior[lane, 1], prior[lane, 2], False, np.int64(0), np.int64(0), nseg, nvx)
+        cnt = _Counts(prior[lane, DIFFUSE_EVENTS], prior[lane, GLOSSY_EVENTS], prior[lane, TRANSMISSION_EVENTS], False,
+                      np.int64(0), np.int64(0), nseg, nvx)
         while True:
             # a diffuse bounce is never a caustic path's last event: it must fit the limits
             if not fits_limits(lim, cnt.nd + 1, cnt.ngl, cnt.nt):
@@ -169,7 +171,7 @@ def _gather_rows(ray, key, lane0, receivers, geo, mats, rules, eps, out):
                 break
         nseg, nvx = cnt.nseg, cnt.nvx
         if full:
-            counts[0], counts[1], counts[KINDS] = c0, c1, c2
+            counts[LOGGED], counts[SEEN], counts[KINDS] = c0, c1, c2
             return lane, s0, v0_
     return x0.shape[0], nseg, nvx
 

@@ -8,8 +8,9 @@ from collections import namedtuple
 import numpy as np
 from numba import njit
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, DIFFUSE, PATH_RAYS, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
+from ..scene.light_paths import ALL_EVENTS, DIFFUSE_EVENTS, GLOSSY_EVENTS, TRANSMISSION_EVENTS
 from .records import HIDDEN_PASSES, PH_BEYOND, PH_LOST, PH_PHOTONS, PH_TRUNCATED
-from ..core.embree import KINDS, ray_state
+from ..core.embree import KINDS, LOGGED, SEEN, ray_state
 from .typed import TypedOnce
 from .chain import shading_normal1
 from .eye import put_record
@@ -27,7 +28,8 @@ from .rays import next_surface
 @njit(**JIT)
 def fits_limits(lim, d, g, t):
     """bounces.Limits.allowed of event counts d, g, t; lim = Limits.array()."""
-    return d <= lim[0] and g <= lim[1] and t <= lim[2] and d + g + t <= lim[3]
+    return (d <= lim[DIFFUSE_EVENTS] and g <= lim[GLOSSY_EVENTS] and t <= lim[TRANSMISSION_EVENTS]
+            and d + g + t <= lim[ALL_EVENTS])
 
 
 # What a photon does at a surface (_photon_passes): meets it, passes it, or ends there
@@ -230,12 +232,12 @@ def _photon_rows(ray, photons, key, lane0, geo, receivers, mats, rules, eps, out
         if not max_nan(max_nan(b[0], b[1]), b[2]) > 0:
             continue
         # what to restore if this lane's records do not fit (it is traced again in the next call)
-        rec0, c0, c1, c2 = nrec, counts[0], counts[1], counts[KINDS]
+        rec0, c0, c1, c2 = nrec, counts[LOGGED], counts[SEEN], counts[KINDS]
         t0 = (tally[0], tally[1], tally[2], tally[3])
         tally[PH_PHOTONS] += 1
         nrec, full = _photon_path(ray, photons, key, lane, b, geo, receivers, mats, rules, eps, out, nrec)
         if full:
-            counts[0], counts[1], counts[KINDS] = c0, c1, c2
+            counts[LOGGED], counts[SEEN], counts[KINDS] = c0, c1, c2
             tally[0], tally[1], tally[2], tally[3] = t0
             return lane, rec0
     return photons.o.shape[0], nrec

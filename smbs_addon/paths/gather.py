@@ -41,7 +41,7 @@ from ..kernels.records import (HIST_B, HIST_BENT, HIST_CASTER, HIST_F, HIST_P, H
 from ..core import lanes
 from ..shading import coat as layer, optics
 from ..scene import arrays as S
-from ..scene.light_paths import ONE_DIFFUSE, Limits, specular_kind
+from ..scene.light_paths import GLOSSY_EVENTS, ONE_DIFFUSE, Limits, specular_kind
 from ..trace.eye import Receivers, direct_albedo, surface_at
 from ..scene.geometry import triangle_areas
 from ..shading.lights import area_light_shape, light_radiance, shadow_tmax
@@ -296,7 +296,7 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
             last_obj = scene.tri_object[prim[sk]]
             last_caster = plan.casters[last_obj]
             kinds = specular_kind(d_in[keep], dd, h.ng[sk])
-            last_refl = kinds == 1
+            last_refl = kinds == GLOSSY_EVENTS
             if others:
                 code = code[sk] * 2 + last_refl
                 on = on[sk] & walked[scene.tri_object[prim[sk]]]

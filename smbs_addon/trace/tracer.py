@@ -90,8 +90,8 @@ class Tracer:
         """Count the rays a kernel cast (counts: embree.ray_state's counters) and keep its log."""
         with lanes.LOCK:  # kernels on several threads count here
             self.rays_cast += int(counts[embree.KINDS:].sum())
-            if RAY_LOG is not None and counts[0]:
-                RAY_LOG.append(rt.log[:counts[0]].copy())
+            if RAY_LOG is not None and counts[embree.LOGGED]:
+                RAY_LOG.append(rt.log[:counts[embree.LOGGED]].copy())
 
     def _run(self, o, d, tmax, query):
         n = len(o)
