@@ -110,7 +110,8 @@ def _trace(scene, plan, tracer, ph, key, indirect, cap, max_iter):
     recs, ids, lane, rays, calls = [], [], 0, 0, 0
     while lane < n:
         rec, rec_i = np.empty((cap, records.REC_F)), np.empty((cap, 3), np.int64)
-        batch = records.PhotonBatch(ph.o, ph.d, ph.w, np.zeros(4), ph.visibility, np.zeros(0, bool), np.zeros(0, bool))
+        batch = records.PhotonBatch(ph.o, ph.d, ph.w, np.zeros(3), 0.0, ph.visibility, np.zeros(0, bool),
+                                    np.zeros(0, bool))
         lane, m, counts = photons.photon_lanes(tracer.rays(), batch, key, lane, tracer.kernel_geometry(plan.casters),
                                                plan.receivers, optics.materials(scene),
                                                records.PhotonRules(indirect, Limits.of(scene).array(), 32, max_iter,

@@ -243,7 +243,8 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, o
             if kind == DIFFUSE:
                 if depth >= min_specular and receivers[tri_object[pr]]:
                     put_record(rec, rec_i, nrec, p, g, n, neg3(d), b, lane, depth, m)
-                    prior[nrec, DIFFUSE_EVENTS], prior[nrec, GLOSSY_EVENTS], prior[nrec, TRANSMISSION_EVENTS] = 0, ngl, nt
+                    prior[nrec, DIFFUSE_EVENTS] = 0
+                    prior[nrec, GLOSSY_EVENTS], prior[nrec, TRANSMISSION_EVENTS] = ngl, nt
                     nrec += 1
                 break
             if depth >= max_bounces or not (kind == CONDUCTOR or kind == DIELECTRIC):

@@ -161,7 +161,8 @@ def _photon_path(ray, photons, key, lane, b, geo, receivers, mats, rules, eps, o
     records written from row nrec of out.rec on. Returns (the rows written up to, whether a record
     did not fit)."""
     tri_material, mat_kind, tri_object, hid = geo.tri_material, geo.mat_kind, geo.tri_object, geo.hid
-    indirect, lim, lit, soft = rules.indirect, rules.lim, photons.lit, photons.soft
+    indirect, lim, lit = rules.indirect, rules.lim, photons.lit
+    soft_c, soft_r = photons.soft_center, photons.soft_radius
     o, d = cols3(photons.o, lane, 0), cols3(photons.d, lane, 0)
     # events so far as Cycles counts them: diffuse, glossy, transmission; diffuse vertices, a specular
     # vertex on a planned caster (indirect); the path's vertices (the photon's events)
@@ -185,10 +186,10 @@ def _photon_path(ray, photons, key, lane, b, geo, receivers, mats, rules, eps, o
         if act == _PASS:
             o = add3(p, scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn, on along d
             continue
-        if it == 0 and soft[3] > 0:  # lights.soft_falloff_factor
-            dc = sub3(p, (soft[0], soft[1], soft[2]))
+        if it == 0 and soft_r > 0:  # lights.soft_falloff_factor
+            dc = sub3(p, (soft_c[0], soft_c[1], soft_c[2]))
             d2 = dot1(dc, dc)
-            b = scale3(d2 / (d2 + soft[3] * soft[3]), b)
+            b = scale3(d2 / (d2 + soft_r * soft_r), b)
         m = tri_material[pr]
         kind = mat_kind[m]
         obj = tri_object[pr]
@@ -258,7 +259,7 @@ def photon_lanes(rt, photons, key, lane0, geo, receivers, mats, rules, eps, out)
     up to max_iter events; a record at each diffuse receiver once the path holds a specular
     vertex on a caster and a diffuse one. Both keep the scene's Light Paths limits (lim:
     Limits.array(); bounces.py: the photon's first event is free, x0's diffuse bounce counts).
-    soft: a soft-falloff light's centre and radius (radius 0: none), applied at the first hit;
+    soft_center, soft_radius: a soft-falloff light's (radius 0: none), applied at the first hit;
     visibility: the rays that see the light (scene.RAY_* bits): the first event must cast such a ray; lit:
     (O,) bool, the objects the light lights (Light Linking: the first event must be on one; empty: any);
     unshadowing: (O,) bool, the objects that do not shadow it (Shadow Linking: the first segment passes

@@ -158,10 +158,10 @@ TrialJob = namedtuple("TrialJob", "samples seeds settings first tally")
 
 # ------------------------------------------------------------------ records of the light paths' kernels
 # The light tracer's photons of one light (photons.photon_lanes): origins, unit directions and flux
-# (N,3); a soft-falloff light's centre and radius (4,) (radius 0: none); the kinds of ray that see
-# the light (scene.RAY_* bits); the objects it lights ((O,) bool, Light Linking; empty: any) and
-# those that do not shadow it ((O,) bool, Shadow Linking; empty: none)
-PhotonBatch = namedtuple("PhotonBatch", "o d w soft visibility lit unshadowing")
+# (N,3); a soft-falloff light's centre (3,) and radius (0: none); the kinds of ray that see the light
+# (scene.RAY_* bits); the objects it lights ((O,) bool, Light Linking; empty: any) and those that do
+# not shadow it ((O,) bool, Shadow Linking; empty: none)
+PhotonBatch = namedtuple("PhotonBatch", "o d w soft_center soft_radius visibility lit unshadowing")
 # ... their paths' rules: indirect photons or caustic ones, the Light Paths limits
 # (bounces.Limits.array()), the specular bounces at most (caustic), the events at most (indirect),
 # physical units (optics.scatter1's scale)

@@ -76,7 +76,7 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     max_iter = max_bounces + 1 if max_iter is None else max_iter
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     o0, d0, w0 = f64(photons.o), f64(photons.d), f64(photons.w)
-    soft = np.zeros(4) if photons.soft_center is None else np.append(photons.soft_center, photons.soft_radius)
+    soft = (np.zeros(3), 0.0) if photons.soft_center is None else (f64(photons.soft_center), float(photons.soft_radius))
     lvis = int(photons.visibility)
     lit = np.zeros(0, bool) if photons.lit is None else np.ascontiguousarray(photons.lit, bool)
     unshadowing = np.zeros(0, bool) if photons.unshadowing is None else np.ascontiguousarray(photons.unshadowing,
@@ -98,7 +98,7 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
         while lane < b:
             rec, rec_i = np.empty((cap, records.REC_F)), np.empty((cap, 3), np.int64)
             rt = tracer.rays()
-            batch = PhotonBatch(o0[:b], d0[:b], w0[:b], soft, lvis, lit, unshadowing)
+            batch = PhotonBatch(o0[:b], d0[:b], w0[:b], *soft, lvis, lit, unshadowing)
             lane, m, counts = photon_lanes(rt, batch, key, lane, *args,
                                            PhotonOut(rec, rec_i, hist[:b], h_prim[:b], tally_p))
             tracer.cast_by_kernel(rt, counts)
