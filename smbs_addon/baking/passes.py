@@ -129,8 +129,8 @@ def light_tracing_batch(job, b, eye_stats, eye_cells=None) -> None:
 
     def run_chunk(c, film_c, st_c):
         start = c * CHUNK
-        indirect.trace_eye(job.scene, job.tracer, job.cam, film_c, plan, light_ids, start,
-                           min(CHUNK, eye_per_batch - start), eye_per_batch, job.rng(EYE, 0, b, c), st_c,
+        indirect.trace_eye(job.scene, job.tracer, job.cam, film_c, plan, light_ids,
+                           (start, min(CHUNK, eye_per_batch - start), eye_per_batch), job.rng(EYE, 0, b, c), st_c,
                            physical=job.physical, lights_direct=job.indirect_lights(), cells=eye_cells)
 
     threaded_chunks(job, -(-eye_per_batch // CHUNK), run_chunk, eye_stats,

@@ -23,6 +23,7 @@ import glob
 import os
 import threading
 import weakref
+from collections import namedtuple
 
 import numpy as np
 from llvmlite import ir
@@ -144,13 +145,22 @@ def _as_array(address, ctype, shape):
     return np.ctypeslib.as_array(ctypes.cast(address, ctypes.POINTER(ctype)), shape=shape)
 
 
-def rays(scene: "Scene | None", log: np.ndarray | None = None, stride: int = 1) -> tuple:
-    """What a kernel that casts rays takes: (scene handle, 0 for a scene without triangles;
-    ray log (n, LOG_COLUMNS): every stride-th ray the call casts while there is room, for
-    bench/throughput.py; none by default; stride)."""
+# What a kernel that casts rays takes (rays()): the scene handle (0 for a scene without triangles),
+# the ray log (n, LOG_COLUMNS): every stride-th ray the call casts while there is room, for
+# bench/throughput.py (none by default), and that stride
+RayContext = namedtuple("RayContext", "scene log stride")
+
+# What a kernel casts rays with (ray_state): the scene handle, an RTCRayHit (as float32 and uint32
+# views) and its address, the ray log and its stride, and the counters (counts[KINDS + kind]: rays
+# cast of each kind)
+RayState = namedtuple("RayState", "scene rh ri ptr log stride counts")
+
+
+def rays(scene: "Scene | None", log: np.ndarray | None = None, stride: int = 1) -> RayContext:
+    """What a kernel that casts rays takes (RayContext)."""
     if log is None:
         log = np.zeros((0, LOG_COLUMNS), np.float32)
-    return (0 if scene is None else scene.ptr, log, max(1, int(stride)))
+    return RayContext(0 if scene is None else scene.ptr, log, max(1, int(stride)))
 
 
 # ------------------------------------------------------------------ calls from the kernels
@@ -176,7 +186,7 @@ _rtc_occluded1 = _call("rtcOccluded1")
 
 # counters of a kernel call's ray_state: rays logged, rays seen by the log's stride, then rays
 # cast per kind (the kernels' own kinds: seed, walk, ...; up to 6)
-_LOGGED, _SEEN, KINDS = 0, 1, 2
+LOGGED, SEEN, KINDS = 0, 1, 2
 COUNTERS = KINDS + 6
 
 
@@ -187,21 +197,20 @@ def counters() -> np.ndarray:
 
 @njit(inline="always", **_JIT)
 def ray_state(rt):
-    """What a kernel casts rays with, made once per kernel call from rt (rays()): the scene
-    handle, an RTCRayHit (16-byte aligned, as float32 and uint32 views), its address, the ray
-    log and its stride, and counters (counts[KINDS + kind]: rays cast of each kind)."""
-    scene, log, stride = rt
+    """What a kernel casts rays with (RayState), made once per kernel call from rt (RayContext):
+    the RTCRayHit 16-byte aligned, its counters zero."""
     buf = np.zeros(_RAYHIT_WORDS + 4, np.float32)
     off = ((16 - buf.ctypes.data % 16) % 16) // 4
     rh = buf[off:off + _RAYHIT_WORDS]
-    return scene, rh, rh.view(np.uint32), rh.ctypes.data, log, stride, np.zeros(COUNTERS, np.int64)
+    return RayState(rt.scene, rh, rh.view(np.uint32), rh.ctypes.data, rt.log, rt.stride,
+                    np.zeros(COUNTERS, np.int64))
 
 
 @njit(inline="always", **_JIT)
 def _setup(ray, o, d, tmax, kind, occl):
     """The RTCRayHit of a ray as embreex's run sets it up (float64 rounded to float32 as numpy
     rounds it; "no limit" is embreex's 1e37), counted and logged."""
-    scene, rh, ri, ptr, log, stride, counts = ray
+    rh, ri, log, counts = ray.rh, ray.ri, ray.log, ray.counts
     rh[0], rh[1], rh[2], rh[3] = o[0], o[1], o[2], 0.0
     rh[4], rh[5], rh[6], rh[7] = d[0], d[1], d[2], 0.0
     rh[_TFAR] = 1e37 if tmax == np.inf else (_TMAX if tmax > _TMAX else tmax)  # np.minimum: NaN stays
@@ -209,14 +218,14 @@ def _setup(ray, o, d, tmax, kind, occl):
     ri[_PRIM] = ri[_GEOM] = ri[_INST] = _INVALID_ID
     counts[KINDS + kind] += 1
     if log.shape[0]:
-        seen = counts[_SEEN]
-        counts[_SEEN] = seen + 1
-        n = counts[_LOGGED]
-        if seen % stride == 0 and n < log.shape[0]:
+        seen = counts[SEEN]
+        counts[SEEN] = seen + 1
+        n = counts[LOGGED]
+        if seen % ray.stride == 0 and n < log.shape[0]:
             for c in range(7):
                 log[n, c] = rh[c if c < 3 else (c + 1 if c < 6 else _TFAR)]
             log[n, 7] = 1.0 if occl else 0.0
-            counts[_LOGGED] = n + 1
+            counts[LOGGED] = n + 1
 
 
 @njit(inline="always", **_JIT)
@@ -225,22 +234,22 @@ def intersect1(ray, o, d, tmax, kind):
     float32 as embreex's callers round them): (primitive id, -1 on a miss; embree's float32
     distance). kind: which counter counts it."""
     _setup(ray, o, d, tmax, kind, False)
-    if ray[0] == 0:  # a scene without triangles
+    if ray.scene == 0:  # a scene without triangles
         return -1, np.inf
-    _rtc_intersect1(ray[0], ray[3])
-    if ray[2][_PRIM] == _INVALID_ID:
+    _rtc_intersect1(ray.scene, ray.ptr)
+    if ray.ri[_PRIM] == _INVALID_ID:
         return -1, np.inf
-    return np.int64(ray[2][_PRIM]), np.float64(ray[1][_TFAR])
+    return np.int64(ray.ri[_PRIM]), np.float64(ray.rh[_TFAR])
 
 
 @njit(inline="always", **_JIT)
 def occluded1(ray, o, d, tmax, kind):
     """Whether anything lies on o + t d, 0 < t < tmax."""
     _setup(ray, o, d, tmax, kind, True)
-    if ray[0] == 0:
+    if ray.scene == 0:
         return False
-    _rtc_occluded1(ray[0], ray[3])
-    return ray[1][_TFAR] < 0  # embree 4 marks an occluded ray by tfar = -inf
+    _rtc_occluded1(ray.scene, ray.ptr)
+    return ray.rh[_TFAR] < 0  # embree 4 marks an occluded ray by tfar = -inf
 
 
 @njit(**_JIT)
@@ -257,4 +266,4 @@ def cast_rays(rt, o, d, tmax, occl, prim, t):
             prim[i] = 0 if occluded1(ray, oi, di, tm, 0) else -1
         else:
             prim[i], t[i] = intersect1(ray, oi, di, tm, 0)
-    return ray[6]
+    return ray.counts

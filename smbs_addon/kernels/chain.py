@@ -12,8 +12,8 @@ from numba import njit
 from ..core.jit import JIT, LANES
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
 from .records import (
-    DNS, DNT, HIDDEN_PASSES, MAT, MISS, NF, NG, NOT_CASTER, NS, OBJ, OK, P, PRIM, RAYS_SEED, S, SEED_OBJECT, SIDE,
-    SIDE_INNER, T, TIR, TIR_INNER, WRONG_MATERIAL)
+    DNS, DNT, HIDDEN_PASSES, MAT, MISS, NF, NG, NOT_CASTER, NS, OBJ, OK, P, PRIM, RAYS_SEED, REFRACT, S,
+    SEED_OBJECT, SIDE, SIDE_INNER, T, TIR, TIR_INNER, WRONG_MATERIAL)
 from .typed import TypedOnce
 from ..core.vec3 import add3, cols3, cross3, div3, dot1, normalize3, scale3, sub3, vertex_cols3
 from ..core.embree import intersect1, ray_state
@@ -78,8 +78,9 @@ def shading_normal1(tns, pr, b1, b2, g, d):
 
 
 @njit(**LANES)
-def _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b):
+def _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, hits):
     """intersect_rays' loop over its rays (its caller holds the arrays)."""
+    prim, t, p, ng, ns, b = hits.prim, hits.t, hits.p, hits.ng, hits.ns, hits.b
     for i in range(o.shape[0]):
         oi, di = cols3(o, i, 0), cols3(d, i, 0)
         pr, t32 = intersect1(ray, oi, di, tmax[i] if tmax.shape[0] else np.inf, 0)
@@ -96,15 +97,16 @@ def _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, n
             p[i, c], ng[i, c], ns[i, c] = pi[c], g[c], n[c]
 
 
+@TypedOnce
 @njit(**JIT)
-def intersect_rays(rt, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b):
+def intersect_rays(rt, o, d, tmax, xo, exact, tv, tng, tns, eps, hits):
     """tracer.intersect: closest hits of rays o + t d (offset origins o; xo where they really
     start when exact), t < tmax (empty: no limit), with float64 hit records (hit_point,
-    barycentric1, shading_normal1) written to prim (-1 on a miss), t (inf on a miss), p, ng,
-    ns, b (left as they are on a miss). Returns the ray counters (embree.ray_state)."""
+    barycentric1, shading_normal1) written to hits (HitRows: prim -1 on a miss, t inf on a miss;
+    p, ng, ns, b left as they are on a miss). Returns the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
-    _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, prim, t, p, ng, ns, b)
-    return ray[6]
+    _intersect_rows(ray, o, d, tmax, xo, exact, tv, tng, tns, eps, hits)
+    return ray.counts
 
 
 @njit(**JIT)
@@ -133,16 +135,19 @@ def shading_normal_rows(tns, tng, prim, b):
 
 # ------------------------------------------------------------------ a vertex from a ray hit
 @njit(inline="always", **JIT)
-def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tns, eps, tri_material, mat_kind,
-                 tri_object, casters, mat_ior, F, I, status, out):
-    """walk.propagate's work for vertex j of chain row `lane` once its ray o + t d (3-tuples)
-    hit primitive pr at embree's distance t32: tracer.intersect's float64 hit point (the plane
-    of the hit triangle re-intersected from prev, the ray's true start, when exact, else from
-    o), geometry.vertex_from_hits, the material checks, the reflection or refraction of
-    w_in = normalize(prev - p) and the side checks. Writes the walk outcome to status, the
+def _lane_vertex(kinds, j, lane, o, d, prev, exact, pr, t32, geo, eps, rows):
+    """walk.propagate's work for vertex j (of the chain's kinds) of chain row `lane` (rows:
+    ChainRows) once its ray o + t d (3-tuples) hit primitive pr at embree's distance t32:
+    tracer.intersect's float64 hit point (the plane of the hit triangle (geo: Geometry)
+    re-intersected from prev, the ray's true start, when exact, else from o),
+    geometry.vertex_from_hits, the material checks, the reflection or refraction of
+    w_in = normalize(prev - p) and the side checks. Writes the walk outcome to rows.status, the
     vertex to F and I where it is kept (valid, or at the last vertex TIR or SIDE), the unit
-    outgoing direction to out; returns whether the chain goes on, and the next ray's offset
+    outgoing direction to out_dir; returns whether the chain goes on, and the next ray's offset
     origin and direction, and the vertex."""
+    refract, last = kinds[j] == REFRACT, j == kinds.shape[0] - 1
+    tv, tng, tns = geo.tv, geo.tng, geo.tns
+    F, I, status, out = rows.F, rows.I, rows.status, rows.out_dir
     zero = (0.0, 0.0, 0.0)
     ti, p, g, v0, e1, e2 = hit_point(o, d, prev if exact else o, exact, t32, pr, tv, tng, eps)
     b1, b2, d11, d12, d22 = barycentric1(e1, e2, sub3(p, v0))
@@ -172,17 +177,17 @@ def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tn
                 dns = dv
             else:
                 dnt = dv
-    mat = tri_material[pr]
-    mk = mat_kind[mat]
-    obj = tri_object[pr]
+    mat = geo.tri_material[pr]
+    mk = geo.mat_kind[mat]
+    obj = geo.tri_object[pr]
     code = OK
-    if not casters[obj]:
+    if not geo.casters[obj]:
         code = NOT_CASTER
     need = (mk == DIELECTRIC) if refract else (mk == CONDUCTOR or mk == DIELECTRIC)
     if not need and code == OK:
         code = WRONG_MATERIAL
     w_in = normalize3(sub3(prev, p))
-    w_out, okm = smap(refract, w_in, n, mat_ior[mat])
+    w_out, okm = smap(refract, w_in, n, geo.mat_ior[mat])
     if not okm and code == OK:
         code = TIR if last else TIR_INNER
     cin, cout = dot1(w_in, g), dot1(w_out, g)
@@ -213,15 +218,16 @@ def _lane_vertex(refract, last, j, lane, o, d, prev, exact, pr, t32, tv, tng, tn
 
 
 @njit(**LANES)
-def trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
+def trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, rows):
     """walk.propagate for chain row `lane`: the ray from x0 (its offset origin o, direction d;
-    3-tuples) and its reflections and refractions through the chain's vertices, each ray cast
-    here (embree.intersect1, counted as `kind`). The row of F, I, status (walk outcome, OK
-    where every vertex is valid) and out (the direction leaving the last vertex) is written
-    from scratch. geo: (tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior).
-    Called, not inlined (compiled once for the seeds and the walks): its callers pass kind and
-    lane as int64, as numba compiles a function once per value of a constant argument."""
-    tv, tng, tns, tri_material, mat_kind, tri_object, casters, mat_ior, hid = geo
+    3-tuples) and its reflections and refractions through the chain's vertices (geo: Geometry),
+    each ray cast here (embree.intersect1, counted as `kind`). The row of rows (ChainRows: F, I,
+    status (walk outcome, OK where every vertex is valid) and out_dir (the direction leaving the
+    last vertex)) is written from scratch. Called, not inlined (compiled once for the seeds and
+    the walks): its callers pass kind and lane as int64, as numba compiles a function once per
+    value of a constant argument."""
+    tng, tri_object, hid = geo.tng, geo.tri_object, geo.hid
+    F, I, status, out = rows.F, rows.I, rows.status, rows.out_dir
     k = kinds.shape[0]
     for j in range(k):
         for c in range(NF):
@@ -234,7 +240,7 @@ def trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
         pr, t32 = intersect1(ray, o, d, np.inf, kind)
         passed = False
         if hid.shape[0] > 0:  # past what this ray's kind does not meet (x0's diffuse bounce, then the letter before)
-            bit = RAY_DIFFUSE if j == 0 else (RAY_TRANSMISSION if kinds[j - 1] == 1 else RAY_GLOSSY)  # 1: refracts
+            bit = RAY_DIFFUSE if j == 0 else (RAY_TRANSMISSION if kinds[j - 1] == REFRACT else RAY_GLOSSY)
             for _ in range(HIDDEN_PASSES + 1):
                 if pr < 0 or not hid[tri_object[pr]] & bit:
                     break
@@ -252,45 +258,44 @@ def trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, F, I, status, out):
         # whose exit dips below the geometric surface (a shading normal leaning away, as on a
         # normal-mapped mirror) is kept: every walk goes on from it, as SMS does from any seed on
         # the caster, and converges only once the exit is valid
-        go, o, d, prev = _lane_vertex(kinds[j] == 1, j == k - 1, j, lane, o, d, prev, j > 0 or passed, pr, t32, tv,
-                                      tng, tns, eps, tri_material, mat_kind, tri_object, casters, mat_ior, F, I,
-                                      status, out)
+        go, o, d, prev = _lane_vertex(kinds, j, lane, o, d, prev, j > 0 or passed, pr, t32, geo, eps, rows)
         if not go:
             return
 
 
 @njit(**LANES)
-def _seed_rows(ray, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
+def _seed_rows(ray, kinds, x0, ng0, seeds, geo, eps, rows):
     """trace_lanes' loop over its lanes (its caller holds the arrays)."""
     for i in range(x0.shape[0]):
-        seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out)
+        seed_lane(ray, i, x0, ng0, seeds, kinds, geo, eps, rows)
 
 
 @TypedOnce
 @njit(**JIT)
-def trace_lanes(rt, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out):
-    """walk.propagate of every lane: the ray from x0 (offset along ng0 to the side d leaves
-    on, as tracer.spawn) in direction d through the chain; where want_obj[i] >= 0, a chain
-    whose first vertex lies on another object ends as SEED_OBJECT. Returns the ray counters
-    (embree.ray_state)."""
+def trace_lanes(rt, kinds, x0, ng0, seeds, geo, eps, rows):
+    """walk.propagate of every lane: the ray from x0 (offset along ng0 to the side it leaves
+    on, as tracer.spawn) in direction seeds.d (SeedRays) through the chain, into rows
+    (ChainRows); where seeds.want[i] >= 0, a chain whose first vertex lies on another object
+    ends as SEED_OBJECT. Returns the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
-    _seed_rows(ray, kinds, x0, ng0, d, want_obj, geo, eps, F, I, status, out)
-    return ray[6]
+    _seed_rows(ray, kinds, x0, ng0, seeds, geo, eps, rows)
+    return ray.counts
 
 
 @njit(**LANES)
-def seed_lane(ray, i, x0, ng0, d, want_obj, kinds, geo, eps, F, I, status, out):
+def seed_lane(ray, i, x0, ng0, seeds, kinds, geo, eps, rows):
     """The seed chain of lane i (trace_lanes), its rays counted as seeds. Not inlined: one call
     per walk, and one compiled copy of trace_lane for every kernel that seeds (inlined into
     each, the walk kernels took minutes to compile)."""
+    want_obj = seeds.want
     xi = cols3(x0, i, 0)
-    di = cols3(d, i, 0)
+    di = cols3(seeds.d, i, 0)
     g = cols3(ng0, i, 0)
     side = 1.0 if dot1(di, g) >= 0 else -1.0
     # (np.int64: a constant argument would compile trace_lane once per value, see its docstring)
-    trace_lane(ray, np.int64(RAYS_SEED), i, xi, add3(xi, scale3(eps * side, g)), di, kinds, geo, eps, F, I, status, out)
-    if want_obj[i] >= 0 and status[i] == OK and I[i, 0, OBJ] != want_obj[i]:
-        status[i] = SEED_OBJECT
+    trace_lane(ray, np.int64(RAYS_SEED), i, xi, add3(xi, scale3(eps * side, g)), di, kinds, geo, eps, rows)
+    if want_obj[i] >= 0 and rows.status[i] == OK and rows.I[i, 0, OBJ] != want_obj[i]:
+        rows.status[i] = SEED_OBJECT
 
 
 @njit(inline="always", **JIT)

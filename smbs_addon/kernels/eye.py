@@ -13,6 +13,7 @@ from .records import (
     CAM_AXES, CAM_CLIP, CAM_CLIP_END, CAM_H, CAM_INV, CAM_ORIGIN, CAM_ORTHO, CAM_PIX_AREA, CAM_PIX_H, CAM_PIX_W,
     CAM_REGION, CAM_XMIN, CAM_YMIN, HIDDEN_PASSES, REC_BETA, REC_NG, REC_NS, REC_P, REC_W, VIEW_NEAR, VIEW_PLANE)
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, DIFFUSE, RAY_CAMERA, RAY_GLOSSY, RAY_TRANSMISSION
+from ..scene.light_paths import DIFFUSE_EVENTS, GLOSSY_EVENTS, TRANSMISSION_EVENTS
 from .typed import TypedOnce
 
 from ..shading.absorption import absorbed1, medium_after1
@@ -116,13 +117,25 @@ def _camera_clear(ray, o, d, tmax, tng, tri_object, hid, eps):
     return False
 
 
+@njit(inline="always", **JIT)
+def put_record(rec, rec_i, row, p, g, n, w, b, lane, k, m):
+    """A diffuse vertex's record at row `row` of rec (REC_* columns: point, geometric and shading
+    normals, the direction w away from it along the path, the throughput or flux b) and rec_i (its
+    lane, the specular vertices k before it, its material m)."""
+    for c in range(3):
+        rec[row, REC_P + c], rec[row, REC_NG + c], rec[row, REC_NS + c] = p[c], g[c], n[c]
+        rec[row, REC_W + c], rec[row, REC_BETA + c] = w[c], b[c]
+    rec_i[row, 0], rec_i[row, 1], rec_i[row, 2] = lane, k, m
+
+
 @njit(**LANES)
-def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry, val, alb):
+def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, out):
     """camera_splats' loop (its caller holds the arrays). Returns (rays cast, splats
     written)."""
-    v_flag, v_n, v_p, v_t = view
-    tng, tri_object, hid = hide
-    mat_color = mats[2]
+    v_flag, v_n, v_p, v_t = view.flags, view.normals, view.points, view.t
+    tng, tri_object, hid = hide.tng, hide.tri_object, hide.hid
+    rx, ry, val, alb = out.rx, out.ry, out.val, out.alb
+    mat_color = mats.color
     x0, x1, y0, y1 = cam[CAM_REGION], cam[CAM_REGION + 1], cam[CAM_REGION + 2], cam[CAM_REGION + 3]
     org = (cam[CAM_ORIGIN], cam[CAM_ORIGIN + 1], cam[CAM_ORIGIN + 2])
     ortho = cam[CAM_ORTHO] > 0
@@ -168,13 +181,13 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
             continue
         # the diffuse BSDF with the shading-normal correction of the adjoint (Veach 5.3), the
         # camera's importance (CameraModel.importance)
-        corr = abs(ci_s) / max(abs(ci_g), 1e-12) * bump_shadowing1(sn, ns, w, mats[5][m] != 0)
+        corr = abs(ci_s) / max(abs(ci_g), 1e-12) * bump_shadowing1(sn, ns, w, mats.bump_correction[m] != 0)
         if ortho:
             imp = abs(co_g) / cam[CAM_PIX_AREA]
         else:
             c3 = max(cos_axis, 1e-12) ** 3
             imp = abs(co_g) / (max(dist, 1e-300) ** 2 * cam[CAM_PIX_AREA] * c3)
-        tw = table_weight1(mats[6], m, dot1(to_cam, ns))  # under a glossy coat
+        tw = table_weight1(mats.weight, m, dot1(to_cam, ns))  # under a glossy coat
         k = corr * imp / math.pi * tw
         kc = coat_factor1(mats, m, ns, to_cam, w, first_order)  # and what on-minus-off keeps of it
         rx[n], ry[n] = px, py
@@ -189,31 +202,32 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
 
 @TypedOnce
 @njit(**JIT)
-def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry, val, alb):
+def camera_splats(rt, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, out):
     """reference.splat_records: the light tracer's records (rec: REC_* columns; mat: their
-    materials, diffuse with albedo mats[2][mat] under a Principled coat: layer.py, first_order: the
+    materials, diffuse with albedo mats.color[mat] under a Principled coat: layer.py, first_order: the
     records are x0's own caustic, not light after a diffuse bounce): each diffuse vertex connected
     to the camera
     (cam: CameraModel.kernel_params; margin: the film's filter width in pixels around the render
     region), its shadow ray cast here, the splat's raster position and value (the flux times the
-    diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to rx,
-    ry, val; with textured (Scene.mat_textured, or empty) and alb (as val, or empty), the albedo of
-    each splat on a textured material (Film.splat), zero elsewhere; view (eye.view_tables): a bumped
-    receiver's normals as the camera sees them; hide: (triangles' geometric normals, objects,
-    Scene.hidden_kinds): the shadow rays pass the surfaces camera rays do not meet.
+    diffuse BSDF, Veach's shading-normal correction and the camera's importance) written to out
+    (Splats) rx, ry, val; with textured (Scene.mat_textured, or empty) and out.alb (as val, or
+    empty), the albedo of each splat on a textured material (Film.splat), zero elsewhere; view
+    (ViewTables, eye.view_tables): a bumped receiver's normals as the camera sees them; hide
+    (CameraHiding): the shadow rays pass the surfaces camera rays do not meet.
     Returns (shadow rays cast, splats written, the ray counters)."""
     ray = ray_state(rt)
-    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, rx, ry,
-                                 val, alb)
-    return rays, n, ray[6]
+    rays, n = _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textured, view, hide, out)
+    return rays, n, ray.counts
 
 
 @njit(**LANES)
-def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
-              rec_i, prior):
+def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, out):
     """eye_lanes' loop over its lanes (its caller holds the arrays). Returns the
     records written."""
-    tv, tng, tns, tri_material, mat_kind, tri_object, _, _, hid = geo
+    tv, tng, tns, tri_material, mat_kind = geo.tv, geo.tng, geo.tns, geo.tri_material, geo.mat_kind
+    tri_object, hid = geo.tri_object, geo.hid
+    max_bounces, min_specular, scale_eta = rules.max_bounces, rules.min_specular, rules.scale_eta
+    rec, rec_i, prior = out.rec, out.rec_i, out.prior
     nrec = 0
     for lane in range(rx.shape[0]):
         o, d = _camera_ray(cam, rx[lane], ry[lane])
@@ -225,17 +239,14 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
             pr, t, p, g, n, b1, b2 = next_past(ray, o, d, tv, tng, tns, tri_object, hid, bit, eps)
             if pr < 0:
                 break
-            b = absorbed1(mats[0], mats[10], medium, tri_material[pr], d, g, t, b)
+            b = absorbed1(mats.kind, mats.absorb, medium, tri_material[pr], d, g, t, b)
             m = tri_material[pr]
             kind = mat_kind[m]
             if kind == DIFFUSE:
                 if depth >= min_specular and receivers[tri_object[pr]]:
-                    w = neg3(d)
-                    for c in range(3):
-                        rec[nrec, REC_P + c], rec[nrec, REC_NG + c], rec[nrec, REC_NS + c] = p[c], g[c], n[c]
-                        rec[nrec, REC_W + c], rec[nrec, REC_BETA + c] = w[c], b[c]
-                    rec_i[nrec, 0], rec_i[nrec, 1], rec_i[nrec, 2] = lane, depth, m
-                    prior[nrec, 0], prior[nrec, 1], prior[nrec, 2] = 0, ngl, nt
+                    put_record(rec, rec_i, nrec, p, g, n, neg3(d), b, lane, depth, m)
+                    prior[nrec, DIFFUSE_EVENTS] = 0
+                    prior[nrec, GLOSSY_EVENTS], prior[nrec, TRANSMISSION_EVENTS] = ngl, nt
                     nrec += 1
                 break
             if depth >= max_bounces or not (kind == CONDUCTOR or kind == DIELECTRIC):
@@ -258,19 +269,17 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, 
 
 @TypedOnce
 @njit(**JIT)
-def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps, rec,
-              rec_i, prior):
+def eye_lanes(rt, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, out):
     """eye.eye_receivers' paths: from the camera (cam: CameraModel.kernel_params; rx, ry: raster
     positions, each ray starting on the near clip plane) through mirrors and glass
     (optics.scatter1, the lobe picked by keyed_uniform(key, sample[lane], depth, 0): a sample's
-    path does not depend on which others are traced with it; scale_eta: radiance in physical
-    units) to the first diffuse surface, recorded (rec: REC_* columns with the eye path's
-    throughput; rec_i: lane, specular vertices before it, material; prior: the camera's diffuse,
-    glossy and transmission bounces, Cycles' counts) where it is a receiver after at least
-    min_specular specular vertices; up to max_bounces of them. Each ray passes the objects its kind
-    does not meet (the camera's, then glossy or transmission: geo's Scene.hidden_kinds). Returns the
-    records written and the ray counters (embree.ray_state)."""
+    path does not depend on which others are traced with it; rules (EyePaths): scale_eta, radiance
+    in physical units) to the first diffuse surface, recorded in out (EyeOut: rec, REC_* columns
+    with the eye path's throughput; rec_i: lane, specular vertices before it, material; prior: the
+    camera's diffuse, glossy and transmission bounces, Cycles' counts) where it is a receiver after
+    at least rules.min_specular specular vertices; up to rules.max_bounces of them. Each ray passes
+    the objects its kind does not meet (the camera's, then glossy or transmission: geo's
+    Scene.hidden_kinds). Returns the records written and the ray counters (embree.ray_state)."""
     ray = ray_state(rt)
-    nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, max_bounces, min_specular, scale_eta, eps,
-                     rec, rec_i, prior)
-    return nrec, ray[6]
+    nrec = _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, out)
+    return nrec, ray.counts

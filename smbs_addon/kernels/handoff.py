@@ -10,7 +10,8 @@ from numba import njit
 
 from ..core.jit import JIT, LANES
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
-from .records import NEAR_ALL, NEAR_DISK, NEAR_RECT, NEAR_SPHERE
+from .records import HIST_B, HIST_BENT, HIST_CASTER, HIST_P, HIST_REFL, NEAR_ALL, NEAR_DISK, NEAR_RECT, NEAR_SPHERE, \
+    SEG_BETA, SEG_D, SEG_O, SEG_T
 from .typed import TypedOnce
 from .chain import barycentric1, shading_normal1
 
@@ -100,18 +101,32 @@ def guide_table(cdf):
 
 
 @njit(inline="always", **JIT)
-def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng, tns):
+def put_vertex(hist, h_prim, lane, j, pr, p, b1, b2, refl, caster):
+    """Lane `lane`'s j-th specular vertex as the hand-off reads it: hist[lane, j] (HIST_* columns:
+    point, barycentrics, 1 for a reflection, 1 on a planned caster), h_prim[lane, j] its triangle."""
+    h_prim[lane, j] = pr
+    for c in range(3):
+        hist[lane, j, HIST_P + c] = p[c]
+    hist[lane, j, HIST_B], hist[lane, j, HIST_B + 1] = b1, b2
+    hist[lane, j, HIST_REFL] = 1.0 if refl else 0.0
+    hist[lane, j, HIST_CASTER] = 1.0 if caster else 0.0
+
+
+@njit(inline="always", **JIT)
+def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, aim, geo):
     """bent_gather's first bounce from the diffuse receiver x (w: back to the eye; g, n: its
-    normals; a: albedo): towards a point uniform in area over the candidate triangles cand (cdf:
-    their cumulative areas, guide: its guide_table), weighted by the Lambertian BSDF x cosine over
+    normals; a: albedo): towards a point uniform in area over the candidate triangles aim.cand
+    (BentTargets; cdf: their cumulative areas, guide: its guide_table; geo: Geometry), weighted by
+    the Lambertian BSDF x cosine over
     the point's density in solid angle; kept only where the point's normal bends for that direction
     (optics.scatter1's test, before any ray is cast: on cube_grey_reflect 2.4% of the points do).
     Returns (kept, direction, weight, the triangle the ray must meet first, the point and its
     barycentrics: the vertex the path takes, exactly the one sampled, wherever the offset ray
     origin puts the hit)."""
     zero = (0.0, 0.0, 0.0)
+    cdf, tv, tng, tns = aim.cdf, geo.tv, geo.tng, geo.tns
     total = cdf[cdf.shape[0] - 1]
-    pr = cand[cdf_pick(cdf, guide, u0)]
+    pr = aim.cand[cdf_pick(cdf, aim.guide, u0)]
     su = math.sqrt(u1)
     b1, b2 = su * (1.0 - u2), su * u2  # uniform over the triangle
     v0 = (tv[pr, 0, 0], tv[pr, 0, 1], tv[pr, 0, 2])
@@ -136,11 +151,14 @@ def _toward_triangle(u0, u1, u2, x, w, g, n, a, beta, cand, cdf, guide, tv, tng,
 
 
 @njit(**LANES)
-def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
-                  seg_n, hist, h_prim, cand, cdf, guide):
+def _handoff_rows(ray, key, a0, samples, K, receivers, geo, mats, physical, eps, out, aim):
     """handoff_lanes' loop over its lanes (its caller holds the arrays)."""
-    tv, tng, tns, tri_material, mat_kind, tri_object, casters, _, hid = geo
-    targeted = cand.shape[0] > 0
+    tv, tng, tns, tri_material, mat_kind = geo.tv, geo.tng, geo.tns, geo.tri_material, geo.mat_kind
+    tri_object, casters, hid = geo.tri_object, geo.casters, geo.hid
+    x0, ng0, ns0, sn0, w0 = receivers.p, receivers.ng, receivers.ns, receivers.sn, receivers.w_eye
+    beta0, alb, mat0 = receivers.beta, receivers.albedo, receivers.mat
+    seg, seg_n, hist, h_prim = out.seg, out.seg_n, out.hist, out.h_prim
+    targeted = aim.cand.shape[0] > 0
     for lane in range(x0.shape[0] * samples):
         seg_n[lane] = 0
         i = lane // samples
@@ -151,8 +169,8 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
         u0, u1, u2 = keyed_uniform(key, r, s, 0), keyed_uniform(key, r, s, 1), keyed_uniform(key, r, s, 2)
         if targeted:
             ok, d, b, first, p_first, f1, f2 = _toward_triangle(u0, u1, u2, cols3(x0, i, 0), cols3(w0, i, 0), g,
-                                               cols3(ns0, i, 0), cols3(alb, i, 0), cols3(beta0, i, 0), cand, cdf, guide,
-                                               tv, tng, tns)
+                                                                cols3(ns0, i, 0), cols3(alb, i, 0), cols3(beta0, i, 0),
+                                                                aim, geo)
         else:
             ok, d, b = diffuse_scatter(u0, u1, u2, cols3(w0, i, 0), g, cols3(ns0, i, 0),
                                         cols3(alb, i, 0), cols3(beta0, i, 0), False)
@@ -160,7 +178,7 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
             continue
         kc = coat_factor1(mats, mat0[i], cols3(ns0, i, 0), cols3(w0, i, 0), d, True)  # under a Principled coat
         # and a bumped receiver's shadowing (1 where ns0 is sn0, its smooth normal: no bump)
-        kc = scale3(bump_shadowing1(cols3(sn0, i, 0), cols3(ns0, i, 0), d, mats[5][mat0[i]] != 0), kc)
+        kc = scale3(bump_shadowing1(cols3(sn0, i, 0), cols3(ns0, i, 0), d, mats.bump_correction[mat0[i]] != 0), kc)
         b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
         o = add3(cols3(x0, i, 0), scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn
         medium = -1
@@ -170,12 +188,12 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
             if bounce > 0:  # a segment after a specular vertex: the caller looks for lights on it
                 k = seg_n[lane]
                 for c in range(3):
-                    seg[lane, k, c], seg[lane, k, 3 + c], seg[lane, k, 7 + c] = o[c], d[c], b[c]
-                seg[lane, k, 6] = t
+                    seg[lane, k, SEG_O + c], seg[lane, k, SEG_D + c], seg[lane, k, SEG_BETA + c] = o[c], d[c], b[c]
+                seg[lane, k, SEG_T] = t
                 seg_n[lane] = k + 1
             if pr < 0 or bounce == K or (bounce == 0 and targeted and pr != first):
                 break
-            b = absorbed1(mats[0], mats[10], medium, tri_material[pr], d, gg, t, b)
+            b = absorbed1(mats.kind, mats.absorb, medium, tri_material[pr], d, gg, t, b)
             m = tri_material[pr]
             kind = mat_kind[m]
             if kind != CONDUCTOR and kind != DIELECTRIC:
@@ -189,15 +207,11 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
                                         physical, False)
             if not ok or (targeted and bounce == 0 and not bent):  # bent_gather: bent first vertices only
                 break
-            h_prim[lane, bounce] = pr
-            if hist.shape[2] > 7:
-                hist[lane, bounce, 7] = 1.0 if bent else 0.0
-            for c in range(3):
-                hist[lane, bounce, c] = p[c]
-            hist[lane, bounce, 3], hist[lane, bounce, 4] = b1, b2
-            hist[lane, bounce, 5] = 1.0 if dot1(d, n) * dot1(dd, n) < 0 else 0.0
-            hist[lane, bounce, 6] = 1.0 if casters[tri_object[pr]] else 0.0
-            bit = RAY_GLOSSY if hist[lane, bounce, 5] > 0 else RAY_TRANSMISSION
+            if hist.shape[2] > HIST_BENT:
+                hist[lane, bounce, HIST_BENT] = 1.0 if bent else 0.0
+            refl = dot1(d, n) * dot1(dd, n) < 0
+            put_vertex(hist, h_prim, lane, bounce, pr, p, b1, b2, refl, casters[tri_object[pr]])
+            bit = RAY_GLOSSY if refl else RAY_TRANSMISSION
             o = add3(p, scale3(eps if dot1(dd, gg) >= 0 else -eps, gg))
             medium = medium_after1(m, kind, dd, gg)
             d, b = dd, bb
@@ -205,37 +219,35 @@ def _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, m
 
 @TypedOnce
 @njit(**JIT)
-def handoff_lanes(rt, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
-                  seg_n, hist, h_prim, cand, cdf, guide):
-    """indirect.handoff_gather's paths, lane i // samples's receiver (x0, ng0, ns0, w0: the
-    direction back to the eye, beta0: the throughput, alb: the albedo; sn0: the smooth normal ns0
+def handoff_lanes(rt, key, a0, samples, K, receivers, geo, mats, physical, eps, out, aim):
+    """indirect.handoff_gather's paths, lane i // samples's receiver (HandoffReceivers: p, ng, ns,
+    w_eye: the direction back to the eye, beta: the throughput, albedo; sn: the smooth normal ns
     a bump bent, eye.Receivers.sn): a cosine bounce with
     Russian roulette on the albedo (indirect._diffuse_bounce), then through up to K specular
     vertices (optics.scatter1, not adjoint; physical: scale_eta), every ray cast here. Lane l is
     sample s = l % samples of receiver a0 + l // samples, its uniform numbers keyed_uniform(key,
     a0 + l // samples, s, dim) (dim 0-2: direction and roulette, 3 + j: the j-th specular vertex),
-    so a path does not depend on the block or thread that traces it. Writes per lane the
-    segments after each specular vertex, in order, seg_n of them (seg[lane, k]: origin,
-    direction, distance to the next surface (inf: none), throughput), and the specular vertices
-    (hist[lane, j]: point, barycentrics, 1 for a reflection, 1 on a caster, 1 where Cycles' Bump Map
+    so a path does not depend on the block or thread that traces it. Writes to out (HandoffOut)
+    per lane the segments after each specular vertex, in order, seg_n of them (seg[lane, k]: SEG_O
+    origin, SEG_D direction, SEG_T distance to the next surface (inf: none), SEG_BETA throughput),
+    and the specular vertices (hist[lane, j]: HIST_* columns, HIST_BENT 1 where Cycles' Bump Map
     Correction bent the normal (optics.scatter1); h_prim[lane, j]: the triangle).
 
-    cand, cdf, guide (indirect.bent_gather; empty: the cosine bounce above): the first bounce goes
-    towards a point uniform in area over the triangles cand (cdf: their cumulative areas, guide: its
-    guide_table; _toward_triangle), the ray must meet that triangle first, and its normal must be
-    one Cycles' Bump Map Correction bends there, or the lane ends. Returns the ray counters
-    (embree.ray_state)."""
+    aim (BentTargets: cand, cdf, guide; indirect.bent_gather; empty: the cosine bounce above): the
+    first bounce goes towards a point uniform in area over the triangles cand (cdf: their cumulative
+    areas, guide: its guide_table; _toward_triangle), the ray must meet that triangle first, and its
+    normal must be one Cycles' Bump Map Correction bends there, or the lane ends. Returns the ray
+    counters (embree.ray_state)."""
     ray = ray_state(rt)
-    _handoff_rows(ray, key, a0, samples, K, x0, ng0, ns0, sn0, w0, beta0, alb, mat0, geo, mats, physical, eps, seg,
-                  seg_n, hist, h_prim, cand, cdf, guide)
-    return ray[6]
+    _handoff_rows(ray, key, a0, samples, K, receivers, geo, mats, physical, eps, out, aim)
+    return ray.counts
 
 
 @njit(**JIT)
 def segments_near(seg, seg_n, shapes, near):
     """indirect._handoff_block's lights, ahead of their exact test (lights.light_radiance): near[i, k]
-    (i < seg's lanes, k < its K) is set where lane i's k-th segment (k < seg_n[i]; seg[i, k]: origin,
-    unit direction) could meet one of the lights shapes describes, a row each: NEAR_ALL (any segment:
+    (i < seg's lanes, k < its K) is set where lane i's k-th segment (k < seg_n[i]; seg[i, k]: SEG_O origin,
+    SEG_D unit direction) could meet one of the lights shapes describes, a row each: NEAR_ALL (any segment:
     a light at infinity), NEAR_NONE (none: a point), NEAR_SPHERE (centre, radius: any ray that
     passes within it ahead of its origin, or starts inside), NEAR_RECT and NEAR_DISK (an area light:
     centre, x and y axes, normal, half sizes, as lights.area_light_shape: its plane met ahead, in
@@ -247,8 +259,8 @@ def segments_near(seg, seg_n, shapes, near):
         for k in range(K):
             near[i, k] = False
         for k in range(min(seg_n[i], K)):
-            o = (seg[i, k, 0], seg[i, k, 1], seg[i, k, 2])
-            d = (seg[i, k, 3], seg[i, k, 4], seg[i, k, 5])
+            o = (seg[i, k, SEG_O], seg[i, k, SEG_O + 1], seg[i, k, SEG_O + 2])
+            d = (seg[i, k, SEG_D], seg[i, k, SEG_D + 1], seg[i, k, SEG_D + 2])
             for j in range(shapes.shape[0]):
                 kind = int(shapes[j, 0])
                 if kind == NEAR_ALL:

@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from .records import NS, OBJ, P
+from .records import NS, OBJ, P, REFRACT
 from ..core.vec3 import add3, cols3, dot1, neg3, normalize3, scale3, sub3, vertex_cols3
 from .newton import smap
 from ..core.jit import JIT
@@ -47,7 +47,7 @@ def lane_large(i, kinds, x0, F, I, etas, ly, directional, obj_lo, obj_hi, scale,
         v = normalize3(sub3(vertex_cols3(F, i, k - 1, P), cols3(ly, i, 0)))
     ok = True
     for j in range(k - 1, -1, -1):
-        v, okm = smap(kinds[j] == 1, neg3(v), vertex_cols3(F, i, j, NS), etas[i, j])
+        v, okm = smap(kinds[j] == REFRACT, neg3(v), vertex_cols3(F, i, j, NS), etas[i, j])
         ok = ok and okm
     xi = cols3(x0, i, 0)
     v1 = normalize3(sub3(vertex_cols3(F, i, 0, P), xi))

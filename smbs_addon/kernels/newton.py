@@ -5,12 +5,13 @@ block-tridiagonal solve, and the proposal x1 - beta dx1 it makes.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
 
 from ..core.jit import JIT
-from .records import DNS, DNT, NG, NS, P, S, T
+from .records import DNS, DNT, NG, NS, P, REFRACT, S, T, LightRows, NewtonScratch
 from ..core.vec3 import add3, cols3, cross3, div3, dot1, frame1, max_nan, neg3, normalize3, scale3, sub3, vertex_cols3
 
 
@@ -85,25 +86,34 @@ def _unit_d(u, length, a):
 
 
 # ------------------------------------------------------------------ constraint blocks
+# What a vertex's constraint is measured in (_lane_blocks): the angle-difference form's frame about
+# w_o (e1, e2); the half-vector form's etas on the two sides, half-vector h (unit) and its length
+# lh, tangent frame (s2, t2) and h.n
+_Frame = namedtuple("_Frame", "e1 e2 eta_i eta_o h lh s2 t2 hn")
+
+
 @njit(inline="always", **JIT)
-def _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn, dwi, dn, dwo):
+def _dC(hv, refract, wi, pre, fr, dwi, dn, dwo):
+    """A constraint's derivative where w_i, the normal and w_o move by dwi, dn, dwo (fr: _Frame)."""
     if not hv:
         dw = sub3(smap_d(refract, wi, pre, dwi, dn), dwo)
-        return dot1(e1, dw), dot1(e2, dw)
-    dH = add3(scale3(eta_i, dwi), scale3(eta_o, dwo))
-    dh = div3(sub3(dH, scale3(dot1(h, dH), h)), max_nan(lh, 1e-300))
-    return dot1(s2, dh) - hn * dot1(s2, dn), dot1(t2, dh) - hn * dot1(t2, dn)
+        return dot1(fr.e1, dw), dot1(fr.e2, dw)
+    dH = add3(scale3(fr.eta_i, dwi), scale3(fr.eta_o, dwo))
+    dh = div3(sub3(dH, scale3(dot1(fr.h, dH), fr.h)), max_nan(fr.lh, 1e-300))
+    return dot1(fr.s2, dh) - fr.hn * dot1(fr.s2, dn), dot1(fr.t2, dh) - fr.hn * dot1(fr.t2, dn)
 
 
 @njit(inline="always", **JIT)
-def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, B, D):
-    """constraints.blocks for one lane (row `lane` of F/etas/x0/light, written to C/A/B/D[:]):
-    returns ok."""
+def _lane_blocks(hv, kinds, x0, F, etas, light, lane, scratch):
+    """constraints.blocks for one lane (row `lane` of F/etas/x0/light (LightRows), written to
+    scratch's C/A/B/D[:]): returns ok."""
+    ly, lys, lyt, directional = light.y, light.ys, light.yt, light.directional
+    C, A, B, D = scratch.C, scratch.A, scratch.B, scratch.D
     k = kinds.shape[0]
     ok = True
     zero = (0.0, 0.0, 0.0)
     for j in range(k):
-        refract = kinds[j] == 1
+        refract = kinds[j] == REFRACT
         p = vertex_cols3(F, lane, j, P)
         n = vertex_cols3(F, lane, j, NS)
         prev_p = cols3(x0, lane, 0) if j == 0 else vertex_cols3(F, lane, j - 1, P)
@@ -148,21 +158,20 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
             t2 = cross3(n, s2)
             C[j, 0], C[j, 1] = dot1(s2, h), dot1(t2, h)
             hn = dot1(h, n)
+        fr = _Frame(e1, e2, eta_i, eta_o, h, lh, s2, t2, hn)
         for col in range(2):
             a = vertex_cols3(F, lane, j, S if col == 0 else T)
             dna = vertex_cols3(F, lane, j, DNS if col == 0 else DNT)
             dwi = neg3(_unit_d(wi, li, a))
             dwo = neg3(_unit_d(wo, lo, a)) if has_lo else zero
-            A[j, 0, col], A[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
-                                             dwi, dna, dwo)
+            A[j, 0, col], A[j, 1, col] = _dC(hv, refract, wi, pre, fr, dwi, dna, dwo)
             # B (by the vertex before) moves only w_i, D (by the vertex after or the light) only
             # w_o: in the angle-difference form the specular map's terms in what does not move
             # are left out (they are zeros)
             if j > 0:
                 a = vertex_cols3(F, lane, j - 1, S if col == 0 else T)
                 if hv:
-                    B[j, 0, col], B[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2,
-                                                     hn, _unit_d(wi, li, a), zero, zero)
+                    B[j, 0, col], B[j, 1, col] = _dC(hv, refract, wi, pre, fr, _unit_d(wi, li, a), zero, zero)
                 else:
                     dw = smap_d_w(refract, wi, pre, _unit_d(wi, li, a))
                     B[j, 0, col], B[j, 1, col] = dot1(e1, dw), dot1(e2, dw)
@@ -174,8 +183,7 @@ def _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, lane, C, A, 
                 a = cols3(lys, lane, 0) if col == 0 else cols3(lyt, lane, 0)
             dwo = _unit_d(wo, lo, a) if has_lo else a
             if hv:
-                D[j, 0, col], D[j, 1, col] = _dC(hv, refract, wi, pre, e1, e2, eta_i, eta_o, h, lh, s2, t2, hn,
-                                                 zero, zero, dwo)
+                D[j, 0, col], D[j, 1, col] = _dC(hv, refract, wi, pre, fr, zero, zero, dwo)
             else:
                 D[j, 0, col], D[j, 1, col] = -dot1(e1, dwo), -dot1(e2, dwo)
     return ok
@@ -235,10 +243,10 @@ def _zero_rhs(rhs, k):
 
 @njit(**JIT)
 def lane_scratch(k):
-    """Per-lane work arrays of _lane_blocks and _lane_solve for a chain of k vertices:
-    C, A, B, D, rhs, Li, Y, X (per vertex)."""
-    return (np.zeros((k, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)),
-            np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)))
+    """Per-lane work arrays of _lane_blocks and _lane_solve for a chain of k vertices
+    (NewtonScratch)."""
+    return NewtonScratch(np.zeros((k, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)),
+                         np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)), np.zeros((k, 2, 2)))
 
 
 @njit(inline="always", **JIT)
@@ -279,9 +287,12 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
     k = kinds.shape[0]
     out = np.zeros((N, 2, 2))
     oks = np.zeros(N, np.bool_)
-    C, A, B, D, rhs, Li, Y, X = lane_scratch(k)
+    scratch = lane_scratch(k)
+    light = LightRows(ly, lys, lyt, directional)
+    C, A, B, D, rhs, Li, Y, X = (scratch.C, scratch.A, scratch.B, scratch.D, scratch.rhs, scratch.Li, scratch.Y,
+                                 scratch.X)
     for i in range(N):
-        ok = _lane_blocks_called(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
+        ok = _lane_blocks_called(hv, kinds, x0, F, etas, light, i, scratch)
         _zero_rhs(rhs, k)
         if mode == 0:
             for j in range(k):
@@ -301,18 +312,17 @@ def chain_solve(mode, hv, kinds, x0, F, etas, ly, lys, lyt, directional):
 
 
 @njit(inline="always", **JIT)
-def lane_newton(i, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step,
-                 C, A, B, D, rhs, Li, Y, X):
-    """The small mutation of lane i (see newton_proposal): (ok, proposed x1, direction). The
-    work arrays (lane_scratch) come one by one, unpacked by the caller before its loop over
-    lanes (a tuple of arrays unpacked per lane costs reference counts per array and lane: see
-    jit.LANES)."""
+def lane_newton(i, hv, kinds, x0, F, etas, light, beta, max_step, scratch):
+    """The small mutation of lane i (see newton_proposal; light: LightRows, scratch: lane_scratch's
+    NewtonScratch): (ok, proposed x1, direction). Its callers are LANES kernels (jit.LANES): where
+    numba counts references, each array a record gives up costs a count per lane."""
     k = kinds.shape[0]
-    ok = _lane_blocks(hv, kinds, x0, F, etas, ly, lys, lyt, directional, i, C, A, B, D)
+    ok = _lane_blocks(hv, kinds, x0, F, etas, light, i, scratch)
+    C, rhs, X = scratch.C, scratch.rhs, scratch.X
     _zero_rhs(rhs, k)
     for j in range(k):
         rhs[j, 0, 0], rhs[j, 1, 0] = C[j, 0], C[j, 1]
-    ok = _lane_solve(A, B, D, rhs, Li, Y, X) and ok
+    ok = _lane_solve(scratch.A, scratch.B, scratch.D, rhs, scratch.Li, scratch.Y, X) and ok
     p1 = vertex_cols3(F, i, 0, P)
     if not ok:
         return False, p1, (0.0, 0.0, 0.0)
@@ -335,10 +345,10 @@ def newton_proposal(idx, hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta
     p_out = np.zeros((M, 3))
     d_out = np.zeros((M, 3))
     oks = np.zeros(M, np.bool_)
-    C, A, B, D, rhs, Li, Y, X = lane_scratch(kinds.shape[0])
+    scratch = lane_scratch(kinds.shape[0])
+    light = LightRows(ly, lys, lyt, directional)
     for m in range(M):
-        ok, p, d = lane_newton(idx[m], hv, kinds, x0, F, etas, ly, lys, lyt, directional, beta, max_step,
-                                C, A, B, D, rhs, Li, Y, X)
+        ok, p, d = lane_newton(idx[m], hv, kinds, x0, F, etas, light, beta, max_step, scratch)
         oks[m] = ok
         p_out[m, 0], p_out[m, 1], p_out[m, 2] = p
         d_out[m, 0], d_out[m, 1], d_out[m, 2] = d

@@ -11,6 +11,8 @@ Chain vertices are packed: F (N, k, NF) float64 with the columns below, I (N, k,
 """
 from __future__ import annotations
 
+from collections import namedtuple
+
 import numpy as np
 
 # packed vertex columns
@@ -18,10 +20,13 @@ P, NG, NS, S, T, DNS, DNT = 0, 3, 6, 9, 12, 15, 18
 NF = 21
 
 
+# a chain vertex's kind (chain_kinds)
+REFLECT, REFRACT = 0, 1
+
+
 def chain_kinds(types: str) -> np.ndarray:
-    """A chain type's vertices as the kernels take them: 1 for a refraction (T), 0 for a
-    reflection (R)."""
-    return np.array([1 if c == "T" else 0 for c in types], np.int64)
+    """A chain type's vertices as the kernels take them: REFRACT for a T, REFLECT for an R."""
+    return np.array([REFRACT if c == "T" else REFLECT for c in types], np.int64)
 
 
 PRIM, OBJ, MAT = 0, 1, 2  # a vertex's I columns
@@ -85,3 +90,123 @@ VX_P, VX_NG, VX_NS, VX_W, VX_BETA, VX_OBJ = 0, 3, 6, 9, 12, 15
 VX_F = 16
 
 
+
+
+# ------------------------------------------------------------------ records: tuples passed whole, by name
+# The scene as the kernels trace paths through it (tracer.Tracer.kernel_geometry): the triangles'
+# vertices (T,3,3), unit geometric normals (T,3), corner normals (T,3,3) or (T,6,3) (chain._corners);
+# per triangle its material and object; per material its kind (scene.DIFFUSE...) and IOR; per object
+# whether it is a planned caster and the kinds of ray it does not meet (Scene.hidden_kinds; empty: none)
+Geometry = namedtuple("Geometry", "tv tng tns tri_material mat_kind tri_object casters mat_ior hid")
+
+# Chain rows a ray traces (chain.trace_lane): vertices F (N,k,NF), I (N,k,3), the walk outcome
+# per row, the unit direction leaving the last vertex (N,3)
+ChainRows = namedtuple("ChainRows", "F I status out_dir")
+
+# Float64 hit records of a batch of rays (chain.intersect_rays): primitive (-1: a miss), distance,
+# point, geometric normal, shading normal, barycentrics (b1, b2)
+HitRows = namedtuple("HitRows", "prim t p ng ns b")
+
+# A lane's light end (shading.light_samples.LightEnd's arrays): a point (or, directional, a unit
+# direction towards the light) and its tangents, (N,3) each
+LightRows = namedtuple("LightRows", "y ys yt directional")
+
+# The walk's settings (walks.walk.kernel_config; WalkConfig's, in the kernels' types): the constraint
+# form (True: half-vector), the chain's vertex kinds (chain_kinds), SMBS and its triggers (TIR,
+# back-lit at vertex backlit_at (-1: none), slow: tau, slow_run), tir_rejected, min_beta, the
+# convergence threshold, the longest step, the ray offset eps, GetRatio's halvings, the iterations,
+# the first step's beta and the stall rule (window, factor, from)
+WalkSettings = namedtuple("WalkSettings", "hv kinds smbs tir backlit slow tir_rejected backlit_at tau slow_run "
+                                          "min_beta threshold max_step eps max_halvings max_iterations beta0 "
+                                          "stall_window stall_factor stall_from")
+
+# The walk's inputs per lane (walks.walk.newton_walk): x0 and its geometric normal, the light end,
+# the etas of the chain's vertices (written by the walk), whether the lane may mutate large, and the
+# objects' bounding boxes (SMBS's GetRatio)
+WalkLanes = namedtuple("WalkLanes", "x0 ng0 light etas large_ok obj_lo obj_hi")
+
+# The walk's state per lane: the chain (F, I, out_dir), the mismatch and its side, whether the chain
+# is valid, beta, SMBS's bisection scale, its pending trigger and slow steps in a row, the walk
+# outcome (OK... STALLED), whether it converged, the proposals it made
+WalkState = namedtuple("WalkState", "F I out_dir err front valid beta lscale pending slow_n outcome converged "
+                                    "mutations")
+
+# The Newton step's work arrays for a chain of k vertices (newton.lane_scratch): the constraints
+# C (k,2), the blocks A, B, D, the right-hand sides and the solve's Li, Y, X (k,2,2)
+NewtonScratch = namedtuple("NewtonScratch", "C A B D rhs Li Y X")
+
+# One thread's walk work arrays (walk.walk_scratch): the Newton step's, the proposal's chain (one
+# row of ChainRows) and the last stall_window mismatches of a walk
+WalkScratch = namedtuple("WalkScratch", "newton proposal hist")
+
+# The seed rays of walk_lanes' lanes: unit directions (N,3) and the object each must meet first
+# (-1: any)
+SeedRays = namedtuple("SeedRays", "d want")
+
+# The unbiased estimator's Bernoulli trials (trials.bernoulli_lanes): the samples (x0, ng0, the
+# light point or direction, the first segment's direction d1, the first vertex's object obj1;
+# (S, ...) each)
+TrialSamples = namedtuple("TrialSamples", "x0 ng0 y d1 obj1")
+# ... the seeds' uniform points on the casters: the triangles' area cdf, vertices and objects
+CasterSeeds = namedtuple("CasterSeeds", "cdf tv obj")
+# ... the cdf's total, the random key, the first sample's index in the batch, the trials at most,
+# SMBS's defensive share, the uniqueness threshold
+TrialSettings = namedtuple("TrialSettings", "total key p0 max_trials defensive uniqueness")
+# ... all of it, with what the trials write: the first successful trial per sample, and the
+# walks and Newton steps made (tally (2,))
+TrialJob = namedtuple("TrialJob", "samples seeds settings first tally")
+
+# ------------------------------------------------------------------ records of the light paths' kernels
+# The light tracer's photons of one light (photons.photon_lanes): origins, unit directions and flux
+# (N,3); a soft-falloff light's centre (3,) and radius (0: none); the kinds of ray that see the light
+# (scene.RAY_* bits); the objects it lights ((O,) bool, Light Linking; empty: any) and those that do
+# not shadow it ((O,) bool, Shadow Linking; empty: none)
+PhotonBatch = namedtuple("PhotonBatch", "o d w soft_center soft_radius visibility lit unshadowing")
+# ... their paths' rules: indirect photons or caustic ones, the Light Paths limits
+# (bounces.Limits.array()), the specular bounces at most (caustic), the events at most (indirect),
+# physical units (optics.scatter1's scale)
+PhotonRules = namedtuple("PhotonRules", "indirect lim max_bounces max_iter physical")
+# ... what they write: splat records (REC_* columns) and (lane, specular bounces, material), the
+# hand-off's specular vertices (HIST_* columns) and their triangles, the tally (PH_*)
+PhotonOut = namedtuple("PhotonOut", "rec rec_i hist h_prim tally")
+
+# The gather's receivers (gather.gather_lanes): x0, its normals, the direction back to the eye, the
+# eye path's throughput (N,3); its material, the camera's events before it (N,3)
+GatherReceivers = namedtuple("GatherReceivers", "p ng ns w_eye beta mat prior")
+# ... its rules: the Light Paths limits, the specular vertices at most, physical units, whether x0's
+# own segments count, which records to write (segments, vertices)
+GatherRules = namedtuple("GatherRules", "lim max_specular physical count_first want_seg want_vx")
+# ... what it writes: segment records (SEG_* columns) and their lanes, vertex records (VX_*) and theirs
+GatherOut = namedtuple("GatherOut", "seg seg_i vx vx_i")
+
+# The hand-off's receivers (handoff.handoff_lanes): x0, its normals (ns: bumped; sn: its smooth
+# normal), the direction back to the eye, the throughput, the albedo (N,3); the material (N,)
+HandoffReceivers = namedtuple("HandoffReceivers", "p ng ns sn w_eye beta albedo mat")
+# ... the triangles its first bounce aims at (indirect.bent_gather; empty: a cosine bounce), their
+# cumulative areas and the cdf's guide table (handoff.guide_table)
+BentTargets = namedtuple("BentTargets", "cand cdf guide")
+# ... what it writes: per lane its segments (K, SEG_BETA + 3: SEG_O, SEG_D, SEG_T, SEG_BETA), their
+# number, its specular vertices (HIST_* columns) and their triangles
+HandoffOut = namedtuple("HandoffOut", "seg seg_n hist h_prim")
+
+# The eye pass's paths (eye.eye_lanes): the specular bounces at most, the specular vertices a
+# receiver needs before it, physical units (optics.scatter1's scale_eta). The defaults: eye.eye_receivers'
+EyePaths = namedtuple("EyePaths", "max_bounces min_specular scale_eta", defaults=(32, 0, False))
+# ... what it writes: receiver records (REC_* columns), (lane, specular vertices, material), the
+# camera's diffuse, glossy and transmission bounces before each
+EyeOut = namedtuple("EyeOut", "rec rec_i prior")
+# A bumped receiver's normals as the camera sees them (trace.eye.view_tables): flags per material,
+# view_normals, view_points, the raster-to-view map t (4,)
+ViewTables = namedtuple("ViewTables", "flags normals points t")
+# What the shadow rays towards the camera pass (eye.camera_splats): the triangles' geometric
+# normals, their objects, the kinds of ray each object does not meet (Scene.hidden_kinds)
+CameraHiding = namedtuple("CameraHiding", "tng tri_object hid")
+# The camera splats' outputs: raster positions, values (N,3), the albedo (N,3; empty: none)
+Splats = namedtuple("Splats", "rx ry val alb")
+
+
+# a specular vertex the photons and the hand-off record (hist): point, barycentrics (b1, b2), 1 for a
+# reflection, 1 on a planned caster, 1 where Cycles' Bump Map Correction bent the normal (the
+# hand-off's alone: HIST_F columns; the photons' HIST_BENT)
+HIST_P, HIST_B, HIST_REFL, HIST_CASTER, HIST_BENT = 0, 3, 5, 6, 7
+HIST_F = 8

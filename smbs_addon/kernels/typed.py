@@ -13,18 +13,21 @@ _TYPE_FLAGS = 0x1 | 0x2 | 0x100 | 0x400
 
 def _arg_key(v):
     """What of v decides its numba type, cheaply: dtype, ndim and layout flags of arrays,
-    recursively in tuples, the Python type of anything else (bool, int, float)."""
+    recursively in tuples and named tuples (records.py's records: their class and their fields'
+    keys), the Python type of anything else (bool, int, float)."""
     t = type(v)
     if t is np.ndarray:
         return (v.dtype.char, v.ndim, v.flags.num & _TYPE_FLAGS)
     if t is tuple:
         return tuple(map(_arg_key, v))
+    if issubclass(t, tuple):  # a named tuple: numba types it by its class and its fields
+        return (t, tuple(map(_arg_key, v)))
     return t
 
 
 class TypedOnce:
-    """A kernel called with tuples (the walk's settings, lane and state, passed as one argument
-    each) without numba typing those tuples on every call. numba's dispatcher types a tuple of
+    """A kernel called with tuples and records (the walk's settings, lane and state, passed as one
+    argument each) without numba typing them on every call. numba's dispatcher types a tuple of
     more than 4 items in Python on each call (its C fingerprint cache gives up on them): 0.1-0.5
     ms per call, under the GIL, 1.0 s of a 4.9 s bake (glass sphere 256^2, SMS) before this.
     Here the compiled code for an argument key (_arg_key) is looked up once through the

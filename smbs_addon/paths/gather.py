@@ -28,6 +28,7 @@ Bounces are counted as Cycles counts them, within the scene's Light Paths limits
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from ..kernels.gather import gather_lanes
 from ..kernels import handoff, records
 from ..shading import coat as layer, optics
 from ..scene import arrays as S
-from ..scene.light_paths import Limits, ONE_DIFFUSE, specular_kind
+from ..scene.light_paths import GLOSSY_EVENTS, Limits, ONE_DIFFUSE, specular_kind
 from ..trace.eye import Receivers, direct_albedo, eye_receivers, surface_at
 from ..scene.geometry import triangle_areas
 from ..shading.lights import area_light_shape, light_radiance, shadow_tmax
@@ -45,6 +46,9 @@ from .handoff import chain_letters, handoff_select, other_paths, walked_casters
 from .photons import MAX_SPECULAR_BOUNCES, run_photons, scatter_specular, splat_records
 from ..shading.microfacet import walk_casters
 from ..core.vec import cross, dot, normalize
+from ..kernels.records import (
+    BentTargets, EyePaths, GatherOut, GatherReceivers, GatherRules, HIST_B, HIST_BENT, HIST_CASTER, HIST_F, HIST_P,
+    HIST_REFL, HandoffOut, HandoffReceivers, SEG_BETA, SEG_D, SEG_O, SEG_T)
 
 MAX_SPECULAR = 32
 HANDOFF_SAMPLES = 64  # cosine directions per receiver in handoff_gather
@@ -117,7 +121,7 @@ def direct_light(scene, tracer, li, p, ng, ns, w_eye, rng, stats, obj=None):
         dist = np.sqrt(dot(to, to))
         dirs = to / np.maximum(dist, 1e-300)[:, None]
         if typ == S.AREA:
-            nrm = area_light_shape(scene, li)[3]
+            nrm = area_light_shape(scene, li).nrm
             cos_y = np.maximum(0.0, -dot(dirs, nrm))
         elif typ == S.MESH:  # both sides shine
             cos_y = np.abs(dot(dirs, cross(light.ys, light.yt)))
@@ -170,8 +174,20 @@ def seen_light(scene, tracer, li, o, d, refl, surf_t, obj):
     return seen, L, tl
 
 
-def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, physical=False, connect=None,
-           lights_hit=(), count_first=False, compiled=True, others=None):
+@dataclass(frozen=True)
+class GatherLights:
+    """What gather counts along its paths: direct (lights_direct), hit, count_first, connect and
+    others as gather's docstring says."""
+
+    direct: tuple = ()
+    hit: tuple = ()
+    count_first: bool = False
+    connect: object = None
+    others: dict | None = None
+
+
+def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights: GatherLights, physical=False,
+           compiled=True):
     """Path tracing from receivers x0 (seen through mirrors or glass) for the layer's paths
     with more diffuse vertices; splats the radiance found at the eye samples' film positions.
 
@@ -196,12 +212,12 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights_direct, 
     n = len(rc.p)
     if n == 0:
         return
-    if connect is None and compiled:
-        radiance = _traced_gather(scene, tracer, plan, rc, rng, stats, lights_direct, physical, lights_hit,
-                                  count_first)
+    if lights.connect is None and compiled:
+        radiance = _traced_gather(scene, tracer, plan, rc, rng, stats, lights.direct, physical, lights.hit,
+                                  lights.count_first)
         return _splat_gathered(scene, film, rc, radiance, stats)
-    _GatherInNumpy(scene, tracer, plan, rc, rng, stats, physical, others if connect else None).run(
-        film, lights_direct, connect, lights_hit, count_first)
+    _GatherInNumpy(scene, tracer, plan, rc, rng, stats, physical, lights.others if lights.connect else None).run(
+        film, lights.direct, lights.connect, lights.hit, lights.count_first)
 
 
 class _GatherInNumpy:
@@ -338,7 +354,7 @@ class _GatherInNumpy:
         last_caster = self.plan.casters[last_obj]
         kinds = specular_kind(d_in[keep], dd, h.ng[sk])
         new = dict(lane=path["lane"][sk], beta=bb, has_s=path["has_s"][sk] | last_caster, depth=path["depth"][sk],
-                   d=dd, last_obj=last_obj, last_caster=last_caster, last_refl=kinds == 1)
+                   d=dd, last_obj=last_obj, last_caster=last_caster, last_refl=kinds == GLOSSY_EVENTS)
         if self.others:
             new["code"] = path["code"][sk] * 2 + new["last_refl"]
             new["on"] = path["on"][sk] & self.walked[scene.tri_object[prim[sk]]]
@@ -395,10 +411,11 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
     lim = Limits.of(scene)
     hit_lights = [li for li in lights_hit if light_can_be_hit(scene, li)]
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
-    args = (f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye), f64(rc.beta), np.ascontiguousarray(rc.mat, np.int64),
-            np.ascontiguousarray(rc.prior, np.int64), tracer.kernel_geometry(plan.casters), optics.materials(scene),
-            lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), bool(hit_lights), bool(lights_direct),
-            tracer.eps)
+    args = (GatherReceivers(f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye), f64(rc.beta),
+                            np.ascontiguousarray(rc.mat, np.int64), np.ascontiguousarray(rc.prior, np.int64)),
+            tracer.kernel_geometry(plan.casters), optics.materials(scene),
+            GatherRules(lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), bool(hit_lights),
+                        bool(lights_direct)), tracer.eps)
     key = int(rng.integers(2**63))
     # a lane records at most MAX_SPECULAR segments and one vertex per diffuse vertex: every call moves on
     cap = max(n, (int(lim.diffuse) + 2) * (MAX_SPECULAR + 2))
@@ -408,7 +425,7 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
         seg, seg_i = np.empty((n_seg, records.SEG_F)), np.empty(n_seg, np.int64)
         vx, vx_i = np.empty((n_vx, records.VX_F)), np.empty(n_vx, np.int64)
         rt = tracer.rays()
-        lane, ms, mv, counts = gather_lanes(rt, key, lane, *args, seg, seg_i, vx, vx_i)
+        lane, ms, mv, counts = gather_lanes(rt, key, lane, *args, GatherOut(seg, seg_i, vx, vx_i))
         tracer.cast_by_kernel(rt, counts)
         stats["rays_gather"] = stats.get("rays_gather", 0) + int(counts[embree.KINDS:].sum())
         parts.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
@@ -433,8 +450,19 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
     return radiance
 
 
+@dataclass(frozen=True)
+class HandoffRays:
+    """How handoff_gather traces: samples cosine directions per receiver (or aimed: bent); bent: only
+    the paths through a normal Cycles' Bump Map Correction bends (bent_gather), their first bounce
+    aimed at the triangles that bend (aim) or cosine-sampled."""
+
+    samples: int = HANDOFF_SAMPLES
+    bent: bool = False
+    aim: bool = True
+
+
 def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoffs: dict, physical=False,
-                   samples=HANDOFF_SAMPLES, found: dict | None = None, bent=False, aim=True):
+                   rays: HandoffRays = HandoffRays(), found: dict | None = None):
     """The hand-off for receivers seen through mirrors or glass (rc), where no photon can
     reach the camera: one cosine bounce from x0 through up to K specular vertices, counting
     a light hit only when reference.handoff_select gives that path to the photons (its
@@ -447,11 +475,11 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
     the longest walked, or through a specular vertex that is no planned caster; up to
     OTHERS_DEPTH vertices) count too, as the photons take them at receivers seen directly.
 
-    handoffs: light index -> reference.Handoff; samples:
+    handoffs: light index -> reference.Handoff; rays.samples:
     cosine directions per receiver (rays are cheap next to the walks they replace, and a
     focus's light is a small target); found: light index -> paths taken, added to.
 
-    bent (bent_gather): instead, every path through a specular vertex whose normal Cycles' Bump
+    rays.bent (bent_gather): instead, every path through a specular vertex whose normal Cycles' Bump
     Map Correction bent (optics.valid_reflection1) counts, and nothing else (handoffs: light index
     -> None; aim: its first bounce towards the triangles that bend, False: cosine, every bent path).
     Without bent such paths never count here: neither photons nor walks make them, so they are
@@ -467,13 +495,13 @@ def handoff_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, handoff
 
     def block(a, b):
         st, per_light = {}, {}
-        rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), key, a, st, handoffs, physical, samples,
-                             per_light, bent, aim)
+        rad = _handoff_block(scene, tracer, plan, rc.take(slice(a, b)), key, a, st, handoffs, physical, rays,
+                             per_light)
         return rad, st, per_light
 
     # receivers per block: HANDOFF_LANES rays in flight at up to 4 specular vertices (each lane
     # keeps a record per vertex), fewer when the paths no walk takes are followed further
-    per_block = max(1, HANDOFF_LANES // samples * 4 // max(4, _handoff_depth(handoffs)))
+    per_block = max(1, HANDOFF_LANES // rays.samples * 4 // max(4, _handoff_depth(handoffs)))
     parts = lanes.blocks(block, n, per_block, tracer.threads)
     radiance = np.concatenate([p[0] for p in parts])
     for _, st, per_light in parts:
@@ -573,11 +601,11 @@ def bent_gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights, ph
     aim False: cosine sampling instead, every bent path (the tests' independent estimator)."""
     if len(lights):  # bending_lights: only where some triangle can bend
         handoff_gather(scene, tracer, film, plan, rc, rng, stats, dict.fromkeys(lights), physical=physical,
-                       samples=samples, bent=True, aim=aim)
+                       rays=HandoffRays(samples, bent=True, aim=aim))
 
 
-def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs: dict, physical, samples, found, bent,
-                   aim=True):
+def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs: dict, physical, rays: HandoffRays,
+                   found):
     """handoff_gather's radiance (n,3) at a block of receivers, a0 the first's index (key, a0:
     handoff.handoff_lanes' random numbers); found: light index -> paths taken.
     The paths are traced in one kernel call (handoff.handoff_lanes); the lights seen on their
@@ -585,20 +613,21 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
 
     n = len(rc.p)
     K = _handoff_depth(handoffs)
+    samples, bent, aim = rays.samples, rays.bent, rays.aim
     m = n * samples
     # the kernel writes every entry read below (a lane's first seg_n segments, and the specular
     # vertices before each of them)
-    seg, seg_n = lanes.scratch("handoff_seg", (m, K, 10)), np.zeros(m, np.int64)
-    hist, h_prim = lanes.scratch("handoff_hist", (m, K, 8)), lanes.scratch("handoff_prim", (m, K), np.int64)
+    seg, seg_n = lanes.scratch("handoff_seg", (m, K, SEG_BETA + 3)), np.zeros(m, np.int64)
+    hist, h_prim = lanes.scratch("handoff_hist", (m, K, HIST_F)), lanes.scratch("handoff_prim", (m, K), np.int64)
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     rt = tracer.rays()
     none = (np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
-    cand, cdf, guide = bent_candidates(scene, tracer, plan) if bent and aim else none
-    counts = handoff.handoff_lanes(rt, key, a0, samples, K, f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye),
-                                   f64(rc.beta / samples), f64(_albedo(scene, rc.mat)),
-                                   np.ascontiguousarray(rc.mat, np.int64), tracer.kernel_geometry(plan.casters),
-                                   optics.materials(scene), bool(physical),
-                                   tracer.eps, seg, seg_n, hist, h_prim, cand, cdf, guide)
+    targets = BentTargets(*(bent_candidates(scene, tracer, plan) if bent and aim else none))
+    receivers = HandoffReceivers(f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.sn), f64(rc.w_eye), f64(rc.beta / samples),
+                                 f64(_albedo(scene, rc.mat)), np.ascontiguousarray(rc.mat, np.int64))
+    counts = handoff.handoff_lanes(rt, key, a0, samples, K, receivers, tracer.kernel_geometry(plan.casters),
+                                   optics.materials(scene), bool(physical), tracer.eps,
+                                   HandoffOut(seg, seg_n, hist, h_prim), targets)
     tracer.cast_by_kernel(rt, counts)
     name = "bent" if bent else "handoff"
     stats["rays_" + name] = stats.get("rays_" + name, 0) + int(counts[embree.KINDS:].sum())
@@ -615,15 +644,15 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
             continue
         bounce = k + 1
         sk = seg[row, k]
-        o, d, surf_t, beta = sk[:, 0:3], sk[:, 3:6], sk[:, 6], sk[:, 7:10]
+        o, d, surf_t, beta = sk[:, SEG_O:SEG_O + 3], sk[:, SEG_D:SEG_D + 3], sk[:, SEG_T], sk[:, SEG_BETA:SEG_BETA + 3]
         # Light Paths: the camera's events before x0, x0's diffuse bounce and the specular vertices
         # before the last (bounces.py)
-        refl = hist[row, :k, 5].sum(axis=1) if k else np.zeros(row.size)
+        refl = hist[row, :k, HIST_REFL].sum(axis=1) if k else np.zeros(row.size)
         fits = lim.fits(rc.prior[row // samples] + ONE_DIFFUSE + np.stack([np.zeros(row.size), refl, k - refl], axis=1))
         # bent paths are bent_gather's alone (handoff_gather's docstring)
-        fits &= (hist[row, :bounce, 7].max(axis=1) > 0) == bent
+        fits &= (hist[row, :bounce, HIST_BENT].max(axis=1) > 0) == bent
         for li, ho in handoffs.items():  # every light before the surface counts (as in gather)
-            refl = hist[row, k, 5] > 0
+            refl = hist[row, k, HIST_REFL] > 0
             # Light Linking: of the vertex the light leaves last, the segment's own
             seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, scene.tri_object[h_prim[row, k]])
             seen = np.flatnonzero(seen & fits)
@@ -638,10 +667,10 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
             # handoff_select reads the history light side first: reverse the bounces
             rev = np.arange(bounce)[::-1]
             hr = hist[r][:, rev]
-            kb, refl = np.full(seen.size, bounce), hr[:, :, 5].astype(np.int64)
-            caster = walked_casters(scene, h_prim[r][:, rev], hr[:, :, 6] > 0)
-            take = handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev], hr[:, :, 0:3],
-                                   hr[:, :, 3:5], refl, caster, y)
+            kb, refl = np.full(seen.size, bounce), hr[:, :, HIST_REFL].astype(np.int64)
+            caster = walked_casters(scene, h_prim[r][:, rev], hr[:, :, HIST_CASTER] > 0)
+            take = handoff_select(scene, tracer, ho, rc.p[r // samples], kb, h_prim[r][:, rev],
+                                   hr[:, :, HIST_P:HIST_P + 3], hr[:, :, HIST_B:HIST_B + 2], refl, caster, y)
             t = seen[take]
             np.add.at(radiance, row[t] // samples, beta[t] * L[t])
             # the focusing paths of walked types (what tells later chunks to hand off) apart from
@@ -653,8 +682,8 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
     return radiance
 
 
-def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, rng, stats,
-              max_bounces=MAX_SPECULAR_BOUNCES, physical=False, lights_direct=(), cells=None):
+def trace_eye(scene, tracer, cam, film, plan, light_indices, samples, rng, stats, physical=False, lights_direct=(),
+              cells=None):
     """Caustics seen through mirrors or glass: camera -> (specular)+ -> diffuse receiver
     x0 -> ... -> light, by path tracing from the eye.
 
@@ -665,13 +694,14 @@ def trace_eye(scene, tracer, cam, film, plan, light_indices, start, n, n_batch, 
     caster (x0's own caustic, or that of a later diffuse vertex), or light a later
     diffuse vertex directly once a specular vertex lies behind (indirect.gather):
     unbiased, noisy for small lights, blind to point lights of radius 0 and suns of
-    angle 0. cells: a mask over the film cells whose samples are traced (eye.specular_cells:
-    those that can see a mirror or glass first; None: all)."""
-
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=1,
-                       max_bounces=max_bounces, scale_eta=physical, cells=cells)
-    gather(scene, tracer, film, plan, rc, rng, stats, lights_direct, physical=physical,
-           lights_hit=light_indices, count_first=True)
+    angle 0. samples: (start, n, n_batch), eye samples start..start+n of a batch of n_batch. cells:
+    a mask over the film cells whose samples are traced (eye.specular_cells: those that can see a
+    mirror or glass first; None: all)."""
+    start, n, n_batch = samples
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
+                       EyePaths(max_bounces=MAX_SPECULAR_BOUNCES, min_specular=1, scale_eta=physical), cells=cells)
+    gather(scene, tracer, film, plan, rc, rng, stats, GatherLights(direct=lights_direct, hit=light_indices,
+                                                                   count_first=True), physical=physical)
 
 
 def trace_bent(scene, tracer, cam, film, plan, lights, start, n, n_batch, rng, stats, physical=False):
@@ -681,7 +711,7 @@ def trace_bent(scene, tracer, cam, film, plan, lights, start, n, n_batch, rng, s
     them): eye samples start..start+n of the batch to their first surface, kept where it is a
     diffuse receiver seen directly."""
 
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
-                       scale_eta=physical)
+    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
+                       EyePaths(min_specular=0, scale_eta=physical))
     bent_gather(scene, tracer, film, plan, rc.take(np.flatnonzero(rc.eye_specular == 0)), rng, stats, lights,
                 physical=physical)

@@ -18,6 +18,8 @@ import numpy as np
 from ..core import embree, lanes
 from ..kernels import eye, records
 from ..kernels.photons import photon_lanes
+from ..kernels.records import (HIST_B, HIST_BENT, HIST_CASTER, HIST_P, HIST_REFL, REC_P, CameraHiding, PhotonBatch,
+                               PhotonOut, PhotonRules, Splats)
 from ..shading.optics import materials, scatter_rows
 from ..shading.microfacet import rough_materials
 from .handoff import Handoff, handoff_select, walked_casters
@@ -72,18 +74,19 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
     max_iter = max_bounces + 1 if max_iter is None else max_iter
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
     o0, d0, w0 = f64(photons.o), f64(photons.d), f64(photons.w)
-    soft = np.zeros(4) if photons.soft_center is None else np.append(photons.soft_center, photons.soft_radius)
+    soft = (np.zeros(3), 0.0) if photons.soft_center is None else (f64(photons.soft_center), float(photons.soft_radius))
     lvis = int(photons.visibility)
     lit = np.zeros(0, bool) if photons.lit is None else np.ascontiguousarray(photons.lit, bool)
     unshadowing = np.zeros(0, bool) if photons.unshadowing is None else np.ascontiguousarray(photons.unshadowing,
                                                                                              bool)
-    hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
+    hist, h_prim = np.zeros((n, K, HIST_BENT)), np.zeros((n, K), np.int64)
     tally = np.zeros(records.PH_TALLY, np.int64)
     # a record is a photon's diffuse vertex the camera may see directly (splat_records): none on an object
     # camera rays do not meet (its light seen in a mirror is the eye pass's)
     receivers = plan.receivers if not tracer.hidden.size else plan.receivers & ~tracer.hidden
     args = (tracer.kernel_geometry(plan.casters), np.ascontiguousarray(receivers, bool), materials(scene),
-            Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical), tracer.eps)
+            PhotonRules(bool(indirect), Limits.of(scene).array(), int(max_bounces), int(max_iter), bool(physical)),
+            tracer.eps)
     key = int(rng.integers(2**63))
 
     def part(a, b):
@@ -93,9 +96,9 @@ def run_photons(scene, tracer, plan, photons, rng, stats, indirect=False, max_bo
         while lane < b:
             rec, rec_i = np.empty((cap, records.REC_F)), np.empty((cap, 3), np.int64)
             rt = tracer.rays()
-            lane, m, counts = photon_lanes(rt, bool(indirect), o0[:b], d0[:b], w0[:b], soft, lvis, lit,
-                                                   unshadowing, key, lane,
-                                                   *args, rec, rec_i, hist[:b], h_prim[:b], tally_p)
+            batch = PhotonBatch(o0[:b], d0[:b], w0[:b], *soft, lvis, lit, unshadowing)
+            lane, m, counts = photon_lanes(rt, batch, key, lane, *args,
+                                           PhotonOut(rec, rec_i, hist[:b], h_prim[:b], tally_p))
             tracer.cast_by_kernel(rt, counts)
             rays += int(counts[embree.KINDS:].sum())
             recs.append(rec[:m])
@@ -135,9 +138,9 @@ def splat_records(scene, tracer, cam, film, rec, ids, stats, first_order=True):
     def part(a, b):  # records a..b-1, their splats packed from a on
         rt = tracer.rays()
         rays, m, counts = eye.camera_splats(rt, cam_p, float(film.filter_width), rec[a:b], mat[a:b], mats,
-                                                bool(first_order), tracer.eps, textured, view,
-                                                (tracer.ng, scene.tri_object, tracer.hid), rx[a:b], ry[a:b],
-                                                val[a:b], alb[a:b] if textured.size else alb)
+                                            bool(first_order), tracer.eps, textured, view,
+                                            CameraHiding(tracer.ng, scene.tri_object, tracer.hid),
+                                            Splats(rx[a:b], ry[a:b], val[a:b], alb[a:b] if textured.size else alb))
         tracer.cast_by_kernel(rt, counts)
         return a, m, rays
 
@@ -169,9 +172,9 @@ def trace_photons(scene, tracer, cam, film, plan, photons, rng, stats, max_bounc
         ln = ids[:, 0]
         y_end = -photons.d[ln] if handoff.directional else photons.o[ln]
         h = hist[ln]
-        take = handoff_select(scene, tracer, handoff, rec[:, 0:3], ids[:, 1], h_prim[ln], h[:, :, 0:3],
-                               h[:, :, 3:5], h[:, :, 5].astype(np.int64),
-                               walked_casters(scene, h_prim[ln], h[:, :, 6] > 0), y_end)
+        take = handoff_select(scene, tracer, handoff, rec[:, REC_P:REC_P + 3], ids[:, 1], h_prim[ln],
+                               h[:, :, HIST_P:HIST_P + 3], h[:, :, HIST_B:HIST_B + 2], h[:, :, HIST_REFL].astype(np.int64),
+                               walked_casters(scene, h_prim[ln], h[:, :, HIST_CASTER] > 0), y_end)
         rec, ids = rec[take], ids[take]
         stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(take.sum())
     splat_records(scene, tracer, cam, film, rec, ids, stats)

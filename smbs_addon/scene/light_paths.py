@@ -31,6 +31,9 @@ import numpy as np
 
 UNLIMITED = 1 << 30
 DEFAULT_DIFFUSE = 4  # Cycles' default Light Paths > Diffuse, for scenes that carry no limits
+# the columns of event counts (M,3) (Receivers.prior, Limits.fits) and of Limits.array(), which adds the total;
+# specular_kind's codes
+DIFFUSE_EVENTS, GLOSSY_EVENTS, TRANSMISSION_EVENTS, ALL_EVENTS = 0, 1, 2, 3
 ONE_DIFFUSE = np.array([1, 0, 0])  # one diffuse bounce (x0's own, or a later vertex's) as event counts
 
 
@@ -60,11 +63,15 @@ class Limits:
 
     def fits(self, cnt):
         """allowed of event counts (M,3): diffuse, glossy, transmission per row."""
-        return self.allowed(cnt[:, 0], cnt[:, 1], cnt[:, 2])
+        return self.allowed(cnt[:, DIFFUSE_EVENTS], cnt[:, GLOSSY_EVENTS], cnt[:, TRANSMISSION_EVENTS])
 
     def array(self) -> np.ndarray:
-        """(diffuse, glossy, transmission, total), as the kernels take them (kernels.fits_limits)."""
-        return np.array([self.diffuse, self.glossy, self.transmission, self.total], np.int64)
+        """(diffuse, glossy, transmission, total), as the kernels take them (kernels.fits_limits; the
+        *_EVENTS columns)."""
+        out = np.zeros(4, np.int64)
+        out[DIFFUSE_EVENTS], out[GLOSSY_EVENTS], out[TRANSMISSION_EVENTS] = self.diffuse, self.glossy, self.transmission
+        out[ALL_EVENTS] = self.total
+        return out
 
     def chain_fits(self, types: str, d=1, g=0, t=0):
         """Whether a chain of type ``types`` (letters from the receiver's side) ending at the
@@ -81,7 +88,8 @@ class Limits:
 
 
 def specular_kind(d_in, d_out, ng):
-    """The bounce kind (the order of the counts: 1 glossy, 2 transmission) of specular events
-    that turned rays travelling along d_in into d_out at surfaces of geometric normal ng:
+    """The bounce kind (the column of the counts: GLOSSY_EVENTS, TRANSMISSION_EVENTS) of specular
+    events that turned rays travelling along d_in into d_out at surfaces of geometric normal ng:
     a reflection leaves on the side it came from."""
-    return np.where(np.einsum("ij,ij->i", d_in, ng) * np.einsum("ij,ij->i", d_out, ng) < 0, 1, 2)
+    return np.where(np.einsum("ij,ij->i", d_in, ng) * np.einsum("ij,ij->i", d_out, ng) < 0, GLOSSY_EVENTS,
+                    TRANSMISSION_EVENTS)

@@ -17,7 +17,7 @@ def absorbed1(kinds, a, medium, m_hit, d, g_hit, t, b):
     """b after a segment of length t along d inside a glass: medium (the glass it left into, -1:
     none), else the glass of material m_hit if d arrives at its back (the segment began inside it:
     a path from a receiver under water); times exp(-absorption t) (optics.transmittance; kinds,
-    a: optics.materials' mats[0] and mats[10], Scene.mat_absorb; the two arrays, not the whole
+    a: optics.MaterialTables' kind and absorb, Scene.mat_absorb; the two arrays, not the whole
     tuple, which numba would copy into every call)."""
     if medium < 0 and kinds[m_hit] == DIELECTRIC and dot1(d, g_hit) > 0:
         medium = m_hit

@@ -294,7 +294,7 @@ def coat_factor1(mats, m, n, w_view, w_light, share):
     """layer.coat_factor for one path (mats: optics.materials): what Cycles' caustics on-minus-off
     keeps of a path leaving material m's diffuse towards w_light, relative to a Lambert diffuse;
     (1, 1, 1) exactly for a Lambert diffuse without a coat. The same sums as layer.coat_factor."""
-    lay = mats[8]
+    lay = mats.layer
     eta, rough, tint, wgt, sigma = lay[m, 0], lay[m, 1], lay[m, 2], lay[m, 3], lay[m, 4]
     a2 = rough ** 4
     coated = eta > 1.0 and a2 > SINGULAR_ALPHA2 and wgt > 0.0
@@ -308,9 +308,9 @@ def coat_factor1(mats, m, n, w_view, w_light, share):
         return 1.0, 1.0, 1.0
     if not wgt > 0.0:
         wgt = 1.0
-    col = mats[2]
+    col = mats.color
     b0, b1, b2 = col[m, 0] / wgt, col[m, 1] / wgt, col[m, 2] / wgt
-    one_minus_a = table_weight1(mats[9], m, mu_o)  # the glossy coat's alone: a clear coat scales all alike
+    one_minus_a = table_weight1(mats.glossy_weight, m, mu_o)  # the glossy coat's alone: a clear coat scales all alike
     sw_d = (b0 + b1 + b2) / 3.0 * one_minus_a
     if not sw_d > 0:
         return 1.0, 1.0, 1.0
@@ -327,7 +327,7 @@ def coat_factor1(mats, m, n, w_view, w_light, share):
         d = a2 / (math.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
         lam_o = lambda_clamped1(mu_o, a2)
         g2 = 1.0 / (1.0 + lam_o + lambda_clamped1(mu_i, a2))
-        eval_g = table_weight1(mats[7], m, mu_o) * fresnel_dielectric1(dot1(h, w_view), eta) * tint * d * g2 / (4.0 * mu_o)
+        eval_g = table_weight1(mats.gain, m, mu_o) * fresnel_dielectric1(dot1(h, w_view), eta) * tint * d * g2 / (4.0 * mu_o)
         if share:
             pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
             pdf_d = mu_i / math.pi
@@ -345,7 +345,7 @@ def coat_factor1(mats, m, n, w_view, w_light, share):
 @njit(**JIT)
 def table_weight1(tab, m, mu):
     """layer.weight for one vertex: material m's entry of tab (one of layer.py's tables,
-    optics.materials' mats[6], [7] or [9]) at the eye's cosine mu; exactly 1 in a row of ones."""
+    optics.MaterialTables' weight, gain or glossy_weight) at the eye's cosine mu; exactly 1 in a row of ones."""
     x = min(abs(mu), 1.0) * MU_STEPS
     i = min(int(x), MU_STEPS - 1)
     f = x - i

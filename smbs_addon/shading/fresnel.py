@@ -7,6 +7,7 @@ compiled once (jit.py); the array forms below call the compiled ones.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -16,12 +17,12 @@ from ..core.vec3 import row3 as _row3
 from ..scene import arrays as S
 from .thinfilm import (
     CUTOFF as _FILM_CUTOFF, clip01 as _clip01, conductor_film1, dielectric_film1, f82 as _f82, f82_film1)
+from ..scene.arrays import CONDUCTOR, DIELECTRIC, FRESNEL_CONDUCTOR, FRESNEL_SCHLICK, REFRACTION_ONLY
 
-
-_CONDUCTOR, _DIELECTRIC = S.CONDUCTOR, S.DIELECTRIC
-
-
-_SCHLICK, _REFRACTION_ONLY, _PHYSICAL = S.FRESNEL_SCHLICK, S.REFRACTION_ONLY, S.FRESNEL_CONDUCTOR
+# The tables specular_weights1 reads (surface_tables; the first five of optics.MaterialTables, by the
+# same names): per material its kind (scene.DIFFUSE...), Fresnel model (scene.FRESNEL_*), colour and
+# reflection tint (M,3), IOR
+SurfaceTables = namedtuple("SurfaceTables", "kind fresnel color reflect_color ior")
 
 
 _NO_METAL = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0)
@@ -95,13 +96,13 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
     physical convention scale refractions themselves."""
     zero = (0.0, 0.0, 0.0)
     filmed = film[0] > _FILM_CUTOFF
-    if kind == _CONDUCTOR:
-        if fres == _SCHLICK or fres == _PHYSICAL:
+    if kind == CONDUCTOR:
+        if fres == FRESNEL_SCHLICK or fres == FRESNEL_CONDUCTOR:
             mu = min(abs(cos_i), 1.0)
             if filmed:
-                f = f82_film1(film[0], film[1], mu, color, metal) if fres == _SCHLICK else \
+                f = f82_film1(film[0], film[1], mu, color, metal) if fres == FRESNEL_SCHLICK else \
                     conductor_film1(film[0], film[1], mu, metal)
-            elif fres == _SCHLICK:
+            elif fres == FRESNEL_SCHLICK:
                 s = _clip01(1.0 - abs(cos_i))
                 m5 = math.pow(s, 5.0)
                 f = (_f82(m5, s, mu, color[0], metal[0]), _f82(m5, s, mu, color[1], metal[1]),
@@ -118,14 +119,14 @@ def specular_weights1(kind, fres, color, rcolor, eta, metal, film, cos_i):
                 else:
                     fc = fresnel_dielectric1(abs(cos_i), eta)
                     fcs = (fc, fc, fc)
-                lost = (metal[3], metal[4], metal[5]) if fres == _SCHLICK else zero  # a mix's other parts' weight
+                lost = (metal[3], metal[4], metal[5]) if fres == FRESNEL_SCHLICK else zero  # a mix's other parts' weight
                 r = (r[0] + (1.0 - rcolor[0] - lost[0]) * fcs[0], r[1] + (1.0 - rcolor[1] - lost[1]) * fcs[1],
                      r[2] + (1.0 - rcolor[2] - lost[2]) * fcs[2])
             return r, zero
         return color, zero
-    if kind == _DIELECTRIC:
+    if kind == DIELECTRIC:
         F = fresnel_dielectric1(cos_i, eta)
-        if fres == _REFRACTION_ONLY:
+        if fres == REFRACTION_ONLY:
             t = 1.0 if F < 1.0 else 0.0
             return (0.0 * rcolor[0], 0.0 * rcolor[1], 0.0 * rcolor[2]), (t * color[0], t * color[1], t * color[2])
         tinted = metal[0] != 0.0 or metal[1] != 0.0 or metal[2] != 0.0
@@ -194,10 +195,8 @@ def film1(films, m):
 @njit(**JIT)
 def material1(mats, m):
     """Material m's (kind, Fresnel model, colour, reflection tint, IOR) from the scene's tables
-    mats = (mat_kind, mat_fresnel, mat_color, mat_reflect_color, mat_ior, bump correction, then
-    layer.py's tables): materials()."""
-    kind, fres, color, rcolor, ior = mats[0], mats[1], mats[2], mats[3], mats[4]
-    return kind[m], fres[m], _row3(color, m), _row3(rcolor, m), ior[m]
+    mats (SurfaceTables, or optics.MaterialTables: their fields of those names)."""
+    return mats.kind[m], mats.fresnel[m], _row3(mats.color, m), _row3(mats.reflect_color, m), mats.ior[m]
 
 
 @njit(**JIT)
@@ -222,10 +221,10 @@ def _fresnel_rows(cos_i, eta):
     return out
 
 
-def surface_tables(scene) -> tuple:
-    """materials()' first five tables, what specular_weights1 reads: kind, Fresnel model, colour,
-    reflection tint, IOR (alone for specular_weights, which rough.energy_tables calls)."""
-    return (np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
+def surface_tables(scene) -> SurfaceTables:
+    """What specular_weights1 reads (SurfaceTables; optics.materials' first five, alone for
+    specular_weights, which rough.energy_tables calls)."""
+    return SurfaceTables(np.ascontiguousarray(scene.mat_kind, np.int64), np.ascontiguousarray(scene.mat_fresnel, np.int64),
             np.ascontiguousarray(scene.mat_color, np.float64), np.ascontiguousarray(scene.mat_reflect_color, np.float64),
             np.ascontiguousarray(scene.mat_ior, np.float64))
 
@@ -256,7 +255,8 @@ def fresnel_schlick(cos_i: np.ndarray, f0: np.ndarray) -> np.ndarray:
     cos_i = np.ascontiguousarray(cos_i, np.float64).reshape(-1)
     f0 = np.ascontiguousarray(np.broadcast_to(np.asarray(f0, np.float64), (len(cos_i), 3)))
     n = len(cos_i)
-    mats = (np.full(n, _CONDUCTOR, np.int64), np.full(n, _SCHLICK, np.int64), f0, np.ones((n, 3)), np.ones(n))
+    mats = SurfaceTables(np.full(n, CONDUCTOR, np.int64), np.full(n, FRESNEL_SCHLICK, np.int64), f0, np.ones((n, 3)),
+                         np.ones(n))
     return _weights_rows(np.arange(n), mats, np.zeros((0, 6)), np.zeros((0, 2)), cos_i)[0]
 
 

@@ -19,6 +19,7 @@ which counts overlapping cones, so the estimate stays unbiased.
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 from dataclasses import dataclass
 
 import numpy as np
@@ -165,8 +166,20 @@ def spot_mask(scene, li: int, d: np.ndarray) -> np.ndarray:
 SPREAD_EPS = 1e-6  # radians: a spread this close to 180 degrees is 180 degrees (Blender's default)
 
 
-def area_light_shape(scene, li: int):
-    """(center, x axis, y axis, normal = emission direction, half sizes, area)."""
+# An area light's shape (area_light_shape): its centre, x and y axes, normal (the emission direction),
+# half sizes along x and y, area
+AreaShape = namedtuple("AreaShape", "cen ex ey nrm hx hy area")
+
+# What photons are emitted towards (the emitters' aim): target spheres (K,4) (centre, radius), the
+# cumulative probabilities of picking each, and those probabilities
+Targets = namedtuple("Targets", "spheres cdf probs")
+
+# Where the emitters write their photons: origins, unit directions, weights (N,3) each
+Emitted = namedtuple("Emitted", "o d w")
+
+
+def area_light_shape(scene, li: int) -> AreaShape:
+    """Area light li's shape (AreaShape)."""
     m = scene.light_matrix[li]
     ax = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
     sx, sy = scene.light_size[li]
@@ -174,7 +187,7 @@ def area_light_shape(scene, li: int):
     if shape in (S.SQUARE, S.DISK):
         sy = sx
     area = sx * sy if shape in (S.SQUARE, S.RECTANGLE) else math.pi * sx * sy / 4.0
-    return m[:3, 3].copy(), ax[:, 0], ax[:, 1], -ax[:, 2], 0.5 * sx, 0.5 * sy, area
+    return AreaShape(m[:3, 3].copy(), ax[:, 0], ax[:, 1], -ax[:, 2], 0.5 * sx, 0.5 * sy, area)
 
 
 def has_spread(scene, li: int) -> bool:
@@ -296,9 +309,12 @@ def _cone_mixture1(u0, u1, u2, o, targets, cdf, probs, grow):
 
 
 @njit(**JIT)
-def _emit_sphere(u, c, r, intensity, targets, cdf, probs, o, d, w):
+def _emit_sphere(u, c, r, intensity, aim, out):
     """Point and spot lights (a sphere of radius r, 0: a point): directions towards the targets
-    from the centre, origins on the hemisphere facing them; w: flux / n."""
+    (aim: Targets) from the centre, origins on the hemisphere facing them; out (Emitted): w is
+    flux / n."""
+    targets, cdf, probs = aim.spheres, aim.cdf, aim.probs
+    o, d, w = out.o, out.d, out.w
     n = u.shape[0]
     for i in range(n):
         oi = (c[0], c[1], c[2])
@@ -314,9 +330,12 @@ def _emit_sphere(u, c, r, intensity, targets, cdf, probs, o, d, w):
 
 
 @njit(**JIT)
-def _emit_area(u, cen, ex, ey, nrm, hx, hy, area, disk, radiance, targets, cdf, probs, o, d, w):
-    """Area lights: origins uniform on the light, directions towards the targets, weighted by
-    the cosine at the light."""
+def _emit_area(u, shape, disk, radiance, aim, out):
+    """Area lights (shape: AreaShape; disk: round): origins uniform on the light, directions
+    towards the targets (aim: Targets), weighted by the cosine at the light, into out (Emitted)."""
+    cen, ex, ey, nrm, hx, hy, area = shape.cen, shape.ex, shape.ey, shape.nrm, shape.hx, shape.hy, shape.area
+    targets, cdf, probs = aim.spheres, aim.cdf, aim.probs
+    o, d, w = out.o, out.d, out.w
     n = u.shape[0]
     for i in range(n):
         if disk:
@@ -332,10 +351,13 @@ def _emit_area(u, cen, ex, ey, nrm, hx, hy, area, disk, radiance, targets, cdf, 
 
 
 @njit(**JIT)
-def _emit_mesh(u, tv, ng, tri_cdf, total, radiance, eps, targets, cdf, probs, o, d, w):
+def _emit_mesh(u, tv, ng, tri_cdf, total, radiance, eps, aim, out):
     """Mesh lights: origins uniform in area on the triangles (picked by u3 in proportion to their areas
     tri_cdf, u3 used again within the one picked), eps off the surface on the side the photon leaves,
-    directions towards the targets, weighted by the cosine at the light (both sides shine)."""
+    directions towards the targets (aim: Targets), weighted by the cosine at the light (both sides
+    shine), into out (Emitted)."""
+    targets, cdf, probs = aim.spheres, aim.cdf, aim.probs
+    o, d, w = out.o, out.d, out.w
     n = u.shape[0]
     for i in range(n):
         x = u[i, 3] * total
@@ -358,10 +380,12 @@ def _emit_mesh(u, tv, ng, tri_cdf, total, radiance, eps, targets, cdf, probs, o,
 
 
 @njit(**JIT)
-def _emit_sun(u, axis, half, color, targets, cdf, probs, far, o, d, w):
-    """Suns: directions in the sun's cone, then a point on a disc across one target sphere (picked
-    in proportion to its cross-section), its density counting every disc that holds it; the
-    photon starts far behind it."""
+def _emit_sun(u, axis, half, color, aim, far, out):
+    """Suns: directions in the sun's cone, then a point on a disc across one target sphere (aim:
+    Targets; picked in proportion to its cross-section), its density counting every disc that holds
+    it; the photon starts far behind it. Into out (Emitted)."""
+    targets, cdf, probs = aim.spheres, aim.cdf, aim.probs
+    o, d, w = out.o, out.d, out.w
     n = u.shape[0]
     ax = (axis[0], axis[1], axis[2])
     for i in range(n):
@@ -372,9 +396,11 @@ def _emit_sun(u, axis, half, color, targets, cdf, probs, far, o, d, w):
 
 
 @njit(**JIT)
-def _emit_along(u, dirs, value, targets, cdf, probs, far, o, d, w):
+def _emit_along(u, dirs, value, aim, far, out):
     """_emit_sun's photons along given directions dirs (N,3) (a world map's), each carrying value
     (N,3) (radiance over the direction's density)."""
+    targets, cdf, probs = aim.spheres, aim.cdf, aim.probs
+    o, d, w = out.o, out.d, out.w
     n = u.shape[0]
     for i in range(n):
         di = (dirs[i, 0], dirs[i, 1], dirs[i, 2])
@@ -433,10 +459,11 @@ def _emit(scene, li, targets, n, rng) -> Photons:
     targets = np.ascontiguousarray(targets, np.float64).reshape(-1, 4)
     u = rng.random((n, 5))
     o, d, w = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 3))
+    out = Emitted(o, d, w)
     if typ in (S.POINT, S.SPOT):
         r = float(scene.light_radius[li])
         probs = _cone_probs(c, targets, r)
-        _emit_sphere(u, c, r, color / (4.0 * math.pi), targets, np.cumsum(probs), probs, o, d, w)  # W/sr = L pi r^2
+        _emit_sphere(u, c, r, color / (4.0 * math.pi), Targets(targets, np.cumsum(probs), probs), out)  # W/sr = L pi r^2
         if typ == S.SPOT:
             w *= spot_mask(scene, li, d)[:, None]
         if scene.light_soft_falloff[li] and r > 0:
@@ -446,17 +473,17 @@ def _emit(scene, li, targets, n, rng) -> Photons:
         cen, ex, ey, nrm, hx, hy, area = area_light_shape(scene, li)
         probs = _cone_probs(cen, targets)
         f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
-        _emit_area(u, f64(cen), f64(ex), f64(ey), f64(nrm), float(hx), float(hy), float(area),
-                   bool(scene.light_shape[li] in (S.DISK, S.ELLIPSE)), color / (math.pi * area), targets,
-                   np.cumsum(probs), probs, o, d, w)
+        _emit_area(u, AreaShape(f64(cen), f64(ex), f64(ey), f64(nrm), float(hx), float(hy), float(area)),
+                   bool(scene.light_shape[li] in (S.DISK, S.ELLIPSE)), color / (math.pi * area),
+                   Targets(targets, np.cumsum(probs), probs), out)
         if has_spread(scene, li):
             w *= spread_factor(scene, li, dot(d, nrm))[:, None]
         return Photons(o, d, w)
     if typ == S.MESH:
         _, tv, ng, tri_cdf, total = scene.mesh_light(li)
         probs = _cone_probs(c, targets)
-        _emit_mesh(u, tv, ng, tri_cdf, total, color, S.offset_eps(*scene.bounds()), targets, np.cumsum(probs),
-                   probs, o, d, w)
+        _emit_mesh(u, tv, ng, tri_cdf, total, color, S.offset_eps(*scene.bounds()),
+                   Targets(targets, np.cumsum(probs), probs), out)
         return Photons(o, d, w)
     if typ in S.DISTANT:
         area_k = math.pi * targets[:, 3] ** 2
@@ -466,12 +493,12 @@ def _emit(scene, li, targets, n, rng) -> Photons:
         if env is not None:  # towards the light from the map, then along -that
             to_light = env.sample(u[:, 0], u[:, 1], rng.random(n))
             value = env.value(to_light)
-            _emit_along(u, np.ascontiguousarray(-to_light), np.ascontiguousarray(value), targets,
-                        np.cumsum(probs), probs, far, o, d, w)
+            _emit_along(u, np.ascontiguousarray(-to_light), np.ascontiguousarray(value),
+                        Targets(targets, np.cumsum(probs), probs), far, out)
             return Photons(o, d, w)
         axis, half, strength = distant_cone(scene, li)
-        _emit_sun(u, np.ascontiguousarray(axis, np.float64), half, strength, targets, np.cumsum(probs), probs,
-                  far, o, d, w)
+        _emit_sun(u, np.ascontiguousarray(axis, np.float64), half, strength, Targets(targets, np.cumsum(probs), probs),
+                  far, out)
         return Photons(o, d, w)
     raise ValueError(f"light '{scene.light_names[li]}': unknown type {typ}")
 

@@ -11,6 +11,7 @@ photon pre-pass) and, through the array wrappers below, by the plan and the esti
 from __future__ import annotations
 
 import math
+from collections import namedtuple
 
 import numpy as np
 from numba import njit
@@ -18,12 +19,23 @@ from numba import njit
 from ..core.jit import JIT, LANES
 from ..core.vec3 import dot1 as _dot, row3 as _row3
 from ..scene import arrays as S
+from ..scene.arrays import DIELECTRIC
 from .coat import coat, gain_table, spec_table, table
 from .energy import cached_energy_tables, energy_gain1
 from .fresnel import film, film1, material1, metal, metal1, specular_weights1, surface_tables
 from .microfacet import alphas, lambda1, visible_normal1
 
-_DIELECTRIC = S.DIELECTRIC
+# The scene's material tables as the kernels read them (materials()), per material: its kind
+# (scene.DIFFUSE...), Fresnel model (scene.FRESNEL_*), colour and reflection tint (M,3), IOR (the
+# five of fresnel.SurfaceTables); Bump Map Correction (1: on); a Principled coat's tables (coat.py)
+# by the eye's cosine (M, MU_STEPS + 1): the diffuse's weight under its glossy coat and clear coat
+# (weight), the glossy coat's multiple-scattering gain (gain), the coats themselves (Scene.mat_layer,
+# (M, coat.COLUMNS): layer), the diffuse's weight under its glossy coat alone (glossy_weight); each
+# glass's absorption (M,3); the rough mirrors' and glass's GGX alpha (0: a perfect one) and
+# Multiscatter GGX's factors (microfacet.py, energy.py); a metal's Fresnel beyond its colour (M,6)
+# and a thin film (M,2) (fresnel.metal, fresnel.film: (0, .) where the scene has none)
+MaterialTables = namedtuple("MaterialTables", "kind fresnel color reflect_color ior bump_correction weight gain "
+                                              "layer glossy_weight absorb alpha energy metal film")
 
 
 # ------------------------------------------------------------------ per lane
@@ -128,9 +140,9 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     lobe, the other two a rough surface's microfacet normal; kind_m: the kind the caller found
     (material m's).
 
-    A rough mirror or glass (mats[11]: alpha, rough.py) scatters about a microfacet normal drawn
+    A rough mirror or glass (mats.alpha, rough.py) scatters about a microfacet normal drawn
     from the normals visible from w_in (rough.visible_normal1), the lobe's weight times
-    G2 / G1(w_in) and, for Multiscatter GGX, the energy factor at the eye's direction (mats[12]).
+    G2 / G1(w_in) and, for Multiscatter GGX, the energy factor at the eye's direction (mats.energy).
 
     Bump Map Correction (the material's flag in mats): along an eye path (not adjoint) the
     shading normal is bent as Cycles bends it (valid_reflection1; bent: it was); a photon (adjoint)
@@ -142,20 +154,20 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
         ns = (-ns[0], -ns[1], -ns[2])
     cin = _dot(w_in, ng)
     sgn = 1.0 if cin > 0 else (-1.0 if cin < 0 else 0.0)
-    correct = mats[5][m] != 0
+    correct = mats.bump_correction[m] != 0
     bent = False
     if correct and not adjoint:
         ns, bent = bend1(w_in, ns, ng)
     cs = _dot(w_in, ns)
     front = cs * sgn > 0  # Cycles: N.wi <= 0 after the flip -> no scattering
-    alpha = mats[11][m]
+    alpha = mats.alpha[m]
     nf, cf = ns, cs  # the normal the lobes scatter about: ns, or a microfacet normal about it
     if alpha > 0.0 and front:
         h = visible_normal1(w_in, (sgn * ns[0], sgn * ns[1], sgn * ns[2]), alpha, u[1], u[2])
         nf = (sgn * h[0], sgn * h[1], sgn * h[2])  # on ng's side, as ns
         cf = _dot(w_in, nf)
         front = cf * sgn > 0
-    R, T = specular_weights1(kind, fres, color, rcolor, eta, metal1(mats[13], m), film1(mats[14], m), cf)
+    R, T = specular_weights1(kind, fres, color, rcolor, eta, metal1(mats.metal, m), film1(mats.film, m), cf)
     r_lum, t_lum = R[0] + R[1] + R[2], T[0] + T[1] + T[2]
     tot = r_lum + t_lum
     p_r = r_lum / tot if tot > 0 else 0.0
@@ -166,7 +178,7 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
     W = R if choose_r else T
     den = p_sel if p_sel > 0 else 1.0
     b = (beta[0] * (W[0] / den), beta[1] * (W[1] / den), beta[2] * (W[2] / den))
-    if scale_eta and not (choose_r or kind_m != _DIELECTRIC):
+    if scale_eta and not (choose_r or kind_m != DIELECTRIC):
         ratio = eta if cin < 0 else 1.0 / eta  # eta(w_in side) / eta(other side)
         r2 = ratio**2
         b = (b[0] * r2, b[1] * r2, b[2] * r2)
@@ -188,7 +200,7 @@ def scatter1(u, w_in, ns, ng, m, kind_m, mats, beta, scale_eta, adjoint):
         li = lambda1(cs, a2)
         g = (1.0 + li) / (1.0 + li + lambda1(co, a2))
         eye, ce = (d, co) if adjoint else (w_in, cs)
-        k = energy_gain1(mats[12], m, _dot(eye, ng) > 0, abs(ce))
+        k = energy_gain1(mats.energy, m, _dot(eye, ng) > 0, abs(ce))
         b = (b[0] * g * k[0], b[1] * g * k[1], b[2] * g * k[2])
     finite = b[0] == b[0] and b[1] == b[1] and b[2] == b[2]  # numpy's max of a row with a NaN is NaN
     if not (front and side and p_sel > 0 and finite and (b[0] > 0 or b[1] > 0 or b[2] > 0)):
@@ -270,17 +282,13 @@ def _refract_rows(w, n, eta):
     return out, ok
 
 
-def materials(scene) -> tuple:
-    """The scene's material tables as scatter1 takes them; then a Principled coat's (layer.py):
-    the diffuse's weight and the coat's multiple-scattering gain by the eye's cosine, and the
-    coats (Scene.mat_layer), the diffuse's weight under its glossy coat alone (kernels._tab_weight,
-    kernels._coat_factor), each glass's absorption; then the rough mirrors' and glass's GGX alpha (0:
-    a perfect one) and Multiscatter GGX's factors (rough.py); then the metals' Fresnel beyond their
-    colour (metal(): mats[13]), last the thin films (film(): mats[14])."""
+def materials(scene) -> MaterialTables:
+    """The scene's material tables as scatter1 and the kernels take them (MaterialTables)."""
     spec = spec_table(scene)
-    return surface_tables(scene) + (bump_correction(scene).astype(np.int64), table(scene, spec), gain_table(scene),
-                                     coat(scene), spec, absorption(scene), alphas(scene), cached_energy_tables(scene), metal(scene),
-                                     film(scene))
+    return MaterialTables(*surface_tables(scene), bump_correction=bump_correction(scene).astype(np.int64),
+                          weight=table(scene, spec), gain=gain_table(scene), layer=coat(scene), glossy_weight=spec,
+                          absorb=absorption(scene), alpha=alphas(scene), energy=cached_energy_tables(scene),
+                          metal=metal(scene), film=film(scene))
 
 
 def absorption(scene) -> np.ndarray:

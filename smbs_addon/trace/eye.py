@@ -17,6 +17,7 @@ from ..shading.coat import has_layers, table as layer_table, weight as layer_wei
 from ..core.vec import dot
 from ..core import embree, lanes
 from ..kernels import eye, records
+from ..kernels.records import EyeOut, EyePaths, REC_BETA, REC_NG, REC_NS, REC_P, REC_W, ViewTables
 from ..shading.optics import materials
 from .camera import CameraModel
 
@@ -52,22 +53,22 @@ class Receivers:
         return Receivers(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
 
 
-def view_tables(scene, cam) -> tuple:
-    """What the kernels read of the bumped receivers' view (eye.view_normal1): (Scene.mat_view_bump
-    as flags (M,), view_normals, view_points, t (4,)): t takes a raster position (x, y) of camera
+def view_tables(scene, cam) -> ViewTables:
+    """What the kernels read of the bumped receivers' view (eye.view_normal1; ViewTables):
+    Scene.mat_view_bump as flags (M,), view_normals, view_points, t (4,): t takes a raster position (x, y) of camera
     model cam to the view's, (t0 x + t1, t2 y + t3), through the view plane (the camera at the
     view's resolution frames it, camera.CameraModel); t0 = 0 where there is no view."""
     flags = np.asarray(scene.mat_view_bump, bool)
     h, w = np.shape(scene.view_normals)[:2]
     if h == 0 or not flags.any():
         z = np.zeros((0, 0, 3), np.float32)
-        return np.zeros(len(scene.mat_kind), np.bool_), z, z, np.zeros(4)
+        return ViewTables(np.zeros(len(scene.mat_kind), np.bool_), z, z, np.zeros(4))
     m = CameraModel(replace(cam.cam, resolution_x=w, resolution_y=h, resolution_percentage=100, use_border=False))
     # view plane: fx = xmin + x pix_w, fy = ymin + (H - y) pix_h, in both
     t = np.array([cam.pix_w / m.pix_w, (cam.xmin - m.xmin) / m.pix_w, cam.pix_h / m.pix_h,
                   m.H - (cam.ymin + cam.H * cam.pix_h - m.ymin) / m.pix_h])
-    return (np.ascontiguousarray(flags), np.ascontiguousarray(scene.view_normals, np.float32),
-            np.ascontiguousarray(scene.view_points, np.float32), t)
+    return ViewTables(np.ascontiguousarray(flags), np.ascontiguousarray(scene.view_normals, np.float32),
+                      np.ascontiguousarray(scene.view_points, np.float32), t)
 
 
 def view_bumped(scene, cam, p, ng, ns, mat) -> np.ndarray:
@@ -76,7 +77,8 @@ def view_bumped(scene, cam, p, ng, ns, mat) -> np.ndarray:
     where x0 projects, seen directly or through mirrors and glass alike (eye.view_normal1); ns
     elsewhere: off the frame, and where the view's sub-pixel there is not x0's surface (the receiver
     hides itself, an edge)."""
-    flags, vn, vp, t = view_tables(scene, cam)
+    view = view_tables(scene, cam)
+    flags, vn, vp, t = view.flags, view.normals, view.points, view.t
     if not t[0] > 0 or len(p) == 0:
         return ns
     on = np.flatnonzero(flags[mat])
@@ -199,26 +201,27 @@ def specular_cells(scene, tracer, cam, film) -> np.ndarray | None:
     return mask.ravel()
 
 
-def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, min_specular=0,
-                  max_bounces=32, scale_eta=False, cells=None) -> Receivers:
+def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, paths: EyePaths = EyePaths(),
+                  cells=None) -> Receivers:
     """Trace n eye samples (of a batch of n_batch; with cells, a mask over the film cells, only
-    those in its cells) to their first diffuse receiver, keeping those with at least
-    min_specular specular vertices on the way (glass by Fresnel choice): one kernel call
-    (eye.eye_lanes), its random numbers keyed by one draw from rng and each sample's index
-    in the batch."""
+    those in its cells) to their first diffuse receiver through up to paths.max_bounces mirrors and
+    glass (glass by Fresnel choice; paths.scale_eta: radiance in physical units), keeping those with
+    at least paths.min_specular specular vertices on the way: one kernel call (eye.eye_lanes), its
+    random numbers keyed by one draw from rng and each sample's index in the batch."""
     rx, ry, weight, sample = film_samples(cam, film, start, n, n_batch, rng, cells)
     key = int(rng.integers(2**63))
     n = len(rx)
     stats["eye_paths"] = stats.get("eye_paths", 0) + n
     params = cam.kernel_params()
+    rules = EyePaths(int(paths.max_bounces), int(paths.min_specular), bool(paths.scale_eta))
     args = (key, tracer.kernel_geometry(plan.casters), np.ascontiguousarray(plan.receivers, bool), materials(scene),
-            int(max_bounces), int(min_specular), bool(scale_eta), tracer.eps)
+            rules, tracer.eps)
 
     def part(a, b):  # a part of the lanes on a thread (lanes.run), its records in lane order
         rec, rec_i, prior = np.empty((b - a, records.REC_F)), np.empty((b - a, 3), np.int64), \
             np.empty((b - a, 3), np.int64)
         rt = tracer.rays()
-        m, counts = eye.eye_lanes(rt, params, rx[a:b], ry[a:b], sample[a:b], *args, rec, rec_i, prior)
+        m, counts = eye.eye_lanes(rt, params, rx[a:b], ry[a:b], sample[a:b], *args, EyeOut(rec, rec_i, prior))
         tracer.cast_by_kernel(rt, counts)
         rec_i[:m, 0] += a
         return rec[:m], rec_i[:m], prior[:m], int(counts[embree.KINDS:].sum())
@@ -227,10 +230,11 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     stats["rays_eye"] = stats.get("rays_eye", 0) + sum(p[3] for p in parts)
     rec, rec_i, prior = (np.concatenate([p[k] for p in parts]) for k in range(3))
     ln = rec_i[:, 0]
-    beta = rec[:, 12:15]
-    sn = rec[:, 6:9]
-    ns = view_bumped(scene, cam, rec[:, 0:3], rec[:, 3:6], sn, rec_i[:, 2])
+    col = lambda k: rec[:, k:k + 3]  # noqa: E731
+    beta = col(REC_BETA)
+    sn = col(REC_NS)
+    ns = view_bumped(scene, cam, col(REC_P), col(REC_NG), sn, rec_i[:, 2])
     if has_layers(scene):  # x0's diffuse under its glossy layer, towards the eye (layer.py)
-        beta = beta * layer_weight(layer_table(scene), rec_i[:, 2], dot(rec[:, 9:12], ns))[:, None]
-    return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=rec[:, 0:3], ng=rec[:, 3:6], ns=ns,
-                     w_eye=rec[:, 9:12], beta=beta, mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior, sn=sn)
+        beta = beta * layer_weight(layer_table(scene), rec_i[:, 2], dot(col(REC_W), ns))[:, None]
+    return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=col(REC_P), ng=col(REC_NG), ns=ns,
+                     w_eye=col(REC_W), beta=beta, mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior, sn=sn)

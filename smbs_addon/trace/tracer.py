@@ -18,7 +18,7 @@ from ..core import embree, lanes
 from ..scene import arrays as S
 from ..kernels.chain import barycentric_rows, intersect_rays, shading_normal_rows
 from ..core.vec import cross, dot, norm, normalize
-from ..kernels.records import HIDDEN_PASSES
+from ..kernels.records import HIDDEN_PASSES, Geometry, HitRows
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
 
@@ -79,7 +79,7 @@ class Tracer:
         self.degenerate = ~(self.area2 > 1e-14 * max(scale, 1e-30) ** 2)
 
     # ------------------------------------------------------------- low level
-    def rays(self) -> tuple:
+    def rays(self) -> embree.RayContext:
         """What a kernel that casts rays takes (embree.rays), with a fresh ray log while
         bench/throughput.py records (RAY_LOG)."""
         log = None if RAY_LOG is None else np.zeros((RAY_LOG_ROWS, embree.LOG_COLUMNS), np.float32)
@@ -89,8 +89,8 @@ class Tracer:
         """Count the rays a kernel cast (counts: embree.ray_state's counters) and keep its log."""
         with lanes.LOCK:  # kernels on several threads count here
             self.rays_cast += int(counts[embree.KINDS:].sum())
-            if RAY_LOG is not None and counts[0]:
-                RAY_LOG.append(rt[1][:counts[0]].copy())
+            if RAY_LOG is not None and counts[embree.LOGGED]:
+                RAY_LOG.append(rt.log[:counts[embree.LOGGED]].copy())
 
     def _run(self, o, d, tmax, query):
         n = len(o)
@@ -152,8 +152,8 @@ class Tracer:
             def job(a, c):
                 rt = self.rays()
                 counts = intersect_rays(rt, o[a:c], d[a:c], tmax[a:c] if tmax.size else tmax, xo[a:c], exact,
-                                        self.v, self.ng, self.ns_corner, self.eps, prim[a:c], t[a:c], p[a:c],
-                                        ng[a:c], ns[a:c], b[a:c])
+                                        self.v, self.ng, self.ns_corner, self.eps,
+                                        HitRows(prim[a:c], t[a:c], p[a:c], ng[a:c], ns[a:c], b[a:c]))
                 self.cast_by_kernel(rt, counts)
 
             lanes.run(job, n, self.threads, _MIN_SPLIT)
@@ -228,12 +228,12 @@ class Tracer:
         """occluded_past for rays towards the camera."""
         return self.occluded_past(o, d, tmax, S.RAY_CAMERA)
 
-    def kernel_geometry(self, casters: np.ndarray) -> tuple:
-        """The scene as the kernels trace paths through it (kernels.trace_lane's geo), with the
-        plan's caster flags per object and the kinds of ray each object does not meet (self.hid)."""
+    def kernel_geometry(self, casters: np.ndarray) -> Geometry:
+        """The scene as the kernels trace paths through it (records.Geometry), with the plan's caster
+        flags per object and the kinds of ray each object does not meet (self.hid)."""
         sc = self.scene
-        return (self.v, self.ng, self.ns_corner, sc.tri_material, sc.mat_kind, sc.tri_object, casters, sc.mat_ior,
-                self.hid)
+        return Geometry(tv=self.v, tng=self.ng, tns=self.ns_corner, tri_material=sc.tri_material, mat_kind=sc.mat_kind,
+                        tri_object=sc.tri_object, casters=casters, mat_ior=sc.mat_ior, hid=self.hid)
 
     # ------------------------------------------------------------- geometry
     def barycentrics(self, prim: np.ndarray, p: np.ndarray) -> np.ndarray:

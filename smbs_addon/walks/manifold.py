@@ -31,6 +31,8 @@ from ..shading.light_samples import light_can_be_hit
 from ..paths.gather import (HANDOFF_SAMPLES, UNWALKED_SAMPLES, bending_lights, bent_gather, bent_receivers, gather,
                             handoff_gather)
 from ..paths.handoff import Handoff, SEEN_HANDOFF_MIN
+from ..kernels.records import EyePaths
+from ..paths.gather import GatherLights, HandoffRays
 
 
 @dataclass
@@ -162,7 +164,7 @@ def manifold_chunk(job, walk, start, n, rng, eye_stats) -> None:
     where a light walks otherwise, method auto)."""
     scene, tracer, film, plan, opts = job.scene, job.tracer, job.film, job.plan, walk.opts
     rc = eye_receivers(scene, tracer, job.cam, film, plan, start, n, job.eye_per_batch(), rng, eye_stats,
-                       min_specular=0, scale_eta=opts.physical)
+                       EyePaths(min_specular=0, scale_eta=opts.physical))
     ctxs = {}
     for lp in plan.lights:
         ctx = Ctx(scene, tracer, plan, job.light_stats[lp.name])
@@ -192,14 +194,14 @@ def manifold_chunk(job, walk, start, n, rng, eye_stats) -> None:
     if handoffs:
         found = {}
         handoff_gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, handoffs, physical=opts.physical,
-                       found=found, samples=HANDOFF_SAMPLES if walk.types else UNWALKED_SAMPLES)
+                       rays=HandoffRays(HANDOFF_SAMPLES if walk.types else UNWALKED_SAMPLES), found=found)
         for li in handoffs:
             st = ctxs[li].stats
             st["seen_handoff_paths"] = st.get("seen_handoff_paths", 0) + found.get(li, 0)
     lights_direct = job.indirect_lights()
     if lights_direct:
-        gather(scene, tracer, film, plan, rc_seen, rng, eye_stats, lights_direct,
-               physical=opts.physical, connect=caustic, others=handoffs)
+        gather(scene, tracer, film, plan, rc_seen, rng, eye_stats,
+               GatherLights(direct=lights_direct, connect=caustic, others=handoffs), physical=opts.physical)
 
 
 class CausticEstimate:

@@ -23,6 +23,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..core import embree, lanes
+from ..kernels.records import CasterSeeds, TrialSamples, TrialSettings
 from ..kernels.trials import bernoulli_lanes
 from .walk import count_rays, kernel_config, walk_geometry
 
@@ -39,16 +40,17 @@ def bernoulli_trials(ctx, opts, seeder, types: str, x0, ng0, light, d1, obj1, ke
     first = np.full(S, opts.max_trials, np.int64)
     if S == 0:
         return first
-    samples = tuple(np.ascontiguousarray(a, np.float64) for a in (x0, ng0, light.y, d1)) + (
-        np.ascontiguousarray(obj1, np.int64),)
-    seeds = (seeder.cdf, np.ascontiguousarray(seeder.v, np.float64), seeder.obj.astype(np.int64))
+    f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    samples = TrialSamples(f64(x0), f64(ng0), f64(light.y), f64(d1), np.ascontiguousarray(obj1, np.int64))
+    seeds = CasterSeeds(seeder.cdf, f64(seeder.v), seeder.obj.astype(np.int64))
     cfg_t, geo, tracer = kernel_config(ctx, opts.walk, types), walk_geometry(ctx), ctx.tracer
 
     def part(a, b):
         rt = tracer.rays()
-        trials = (seeder.total, key, a, opts.max_trials, opts.walk.defensive, opts.uniqueness)
+        trials = TrialSettings(seeder.total, key, a, opts.max_trials, opts.walk.defensive, opts.uniqueness)
         first[a:b], walks, steps, counts = bernoulli_lanes(
-            rt, tuple(x[a:b] for x in samples), seeds, trials, cfg_t, geo, light.directional, ctx.obj_lo, ctx.obj_hi)
+            rt, TrialSamples(*(x[a:b] for x in samples)), seeds, trials, cfg_t, geo, light.directional, ctx.obj_lo,
+            ctx.obj_hi)
         tracer.cast_by_kernel(rt, counts)
         return walks, steps, counts
 

@@ -23,10 +23,11 @@ import numpy as np
 from ..shading.light_samples import LightEnd
 from ..scene.geometry import vertex_view
 from ..core import embree, lanes
-from ..kernels import records
-from ..kernels.chain import end_mismatch as mismatch_lanes, trace_lanes
-from ..kernels.walk import backlit_lanes, walk_lanes
-from ..kernels.records import NF, TRIGGERS, TRIG_BACKLIT, TRIG_SLOW, TRIG_TIR
+from ..kernels import chain, records, walk
+from ..kernels.chain import end_mismatch as _mismatch_rows  # (end_mismatch's argument chain hides the module)
+from ..kernels.records import (
+    ChainRows, LightRows, NF, SeedRays, TRIGGERS, TRIG_BACKLIT, TRIG_SLOW, TRIG_TIR, WalkLanes, WalkSettings,
+    WalkState)
 
 
 
@@ -101,7 +102,7 @@ class Chain:
 WALK_BLOCK = 2048  # lanes per block of newton_walk and propagate (lanes.blocks)
 
 
-def walk_geometry(ctx) -> tuple:
+def walk_geometry(ctx) -> records.Geometry:
     """The scene as the kernels trace chains through it (kernels/chain.py's trace_lane)."""
     return ctx.tracer.kernel_geometry(ctx.casters)
 
@@ -128,8 +129,8 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
 
     def part(a, b):
         rt = tracer.rays()
-        counts = trace_lanes(rt, kinds, x0[a:b], ng0[a:b], d[a:b], want[a:b], geo, tracer.eps, F[a:b],
-                                     I[a:b], status[a:b], out[a:b])
+        counts = chain.trace_lanes(rt, kinds, x0[a:b], ng0[a:b], SeedRays(d[a:b], want[a:b]), geo, tracer.eps,
+                                   ChainRows(F[a:b], I[a:b], status[a:b], out[a:b]))
         tracer.cast_by_kernel(rt, counts)
         return counts
 
@@ -141,14 +142,14 @@ def propagate(ctx, x0, ng0, d, types: str, want_obj=None) -> Chain:
 def end_mismatch(chain: Chain, light: LightEnd):
     """|w_o' - w_o| at the last vertex: the propagated direction against the
     direction to the light end; and whether it points to the light's side."""
-    return mismatch_lanes(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
+    return _mismatch_rows(np.arange(len(chain.F)), chain.F, chain.out_dir, light.y, light.directional)
 
 
 def backlit(cfg: WalkConfig, types: str, x0, chain: Chain, light: LightEnd) -> np.ndarray:
     """SMBS trigger 2 per lane, as the walk tests it (cfg.backlit_vertex): at chain vertex j,
     for a reflection the vertex before it (x0 for j = 0) and the light lie on different sides
     of its surface; for a refraction, on the same side."""
-    return backlit_lanes(records.chain_kinds(types), _backlit_at(cfg.backlit_vertex, len(types)),
+    return walk.backlit_lanes(records.chain_kinds(types), _backlit_at(cfg.backlit_vertex, len(types)),
                                  np.asarray(x0, np.float64), chain.F, np.asarray(light.y, np.float64),
                                  light.directional)
 
@@ -169,13 +170,15 @@ def _backlit_at(where: str, k: int) -> int:
     return {"first": 0, "last": k - 1}.get(where, 0 if k == 1 else -1)
 
 
-def kernel_config(ctx, cfg: WalkConfig, types: str) -> tuple:
+def kernel_config(ctx, cfg: WalkConfig, types: str) -> WalkSettings:
     """The walk's settings as the kernels take them (kernels/walk.py's _walk_lane)."""
-    return (cfg.form == HALF_VECTOR, records.chain_kinds(types), cfg.smbs, cfg.tir, cfg.backlit, cfg.slow,
-            cfg.tir_rejected, _backlit_at(cfg.backlit_vertex, len(types)), cfg.tau, cfg.slow_run, cfg.min_beta,
-            cfg.threshold, cfg.max_step * ctx.scale, ctx.tracer.eps, MAX_HALVINGS, cfg.max_iterations,
-            float(cfg.beta0), int(cfg.stall_window), float(cfg.stall_factor),
-            int(max(cfg.stall_from, cfg.stall_window)))
+    return WalkSettings(hv=cfg.form == HALF_VECTOR, kinds=records.chain_kinds(types), smbs=cfg.smbs, tir=cfg.tir,
+                        backlit=cfg.backlit, slow=cfg.slow, tir_rejected=cfg.tir_rejected,
+                        backlit_at=_backlit_at(cfg.backlit_vertex, len(types)), tau=cfg.tau, slow_run=cfg.slow_run,
+                        min_beta=cfg.min_beta, threshold=cfg.threshold, max_step=cfg.max_step * ctx.scale,
+                        eps=ctx.tracer.eps, max_halvings=MAX_HALVINGS, max_iterations=cfg.max_iterations,
+                        beta0=float(cfg.beta0), stall_window=int(cfg.stall_window),
+                        stall_factor=float(cfg.stall_factor), stall_from=int(max(cfg.stall_from, cfg.stall_window)))
 
 
 def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chain: Chain | None = None,
@@ -185,7 +188,7 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     as the walk. Lanes whose seed failed keep their seed outcome. large_ok (N,) bool: lanes
     allowed SMBS's large mutations (the rest walk as plain SMS).
 
-    kernels/walk.py's walk_lanes walks each lane from its seed to its outcome, casting its rays itself;
+    walk.walk_lanes walks each lane from its seed to its outcome, casting its rays itself;
     the lanes are cut into blocks of WALK_BLOCK that the threads take in turn (lanes.blocks).
     Lanes walk independently of each other: the result does not depend on the cut."""
     n, k = len(x0), len(types)
@@ -200,23 +203,24 @@ def newton_walk(ctx, cfg: WalkConfig, types: str, x0, ng0, light: LightEnd, chai
     x0, ng0, ly, lys, lyt = (np.ascontiguousarray(a, np.float64) for a in (x0, ng0, light.y, light.ys, light.yt))
     large_ok = np.ones(n, bool) if large_ok is None else np.ascontiguousarray(large_ok, bool)
     etas = np.zeros((n, k))
-    state = (F, I, out_dir, np.zeros(n), np.zeros(n, bool), np.zeros(n, bool), np.ones(n), np.ones(n),
-             np.zeros(n, np.int64), np.zeros(n, np.int64), outcome, np.zeros(n, bool), np.zeros(n, np.int64))
+    state = WalkState(F=F, I=I, out_dir=out_dir, err=np.zeros(n), front=np.zeros(n, bool), valid=np.zeros(n, bool),
+                      beta=np.ones(n), lscale=np.ones(n), pending=np.zeros(n, np.int64), slow_n=np.zeros(n, np.int64),
+                      outcome=outcome, converged=np.zeros(n, bool), mutations=np.zeros(n, np.int64))
     cfg_t, geo, tracer = kernel_config(ctx, cfg, types), walk_geometry(ctx), ctx.tracer
 
     def part(a, b):
         rt = tracer.rays()
-        lane = (x0[a:b], ng0[a:b], ly[a:b], lys[a:b], lyt[a:b], light.directional, etas[a:b], large_ok[a:b],
-                ctx.obj_lo, ctx.obj_hi)
-        large, counts = walk_lanes(rt, chain is not None, d[a:b], want[a:b], cfg_t, geo, lane,
-                                           tuple(x[a:b] for x in state))
+        lane = WalkLanes(x0[a:b], ng0[a:b], LightRows(ly[a:b], lys[a:b], lyt[a:b], light.directional), etas[a:b],
+                         large_ok[a:b], ctx.obj_lo, ctx.obj_hi)
+        large, counts = walk.walk_lanes(rt, chain is not None, SeedRays(d[a:b], want[a:b]), cfg_t, geo, lane,
+                                        WalkState(*(x[a:b] for x in state)))
         tracer.cast_by_kernel(rt, counts)
         return large, counts
 
     parts = lanes.blocks(part, n, WALK_BLOCK, tracer.threads, whole=True)
     large = sum((p[0] for p in parts), np.zeros(4, np.int64))
     count_rays(ctx, sum((p[1] for p in parts), embree.counters()))
-    converged, mutations = state[11], state[12]
+    converged, mutations = state.converged, state.mutations
     return WalkResult(chain=Chain(F, I, outcome.copy(), out_dir), converged=converged, outcome=outcome,
                       mutations=mutations, large={TRIGGERS[t]: int(large[t]) for t in (TRIG_TIR, TRIG_BACKLIT,
                                                                                       TRIG_SLOW)})

@@ -225,15 +225,15 @@ def test_one_chunks_photons_split_over_threads_give_the_records_of_one_call(monk
         whole = bake(ball(), BakeSettings(**s, threads=2))
         monkeypatch.setattr(reference, "PHOTON_SPLIT", 64)
         calls = []
-        run = reference.kernels.photon_lanes
+        run = reference.photon_lanes
 
-        def spy(*a):
-            calls.append(a[10])  # the first lane of the call
-            return run(*a)
+        def spy(rt, batch, key, lane0, *a):
+            calls.append(lane0)  # the first lane of the call
+            return run(rt, batch, key, lane0, *a)
 
-        monkeypatch.setattr(reference.kernels, "photon_lanes", spy)
+        monkeypatch.setattr(reference, "photon_lanes", spy)
         split = bake(ball(), BakeSettings(**s, threads=2))
-        monkeypatch.setattr(reference.kernels, "photon_lanes", run)
+        monkeypatch.setattr(reference, "photon_lanes", run)
         assert any(c > 0 for c in calls), "no chunk was split"
         assert _same(whole, split) and whole.image.max() > 0
         assert whole.stats["rays"] == split.stats["rays"]

@@ -199,8 +199,8 @@ def test_disk_cache_survives_two_module_names(tmp_path):
 
 
 def test_disk_cache_follows_every_file_with_kernels(tmp_path):
-    """A kernel of kernels.py inlines embree.py's ray calls, and numba's own stamp covers only
-    the kernel's file: jit.py's stamp covers every file with kernels, so after an edit of
+    """A kernel of kernels/chain.py inlines core/embree.py's ray calls, and numba's own stamp covers
+    only the kernel's file: jit.py's stamp covers every file with kernels, so after an edit of
     embree.py alone a cached kernel is compiled again instead of loaded stale."""
     import os
     import shutil

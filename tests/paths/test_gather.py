@@ -49,8 +49,8 @@ def _gathered(scene, rc, seed, compiled, lights_direct=(), lights_hit=None, cast
         plan.casters[:] = False
     film, st = _Capture(len(rc.p)), {}
     hit = [lp.index for lp in plan.lights] if lights_hit is None else lights_hit
-    indirect.gather(scene, Tracer(scene), film, plan, rc, np.random.default_rng(seed), st, lights_direct,
-                    lights_hit=hit, count_first=True, compiled=compiled)
+    indirect.gather(scene, Tracer(scene), film, plan, rc, np.random.default_rng(seed), st,
+                    indirect.GatherLights(direct=lights_direct, hit=hit, count_first=True), compiled=compiled)
     return film.value, st
 
 
@@ -126,16 +126,17 @@ def test_gather_lanes_leaves_a_lane_whole_when_its_records_do_not_fit():
     plan = make_plan(scene)
     tracer = Tracer(scene)
     n = len(rc.p)
-    args = (rc.p, rc.ng, rc.ns, rc.w_eye, rc.beta, rc.mat.astype(np.int64), rc.prior,
-            tracer.kernel_geometry(plan.casters), optics.materials(scene), Limits.of(scene).array(),
-            indirect.MAX_SPECULAR, False, True, True, True, tracer.eps)
+    args = (records.GatherReceivers(rc.p, rc.ng, rc.ns, rc.w_eye, rc.beta, rc.mat.astype(np.int64), rc.prior),
+            tracer.kernel_geometry(plan.casters), optics.materials(scene),
+            records.GatherRules(Limits.of(scene).array(), indirect.MAX_SPECULAR, False, True, True, True), tracer.eps)
 
     def run(cap):
         out, lane, rays = [], 0, 0
         while lane < n:
             seg, seg_i = np.empty((cap, records.SEG_F)), np.empty(cap, np.int64)
             vx, vx_i = np.empty((cap, records.VX_F)), np.empty(cap, np.int64)
-            lane, ms, mv, counts = gather.gather_lanes(tracer.rays(), 77, lane, *args, seg, seg_i, vx, vx_i)
+            lane, ms, mv, counts = gather.gather_lanes(tracer.rays(), 77, lane, *args,
+                                                       records.GatherOut(seg, seg_i, vx, vx_i))
             rays += int(counts[embree.KINDS:].sum())
             out.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
         return [np.concatenate([o[k] for o in out]) for k in range(4)], rays, len(out)

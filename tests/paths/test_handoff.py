@@ -225,9 +225,11 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     indirect = importlib.import_module("smbs_addon.paths.gather")
     manifold = importlib.import_module("smbs_addon.walks.manifold")
     monkeypatch.setattr(bake_module, "WALK_CHUNK", 32 * 24)  # 4 spp: 4 chunks or more
-    monkeypatch.setattr(manifold, "SEEN_HANDOFF_MIN", 0.0)
+    estimators = importlib.import_module("smbs_addon.walks.estimators")
+    for module in (manifold, estimators):  # each holds the threshold by name
+        monkeypatch.setattr(module, "SEEN_HANDOFF_MIN", 0.0)
     monkeypatch.setattr(manifold, "SEEN_HANDOFF_HITS", 0.0)  # at concentration 0 no light is large enough
-    monkeypatch.setattr(manifold, "concentration", lambda types, x0, *a: np.zeros(len(x0)))
+    monkeypatch.setattr(estimators, "concentration", lambda types, x0, *a: np.zeros(len(x0)))
     calls = []
     gather = indirect.handoff_gather
 
@@ -236,7 +238,7 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
             calls.append(len(a[4].p))
         return gather(*a, **k)
 
-    monkeypatch.setattr(indirect, "handoff_gather", counted)
+    monkeypatch.setattr(manifold, "handoff_gather", counted)  # (manifold holds it by name)
     chunks = []  # per chunk: does it have receivers seen through the ball?
     eye_receivers = manifold.eye_receivers
 
@@ -254,7 +256,8 @@ def test_seen_handoff_goes_on_where_its_own_first_chunk_found_focusing_paths(mon
     assert st["seen_focus"] == 0 and st["seen_handoff_paths"] > 0
     assert sum(chunks) >= 4 and len(calls) == sum(chunks)
     calls.clear()
-    monkeypatch.setattr(reference, "concentration", lambda types, x0, *a: np.zeros(len(x0)))
+    monkeypatch.setattr(importlib.import_module("smbs_addon.paths.handoff"), "concentration",
+                        lambda types, x0, *a: np.zeros(len(x0)))  # the hand-off's (handoff_select)
     st = bake(ball, s).stats["lights"]["Area"]
     assert st["seen_focus"] == 0 and st["seen_handoff_paths"] == 0
     assert len(calls) == 1
@@ -270,7 +273,7 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     uniform numbers are the kernel's own (keyed_uniform of the receiver, sample and dimension)."""
     from smbs_addon.core import embree
     from smbs_addon.kernels import handoff
-    from smbs_addon.kernels import keyed
+    from smbs_addon.kernels import keyed, records
     from smbs_addon.shading import optics
     from smbs_addon.core.vec import cosine_hemisphere, dot, frame, to_world
 
@@ -290,13 +293,14 @@ def test_handoff_kernel_paths_are_the_numpy_steps():
     key, a0 = 12345, 7  # lane l: sample l % samples of receiver a0 + l // samples
     u = np.array([[keyed.keyed_uniform(key, a0 + lane // samples, lane % samples, j) for j in range(3 + K)]
                   for lane in range(m)])
-    seg, seg_n = np.zeros((m, K, 10)), np.zeros(m, np.int64)
-    hist, h_prim = np.zeros((m, K, 8)), np.zeros((m, K), np.int64)
+    seg, seg_n = np.zeros((m, K, records.SEG_BETA + 3)), np.zeros(m, np.int64)
+    hist, h_prim = np.zeros((m, K, records.HIST_F)), np.zeros((m, K), np.int64)
     rt = tracer.rays()
-    counts = handoff.handoff_lanes(rt, key, a0, samples, K, x0, ng, ns, ns, w0, beta0, alb,
-                                   scene.tri_material[h0.prim].astype(np.int64), tracer.kernel_geometry(plan.casters),
-                                   optics.materials(scene), False, tracer.eps, seg, seg_n, hist, h_prim,
-                                   np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64))
+    receivers = records.HandoffReceivers(x0, ng, ns, ns, w0, beta0, alb, scene.tri_material[h0.prim].astype(np.int64))
+    counts = handoff.handoff_lanes(rt, key, a0, samples, K, receivers, tracer.kernel_geometry(plan.casters),
+                                   optics.materials(scene), False, tracer.eps,
+                                   records.HandoffOut(seg, seg_n, hist, h_prim),
+                                   records.BentTargets(np.zeros(0, np.int64), np.zeros(0), np.zeros(0, np.int64)))
     # numpy, step by step
     i = np.arange(m) // samples
     side = np.where(dot(w0[i], ng[i]) >= 0, 1.0, -1.0)[:, None]

@@ -105,15 +105,18 @@ def _trace(scene, plan, tracer, ph, key, indirect, cap, max_iter):
     """photons.photon_lanes over every photon, cap records per call: records, tally, rays."""
     n = len(ph.o)
     K = 2
-    hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
+    hist, h_prim = np.zeros((n, K, records.HIST_BENT)), np.zeros((n, K), np.int64)
     tally = np.zeros(records.PH_TALLY, np.int64)
     recs, ids, lane, rays, calls = [], [], 0, 0, 0
     while lane < n:
         rec, rec_i = np.empty((cap, records.REC_F)), np.empty((cap, 3), np.int64)
-        lane, m, counts = photons.photon_lanes(tracer.rays(), indirect, ph.o, ph.d, ph.w, np.zeros(4), ph.visibility,
-                                               np.zeros(0, bool), np.zeros(0, bool), key, lane, tracer.kernel_geometry(plan.casters), plan.receivers,
-                                               optics.materials(scene), Limits.of(scene).array(), 32, max_iter, False,
-                                               tracer.eps, rec, rec_i, hist, h_prim, tally)
+        batch = records.PhotonBatch(ph.o, ph.d, ph.w, np.zeros(3), 0.0, ph.visibility, np.zeros(0, bool),
+                                    np.zeros(0, bool))
+        lane, m, counts = photons.photon_lanes(tracer.rays(), batch, key, lane, tracer.kernel_geometry(plan.casters),
+                                               plan.receivers, optics.materials(scene),
+                                               records.PhotonRules(indirect, Limits.of(scene).array(), 32, max_iter,
+                                                                   False),
+                                               tracer.eps, records.PhotonOut(rec, rec_i, hist, h_prim, tally))
         recs.append(rec[:m])
         ids.append(rec_i[:m])
         rays += int(counts[embree.KINDS:].sum())
@@ -252,7 +255,8 @@ def test_camera_splats_are_the_numpy_connection(name):
     textured = scene.mat_kind == S.DIFFUSE  # every receiver textured: each splat's albedo written beside it
     rays, m, _ = eye.camera_splats(tracer.rays(), cam.kernel_params(), float(margin), rec, ids[:, 2].copy(),
                                        optics.materials(scene), True, tracer.eps, textured, view_tables(scene, cam),
-                                       (tracer.ng, scene.tri_object, tracer.hid), rx, ry, val, alb)
+                                       records.CameraHiding(tracer.ng, scene.tri_object, tracer.hid),
+                                       records.Splats(rx, ry, val, alb))
     assert 100 < m <= rays <= n and rays == want[3]
     floor = scene.mat_color[scene.mat_kind == S.DIFFUSE].max(axis=0)
     if "principled" in name:  # the albedo under the coat, towards the camera: less than the colour

@@ -94,11 +94,13 @@ def _photons(scene, lvis, key=99):
     ph = emit(scene, lp.index, lp.targets, 20000, np.random.default_rng(5))
     n, K = len(ph.o), 2
     rec, rec_i = np.empty((n * 8, records.REC_F)), np.empty((n * 8, 3), np.int64)
-    hist, h_prim = np.zeros((n, K, 7)), np.zeros((n, K), np.int64)
+    hist, h_prim = np.zeros((n, K, records.HIST_BENT)), np.zeros((n, K), np.int64)
     tally = np.zeros(records.PH_TALLY, np.int64)
-    _, m, _ = photons.photon_lanes(tracer.rays(), False, ph.o, ph.d, ph.w, np.zeros(4), lvis, np.zeros(0, bool), np.zeros(0, bool), key, 0,
-                                   tracer.kernel_geometry(plan.casters), plan.receivers, optics.materials(scene),
-                                   Limits.of(scene).array(), 32, 33, False, tracer.eps, rec, rec_i, hist, h_prim, tally)
+    batch = records.PhotonBatch(ph.o, ph.d, ph.w, np.zeros(3), 0.0, lvis, np.zeros(0, bool), np.zeros(0, bool))
+    _, m, _ = photons.photon_lanes(tracer.rays(), batch, key, 0, tracer.kernel_geometry(plan.casters), plan.receivers,
+                                   optics.materials(scene), records.PhotonRules(False, Limits.of(scene).array(), 32, 33,
+                                                                                False),
+                                   tracer.eps, records.PhotonOut(rec, rec_i, hist, h_prim, tally))
     return rec[:m], rec_i[:m], hist
 
 

@@ -140,6 +140,7 @@ def test_eye_paths_reflect_in_the_mirror_onto_the_floor():
     tracer.eps), meets the floor (1e-9), with the mirror's reflectance as throughput, one glossy
     bounce before it, and the direction back along the reflected ray."""
     from smbs_addon.trace.camera import CameraModel
+    from smbs_addon.kernels.records import EyePaths
     from smbs_addon.trace.eye import eye_receivers, film_cells
     from smbs_addon.trace.film import Film
     from smbs_addon.baking.plan import make_plan
@@ -151,7 +152,7 @@ def test_eye_paths_reflect_in_the_mirror_onto_the_floor():
     tracer = Tracer(scene)
     n = film_cells(cam, film)
     rc = eye_receivers(scene, tracer, cam, film, make_plan(scene, "ON"), 0, n, n, np.random.default_rng(3), {},
-                       min_specular=1)
+                       EyePaths(min_specular=1))
     assert len(rc.p) > 1000 and np.all(rc.eye_specular == 1)
     o, d, tnear = cam.rays(rc.rx, rc.ry)
     o = o + tnear[:, None] * d

@@ -190,8 +190,8 @@ def test_aimed_bent_paths_agree_with_cosine_sampling():
     def runs(aim, samples):
         out = []
         for k in range(8):
-            rad = indirect._handoff_block(scene, tracer, plan, rc, 1000 * k + aim, 0, st, {0: None}, False, samples,
-                                          {}, True, aim)
+            rad = indirect._handoff_block(scene, tracer, plan, rc, 1000 * k + aim, 0, st, {0: None}, False,
+                                          indirect.HandoffRays(samples, bent=True, aim=aim), {})
             out.append(rad.sum())
         found = st.pop("bent_paths", 0)
         return np.array(out), found

@@ -151,7 +151,7 @@ def test_a_pilots_smaller_frame_reads_the_same_view():
     p = np.array([[0.3, 0.2, 0.0], [-0.5, -0.4, 0.0], [0.9, 0.6, 0.0]])
     for cam in (full, small):
         rx, ry = cam.project(p)[:2]
-        t = view_tables(sc, cam)[3]
+        t = view_tables(sc, cam).t
         col, row = np.floor(t[0] * rx + t[1]).astype(int), np.floor(t[2] * ry + t[3]).astype(int)
         np.testing.assert_allclose(sc.view_points[row, col], p, atol=0.06)  # within a sub-pixel's footprint
-    np.testing.assert_allclose(view_tables(sc, full)[3], [2.0, 0.0, 2.0, 0.0], atol=1e-9)
+    np.testing.assert_allclose(view_tables(sc, full).t, [2.0, 0.0, 2.0, 0.0], atol=1e-9)
