@@ -24,7 +24,7 @@ from .constants import (  # noqa: F401
     MAX_COLOR, MAX_FILTER_WIDTH, MAX_POWER, MESH, NO_FILM, OPTIONAL, ORTHO, PATH_RAYS, PERSP, POINT, RAY_ALL,
     RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_SHADOW, RAY_TRANSMISSION, RECTANGLE, REFRACTION_ONLY, SENSOR_FITS,
     SPOT, SQUARE, SUN, WORLD, flat_axes)
-from .validate import validate
+from .validate import check_types, validate
 
 
 def offset_eps(lo, hi) -> float:
@@ -395,9 +395,13 @@ class Scene:
             raise SceneError(f"{path}: no such file") from None
         except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error, NotImplementedError) as e:
             raise SceneError(f"{path}: not a readable scene .npz ({e})") from None
-        version = int(data.pop("format_version", -1))
+        try:
+            version = int(data.pop("format_version", -1))
+        except (TypeError, ValueError):
+            version = -1
         if version != FORMAT_VERSION:
             raise SceneError(f"{path}: scene format version {version}, expected {FORMAT_VERSION}")
+        check_types(path, data)
         cam_kw = {}
         for cf in dataclasses.fields(Camera):
             key = "camera." + cf.name
