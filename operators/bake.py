@@ -233,7 +233,8 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
             noise = (result.stats or {}).get("noise") or {}
             cov = policy.coverage(prep.data, plan, prep.settings.use_cycles_flags, prep.blender_lights,
                                   layer_mean=noise.get("mean"), skipped=(result.stats or {}).get("skipped", ()),
-                                  world_unread=prep.world_unread)
+                                  world_unread=prep.world_unread,
+                                  nothing=(result.stats or {}).get("nothing_to_bake"))
         except Exception as e:
             traceback.print_exc()
             warnings.append(f"Could not tell which caustics the layer covers ({e}); "
@@ -242,6 +243,8 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
             kept_out, lines = policy.update_cycles(scene, props, cov)
             if kept_out:
                 print("SMBS Caustics: " + " ".join(lines), flush=True)
+            elif cov.nothing:  # the Nothing to bake warning below says it
+                note_line = -1
             else:
                 warnings.append(" ".join(lines[1:]))
                 note_line = len(warnings) - 1  # the panel shows it in the Cycles note already
