@@ -88,13 +88,12 @@ def _fallback_paths(py_file: str) -> list:
     preference: NUMBA_CACHE_DIR's, the package's own (__pycache__ beside the file), numba's user
     cache."""
     from numba.core import caching, config
-    from numba.misc.appdirs import AppDirs
 
     sub = caching._CacheLocator.get_suitable_cache_subpath(py_file)
     out = [os.path.join(config.CACHE_DIR, sub)] if config.CACHE_DIR else []
     out.append(os.path.join(os.path.dirname(py_file), "__pycache__"))
     try:
-        out.append(os.path.join(AppDirs(appname="numba", appauthor=False).user_cache_dir, sub))
+        out.append(os.path.join(caching.AppDirs(appname="numba", appauthor=False).user_cache_dir, sub))
     except Exception:  # noqa: BLE001 - no home folder at all: no user cache
         pass
     return out

@@ -14,6 +14,7 @@ so); the message names the file, the cause and where the result went.
 """
 from __future__ import annotations
 
+import array
 import json
 import os
 import stat
@@ -21,6 +22,12 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+
+try:  # POSIX: the file size limit (ulimit -f), file attributes (chattr)
+    import fcntl
+    import resource
+except ImportError:  # pragma: no cover - Windows
+    fcntl = resource = None
 
 from ..core.errors import SceneError, WriteError
 
@@ -54,10 +61,7 @@ def _check_folder(path: Path) -> None:
 def _fixed_flags(path: Path) -> str | None:
     """'immutable' or 'append-only' where the file has that attribute (Linux: chattr +i, +a): then
     no rename may replace it; None otherwise, or where the system cannot tell."""
-    try:
-        import array
-        import fcntl
-    except ImportError:  # pragma: no cover - not Linux
+    if fcntl is None:  # pragma: no cover - not POSIX
         return None
     try:
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
@@ -109,14 +113,14 @@ def _size_limit(tmp: Path) -> str | None:
     """The process's file size limit (ulimit -f) where tmp has reached it: a write there was cut
     short (a file of exactly that size is taken for one too: no telling without reading it, and
     OpenEXR's reader prints to stderr what it finds wrong in a short file)."""
+    if resource is None:  # pragma: no cover - not POSIX
+        return None
     try:
-        import resource
-
         size = tmp.stat().st_size
         soft = resource.getrlimit(resource.RLIMIT_FSIZE)[0]
         if soft != resource.RLIM_INFINITY and size >= soft:
             return f"the file size limit of this process (ulimit -f: {soft} bytes) cut it short"
-    except (ImportError, OSError, ValueError):
+    except (OSError, ValueError):
         pass
     return None
 
