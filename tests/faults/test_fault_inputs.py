@@ -136,3 +136,19 @@ def test_many_lights_say_what_they_cost():
     words = make_plan(b.build(), "OFF").words()
     assert ("20 lights take part: each light's caustic is traced on its own, so the bake costs about 20 times one "
             "light's (a time or noise rule shares its time among them)") in words
+
+
+def test_a_bake_of_years_says_so_and_stops_on_ctrl_c(npz, tmp_path):
+    """--spp 10^10 (under the count's limit): the progress estimates the time at the rate so far and
+    warns once it is more than a day; Ctrl-C then stops it cleanly."""
+    import signal
+
+    from fault_helpers import signal_after, start
+
+    proc = start("bake", npz, "--method", "mnee", "--spp", 10 ** 10, "--out", tmp_path / "x.exr")
+    _, stderr = signal_after(proc, signal.SIGINT, "warning: at its rate so far this bake takes about ")
+    assert proc.returncode == 130, stderr
+    assert_no_traceback(stderr)
+    warning = next(ln for ln in stderr.splitlines() if ln.startswith("warning: at its rate"))
+    assert warning.endswith(" years more; fewer samples (--spp) or a --time or --noise rule end it sooner"), warning
+    assert not (tmp_path / "x.exr").exists()
