@@ -29,6 +29,23 @@ def _ignore(signum, frame):  # the watcher thread does the work (a Python handle
     return None
 
 
+def _on_signal(signum: int) -> None:
+    n = signals.request(signum)
+    first = signals.requested()
+    if n == 1:
+        print(f"\nsmbs_addon: {signals.name(signum)}: stopping the bake (again to stop at once)",
+              file=sys.stderr, flush=True)
+    else:
+        remove_pending()
+        print(f"smbs_addon: {signals.name(signum)} again: stopped at once, nothing written",
+              file=sys.stderr, flush=True)
+        os._exit(cancelled(first))
+
+
+def _direct(signum, frame):  # where no wakeup fd can be had (Windows): the flag, from the main thread
+    _on_signal(signum)
+
+
 def _watch(fd: int) -> None:
     while True:
         try:
@@ -36,20 +53,11 @@ def _watch(fd: int) -> None:
         except OSError:
             return
         if not data:
+            os.close(fd)
             return
         for signum in data:
-            if signum not in HANDLED:
-                continue
-            n = signals.request(signum)
-            first = signals.requested()
-            if n == 1:
-                print(f"\nsmbs_addon: {signals.name(signum)}: stopping the bake (again to stop at once)",
-                      file=sys.stderr, flush=True)
-            else:
-                remove_pending()
-                print(f"smbs_addon: {signals.name(signum)} again: stopped at once, nothing written",
-                      file=sys.stderr, flush=True)
-                os._exit(cancelled(first))
+            if signum in HANDLED:
+                _on_signal(signum)
 
 
 def install():
@@ -58,17 +66,23 @@ def install():
     if threading.current_thread() is not threading.main_thread():
         return None
     signals.clear()
-    r, w = os.pipe()
-    os.set_blocking(w, False)
-    old = {s: signal.signal(s, _ignore) for s in HANDLED}
-    old_fd = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
-    threading.Thread(target=_watch, args=(r,), name="smbs-signals", daemon=True).start()
+    try:
+        r, w = os.pipe()
+        os.set_blocking(w, False)
+        old_fd = signal.set_wakeup_fd(w, warn_on_full_buffer=False)
+    except (OSError, ValueError):  # Windows: a wakeup fd must be a socket; the flag from the handler instead
+        r = w = old_fd = None
+    old = {s: signal.signal(s, _ignore if w is not None else _direct) for s in HANDLED}
+    if w is not None:
+        threading.Thread(target=_watch, args=(r,), name="smbs-signals", daemon=True).start()
 
     def restore():
-        signal.set_wakeup_fd(old_fd)
+        if w is not None:
+            signal.set_wakeup_fd(old_fd)
         for s, h in old.items():
             signal.signal(s, h if h is not None else signal.SIG_DFL)
-        os.close(w)  # the watcher reads the end of the pipe and returns
+        if w is not None:
+            os.close(w)  # the watcher reads the end of the pipe and returns
         signals.clear()
 
     return restore

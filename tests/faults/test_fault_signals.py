@@ -147,3 +147,24 @@ def test_a_signal_without_keep_partial_raises_in_the_library():
     finally:
         signals.clear()
     assert e.value.signum == signal.SIGINT and str(e.value) == "stopped by SIGINT"
+
+
+def test_without_a_wakeup_fd_the_handler_sets_the_flag(monkeypatch):
+    """Where Python gives no wakeup file descriptor (Windows wants a socket), the handler itself sets the
+    flag: the same stop, from the main thread."""
+    import os
+
+    from smbs_addon.cli import signals as cli_signals
+    from smbs_addon.core import signals
+
+    def refuse(fd, **kw):
+        raise ValueError("the fd must be a socket")
+
+    monkeypatch.setattr(cli_signals.signal, "set_wakeup_fd", refuse)
+    restore = cli_signals.install()
+    try:
+        os.kill(os.getpid(), signal.SIGTERM)
+        assert signals.requested() == signal.SIGTERM
+    finally:
+        restore()
+    assert signals.requested() == 0
