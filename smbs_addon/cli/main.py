@@ -18,7 +18,7 @@ from pathlib import Path
 from .arguments import bake_settings, build_parser
 from .inputs import check_writable, load_input
 from .commands import compare_command, prepare_command
-from ..io.exr import exr_channels, exr_metadata, exr_writer, json_writer, save_outputs
+from ..io.exr import bytes_writer, exr_channels, exr_metadata, exr_writer, json_writer, save_outputs
 from .report import duration, summary_lines
 from ..core import signals
 from ..core.errors import BakeCancelled, SceneError
@@ -49,7 +49,8 @@ def _run(args) -> int:
             check_writable(out)
             scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
             signals.check()
-            scene.save(out)
+
+            save_outputs([(out, bytes_writer(scene.npz_bytes()))], before_replace=signals.check)
             say(f"wrote {out}")
             return EXIT_OK
         if args.command == "compare":

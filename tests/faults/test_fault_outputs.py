@@ -131,3 +131,17 @@ def test_a_failed_write_leaves_no_temporary_in_the_folder(tmp_path, monkeypatch)
         exr.save_outputs([(out, interrupted)])
     assert_nothing_lost(out, before)
     assert temporaries(tmp_path) == []
+
+
+def test_an_export_under_a_file_size_limit_keeps_the_previous_npz(npz, tmp_path):
+    """export: the scene's .npz is written and read back like the bake's outputs."""
+    out = tmp_path / "scene.npz"
+    out.write_bytes(npz.read_bytes())
+    before = out.read_bytes()
+    proc = run("export", npz, out, preexec_fn=_limit(8192))
+    assert proc.returncode == 3, proc.stderr
+    assert_no_traceback(proc)
+    assert proc.stderr.strip().startswith(f"smbs_addon: error: cannot write '{out}': the file size limit of this "
+                                          f"process (ulimit -f: 8192 bytes) cut it short; the previous file is "
+                                          f"unchanged; ")
+    assert out.read_bytes() == before and temporaries(tmp_path) == []
