@@ -65,8 +65,10 @@ def _run(args) -> int:
         print(f"smbs_addon: error: {e}", file=sys.stderr)
         return EXIT_IO
     except BakeCancelled as e:
-        print(f"smbs_addon: {'cancelled' if not e.signum else e}; nothing was written", file=sys.stderr)
-        return cancelled(e.signum)
+        signum = e.signum or signals.requested()  # prepare's processes stop by a cancel() that asks the flag
+        print(f"smbs_addon: {f'stopped by {signals.name(signum)}' if signum else 'cancelled'}; nothing was written",
+              file=sys.stderr)
+        return cancelled(signum)
     except KeyboardInterrupt:  # signals not ours (main() off the main thread)
         print("smbs_addon: cancelled; nothing was written", file=sys.stderr)
         return cancelled(2)
