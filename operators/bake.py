@@ -47,6 +47,8 @@ def _core():
                            apply_layer=composite.apply_layer, remove_layer=composite.remove_layer,
                            diffuse_color_switched_on=composite.diffuse_color_switched_on,
                            has_layer=composite.has_layer, write_exr=imageio.write_exr, write_json=imageio.write_json,
+                           exr_writer=imageio.exr_writer, json_writer=imageio.json_writer,
+                           save_outputs=imageio.save_outputs,
                            make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels,
                            world_unread=world.world_unread)
 
@@ -194,20 +196,21 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     # beside the rest of the layer (result.layer(); the whole image without them)
     layer, per_albedo = result.layer(), result.per_albedo
     path, stored_path = prep.path, prep.stored_path
-    albedo_stored, writing = None, path
+    albedo_stored = None
     try:
         os.makedirs(os.path.dirname(path), exist_ok=True)
         metadata = core.exr_metadata(prep.settings, result)
-        core.write_exr(path, layer, metadata, core.exr_channels(result))
+        # every file written and read back before any replaces the last bake's (io/exr.save_outputs)
+        outputs = [(path, core.exr_writer(layer, metadata, core.exr_channels(result)))]
         if per_albedo is not None:  # a file of its own beside it, for its Image datablock to read
-            writing = os.path.splitext(path)[0] + "_per_albedo.exr"
-            core.write_exr(writing, per_albedo, metadata)
+            outputs.append((os.path.splitext(path)[0] + "_per_albedo.exr", core.exr_writer(per_albedo, metadata)))
             albedo_stored = os.path.splitext(stored_path)[0] + "_per_albedo.exr" if stored_path else None
-            writing = path
-        core.write_json(os.path.splitext(path)[0] + ".json", stats)
+        outputs.append((os.path.splitext(path)[0] + ".json", core.json_writer(stats)))
+        core.save_outputs(outputs)
     except (core.SceneError, OSError) as e:
-        # The bake is not thrown away: the layer is packed into the blend file instead.
-        warnings.append(f"Could not write '{writing}' ({e}); the caustic layer is packed into the blend file")
+        # The bake is not thrown away: the layer is packed into the blend file instead (and the message
+        # says where else the files were kept)
+        warnings.append(f"Could not write the caustic layer: {e}; it is packed into the blend file")
         stored_path = albedo_stored = None
     had_pass = core.diffuse_color_switched_on(scene)
     try:
@@ -230,7 +233,8 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
             noise = (result.stats or {}).get("noise") or {}
             cov = policy.coverage(prep.data, plan, prep.settings.use_cycles_flags, prep.blender_lights,
                                   layer_mean=noise.get("mean"), skipped=(result.stats or {}).get("skipped", ()),
-                                  world_unread=prep.world_unread)
+                                  world_unread=prep.world_unread,
+                                  nothing=(result.stats or {}).get("nothing_to_bake"))
         except Exception as e:
             traceback.print_exc()
             warnings.append(f"Could not tell which caustics the layer covers ({e}); "
@@ -239,6 +243,8 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
             kept_out, lines = policy.update_cycles(scene, props, cov)
             if kept_out:
                 print("SMBS Caustics: " + " ".join(lines), flush=True)
+            elif cov.nothing:  # the Nothing to bake warning below says it
+                note_line = -1
             else:
                 warnings.append(" ".join(lines[1:]))
                 note_line = len(warnings) - 1  # the panel shows it in the Cycles note already

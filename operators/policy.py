@@ -37,6 +37,7 @@ class Coverage:
     left_to_cycles: list = field(default_factory=list)  # what only Cycles renders, with why
     dropped: list = field(default_factory=list)  # what neither renders once Cycles' are off, too faint to see
     unread: list = field(default_factory=list)  # what neither renders once Cycles' are off: the layer cannot read it
+    nothing: str | None = None  # the bake had nothing to bake (why): the layer is empty, Cycles is left alone
 
 
 def _names(names, mask):
@@ -49,7 +50,7 @@ def _short(names, most=4):
 
 
 def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, skipped=(),
-             world_unread=None) -> Coverage:
+             world_unread=None, nothing=None) -> Coverage:
     """What the layer covers, from the exported scene ``data`` and its ``plan``.
 
     blender_lights: (name, is_portal) of the scene's renderable light objects,
@@ -60,6 +61,12 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
     world_unread: the name of a world whose node setup the export could not read (black to the
     layer): its caustics are named as rendered by neither once Cycles' are off, as before the
     layer had a world light (keeping Cycles' on for it would count every lamp's caustic twice).
+    nothing: the bake's nothing_to_bake (why its layer is empty): nothing is counted twice, and
+    Cycles is left as it is.
+
+    A caster or receiver is left to Cycles only where Cycles' flags leave it out of the layer (the
+    flags in use, the object not flagged): one out of the plan for another reason (no light reaches
+    it, diffuse rays do not see it, no light at all) has no caustic in Cycles either.
     """
     from ..smbs_addon.scene import arrays as S
     from ..smbs_addon.baking.plan import FAINT
@@ -68,11 +75,15 @@ def coverage(data, plan, flags_mode: str, blender_lights=(), layer_mean=None, sk
     kind = data.mat_kind[data.tri_material] if data.n_tris else np.zeros(0, np.int32)
     has_spec = np.bincount(data.tri_object[(kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)], minlength=O) > 0
     has_diff = np.bincount(data.tri_object[kind == S.DIFFUSE], minlength=O) > 0
+    if nothing:
+        return Coverage(covered=False, nothing=nothing)
     left = []
-    for name in _names(data.object_names, has_spec & ~plan.casters):
-        left.append(f"caster '{name}' (not flagged Cast Shadow Caustics)")
-    for name in _names(data.object_names, has_diff & ~plan.receivers):
-        left.append(f"receiver '{name}' (not flagged Receive Shadow Caustics)")
+    if flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.object_caster))):
+        for name in _names(data.object_names, has_spec & ~data.object_caster.astype(bool)):
+            left.append(f"caster '{name}' (not flagged Cast Shadow Caustics)")
+    if flags_mode == "ON" or (flags_mode == "AUTO" and bool(np.any(data.object_receiver))):
+        for name in _names(data.object_names, has_diff & ~data.object_receiver.astype(bool)):
+            left.append(f"receiver '{name}' (not flagged Receive Shadow Caustics)")
 
     faint = {x["name"]: x["reason"] for x in skipped if x["kind"] == "light" and x["reason"].startswith(FAINT)}
     planned = {lp.index for lp in plan.lights} | set(plan.indirect_lights)
@@ -163,6 +174,12 @@ def update_cycles(bpy_scene, props, cov: Coverage) -> tuple[bool, list[str]]:
     """
     layer = (f"The layer holds the caustics of {_short(cov.casters)} on {_short(cov.receivers)} "
              f"from {_short(cov.lights)}.")
+    if cov.nothing:
+        restore_cycles(bpy_scene, props)
+        lines = [f"The layer is empty (nothing to bake: {cov.nothing}).",
+                 "Cycles' own caustics are left as they are."]
+        props.cycles_note = "\n".join(lines)
+        return False, lines
     if cov.covered and props.keep_out_of_cycles:
         if not props.cycles_kept_out:  # remember the user's switches once, before the first change
             props.saved_caustics_reflective, props.saved_caustics_refractive = _switches(bpy_scene)

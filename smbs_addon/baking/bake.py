@@ -18,13 +18,17 @@ from .result import BakeResult
 from .settings import BakeSettings
 
 
-def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None, on_plan=None) -> BakeResult:
+def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None, on_plan=None,
+         keep_partial: bool = False) -> BakeResult:
     """Bake the caustic layer of a Scene.
 
     progress(fraction, message) is called between chunks; cancel() returning
     True stops the bake with BakeCancelled (nothing is returned or written);
     on_plan(lines) gets the plan in words before any caustic is traced. A scene
     with nothing to bake gives an all-zero layer, stats["nothing_to_bake"] says why.
+    A signal (core/signals.py) stops it as cancel() does; with keep_partial, a bake by a time
+    or noise rule that a signal stops after a batch or more returns the batches done instead
+    (stats["stopped_by"] "signal", stats["signal"] its name).
 
     The first bake after installing or updating compiles the kernels it uses (compiles.py):
     progress says so while it does, stats["compile_s"] is the time it took (in time_s, not in
@@ -32,7 +36,7 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     report = _Reporter(progress)
     with CompileWatch(on_start=report.compiling, on_end=report.compiled) as watch:
         try:
-            result = _bake(scene, settings, report, cancel, on_plan, watch)
+            result = _bake(scene, settings, report, cancel, on_plan, watch, keep_partial)
         finally:
             lanes.free_scratch()  # the work arrays the threads kept (lanes.scratch)
     result.stats["compile_s"] = watch.seconds
@@ -40,8 +44,8 @@ def bake(scene, settings: BakeSettings | None = None, progress=None, cancel=None
     return result
 
 
-def _bake(scene, settings, report, cancel, on_plan, watch) -> BakeResult:
-    job = engine.start(scene, settings, report, cancel, on_plan, watch)
+def _bake(scene, settings, report, cancel, on_plan, watch, keep_partial=False) -> BakeResult:
+    job = engine.start(scene, settings, report, cancel, on_plan, watch, keep_partial)
     if isinstance(job, BakeResult):
         return job
     if job.settings.method != "auto":

@@ -30,6 +30,7 @@ import numpy as np
 from . import convergence
 from ..core.errors import SceneError
 from ..io.exr import read_exr
+from ..trace.camera import CameraModel
 from .bake import bake
 
 
@@ -58,6 +59,16 @@ class Reference:
         return cls(lum, var, str(path))
 
 
+def layer_shape(scene) -> tuple[int, int]:
+    """(height, width) of the caustic layer a bake of scene makes: the camera's resolution times its
+    percentage, cropped to the render border where the camera crops to it (result._film_images)."""
+    cam = CameraModel(scene.camera)
+    if scene.camera.use_border and scene.camera.use_crop_to_border:
+        x0, x1, y0, y1 = cam.region
+        return y1 - y0, x1 - x0
+    return cam.H, cam.W
+
+
 def _rmse(lum: np.ndarray, ref: Reference, region: np.ndarray) -> float:
     mse = float(((lum - ref.luminance)[region] ** 2).mean())
     if ref.variance is not None:
@@ -81,6 +92,12 @@ def compare(scene, methods, seconds: float, settings, reference: Reference | Non
         raise SceneError("compare: no method to compare")
     if len(set(methods)) != len(methods):
         raise SceneError(f"compare: a method is listed twice ({', '.join(methods)})")
+    if reference is not None:  # before any bake, not after all of them
+        h, w = layer_shape(scene)
+        if reference.luminance.shape != (h, w):
+            rh, rw = reference.luminance.shape
+            raise SceneError(f"reference '{reference.name}' is {rw} x {rh} pixels, the scene's caustic layer "
+                             f"{w} x {h} (camera resolution, its percentage and crop to the render border)")
     results = {}
     for i, m in enumerate(methods):
         if progress is not None:

@@ -20,9 +20,10 @@ from .settings import BakeSettings
 from .walking import bake_walks
 
 
-def start(scene, settings, report, cancel, on_plan, watch) -> Job | BakeResult:
+def start(scene, settings, report, cancel, on_plan, watch, keep_partial=False) -> Job | BakeResult:
     """Validate, plan, trace the plan and make the film: the job, or the all-zero result of a scene
-    with nothing to bake. on_plan(lines) gets the plan in words before any caustic is traced."""
+    with nothing to bake. on_plan(lines) gets the plan in words before any caustic is traced;
+    keep_partial: see Job."""
     settings = settings or BakeSettings()
     settings.validate()
     scene.validate()
@@ -30,6 +31,7 @@ def start(scene, settings, report, cancel, on_plan, watch) -> Job | BakeResult:
     plan = make_plan(scene, settings.use_cycles_flags)
     cam = CameraModel(scene.camera)
     check_memory(scene, cam.W, cam.H, settings.batches)
+    check_samples(scene, settings)
     if plan.nothing:
         return nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
     tracer = trace_plan(plan, scene, settings, cam)
@@ -40,7 +42,7 @@ def start(scene, settings, report, cancel, on_plan, watch) -> Job | BakeResult:
         on_plan(plan.words())
     if plan.nothing:
         return nothing_to_bake(scene, settings, plan, cam, t0, None)
-    return Job(scene, settings, plan, cam, tracer, film, t0, report, cancel, watch)
+    return Job(scene, settings, plan, cam, tracer, film, t0, report, cancel, watch, keep_partial=keep_partial)
 
 
 def run(job, light_tracing: bool, choices=None) -> BakeResult:
@@ -65,10 +67,29 @@ def film_memory(width: int, height: int, batches: int, textured: bool = False) -
     """Bytes the film of a bake needs: per pixel the sum, sum of squares and current batch
     (3 float64 each), the image and variance made from them (float64, then float32), and one
     float32 luminance image per batch (kept, then stacked); with textured receivers, their two
-    sums (3 float64 each) and the two float32 images made from them."""
+    sums and the current batch's two (3 float64 each) and the two float32 images made from them."""
     px = int(width) * int(height)
-    extra = px * 2 * 3 * (8 + 4) if textured else 0
+    extra = px * 2 * 3 * (2 * 8 + 4) if textured else 0
     return px * (3 * 3 * 8 + 2 * 3 * 8 + 2 * 3 * 4) + 2 * int(batches) * px * 4 + extra
+
+
+MAX_SAMPLES = 2 ** 48  # light paths or eye samples per light and pass; more are refused (check_samples)
+FAST_SAMPLES_PER_S = 1e7  # faster than any bake here samples (bench/results/throughput.md): a lower bound on time
+
+
+def check_samples(scene, settings) -> None:
+    """Refuse, before anything is traced, a bake whose samples per light and pass of its batches
+    (spp x the render region's pixels) are past what it can count (MAX_SAMPLES), saying how long it
+    would take at least."""
+    cam = CameraModel(scene.camera)
+    x0, x1, y0, y1 = cam.region
+    n = int(settings.spp) * max(0, x1 - x0) * max(0, y1 - y0)
+    if n > MAX_SAMPLES:
+        years = n * max(scene.n_lights, 1) / FAST_SAMPLES_PER_S / (365.25 * 86400)
+        raise SceneError(f"spp {settings.spp} asks for {n:.3g} samples per light over the "
+                         f"{x1 - x0} x {y1 - y0} pixels, more than a bake counts ({MAX_SAMPLES:.3g}); it would take "
+                         f"more than {years:.3g} years even at {FAST_SAMPLES_PER_S:.0e} samples a second; at most "
+                         f"spp {MAX_SAMPLES // max((x1 - x0) * (y1 - y0), 1)} here")
 
 
 def check_memory(scene, width: int, height: int, batches: int) -> None:

@@ -7,6 +7,7 @@ import dataclasses
 import time
 from dataclasses import dataclass, field
 
+from ..core import signals
 from ..core.errors import BakeCancelled
 from ..core.random import stream
 from ..trace.eye import film_cells
@@ -22,6 +23,8 @@ class Progress:
         self.fraction = None  # stop rules by time or noise: () -> fraction done, instead of the count
 
     def check(self):
+        """Raise BakeCancelled if the caller's cancel() says so or a signal asked for a stop."""
+        signals.check()
         if self.cancel is not None and self.cancel():
             raise BakeCancelled("bake cancelled")
 
@@ -51,6 +54,7 @@ class Job:
     light_stats: dict = field(default_factory=dict)  # per light name
     indirect_stats: dict = field(default_factory=dict)  # per light name: indirect.trace_indirect_photons' photons
     extra: dict = field(default_factory=dict)  # the statistics beside the lights'
+    keep_partial: bool = False  # a time or noise rule stopped by a signal keeps the batches done (stop.py)
 
     def __post_init__(self):
         self.light_stats = self.light_stats or {

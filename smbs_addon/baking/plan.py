@@ -136,9 +136,9 @@ def _degenerate_axes(scene: S.Scene, li: int) -> bool:
 def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
     """The plan from materials, Cycles' flags and bounds alone (no tracing). A scene with
     nothing to bake (no light, caster or receiver) gives a plan whose ``nothing`` says why."""
-    casters, receivers, skipped, blind = _participants(scene, flags)
+    casters, receivers, skipped, blind, flat = _participants(scene, flags)
     plan = Plan(casters=casters, receivers=receivers, lights=[], skipped=skipped, flag_casters=casters.copy())
-    plan.nothing = _nothing_takes_part(scene, plan, flags, blind)
+    plan.nothing = _nothing_takes_part(scene, plan, flags, blind, flat)
     if plan.nothing:
         return _finish(plan, scene)
     spheres = {o: _bounding_sphere(*scene.object_bounds(o), scene) for o in np.flatnonzero(casters)}
@@ -152,12 +152,20 @@ def make_plan(scene: S.Scene, flags: str = "AUTO") -> Plan:
         _plan_light(scene, plan, li, spheres, zip(rec_objs, rec_spheres))
     if not plan.lights and not plan.indirect_lights:  # (a light that lights a receiver may still light a caster)
         plan.nothing = _no_light(plan)
+    if len(plan.lights) >= MANY_LIGHTS:
+        plan.notes.append(f"{len(plan.lights)} lights take part: each light's caustic is traced on its own, so the "
+                          f"bake costs about {len(plan.lights)} times one light's (a time or noise rule shares its "
+                          f"time among them)")
     return _finish(plan, scene)
+
+
+MANY_LIGHTS = 16  # from this many lights the plan says what they cost
 
 
 def _participants(scene, flags):
     """(casters, receivers: (O,) bool, skipped: the objects left out and why, blind: the casters no
-    diffuse ray sees) from materials, Cycles' flags (as flags says) and Ray Visibility."""
+    diffuse ray sees, flat: the objects left out for having no area) from materials, Cycles' flags
+    (as flags says), Ray Visibility and the objects' areas."""
     O = len(scene.object_names)
     kind = scene.mat_kind[scene.tri_material] if scene.n_tris else np.zeros(0, np.int32)
     specular_tri = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
@@ -185,14 +193,36 @@ def _participants(scene, flags):
         for o in np.flatnonzero(has_diff & ~scene.object_receiver):
             skipped.append(("receiver", scene.object_names[o], "not flagged as caustic receiver"))
         receivers &= scene.object_receiver
-    return casters, receivers, skipped, blind
+    flat = []
+    area = _object_areas(scene)
+    for o in np.flatnonzero((casters | receivers) & ~(area > 0)):
+        what = "caster" if casters[o] else "receiver"
+        skipped.append((what, scene.object_names[o], "it has no area (its object is scaled to zero, or its faces are "
+                                                     "degenerate), so it can neither bend nor catch light"))
+        casters[o] = receivers[o] = False
+        flat.append(scene.object_names[o])
+    return casters, receivers, skipped, blind, flat
 
 
-def _nothing_takes_part(scene, plan, flags, blind) -> str | None:
+def _object_areas(scene) -> np.ndarray:
+    """(O,) each object's surface area (0 for an object without triangles)."""
+    v = np.asarray(scene.tri_vertices, float)
+    if not len(v):
+        return np.zeros(len(scene.object_names))
+    tri = 0.5 * np.linalg.norm(np.cross(v[:, 1] - v[:, 0], v[:, 2] - v[:, 0]), axis=1)
+    return np.bincount(scene.tri_object, weights=tri, minlength=len(scene.object_names))
+
+
+def _nothing_takes_part(scene, plan, flags, blind, flat=()) -> str | None:
     """Why nothing can be baked before any light is looked at (no light, caster, receiver, or a
     camera that sees nothing), or None."""
     if scene.n_lights == 0:
         return f"scene '{scene.name}' has no light"
+    for what, has in (("caster", plan.casters), ("receiver", plan.receivers)):
+        gone = [n for n in flat if any(k == what and s == n for k, s, _ in plan.skipped)]
+        if not has.any() and gone:
+            return (f"scene '{scene.name}' has no caustic {what}: {', '.join(repr(n) for n in gone)} "
+                    f"{'has' if len(gone) == 1 else 'have'} no area (scaled to zero?)")
     if not plan.casters.any() and blind:
         return (f"scene '{scene.name}' has no caustic caster: diffuse rays do not see "
                 f"{', '.join(repr(n) for n in blind)} (Ray Visibility), so Cycles shows no caustic of "

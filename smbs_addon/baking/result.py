@@ -166,6 +166,8 @@ def finish(job, batches, stop, t_first, rays) -> BakeResult:
                         "batches_per_kept": film.group_size},
         "stopped_by": stop.reason,
     }
+    if stop.reason == "signal":  # a bake with keep_partial stopped by a signal: the batches done
+        stats["signal"] = stop.signal
     textured, per_albedo = film.textured_parts()
     if textured is not None:
         stats["textured_share"] = float(channel_mean(textured).sum()) / layer if layer > 0 else 0.0

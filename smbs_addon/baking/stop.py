@@ -7,6 +7,8 @@ import time
 
 import numpy as np
 
+from ..core import signals
+from ..core.errors import BakeCancelled
 from ..core.vec import channel_mean
 from . import convergence
 
@@ -30,6 +32,7 @@ class StopRule:
     def __init__(self, settings, film, t0: float, watch):
         self.s, self.film, self.t0, self.watch = settings, film, t0, watch
         self.reason = "samples"
+        self.signal = ""  # the signal that stopped a bake with keep_partial (run_batches)
         self.last_error = math.inf
 
     def clock(self) -> float:
@@ -79,15 +82,29 @@ def run_batches(job, run_batch):
     The batches' clock (the film's batch ends, the seconds before the first, the last batch's
     length the time rule looks ahead by) leaves out the time spent compiling kernels (job.watch:
     a CompileWatch), which later bakes do not pay: the price of more batches is what they cost,
-    and a time budget buys what it buys on later bakes (StopRule)."""
+    and a time budget buys what it buys on later bakes (StopRule).
+
+    A signal (core/signals.py) stops the batch under way with BakeCancelled. A time or noise rule
+    whose job keeps what it has (job.keep_partial) then drops that batch's splats (film.drop_batch)
+    and ends with the batches done, if any (the stop rule's reason "signal"): the image and its
+    error bar are those of whole batches."""
     settings, film = job.settings, job.film
     stop = StopRule(settings, film, job.t0, job.watch)
     job.prog.fraction = stop.fraction if settings.time_budget > 0 or settings.noise_target > 0 else None
     t_first = stop.clock()
     b = 0
+    partial = job.keep_partial and (settings.time_budget > 0 or settings.noise_target > 0)
     while True:
         begun = stop.clock()
-        run_batch(b)
+        try:
+            run_batch(b)
+        except BakeCancelled as e:
+            if not (partial and e.signum and b >= 1):
+                raise
+            signals.acknowledge()  # what follows (the image, its error bar) runs to its end
+            film.drop_batch()
+            stop.reason, stop.signal = "signal", signals.name(e.signum)
+            return b, stop, t_first
         ended = stop.clock()
         film.end_batch(ended)
         b += 1

@@ -17,6 +17,7 @@ stated fallback, e.g. an unsupported material becomes diffuse with albedo 0.8.
 from __future__ import annotations
 
 import logging
+import os
 
 import bpy
 import numpy as np
@@ -33,6 +34,34 @@ from .visibility import LinkedNames, ray_visibility, say_visibility
 from .world import add_world
 
 log = logging.getLogger(__name__)
+
+
+def missing_libraries(bpy_scene=None) -> list:
+    """[(library file as stored, absolute path, [names of the scene's objects whose data it held])]
+    for each linked library whose file is not there: Blender opens the .blend with empty placeholders
+    for what it linked (ID.is_missing), which bake as nothing."""
+    out = []
+    for lib in bpy.data.libraries:
+        path = bpy.path.abspath(lib.filepath, library=lib.library)
+        if os.path.exists(path) and not getattr(lib, "is_missing", False):
+            continue
+        names = []
+        if bpy_scene is not None:
+            for ob in bpy_scene.objects:
+                ids = [ob, ob.data, ob.instance_collection]
+                if any(i is not None and (i.library == lib or getattr(i, "is_missing", False)) for i in ids):
+                    names.append(ob.name)
+        out.append((lib.filepath, path, names))
+    return out
+
+
+def say_missing_libraries(bpy_scene, warn) -> None:
+    """A warning per linked library that is missing, naming the objects it left empty."""
+    for stored, path, names in missing_libraries(bpy_scene):
+        what = (f": {', '.join(repr(n) for n in names[:6])}{' and more' if len(names) > 6 else ''} "
+                f"{'is an empty placeholder and bakes' if len(names) == 1 else 'are empty placeholders and bake'} as nothing"
+                if names else "; what it linked is missing from the scene")
+        warn(f"linked library '{stored}' is missing (no file at {path}){what}")
 
 
 def _default_depsgraph(bpy_scene):
@@ -151,6 +180,7 @@ def export_scene(bpy_scene=None, depsgraph=None, warn=None) -> S.Scene:
             raise SceneError(f"scene '{bpy_scene.name}' has no camera")
         depsgraph = _default_depsgraph(bpy_scene)
     camera = export_camera(bpy_scene, depsgraph, _warn)
+    say_missing_libraries(bpy_scene, _warn)
 
     b = SceneBuilder(bpy_scene.name)
     b.camera = camera

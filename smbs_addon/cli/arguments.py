@@ -119,6 +119,10 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--noise", type=_target, default=None, metavar="TARGET",
                    help="bake until the estimated relative error of the layer (relative_error) is at or "
                         "below TARGET, e.g. 0.05 or 5%%; with --time too, whichever comes first")
+    b.add_argument("--keep-partial", action="store_true",
+                   help="with --time or --noise: when a signal (Ctrl-C, SIGTERM, SIGHUP) stops the bake, write "
+                        "the whole batches done so far, with their error bar (the exit code still says a signal "
+                        "stopped it)")
     b.add_argument("--out", default=None, help="output EXR (default: IN with .caustics.exr)")
     b.add_argument("--stats", default=None, help="statistics JSON (default: beside the EXR)")
     b.add_argument("--quiet", action="store_true")

@@ -8,10 +8,11 @@ from pathlib import Path
 from ..baking import prepare
 from ..baking.compare import Reference, compare, json_report, table_lines
 from ..core.compiles import counted
-from ..io.exr import write_json
 from .arguments import bake_settings
-from .exits import EXIT_NOT_READY, EXIT_OK
 from .inputs import check_writable, load_input
+from ..core import signals
+from ..io.exr import write_json
+from .exits import EXIT_NOT_READY, EXIT_OK
 
 def prepare_command(args, say) -> int:
     """python -m smbs_addon prepare: compile the kernels (smbs_addon.baking.prepare)."""
@@ -22,7 +23,7 @@ def prepare_command(args, say) -> int:
                     "(a few minutes), `python -m smbs_addon prepare` does it now",
              None: "kernels: cannot tell whether they are compiled (this numba keeps its cache otherwise)"}[state])
         return EXIT_OK if state else EXIT_NOT_READY
-    out = prepare.prepare(args.jobs, say=say)
+    out = prepare.prepare(args.jobs, say=say, cancel=lambda: bool(signals.requested()))
     say(f"prepared: {counted(out['kernels'], 'kernel')} compiled in {out['seconds']:.1f} s "
         f"({counted(out['jobs'], 'process')}); bakes on this machine load them from the cache")
     return EXIT_OK
@@ -34,6 +35,8 @@ def compare_command(args, say) -> int:
     out = Path(args.out) if args.out else None
     if out is not None:
         check_writable(out)
+    if args.reference and Path(args.reference).is_dir():
+        raise IsADirectoryError(f"reference '{args.reference}' is a folder, not an EXR")
     if args.reference and not Path(args.reference).is_file():
         raise FileNotFoundError(f"reference '{args.reference}' does not exist")
     ref = Reference.from_exr(args.reference) if args.reference else None

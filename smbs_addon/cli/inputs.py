@@ -1,18 +1,22 @@
 """The command line's files: the input scene (.npz, or a .blend opened with bpy) and the outputs' checks."""
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 from ..core.errors import SceneError
+from ..io.exr import check_output
 from ..scene.arrays import Scene
 
 
 def load_input(path: str, warn=print):
     """A Scene from a .npz or a .blend (the latter through the bpy module)."""
     p = Path(path)
-    if not p.is_file():
+    if p.is_dir():
+        raise IsADirectoryError(f"input '{path}' is a folder, not a .blend or .npz file")
+    if not p.exists():
         raise FileNotFoundError(f"input '{path}' does not exist")
+    if not p.is_file():
+        raise OSError(f"input '{path}' is not a file")
     if p.suffix.lower() == ".npz":
         return Scene.load(p)
     if p.suffix.lower() == ".blend":
@@ -25,12 +29,5 @@ def load_input(path: str, warn=print):
 
 
 def check_writable(path: Path):
-    parent = path.parent if str(path.parent) else Path(".")
-    if parent.exists() and not parent.is_dir():
-        raise OSError(f"output folder '{parent}' is a file")
-    if not parent.is_dir():
-        raise OSError(f"output folder '{parent}' does not exist")
-    if not os.access(parent, os.W_OK):
-        raise OSError(f"output folder '{parent}' is not writable")
-    if path.is_dir():
-        raise OSError(f"output '{path}' is a folder")
+    """Refuse, before any work, an output that cannot be written (io.exr.check_output)."""
+    check_output(path)

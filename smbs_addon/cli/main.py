@@ -3,93 +3,164 @@
 the kernels before the first bake).
 
 IN is a .blend file (opened with the bpy module) or an exported .npz scene.
-Exit codes a render farm can trust: 0 done (also for a scene with no caustic to
+Exit codes a render farm can trust (exits.py): 0 done (also for a scene with no caustic to
 bake: its layer is all zero and the output says why), 1 the scene cannot be baked,
-2 bad arguments, 3 unreadable input or unwritable output, 130 cancelled; ``prepare --check``:
-0 the kernels are compiled for this machine, 1 not (or no telling).
+2 bad arguments, 3 unreadable input or unwritable output (the previous output unchanged), 128 +
+the signal's number when SIGINT (130), SIGTERM (143) or SIGHUP (129) stopped it (signals.py);
+``prepare --check``: 0 the kernels are compiled for this machine, 1 not (or no telling).
 """
 from __future__ import annotations
 
 import sys
+import time
 from pathlib import Path
 
 from .arguments import bake_settings, build_parser
 from .inputs import check_writable, load_input
 from .commands import compare_command, prepare_command
-from ..io.exr import exr_channels, exr_metadata, write_exr, write_json
-from .report import summary_lines
+from ..io.exr import bytes_writer, exr_channels, exr_metadata, exr_writer, json_writer, save_outputs
+from .report import duration, summary_lines
+from ..core import signals
 from ..core.errors import BakeCancelled, SceneError
 from ..baking.bake import bake
-from .exits import EXIT_CANCELLED, EXIT_IO, EXIT_OK, EXIT_SCENE
+from ..baking.engine import check_samples
+from . import signals as cli_signals
+from .exits import EXIT_IO, EXIT_OK, EXIT_SCENE, EXIT_USAGE, cancelled
+
+SLOW_BAKE_S = 24 * 3600  # a bake whose measured rate says it takes longer is warned of, once
 
 
 def main(argv=None) -> int:
     args = build_parser().parse_args(argv)
+    restore = cli_signals.install()
+    try:
+        return _run(args)
+    finally:
+        if restore is not None:
+            restore()
 
+
+def _run(args) -> int:
     say = (lambda *a: None) if getattr(args, "quiet", False) else print
+    out = None
     try:
         if args.command == "export":
             out = Path(args.output)
             check_writable(out)
-            load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr)).save(out)
+            scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
+            signals.check()
+
+            save_outputs([(out, bytes_writer(scene.npz_bytes()))], before_replace=signals.check)
             say(f"wrote {out}")
             return EXIT_OK
         if args.command == "compare":
             return compare_command(args, say)
         if args.command == "prepare":
             return prepare_command(args, say)
-
-        stop_rule = args.time is not None or args.noise is not None
-        spp = args.spp if args.spp is not None else (args.batches if stop_rule else 16)
-        settings = bake_settings(args, args.method, spp, args.time or 0.0, args.noise or 0.0)
-        out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
-        stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
-        check_writable(out)
-        check_writable(stats_path)
-        scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
-
-        tty = sys.stderr.isatty()
-        last = [""]
-
-        def progress(frac, msg):
-            if args.quiet:
-                return
-            if tty:
-                print(f"\r{frac:6.1%} {msg}", end="", file=sys.stderr, flush=True)
-            elif msg != last[0]:  # logs (render farms): one line per stage
-                print(f"{frac:6.1%} {msg}", file=sys.stderr, flush=True)
-                last[0] = msg
-
-        headed = []
-
-        def on_plan(lines):  # before any caustic is traced (auto adds its choices after its pilots)
-            if not headed:
-                say("plan:")
-                headed.append(True)
-            for line in lines:
-                say(f"  {line}")
-
-        result = bake(scene, settings, progress=progress, on_plan=on_plan)
-        if not args.quiet and tty:
-            print(file=sys.stderr)
-        try:
-            write_exr(out, result.layer(), exr_metadata(settings, result), exr_channels(result))
-        except SceneError as e:  # an output that cannot be written is an I/O failure (exit 3)
-            raise OSError(str(e)) from None
-        write_json(stats_path, result.stats)
-        for line in summary_lines(result.stats):
-            say(line)
-        say(f"wrote {out} and {stats_path}")
-        return EXIT_OK
+        return _bake_command(args, say)
     except SceneError as e:
         print(f"smbs_addon: error: {e}", file=sys.stderr)
         return EXIT_SCENE
     except OSError as e:
         print(f"smbs_addon: error: {e}", file=sys.stderr)
         return EXIT_IO
-    except (BakeCancelled, KeyboardInterrupt):
-        print("smbs_addon: cancelled", file=sys.stderr)
-        return EXIT_CANCELLED
+    except BakeCancelled as e:
+        signum = e.signum or signals.requested()  # prepare's processes stop by a cancel() that asks the flag
+        print(f"smbs_addon: {f'stopped by {signals.name(signum)}' if signum else 'cancelled'}; nothing was written",
+              file=sys.stderr)
+        return cancelled(signum)
+    except KeyboardInterrupt:  # signals not ours (main() off the main thread)
+        print("smbs_addon: cancelled; nothing was written", file=sys.stderr)
+        return cancelled(2)
+
+
+def _bake_command(args, say) -> int:
+    stop_rule = args.time is not None or args.noise is not None
+    if args.keep_partial and not stop_rule:
+        print("smbs_addon: error: --keep-partial keeps the whole batches a bake by --time or --noise has done "
+              "when a signal stops it; a bake by --spp has no such part to keep", file=sys.stderr)
+        return EXIT_USAGE
+    spp = args.spp if args.spp is not None else (args.batches if stop_rule else 16)
+    settings = bake_settings(args, args.method, spp, args.time or 0.0, args.noise or 0.0)
+    out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
+    stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
+    check_writable(out)
+    check_writable(stats_path)
+    scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
+    try:
+        check_samples(scene, settings)
+    except SceneError as e:
+        print(f"smbs_addon: error: {e}", file=sys.stderr)
+        return EXIT_USAGE
+    signals.check()
+
+    headed = []
+
+    def on_plan(lines):  # before any caustic is traced (auto adds its choices after its pilots)
+        if not headed:
+            say("plan:")
+            headed.append(True)
+        for line in lines:
+            say(f"  {line}")
+
+    tty = sys.stderr.isatty()
+    progress = _Progress(args.quiet, tty)
+    result = bake(scene, settings, progress=progress, on_plan=on_plan, keep_partial=args.keep_partial)
+    if not args.quiet and tty:
+        print(file=sys.stderr)
+    signals.check()  # a signal after the bake's last look at it: nothing is written
+    save_outputs([(out, exr_writer(result.layer(), exr_metadata(settings, result), exr_channels(result))),
+                  (stats_path, json_writer(result.stats))], before_replace=signals.check)
+    for line in summary_lines(result.stats):
+        say(line)
+    say(f"wrote {out} and {stats_path}")
+    if result.stats.get("stopped_by") == "signal":
+        return cancelled(signals.requested())
+    return EXIT_OK
+
+
+class _Progress:
+    """The bake's progress on stderr: a line that rewrites itself on a terminal, a line per stage in
+    logs (render farms); with the time it will take at its rate so far, and a warning, once, where
+    that is more than SLOW_BAKE_S."""
+
+    def __init__(self, quiet: bool, tty: bool):
+        self.quiet, self.tty = quiet, tty
+        self.last = ""
+        self.t0 = time.perf_counter()
+        self.warned = False
+
+    def left(self, frac: float) -> float | None:
+        spent = time.perf_counter() - self.t0
+        if frac <= 0 or spent < 2.0:
+            return None
+        return spent * (1.0 - frac) / frac
+
+    def __call__(self, frac, msg):
+        if self.quiet:
+            return
+        left = self.left(frac)
+        if left is not None and left > SLOW_BAKE_S and not self.warned:
+            self.warned = True
+            print(f"{chr(10) if self.tty else ''}warning: at its rate so far this bake takes about {_long(left)} "
+                  f"more; fewer samples (--spp) or a --time or --noise rule end it sooner", file=sys.stderr,
+                  flush=True)
+        if self.tty:
+            eta = f" (about {_long(left)} left)" if left is not None and frac < 1 else ""
+            print(f"\r{frac:6.1%} {msg}{eta}\033[K", end="", file=sys.stderr, flush=True)
+        elif msg != self.last:
+            print(f"{frac:6.1%} {msg}", file=sys.stderr, flush=True)
+            self.last = msg
+
+
+def _long(s: float) -> str:
+    """A duration from seconds to ages."""
+    year = 365.25 * 86400
+    if s < 2 * 86400:
+        return duration(s)
+    if s < year:
+        return f"{s / 86400:.0f} days"
+    return f"{s / year:.3g} years"
 
 
 if __name__ == "__main__":

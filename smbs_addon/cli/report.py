@@ -71,6 +71,9 @@ def error_lines(stats: dict) -> list[str]:
     stop = stats.get("stopped_by")
     if stop in ("time", "noise"):
         out.append(f"  stopped by the {stop} rule after {stats.get('batches_done', 0)} batches")
+    elif stop == "signal":
+        out.append(f"  stopped by {stats.get('signal', 'a signal')} after {stats.get('batches_done', 0)} whole "
+                   f"batches (--keep-partial: the batch under way was dropped)")
     budget = stats.get("settings", {}).get("time_budget", 0.0)
     work = stats.get("time_s", 0.0) - stats.get("compile_s", 0.0)  # the time rule's clock
     if stop == "time" and stats.get("batches_done", 0) <= 2 and work > 1.1 * budget:

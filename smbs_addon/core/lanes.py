@@ -9,6 +9,11 @@ cut their lanes into blocks of a fixed size, each one kernel call that walks its
 their rays without the GIL, and threads take the blocks in turn. The cut does not depend on the
 thread count. Inside a block, ``run`` does not split again: the block's calls run on its own
 thread.
+
+Before each block and part, the stop flag (core/signals.py: a signal asked the bake to stop) is
+polled; a block that raises (that flag's BakeCancelled, or an error) stops the other threads at
+their next block, and the call returns only once they have: no thread goes on with a bake that
+has ended.
 """
 from __future__ import annotations
 
@@ -19,6 +24,8 @@ import weakref
 from concurrent.futures import ThreadPoolExecutor
 
 import numpy as np
+
+from . import signals
 
 _POOLS: dict = {}
 _local = threading.local()
@@ -57,11 +64,31 @@ def nested() -> bool:
 
 
 def _part(call, a: int, b: int):
+    signals.check()
     _local.depth = getattr(_local, "depth", 0) + 1
     try:
         return call(a, b)
     finally:
         _local.depth -= 1
+
+
+def _gather(first, futures) -> list:
+    """The futures' results after the calling thread's own (first: a thunk); whatever raised first
+    is raised once every future is done."""
+    error = None
+    try:
+        out = [first()]
+    except BaseException as e:  # noqa: BLE001 - raised below, once the other parts have ended
+        error, out = e, [None]
+    for f in futures:
+        try:
+            out.append(f.result())
+        except BaseException as e:  # noqa: BLE001
+            error = error or e
+            out.append(None)
+    if error is not None:
+        raise error
+    return out
 
 
 def bounds(n: int, threads: int, min_part: int) -> list:
@@ -77,8 +104,7 @@ def run(call, n: int, threads: int, min_part: int) -> list:
     if len(b) == 2 or nested():
         return [call(0, n)]
     futures = [_pool(len(b) - 2).submit(_part, call, b[i], b[i + 1]) for i in range(1, len(b) - 1)]
-    first = _part(call, b[0], b[1])
-    return [first] + [f.result() for f in futures]
+    return _gather(lambda: _part(call, b[0], b[1]), futures)
 
 
 def block_edges(n: int, size: int, min_size: int = 0) -> list:
@@ -109,23 +135,32 @@ def blocks(call, n: int, size: int, threads: int, min_size: int = 0, whole: bool
         return []
     if k == 1 or threads <= 1 or nested():
         if whole:
+            signals.check()
             return [call(0, n)]
-        return [call(edges[i], edges[i + 1]) for i in range(k)]
+        out = []
+        for i in range(k):
+            signals.check()
+            out.append(call(edges[i], edges[i + 1]))
+        return out
     out = [None] * k
     todo = itertools.count()  # next() is atomic under the GIL
+    failed = []  # a block raised: the other threads take no more
 
     def worker(_a, _b):
-        while True:
+        while not failed:
             i = next(todo)
             if i >= k:
                 return
-            out[i] = call(edges[i], edges[i + 1])
+            try:
+                signals.check()
+                out[i] = call(edges[i], edges[i + 1])
+            except BaseException:
+                failed.append(True)
+                raise
 
     w = min(threads, k)
     futures = [_pool(w - 1).submit(_part, worker, 0, 0) for _ in range(w - 1)]
-    _part(worker, 0, 0)
-    for f in futures:
-        f.result()
+    _gather(lambda: _part(worker, 0, 0), futures)
     return out
 
 

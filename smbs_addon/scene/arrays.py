@@ -9,6 +9,7 @@ A scene is saved and loaded as a single ``.npz`` file (``save`` / ``load``).
 from __future__ import annotations
 
 import dataclasses
+import io
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -24,7 +25,7 @@ from .constants import (  # noqa: F401
     MAX_COLOR, MAX_FILTER_WIDTH, MAX_POWER, MESH, NO_FILM, OPTIONAL, ORTHO, PATH_RAYS, PERSP, POINT, RAY_ALL,
     RAY_CAMERA, RAY_DIFFUSE, RAY_GLOSSY, RAY_SHADOW, RAY_TRANSMISSION, RECTANGLE, REFRACTION_ONLY, SENSOR_FITS,
     SPOT, SQUARE, SUN, WORLD, flat_axes)
-from .validate import validate
+from .validate import check_types, validate
 
 
 def offset_eps(lo, hi) -> float:
@@ -366,6 +367,19 @@ class Scene:
 
     # -------------------------------------------------------------- save/load
     def save(self, path) -> None:
+        """Write the scene as a .npz: through a temporary file beside path, renamed over it (a failed
+        write leaves the old file and no temporary)."""
+        path = Path(path)
+        tmp = path.with_name(path.name + ".tmp.npz")
+        try:
+            tmp.write_bytes(self.npz_bytes())
+            tmp.replace(path)
+        except BaseException:
+            tmp.unlink(missing_ok=True)
+            raise
+
+    def npz_bytes(self) -> bytes:
+        """The scene's .npz file, in memory (save; the command line's export writes it checked)."""
         arrays = {}
         for f in dataclasses.fields(self):
             v = getattr(self, f.name)
@@ -377,10 +391,9 @@ class Scene:
             else:
                 arrays[f.name] = np.asarray(v)
         arrays["format_version"] = np.asarray(FORMAT_VERSION)
-        path = Path(path)
-        tmp = path.with_name(path.name + ".tmp.npz")
-        np.savez_compressed(tmp, **arrays)
-        tmp.replace(path)
+        buf = io.BytesIO()
+        np.savez_compressed(buf, **arrays)
+        return buf.getvalue()
 
     @classmethod
     def load(cls, path) -> "Scene":
@@ -395,9 +408,13 @@ class Scene:
             raise SceneError(f"{path}: no such file") from None
         except (OSError, ValueError, zipfile.BadZipFile, EOFError, zlib.error, NotImplementedError) as e:
             raise SceneError(f"{path}: not a readable scene .npz ({e})") from None
-        version = int(data.pop("format_version", -1))
+        try:
+            version = int(data.pop("format_version", -1))
+        except (TypeError, ValueError):
+            version = -1
         if version != FORMAT_VERSION:
             raise SceneError(f"{path}: scene format version {version}, expected {FORMAT_VERSION}")
+        check_types(path, data)
         cam_kw = {}
         for cf in dataclasses.fields(Camera):
             key = "camera." + cf.name

@@ -9,8 +9,9 @@ import math
 import numpy as np
 
 from ..core.errors import SceneError
-from .constants import (CONDUCTOR, DIELECTRIC, DIFFUSE, FRESNEL_CONDUCTOR, FRESNEL_MODELS, LIGHT_TYPES, MAX_BOUNCES,
-                     MAX_COLOR, MAX_FILTER_WIDTH, MAX_POWER, MESH, ORTHO, PERSP, RAY_ALL, SENSOR_FITS, flat_axes)
+from .constants import (CONDUCTOR, DIELECTRIC, DIFFUSE, FRESNEL_CONDUCTOR, FRESNEL_MODELS, LIGHT_TYPES, MATERIAL_KINDS,
+                        MAX_BOUNCES, MAX_COLOR, MAX_FILTER_WIDTH, MAX_POWER, MESH, ORTHO, PERSP, RAY_ALL, SENSOR_FITS,
+                        flat_axes)
 
 # arrays that must hold finite numbers, by what owns their rows: what a message names
 _FINITE_BY_TRIANGLE = ("tri_vertices", "tri_normals", "tri_normals_back", "tri_uvs")
@@ -22,6 +23,59 @@ _WHAT = {"tri_vertices": "its vertices", "tri_normals": "its normals", "tri_norm
          "mat_roughness": "roughness", "mat_strength": "strength", "light_matrix": "its transform",
          "light_color": "power", "light_radius": "radius", "light_spot_size": "spot size",
          "light_spot_blend": "spot blend", "light_size": "size", "light_spread": "spread", "light_angle": "angle"}
+
+
+_TEXT = ("object_names", "mat_names", "light_names", "name", "camera.sensor_fit")
+_OWNERS = {"tri_": ("object", "object_names"), "object_": ("object", "object_names"), "mat_": ("material", "mat_names"),
+           "light_": ("light", "light_names")}
+
+
+def _kind_words(v: np.ndarray) -> str:
+    kind = v.dtype.kind
+    if kind in "US":
+        first = v.ravel()[0] if v.size else ""
+        return f"text ({str(first)!r})" if v.size else "text"
+    return {"c": "complex numbers", "M": "dates", "m": "time spans", "V": "raw bytes", "O": "Python objects"}.get(
+        kind, f"values of type {v.dtype}")
+
+
+def _owner_words(key: str, data: dict) -> str:
+    """Who a column of a loaded .npz belongs to, in a message: its first row's owner where the file
+    names one (object, material, light), the camera, else the array's own name."""
+    if key.startswith("camera."):
+        return f"camera {key[7:]}"
+    what = _WHAT.get(key, key.split("_", 1)[-1].replace("_", " "))
+    for prefix, (noun, names_key) in _OWNERS.items():
+        if not key.startswith(prefix):
+            continue
+        names = data.get(names_key)
+        owner = None
+        if names is not None and names.dtype.kind in "US" and names.size:
+            if prefix == "tri_":
+                obj = data.get("tri_object")
+                if obj is not None and obj.dtype.kind in "iu" and obj.size and 0 <= int(obj.ravel()[0]) < names.size:
+                    owner = str(names.ravel()[int(obj.ravel()[0])])
+            else:
+                owner = str(names.ravel()[0])
+        if owner is not None:
+            return f"{noun} '{owner}': {'its ' if not what.startswith('its ') else ''}{what}"
+        return f"the {noun}s' {what.removeprefix('its ')}"
+    return f"scene array '{key}'"
+
+
+def check_types(path, data: dict) -> None:
+    """The arrays of a loaded .npz (data: name -> array) hold what their fields hold: text for names
+    and the camera's sensor fit, numbers for everything else. Raises SceneError naming the object,
+    material, light or camera (by the first row's owner), and what the file holds instead."""
+    for key, v in data.items():
+        v = np.asarray(v)
+        if key in _TEXT:
+            if v.dtype.kind not in "US":
+                what = {"object_names": "object names", "mat_names": "material names", "light_names": "light names",
+                        "name": "the scene's name"}.get(key) or _owner_words(key, data)
+                raise SceneError(f"{path}: {what} must be text, the file holds {_kind_words(v)}")
+        elif v.dtype.kind not in "biuf":
+            raise SceneError(f"{path}: {_owner_words(key, data)} must be a number, the file holds {_kind_words(v)}")
 
 
 def validate(s) -> None:
@@ -82,6 +136,10 @@ def _arrays(s) -> None:
     for name in ("mat_kind", "mat_ior", "mat_roughness", "mat_strength", "mat_fresnel"):
         if getattr(s, name).shape != (M,):
             raise SceneError(f"scene array '{name}' must have one entry per material ({M})")
+    kinds = np.flatnonzero(~np.isin(s.mat_kind, range(len(MATERIAL_KINDS))))
+    if kinds.size:
+        raise SceneError(f"material '{s.mat_names[int(kinds[0])]}': unknown kind {s.mat_kind[kinds[0]]} (0 to "
+                         f"{len(MATERIAL_KINDS) - 1}: {', '.join(MATERIAL_KINDS)})")
     bad = np.flatnonzero(~np.isin(s.mat_fresnel, range(len(FRESNEL_MODELS))))
     if bad.size:
         known = ", ".join(f"{i} ({what})" for i, what in enumerate(FRESNEL_MODELS))
@@ -203,6 +261,10 @@ def _indices_and_finite(s) -> None:
 def _camera(s) -> None:
     """The camera: a finite, non-degenerate matrix and positive lens, sensor, clipping and filter."""
     cam = s.camera
+    sides = (cam.resolution_x, cam.resolution_y, cam.resolution_percentage)
+    if not all(isinstance(v, (int, np.integer)) and not isinstance(v, (bool, np.bool_)) and v >= 1 for v in sides):
+        raise SceneError(f"camera resolution {cam.resolution_x} x {cam.resolution_y} at {cam.resolution_percentage}%: "
+                         f"each must be a whole number, at least 1")
     if np.shape(cam.matrix_world) != (4, 4) or not np.all(np.isfinite(cam.matrix_world)):
         raise SceneError("camera matrix must be a finite 4x4 matrix")
     for name in ("lens", "sensor_width", "sensor_height", "ortho_scale", "pixel_aspect_x",

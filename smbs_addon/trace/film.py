@@ -56,9 +56,12 @@ class Film:
         self.group_size = 1
         self._pending, self._pending_n = None, 0
         # with textured receivers (Scene.mat_textured): the splats that fell on them where the camera
-        # sees them, as they are and per unit albedo, summed over every batch (BakeResult.per_albedo)
+        # sees them, as they are and per unit albedo, summed over every batch (BakeResult.per_albedo);
+        # the current batch's apart until it ends (drop_batch)
         self.textured = np.zeros((self.H * self.W, 3)) if textured else None
         self.per_albedo = np.zeros((self.H * self.W, 3)) if textured else None
+        self._cur_textured = np.zeros((self.H * self.W, 3)) if textured else None
+        self._cur_per_albedo = np.zeros((self.H * self.W, 3)) if textured else None
 
     def splat(self, rx: np.ndarray, ry: np.ndarray, rgb: np.ndarray, albedo: np.ndarray | None = None) -> None:
         """Add rgb (N,3) at raster positions (rx, ry from top) through the filter. albedo (N,3), on
@@ -76,9 +79,9 @@ class Film:
         on = np.flatnonzero(np.asarray(albedo).max(axis=1) > 0)
         if on.size:
             a, v = np.asarray(albedo, np.float64)[on], rgb[on]
-            self._splat(self.textured, rx[on], ry[on], v)
+            self._splat(self._cur_textured, rx[on], ry[on], v)
             unit = np.divide(v, a, out=np.zeros_like(v), where=a > 0)
-            self._splat(self.per_albedo, rx[on], ry[on], unit)
+            self._splat(self._cur_per_albedo, rx[on], ry[on], unit)
 
     def _splat(self, into, rx, ry, rgb) -> None:
         """film.splat into `into`; a splat of SPLAT_SPLIT samples or more on the threads, each
@@ -119,6 +122,10 @@ class Film:
             self.sumsq[a:b] += cur * cur
             lum[a:b] = channel_mean(cur)
             cur[:] = 0.0
+            if self.textured is not None:
+                for total, part_cur in ((self.textured, self._cur_textured), (self.per_albedo, self._cur_per_albedo)):
+                    total[a:b] += part_cur[a:b]
+                    part_cur[a:b] = 0.0
 
         lanes.run(part, self.H * self.W, self.threads, END_BATCH_PART)
         lum = lum.reshape(self.H, self.W)
@@ -134,6 +141,13 @@ class Film:
                 self.batch_end = self.batch_end[1::2]
                 self.group_size *= 2
         self.batches += 1
+
+    def drop_batch(self) -> None:
+        """Forget the current batch's splats (a bake stopped part way through a batch keeps the
+        batches done, whole: baking/stop.run_batches)."""
+        for cur in (self._cur, self._cur_textured, self._cur_per_albedo):
+            if cur is not None:
+                cur[:] = 0.0
 
     def textured_parts(self):
         """(textured, per_albedo): the means over the batches of splat()'s two parts, (H,W,3)

@@ -73,7 +73,7 @@ def test_a_reference_bakes_noise_comes_out_of_the_rmse(sphere, tmp_path):
 
 def test_a_reference_of_another_size_or_none_to_compare_is_refused(sphere):
     ref = Reference(np.ones((10, 10)), None, "small.exr")
-    with pytest.raises(SceneError, match=r"reference 'small.exr' is 10 x 10 pixels, the bakes 48 x 36"):
+    with pytest.raises(SceneError, match=r"reference 'small.exr' is 10 x 10 pixels, the scene's caustic layer 48 x 36"):
         compare(sphere, ("reference",), 0.1, BakeSettings(spp=2, batches=2, seed=1), ref)
     with pytest.raises(SceneError, match="listed twice"):
         compare(sphere, ("sms", "sms"), 0.1, BakeSettings(spp=2, batches=2, seed=1))
