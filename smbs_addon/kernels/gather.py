@@ -162,7 +162,7 @@ def _gather_rows(ray, key, lane0, receivers, geo, mats, rules, eps, out):
             cnt = _Counts(cnt.nd, cnt.ngl, cnt.nt, cnt.has_s, cnt.depth, ev + 1, cnt.nseg, cnt.nvx)
             if not ok:
                 break
-            if cnt.depth == 0:  # x0 under a Principled coat: what on-minus-off keeps (layer.coat_factor)
+            if cnt.depth == 0:  # x0 under a Principled coat: what on-minus-off keeps (coat.coat_factor1)
                 kc = coat_factor1(mats, v.m, v.n, v.w, d, True)
                 b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
             cnt = _Counts(cnt.nd + 1, cnt.ngl, cnt.nt, cnt.has_s, cnt.depth, cnt.ev, cnt.nseg, cnt.nvx)

@@ -258,8 +258,8 @@ class _GatherInNumpy:
         sel = go[k]
         x0 = np.flatnonzero(f["depth"][sel] == 0)
         if x0.size and layer.has_layers(scene):  # x0 under a Principled coat (kernels/gather.py's gather_rows the same)
-            beta[x0] = beta[x0] * layer.coat_factor(scene, f["mat"][sel[x0]], scene.mat_color, f["ns"][sel[x0]],
-                                                    f["w"][sel[x0]], d[x0])
+            beta[x0] = beta[x0] * optics.coat_factor(scene, f["mat"][sel[x0]], f["ns"][sel[x0]], f["w"][sel[x0]],
+                                                     d[x0])
         cnt = f["cnt"][sel] + ONE_DIFFUSE  # every event so far
         m = len(sel)
         path = dict(lane=f["lane"][sel], beta=beta, has_s=f["has_s"][sel], depth=f["depth"][sel], d=d, cnt=cnt,

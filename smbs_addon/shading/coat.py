@@ -168,94 +168,6 @@ def principled_layer(ior: float, level: float, tint) -> tuple[float, float]:
     return ior_from_f0(f0), float(max(np.asarray(tint, float)[:3].max(), 0.0))
 
 
-def oren_nayar_g(c):
-    """Cycles' bsdf_oren_nayar_G of cosines c (its Taylor branch below 1e-6)."""
-    c = np.asarray(c, float)
-    sn = np.sqrt(np.maximum(1.0 - c * c, 0.0))
-    th = np.arccos(np.clip(c, -1.0, 1.0))
-    with np.errstate(divide="ignore", invalid="ignore"):
-        g = sn * (th - 2.0 / 3.0 - sn * c) + 2.0 / 3.0 * (sn / c) * (1.0 - sn * sn * sn)
-    return np.where(c < 1e-6, (np.pi / 2 - 2.0 / 3.0) - c, g)
-
-
-def oren_nayar_ratio(sigma, albedo, nv, nl, lv):
-    """(N,3) Cycles' Oren-Nayar diffuse (Fujii's, with OpenPBR's multiple scattering) over Lambert's,
-    for roughness sigma (N,), albedo (N,3), the cosines nv (eye), nl (light) and l.v."""
-    sigma = np.clip(np.asarray(sigma, float), 0.0, 1.0)
-    a = 1.0 / (np.pi + sigma * (np.pi / 2 - 2.0 / 3.0))
-    b = sigma * a
-    t = lv - nl * nv
-    t = np.where(t > 0, t / (np.maximum(nl, nv) + 1e-38), t)
-    e_avg = a * np.pi + ((2 * np.pi - 5.6) / 3.0) * b
-    alb = np.clip(np.asarray(albedo, float), 0.0, 1.0)
-    e_ms = (1.0 / np.pi) * alb * alb * (e_avg / (1.0 - e_avg))[:, None] / (1.0 - alb * (1.0 - e_avg)[:, None])
-    e_l = a * np.pi + b * oren_nayar_g(nl)
-    e_v = a * np.pi + b * oren_nayar_g(nv)
-    return np.pi * ((a + b * t)[:, None] + e_ms * ((1.0 - e_v) * (1.0 - e_l))[:, None])
-
-
-def coat_factor(scene, mat, color, n, w_view, w_light, share=True) -> np.ndarray:
-    """(N,3) what Cycles' caustics on-minus-off keeps of a light path leaving a diffuse receiver
-    towards w_light (the caustic's first vertex), relative to a Lambert diffuse of its colour.
-
-    - Under a Principled coat, Cycles samples the closures by their sample weights (diffuse: its
-      colour x (1 - A); the coat: A), weighs a sampled direction by every closure's eval over
-      their combined pdf and labels the path by the closure it picked. With caustics off a path
-      labelled diffuse stops at the glass, one labelled glossy goes on, in both renders. So the
-      layer holds (f_d + f_g) x P_d p_d / (P_d p_d + P_g p_g) of such a direction: ~0.98 of the
-      diffuse for light from above a floor seen at mu 0.36 (principled_floor), less along the
-      coat's lobe. A coat so smooth that Cycles makes it a perfect mirror takes no share.
-    - A rough diffuse (Diffuse BSDF Roughness, Principled Diffuse Roughness) is Cycles'
-      Oren-Nayar: f_d is that (oren_nayar_ratio x Lambert).
-    Exactly 1 for a Lambert diffuse without a coat. mat (N,): materials; color: Scene.mat_color;
-    n: shading normals; w_view: towards the eye; w_light: towards the light side (unit vectors).
-    share False: a receiver the eye reaches after a diffuse bounce, where Cycles' caustics-off
-    render has stopped the path already whatever it samples: all of f_d + f_g counts."""
-    n, w_view, w_light = (np.asarray(a, float).reshape(-1, 3) for a in (n, w_view, w_light))
-    mat = np.asarray(mat, np.int64).reshape(-1)
-    out = np.ones((len(mat), 3))
-    lay = coat(scene)[mat]
-    a2 = lay[:, 1] ** 4
-    coated = (lay[:, 0] > 1.0) & (a2 > SINGULAR_ALPHA2) & (lay[:, 3] > 0)
-    idx = np.flatnonzero(coated | (lay[:, 4] > 0))
-    if idx.size == 0:
-        return out
-    lay, a2, m, coated = lay[idx], a2[idx], mat[idx], coated[idx]
-    wv, wl = w_view[idx], w_light[idx]
-    nv = (n[idx] * wv).sum(1)
-    nn = n[idx] * np.where(nv < 0, -1.0, 1.0)[:, None]  # the normal on the eye's side
-    mu_o = np.clip(np.abs(nv), 1e-6, 1.0)
-    mu_i = (nn * wl).sum(1)
-    ok = mu_i > 1e-9
-    wgt = np.where(lay[:, 3] > 0, lay[:, 3], 1.0)
-    base = np.asarray(color, float)[m] / wgt[:, None]
-    rough = np.ones((len(idx), 3))
-    on = np.flatnonzero(lay[:, 4] > 0)
-    if on.size:
-        rough[on] = oren_nayar_ratio(lay[on, 4], base[on], mu_o[on], np.maximum(mu_i[on], 0.0),
-                                     (wv[on] * wl[on]).sum(1))
-    h = wv + wl
-    h /= np.maximum(np.linalg.norm(h, axis=1), 1e-300)[:, None]
-    c_nh = (h * nn).sum(1)
-    d = a2 / (np.pi * (1.0 + (a2 - 1.0) * c_nh * c_nh) ** 2)
-    lam_o = lambda_ggx(mu_o, a2)
-    g2 = 1.0 / (1.0 + lam_o + lambda_ggx(np.maximum(mu_i, 1e-9), a2))
-    fres = fresnel_dielectric((h * wv).sum(1), np.where(coated, lay[:, 0], 1.5))
-    one_minus_a = weight(spec_table(scene), m, mu_o)  # a clear coat scales both closures alike
-    gain = weight(gain_table(scene), m, mu_o)
-    eval_g = np.where(coated, gain * fres * lay[:, 2] * d * g2 / (4.0 * mu_o), 0.0)
-    lambert = base * (one_minus_a * np.maximum(mu_i, 0.0) / np.pi)[:, None]
-    sw_d = base.mean(axis=1) * one_minus_a
-    p_d = sw_d / np.maximum(sw_d + (1.0 - one_minus_a), 1e-300)
-    pdf_g = d / (4.0 * mu_o * (1.0 + lam_o))
-    pdf_d = np.maximum(mu_i, 0.0) / np.pi
-    s = np.where(coated & share, p_d * pdf_d / np.maximum(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300), 1.0)
-    lit = lambert > LAMBERT_FLOOR
-    k = np.where(lit, s[:, None] * (rough + eval_g[:, None] / np.where(lit, lambert, 1.0)), 1.0)
-    out[idx] = np.where((ok & (sw_d > 0))[:, None], k, 1.0)
-    return out
-
-
 @njit(**JIT)
 def lambda_clamped1(cos, a2):
     c2 = max(cos * cos, 1e-12)
@@ -264,7 +176,7 @@ def lambda_clamped1(cos, a2):
 
 @njit(**JIT)
 def oren_nayar_g1(c):
-    """layer.oren_nayar_g for one cosine."""
+    """Cycles' bsdf_oren_nayar_G of a cosine c (its Taylor branch below 1e-6)."""
     if c < 1e-6:
         return (math.pi / 2 - 2.0 / 3.0) - c
     sn = math.sqrt(max(1.0 - c * c, 0.0))
@@ -274,7 +186,8 @@ def oren_nayar_g1(c):
 
 @njit(**JIT)
 def oren_nayar_ratio1(sigma, alb, nv, nl, lv):
-    """layer.oren_nayar_ratio for one path and one channel's albedo alb."""
+    """Cycles' Oren-Nayar diffuse (Fujii's, with OpenPBR's multiple scattering) over Lambert's, for
+    roughness sigma, one channel's albedo alb, the cosines nv (eye), nl (light) and l.v."""
     sigma = min(max(sigma, 0.0), 1.0)
     a = 1.0 / (math.pi + sigma * (math.pi / 2 - 2.0 / 3.0))
     b = sigma * a
@@ -291,9 +204,22 @@ def oren_nayar_ratio1(sigma, alb, nv, nl, lv):
 
 @njit(**LANES)
 def coat_factor1(mats, m, n, w_view, w_light, share):
-    """layer.coat_factor for one path (mats: optics.materials): what Cycles' caustics on-minus-off
-    keeps of a path leaving material m's diffuse towards w_light, relative to a Lambert diffuse;
-    (1, 1, 1) exactly for a Lambert diffuse without a coat. The same sums as layer.coat_factor."""
+    """What Cycles' caustics on-minus-off keeps of a light path leaving material m's diffuse receiver
+    towards w_light (the caustic's first vertex), relative to a Lambert diffuse of its colour, per
+    channel (mats: optics.materials; n the shading normal; w_view towards the eye; unit 3-tuples).
+
+    - Under a Principled coat, Cycles samples the closures by their sample weights (diffuse: its
+      colour x (1 - A); the coat: A), weighs a sampled direction by every closure's eval over
+      their combined pdf and labels the path by the closure it picked. With caustics off a path
+      labelled diffuse stops at the glass, one labelled glossy goes on, in both renders. So the
+      layer holds (f_d + f_g) x P_d p_d / (P_d p_d + P_g p_g) of such a direction: ~0.98 of the
+      diffuse for light from above a floor seen at mu 0.36 (principled_floor), less along the
+      coat's lobe. A coat so smooth that Cycles makes it a perfect mirror takes no share.
+    - A rough diffuse (Diffuse BSDF Roughness, Principled Diffuse Roughness) is Cycles'
+      Oren-Nayar: f_d is that (oren_nayar_ratio1 x Lambert).
+    (1, 1, 1) exactly for a Lambert diffuse without a coat. share False: a receiver the eye reaches
+    after a diffuse bounce, where Cycles' caustics-off render has stopped the path already whatever
+    it samples: all of f_d + f_g counts. The array form: coat_factors, optics.coat_factor."""
     lay = mats.layer
     eta, rough, tint, wgt, sigma = lay[m, 0], lay[m, 1], lay[m, 2], lay[m, 3], lay[m, 4]
     a2 = rough ** 4
@@ -334,13 +260,23 @@ def coat_factor1(mats, m, n, w_view, w_light, share):
             p_d = sw_d / max(sw_d + (1.0 - one_minus_a), 1e-300)
             s = p_d * pdf_d / max(p_d * pdf_d + (1.0 - p_d) * pdf_g, 1e-300)
     e_d = one_minus_a * mu_i / math.pi
-    # a channel whose Lambert term is below layer.LAMBERT_FLOOR is black (the coat's share over it
+    # a channel whose Lambert term is below LAMBERT_FLOOR is black (the coat's share over it
     # would overflow: a colour of 1e-309 made an infinite caustic)
     k0 = s * (r0 + eval_g / (b0 * e_d)) if b0 * e_d > LAMBERT_FLOOR else 1.0
     k1 = s * (r1 + eval_g / (b1 * e_d)) if b1 * e_d > LAMBERT_FLOOR else 1.0
     k2 = s * (r2 + eval_g / (b2 * e_d)) if b2 * e_d > LAMBERT_FLOOR else 1.0
     return k0, k1, k2
 
+
+
+@njit(**LANES)
+def coat_factors(mats, mat, n, w_view, w_light, share, out):
+    """coat_factor1 over arrays: out (N,3) for the paths of materials mat (N,), shading normals n,
+    unit directions w_view (towards the eye) and w_light (towards the light side), all (N,3)."""
+    for i in range(len(mat)):
+        out[i, 0], out[i, 1], out[i, 2] = coat_factor1(mats, mat[i], (n[i, 0], n[i, 1], n[i, 2]),
+                                                       (w_view[i, 0], w_view[i, 1], w_view[i, 2]),
+                                                       (w_light[i, 0], w_light[i, 1], w_light[i, 2]), share)
 
 @njit(**JIT)
 def table_weight1(tab, m, mu):

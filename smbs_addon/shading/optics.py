@@ -20,7 +20,7 @@ from ..core.jit import JIT, LANES
 from ..core.vec3 import dot1 as _dot, row3 as _row3
 from ..scene import arrays as S
 from ..scene.arrays import DIELECTRIC
-from .coat import coat, gain_table, spec_table, table
+from .coat import coat, coat_factors, gain_table, spec_table, table
 from .energy import cached_energy_tables, energy_gain1
 from .fresnel import film, film1, material1, metal, metal1, specular_weights1, surface_tables
 from .microfacet import alphas, lambda1, visible_normal1
@@ -289,6 +289,17 @@ def materials(scene) -> MaterialTables:
                           weight=table(scene, spec), gain=gain_table(scene), layer=coat(scene), glossy_weight=spec,
                           absorb=absorption(scene), alpha=alphas(scene), energy=cached_energy_tables(scene),
                           metal=metal(scene), film=film(scene))
+
+
+def coat_factor(scene, mat, n, w_view, w_light, share=True) -> np.ndarray:
+    """(N,3) coat.coat_factor1 of each path: materials mat (N,), shading normals n, unit directions
+    w_view (towards the eye) and w_light (towards the light side), (N,3) each."""
+    mat = np.ascontiguousarray(mat, np.int64).reshape(-1)
+    out = np.ones((len(mat), 3))
+    if len(mat):
+        n, w_view, w_light = (np.ascontiguousarray(a, np.float64).reshape(-1, 3) for a in (n, w_view, w_light))
+        coat_factors(materials(scene), mat, n, w_view, w_light, bool(share), out)
+    return out
 
 
 def absorption(scene) -> np.ndarray:

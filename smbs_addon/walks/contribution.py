@@ -18,9 +18,8 @@ import math
 
 import numpy as np
 from ..scene import arrays as S
-from ..shading.optics import absorbing, arriving, bent, bump_correction, bump_shadowing, inside, transmittance
+from ..shading.optics import absorbing, arriving, bent, bump_correction, bump_shadowing, coat_factor, inside, transmittance
 from ..core.vec import channel_mean, dot, normalize
-from ..shading.coat import coat_factor
 from ..paths.focus import geometric_term
 from ..shading.light_samples import light_end_at_solution
 from ..shading.lights import shadow_tmax
@@ -95,7 +94,7 @@ def _contribution(ctx, li, types, rc, idx, light, chain, emit_scale=1.0):
     T = chain_throughput(scene, types, x0, verts, le.y, le.directional, ctx.physical)
     albedo = scene.mat_color[rc.mat[idx]]
     if ctx.coated:  # under a Principled coat: Cycles' on-minus-off keeps (f_d + f_g) x the diffuse's MIS share
-        albedo = albedo * coat_factor(scene, rc.mat[idx], scene.mat_color, ns0, w_eye, d01, share=ctx.first_order)
+        albedo = albedo * coat_factor(scene, rc.mat[idx], ns0, w_eye, d01, share=ctx.first_order)
     val = rc.beta[idx] * albedo / math.pi * (np.maximum(cos0, 0) * G)[:, None] * T * emit
     ok &= val.max(axis=1) > 0
     # shadow ray from the last vertex to the light sample

@@ -91,7 +91,7 @@ class Ctx:
         self.film = None  # the film the estimates are splatted on (the clamp's statistics count what lands)
         self.handoff_seen = False  # hand off focusing paths at receivers seen through mirrors or glass too
         self.first_order = False  # walking from receivers the camera sees (not later diffuse vertices)
-        self.coated = has_layers(scene)  # receivers under a Principled coat (layer.coat_factor)
+        self.coated = has_layers(scene)  # receivers under a Principled coat (coat.coat_factor1)
 
     def part(self) -> "Ctx":
         """A copy for one part of a chunk's receivers, with counters of its own (merged by the

@@ -337,7 +337,7 @@ def test_principled_diffuse_keeps_what_metallic_transmission_and_its_glossy_laye
 
 def test_rough_diffuse_is_oren_nayar():
     """Cycles shades a Diffuse BSDF of Roughness 1e-5 or more, and a Principled BSDF's Diffuse
-    Roughness, by Oren-Nayar (layer.oren_nayar_ratio): its sigma is mat_layer's last column."""
+    Roughness, by Oren-Nayar (coat.oren_nayar_ratio1): its sigma is mat_layer's last column."""
     sc, w = one_material(node_material("Rough", "ShaderNodeBsdfDiffuse", Color=(0.5, 0.5, 0.5), Roughness=0.6))
     assert sc.mat_kind[0] == S.DIFFUSE and w == []
     assert np.allclose(sc.mat_layer[0], [0.0, 0.0, 0.0, 1.0, 0.6, 0.0, 0.0, 0.0], atol=1e-6)

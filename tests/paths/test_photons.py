@@ -226,7 +226,7 @@ def test_camera_splats_are_the_numpy_connection(name):
     importance: the same splats (raster positions to 1e-9 pixel, values to 1e-12 relative), the
     same shadow rays, on a perspective camera (the glass ball's caustic, some of it hidden by the ball),
     an orthographic one under water (records in the filter's margin count), and the ball's floor
-    under a Principled BSDF's glossy coat (layer.weight towards the camera, layer.coat_factor) or
+    under a Principled BSDF's glossy coat (layer.weight towards the camera, optics.coat_factor) or
     rough (Oren-Nayar)."""
     from smbs_addon.shading import coat as layer
     from smbs_addon.trace.camera import CameraModel
@@ -249,7 +249,7 @@ def test_camera_splats_are_the_numpy_connection(name):
     want = _splat_to_camera_numpy(tracer, cam, margin, col(records.REC_P), col(records.REC_NG), col(records.REC_NS),
                                   col(records.REC_W), col(records.REC_BETA), scene.mat_color[ids[:, 2]],
                                   lambda idx, to_cam, ns, w: layer.weight(tab, ids[idx, 2], (to_cam * ns).sum(1))[:, None]
-                                  * layer.coat_factor(scene, ids[idx, 2], scene.mat_color, ns, to_cam, w))
+                                  * optics.coat_factor(scene, ids[idx, 2], ns, to_cam, w))
     n = len(rec)
     rx, ry, val, alb = np.empty(n), np.empty(n), np.empty((n, 3)), np.full((n, 3), np.nan)
     textured = scene.mat_kind == S.DIFFUSE  # every receiver textured: each splat's albedo written beside it

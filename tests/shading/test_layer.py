@@ -6,6 +6,7 @@ import pytest
 
 from smbs_addon.shading import coat as layer
 from smbs_addon.shading.fresnel import fresnel_dielectric
+from smbs_addon.shading.optics import coat_factor
 
 # Cycles 5.0.1 (the bpy module), measured: a plane of Blender's default Principled BSDF (Base
 # Color 0.8, Roughness 0.5, IOR 1.5) and one of Diffuse BSDF 0.8 under a sun, seen by an
@@ -35,12 +36,11 @@ def test_a_rough_diffuse_is_cycles_oren_nayar(case):
     s, a = math.radians(sun), math.radians(az)
     # Blender's sun of rotation (sun, 0, az) shines along -(R z): its direction towards the light is R z
     wl = np.array([math.sin(s) * math.sin(a), -math.sin(s) * math.cos(a), math.cos(s)])
-    ratio = layer.oren_nayar_ratio(np.array([sigma]), np.full((1, 3), 0.8), np.array([wv[2]]), np.array([wl[2]]),
-                                   np.array([wv @ wl]))[0, 0]
+    ratio = layer.oren_nayar_ratio1(sigma, 0.8, wv[2], wl[2], wv @ wl)
     assert ratio == pytest.approx(CYCLES_OREN_NAYAR[case], rel=5e-4)
     scene = _one_material_scene((0.0, 0.0, 0.0, 1.0, sigma, 0.0, 0.0, 0.0))
     scene.mat_color[0] = 0.8
-    k = layer.coat_factor(scene, np.array([0]), scene.mat_color, np.array([[0.0, 0.0, 1.0]]), wv[None], wl[None])
+    k = coat_factor(scene, np.array([0]), np.array([[0.0, 0.0, 1.0]]), wv[None], wl[None])
     np.testing.assert_allclose(k[0], ratio, rtol=1e-12)
 
 
@@ -99,7 +99,7 @@ def test_the_coat_factor_is_what_cycles_closure_sampling_leaves_the_diffuse_labe
     eval over their combined pdf, and labels the path by the closure it picked; the caustics-off
     render stops the diffuse-labelled paths at the glass. Simulated here sample by sample (2M
     samples), the diffuse-labelled weight that lands in a cone of 8 degrees around a direction
-    is the integral of layer.coat_factor x the coated diffuse over that cone, within 3 standard
+    is the integral of coat_factor x the coated diffuse over that cone, within 3 standard
     errors, for light from above and along the coat's lobe (where the factor is 0.93)."""
     rng = np.random.default_rng(7)
     lay = (1.5, 0.5, 1.0, 1.0, 0.0, 0.0, 0.0, 0.0)
@@ -165,8 +165,7 @@ def test_the_coat_factor_is_what_cycles_closure_sampling_leaves_the_diffuse_labe
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(axis, e1)
         wl = c[:, None] * axis + (sn * np.cos(ph))[:, None] * e1 + (sn * np.sin(ph))[:, None] * e2
-        kf = layer.coat_factor(scene, np.zeros(m, np.int64), scene.mat_color, np.tile([0.0, 0.0, 1.0], (m, 1)),
-                               np.tile(wv, (m, 1)), wl)[:, 0]
+        kf = coat_factor(scene, np.zeros(m, np.int64), np.tile([0.0, 0.0, 1.0], (m, 1)), np.tile(wv, (m, 1)), wl)[:, 0]
         want = (kf * base * one_minus_a * wl[:, 2] / np.pi).mean() * 2 * np.pi * (1 - cone)
         assert abs(mean - want) < 3 * se + 0.002 * want, (theta, mean, want, se)
         if theta == 30.0:

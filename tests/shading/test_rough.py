@@ -386,3 +386,23 @@ def test_light_after_a_bounce_through_rough_glass_is_gathered():
     assert res.stats["eye_pass"]["other_paths_later"] > 30
     (e_ref, s_ref), (e, s) = _energy(ref), _energy(res)
     assert abs(e - e_ref) < 4 * math.hypot(s, s_ref), (e, e_ref, s, s_ref)
+
+
+def test_ggx_lambda_is_one_function_in_its_three_forms():
+    """Smith's Lambda of GGX exists as the numpy form for the tables (microfacet.lambda_ggx), the
+    compiled per-lane form (microfacet.lambda1) and the coat's clamped form (coat.lambda_clamped1):
+    equal to 1e-12 where the cosine is above the clamp (1e-6), and each guard as documented below it:
+    lambda1 is 'infinite' (1e30: no light at grazing incidence) at cosine 0, the clamped ones finite."""
+    from smbs_addon.shading.coat import lambda_clamped1
+    from smbs_addon.shading.microfacet import lambda1, lambda_ggx
+
+    cos = np.concatenate([np.geomspace(1.5e-6, 1.0, 200), -np.geomspace(1.5e-6, 1.0, 7)])
+    for a2 in (1e-7, 1e-4, 0.0625, 0.5, 1.0):
+        numpy_form = lambda_ggx(cos, a2)
+        lane = np.array([lambda1(c, a2) for c in cos])
+        clamped = np.array([lambda_clamped1(c, a2) for c in cos])
+        np.testing.assert_allclose(lane, numpy_form, rtol=1e-12, atol=0)
+        np.testing.assert_allclose(clamped, numpy_form, rtol=1e-12, atol=0)
+        assert lambda1(0.0, a2) == 1e30
+        assert np.isfinite(lambda_clamped1(0.0, a2)) and np.isfinite(lambda_ggx(np.array([0.0]), a2)[0])
+    assert lambda1(1.0, 0.5) == 0.0  # straight on: no shadowing
