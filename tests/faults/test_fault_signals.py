@@ -131,7 +131,7 @@ def test_keep_partial_drops_the_batch_under_way():
 
 
 def test_a_signal_without_keep_partial_raises_in_the_library():
-    import scenes
+    from testkit import scenes
     from smbs_addon import BakeSettings, bake
     from smbs_addon.core import signals
     from smbs_addon.core.errors import BakeCancelled
