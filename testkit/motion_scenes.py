@@ -11,6 +11,7 @@ from testkit import blend as B
 from testkit import conformance_scenes as C
 
 MOVING_LIGHT = ROOT / "sample_blends" / "moving_light.blend"
+MIRROR = ROOT / "sample_blends" / "mirror.blend"
 
 
 def small_moving_light(path, percentage: int = 25, frames: tuple | None = None) -> Path:
@@ -21,6 +22,22 @@ def small_moving_light(path, percentage: int = 25, frames: tuple | None = None) 
     sc.render.resolution_percentage = percentage
     if frames:
         sc.frame_start, sc.frame_end = frames
+    bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
+    return Path(path)
+
+
+def small_turning_mirror(path, percentage: int = 25) -> Path:
+    """sample_blends/mirror.blend at percentage of its 160 x 120, its mirror turning from 157.5 to 150
+    degrees about Y over frames 1-24 (linear keys): the caustic, seen directly on the floor, slides
+    across it. A scene the light tracer bakes without heavy tails (no caustic is seen through glass)."""
+    import math
+
+    bpy.ops.wm.open_mainfile(filepath=str(MIRROR), load_ui=False)
+    sc = bpy.context.scene
+    sc.render.resolution_percentage = percentage
+    B.keys_linear(bpy.data.objects["Mirror"], "rotation_euler", {1: (0.0, math.radians(157.5), 0.0),
+                                                                24: (0.0, math.radians(150.0), 0.0)})
+    sc.frame_start, sc.frame_end, sc.frame_current = 1, 24, 1
     bpy.ops.wm.save_as_mainfile(filepath=str(path), copy=True)
     return Path(path)
 
