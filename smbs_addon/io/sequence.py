@@ -23,16 +23,23 @@ def with_frames(pattern) -> Path:
     return p.with_name(f"{p.stem}_####{p.suffix}")
 
 
-def frame_path(pattern, frame: int) -> Path:
-    """The path of one frame: the last run of ``#`` in the name replaced by the frame, zero-padded to
-    its length (``-001`` for frame -1 in ``####``, as Blender writes it; longer where the frame has
-    more digits)."""
-    p = Path(pattern)
-    runs = list(_RUN.finditer(p.name))
+def fill_frame(pattern: str, frame: int) -> str:
+    """The path of one frame, as text (a Blender path such as ``//caustics_####.exr`` stays one): the
+    last run of ``#`` in the file's name replaced by the frame, zero-padded to its length (``-001`` for
+    frame -1 in ``####``, as Blender writes it; longer where the frame has more digits)."""
+    text = str(pattern)
+    cut = max(text.rfind("/"), text.rfind("\\")) + 1  # the folder as written (a Windows path keeps its separators)
+    head, name = text[:cut], text[cut:]
+    runs = list(_RUN.finditer(name))
     if not runs:
-        return p
+        return text
     r = runs[-1]
-    return p.with_name(f"{p.name[:r.start()]}{int(frame):0{len(r.group())}d}{p.name[r.end():]}")
+    return f"{head}{name[:r.start()]}{int(frame):0{len(r.group())}d}{name[r.end():]}"
+
+
+def frame_path(pattern, frame: int) -> Path:
+    """fill_frame as a Path."""
+    return Path(fill_frame(str(pattern), frame))
 
 
 def summary_path(pattern, suffix: str = ".json") -> Path:
