@@ -9,6 +9,7 @@ import signal
 import numpy as np
 import pytest
 
+from smbs_addon.baking.convergence import caustic_region
 from smbs_addon.io.exr import read_channels, read_header
 from smbs_addon.io.sequence import frame_path, parse_frames, summary_path, with_frames
 from testkit.cli import run
@@ -119,3 +120,26 @@ def test_a_signal_keeps_the_frames_done_and_a_kill_leaves_no_partial_file(anim, 
     assert "frame 1: " in proc.stdout and "holds this bake already" in proc.stdout
     assert not stale.exists() and temporaries(tmp_path) == []
     assert all(np.isfinite(read_channels(frame_path(pattern, f))[0]["R"]).all() for f in (1, 2, 3))
+
+
+def test_frames_of_the_sample_are_single_bakes_and_agree_with_the_light_tracer(anim, tmp_path):
+    """Frames 1, 12 and 23 of the 24 (--frames 1-24:11) at 40 x 30: frame 12 is frame 12 baked alone bit for
+    bit, and each agrees with the light tracer (--method reference, the same frames) within 3 sigma over
+    its caustic region. bench/frames_24.py bakes all 24 at 80 x 60 and checks frames 1, 12 and 24 so
+    (bench/results/frames_24.md)."""
+    pattern, ref = tmp_path / "c_####.exr", tmp_path / "ref_####.exr"
+    for args in (("--spp", 8, "--seed", 5, "--out", pattern), ("--method", "reference", "--spp", 32, "--seed", 7, "--out", ref)):
+        proc = run("bake", anim, "--frames", "1-24:11", *args, "--quiet", timeout=600)
+        assert proc.returncode == 0, proc.stderr
+    alone = tmp_path / "alone.exr"
+    proc = run("bake", anim, "--frame", 12, "--spp", 8, "--seed", 5, "--out", alone, "--quiet", timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert _pixels(alone) == _pixels(frame_path(pattern, 12))
+    lum = lambda c: (c["R"].astype(np.float64) + c["G"] + c["B"]) / 3  # noqa: E731
+    for f in (1, 12, 23):
+        ours, theirs = (read_channels(frame_path(p, f))[0] for p in (pattern, ref))
+        region = caustic_region(lum(theirs))
+        se = np.hypot(*(json.loads(frame_path(p, f).with_suffix(".json").read_text())["noise"]["std_error_of_mean"]
+                        for p in (pattern, ref)))
+        assert region.sum() > 10 and se > 0
+        assert abs(lum(ours)[region].mean() - lum(theirs)[region].mean()) < 3 * se, (f, se)
