@@ -38,7 +38,7 @@ SCENES = {"sphere": "glass_sphere_scene", "ring": "ring_scene", "hammered": "ham
 # where a tree keeps the scenes, the walk and the module that calls it by name (newest layout first)
 SCENES_PATHS = ("testkit/scenes.py", "tests/scenes.py")
 WALK = ("walks.walk", "walk")
-WALK_CALLER = ("walks.estimators", "manifold")
+WALK_CALLER = ("walks.estimators", "walks.manifold", "manifold")
 
 
 def extract(rev: str) -> tuple[Path, str]:
@@ -68,13 +68,16 @@ def load_package(name: str, folder: Path):
     return module
 
 
-def submodule(P, candidates):
-    """The first of P's modules named in candidates that exists (layouts differ between revisions)."""
+def submodule(P, candidates, holding=None):
+    """The first of P's modules named in candidates that exists (layouts differ between revisions) and, if
+    given, holds the name holding."""
     for name in candidates:
         try:
-            return importlib.import_module(f"{P.__name__}.{name}")
+            module = importlib.import_module(f"{P.__name__}.{name}")
         except ModuleNotFoundError:
             continue
+        if holding is None or hasattr(module, holding):
+            return module
     raise ModuleNotFoundError(f"{P.__name__} has none of {candidates}")
 
 
@@ -86,7 +89,7 @@ def scenes_module(source: str, package: str):
 
 def captured(P, scene) -> list:
     """The primary walks' arguments of a one-sample SMBS bake, one per chain type."""
-    caller = submodule(P, WALK_CALLER)
+    caller = submodule(P, WALK_CALLER, "newton_walk")
     seen, orig = [], caller.newton_walk
 
     def rec(ctx, cfg, chain_types, x0, ng0, light, chain=None, large_ok=None, seed=None):
@@ -117,6 +120,8 @@ def main(argv=None) -> None:
     ap.add_argument("--reps", type=int, default=12)
     ap.add_argument("--bakes", default="", help="methods: time whole bakes instead of the walks")
     ap.add_argument("--spp", type=int, default=1)
+    ap.add_argument("--clock", choices=("wall", "cpu"), default="wall",
+                    help="cpu: the process's CPU time (all threads), steadier than wall time on a loaded machine")
     a = ap.parse_args(argv)
     home, base_scenes = extract(a.base)
     pk = {"smbs_base": load_package("smbs_base", home / "smbs_base"),
@@ -124,6 +129,7 @@ def main(argv=None) -> None:
     walks = {n: submodule(P, WALK) for n, P in pk.items()}
     src = {"smbs_base": base_scenes, "smbs_addon": (ROOT / SCENES_PATHS[0]).read_text()}
     unit = "s per bake" if a.bakes else "us per walk"
+    clock = time.process_time if a.clock == "cpu" else time.perf_counter
     print(f"this: {ROOT}, base: {a.base} ({home}); min and median {unit}, {a.reps} rounds")
     for item in a.scenes.split(","):
         name, _, size = item.partition(":")
@@ -134,18 +140,18 @@ def main(argv=None) -> None:
                 for n in (("smbs_base", "smbs_addon") if r % 2 == 0 else ("smbs_addon", "smbs_base")):
                     P = pk[n]
                     for m in a.bakes.split(","):
-                        t = time.perf_counter()
+                        t = clock()
                         P.bake(made[n], P.BakeSettings(method=m, spp=a.spp, batches=min(a.spp, 2), seed=1))
                         if r:
-                            times.setdefault((m, n), []).append(time.perf_counter() - t)
+                            times.setdefault((m, n), []).append(clock() - t)
         else:
             caps = {n: captured(P, made[n]) for n, P in pk.items()}
             for r in range(a.reps):
                 for n in (("smbs_base", "smbs_addon") if r % 2 == 0 else ("smbs_addon", "smbs_base")):
                     for ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed in caps[n]:
-                        t = time.perf_counter()
+                        t = clock()
                         walks[n].newton_walk(ctx, cfg, chain_types, x0, ng0, light, chain, large_ok, seed)
-                        times.setdefault((chain_types, n), []).append((time.perf_counter() - t) / len(x0) * 1e6)
+                        times.setdefault((chain_types, n), []).append((clock() - t) / len(x0) * 1e6)
         for key in dict.fromkeys(k[0] for k in times):
             report(f"{item} {key}", times[(key, "smbs_base")], times[(key, "smbs_addon")])
 

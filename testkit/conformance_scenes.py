@@ -412,6 +412,34 @@ def tinted_ball():
     return scene
 
 
+def absorbing_ball_area():
+    """A Glass BSDF ball (IOR 1.5, Color 0.8 grey, radius 0.55, smooth UV sphere 96 x 48) whose Volume
+    Absorption (Color 0.9/0.55/0.15, Density 1.2: 0.12/0.54/1.02 per metre) tints the light by its path
+    inside, its centre 0.95 m over the floor, under two 0.35 m square area lights: one 5 m up, a little off
+    the ball's axis, whose focus lies under the ball, and one 40 degrees off it, whose focus lands beside it.
+    The camera looks down at the ball: it sees the first focus through the ball (the eye paths refract in
+    and out, absorbed on both sides) and the second directly."""
+    from mathutils import Vector
+
+    scene = _scene("absorbing_ball_area")
+    _floor(scene)
+    glass = B.material("AbsorbingGlass", "glass", (0.8, 0.8, 0.8), ior=1.5)
+    nt = glass.node_tree
+    vol = nt.nodes.new("ShaderNodeVolumeAbsorption")
+    vol.inputs["Color"].default_value = (0.9, 0.55, 0.15, 1.0)
+    vol.inputs["Density"].default_value = 1.2
+    nt.links.new(vol.outputs[0], nt.nodes["Material Output"].inputs["Volume"])
+    centre = Vector((0.0, 0.0, 0.95))
+    _sphere(scene, "Ball", glass, 0.55, tuple(centre))
+    B.add_light(scene, "Key", "AREA", (0.25, 0.15, 5.0), energy=400.0, shape="SQUARE", size=0.35)
+    side = centre + 5.0 * Vector((-math.sin(math.radians(40)), 0.0, math.cos(math.radians(40))))
+    turn = (centre - side).to_track_quat("-Z", "Y").to_euler()
+    B.add_light(scene, "Side", "AREA", tuple(side), tuple(turn), energy=2400.0, shape="SQUARE", size=0.35)
+    # on the line from the key light's focus through the ball's centre: the focus fills the ball's view
+    B.add_camera(scene, (0.19, 0.125, 3.92), (0.35, 0.0, 0.3), lens=40)
+    return scene
+
+
 def sphere_refraction_spot():
     """Refraction BSDF sphere (tinted, IOR 1.33) under a spot light of radius 0.2."""
     scene = _scene("sphere_refraction_spot")
@@ -1019,6 +1047,9 @@ SCENES = {
     "coated_floor": (coated_floor, "principled_floor's floor under a clear coat (Coat Weight 1)"),
     "tinted_ball": (tinted_ball, "Glass BSDF ball with a Volume Absorption (0.15/0.6/1.05 per metre) under a "
                     "point light, part of its caustic seen through it"),
+    "absorbing_ball_area": (absorbing_ball_area, "a grey Glass BSDF ball with a Volume Absorption (0.12/0.54/1.02 per "
+                            "metre) under two square area lights: one's focus seen through the ball, the other's "
+                            "directly"),
     "checker_floor": (checker_floor, "the slanted ball over a Principled floor whose Base Color is a Checker "
                       "Texture (the render's Diffuse Color pass holds the albedo)"),
     "bumped_floor": (bumped_floor, "a Diffuse BSDF receiver whose Normal is a Bump node of a Noise Texture, "

@@ -17,6 +17,7 @@ import signal
 
 import pytest
 
+from testkit import scenes
 from testkit.faults import (assert_no_traceback, assert_nothing_lost, previous_output, save_mirror, signal_after, start,
                            temporaries)
 from smbs_addon.io.exr import read_exr
@@ -131,7 +132,6 @@ def test_keep_partial_drops_the_batch_under_way():
 
 
 def test_a_signal_without_keep_partial_raises_in_the_library():
-    from testkit import scenes
     from smbs_addon import BakeSettings, bake
     from smbs_addon.core import signals
     from smbs_addon.core.errors import BakeCancelled
