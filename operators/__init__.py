@@ -4,9 +4,9 @@ Each operator module keeps its classes in ``classes``.
 """
 import bpy
 
-from . import bake, cli, compare, kernels
+from . import bake, cli, compare, frames, kernels
 
-classes = (*bake.classes, *compare.classes, *kernels.classes)
+classes = (*bake.classes, *frames.classes, *compare.classes, *kernels.classes)
 
 
 def register():

@@ -41,6 +41,7 @@ def _core():
     from ..smbs_addon.baking.settings import BakeSettings
     from ..smbs_addon.baking.bake import bake
     from ..smbs_addon.core.errors import BakeCancelled, SceneError
+    from ..smbs_addon.io.sequence import fill_frame
 
     return SimpleNamespace(BakeSettings=BakeSettings, bake=bake, BakeCancelled=BakeCancelled,
                            SceneError=SceneError, export_scene=export.export_scene,
@@ -50,7 +51,8 @@ def _core():
                            exr_writer=imageio.exr_writer, json_writer=imageio.json_writer,
                            save_outputs=imageio.save_outputs,
                            make_plan=plan.make_plan, exr_metadata=exr_metadata, exr_channels=exr_channels,
-                           world_unread=world.world_unread)
+                           world_unread=world.world_unread, apply_sequence=composite.apply_sequence,
+                           layer_sequence=composite.layer_sequence, fill_frame=fill_frame)
 
 
 def _plain(value):
@@ -157,28 +159,84 @@ class Prepared:
     blender_lights: list  # (name, is_portal)
     started: float
     world_unread: str | None = None  # the world's name if the export could not read its node setup
+    sequence: tuple | None = None  # the layer's frames (stored pattern, first, last): this bake is one of them
 
 
-def prepare(context, core, output=True) -> Prepared:
+def frames_pattern(path: str) -> str:
+    """A layer path with a run of # for the frame (Blender's convention): as it is, or _#### before
+    its extension."""
+    if "#" in os.path.basename(path):
+        return path
+    root, ext = os.path.splitext(path)
+    return f"{root}_####{ext}"
+
+
+def _output(scene, props, core, frame_pattern):
+    """(path, stored path, note, sequence) of a bake's EXR: the Output path; or, for a frame of a range
+    (frame_pattern: the range's pattern) or where the layer is a range's image sequence already (a
+    frame baked again replaces only that frame), that frame's file of the sequence."""
+    seq = core.layer_sequence(LAYER_NAME) if frame_pattern is None else None
+    if frame_pattern is None and seq is None:
+        return (*resolve_output_path(props.output_path), None)
+    note = None
+    if frame_pattern is not None:
+        path, stored, note = resolve_output_path(frame_pattern)
+    else:
+        stored = seq[0]
+        path = os.path.normpath(bpy.path.abspath(stored))
+    f = scene.frame_current
+    return core.fill_frame(path, f), core.fill_frame(stored, f), note, seq
+
+
+def prepare(context, core, output=True, frame_pattern=None) -> Prepared:
     """Export the scene and build the settings (raises SceneError). output False: nothing will
-    be written (Compare Methods), so no output path is resolved."""
+    be written (Compare Methods), so no output path is resolved. frame_pattern: the bake is a frame
+    of a range, written to that pattern's file of the current frame."""
     scene = context.scene
     props = scene.smbs_caustics
     warnings = []
-    path = stored_path = note = None
+    path = stored_path = note = seq = None
     if output:
-        path, stored_path, note = resolve_output_path(props.output_path)
+        path, stored_path, note, seq = _output(scene, props, core, frame_pattern)
     if note:
         warnings.append(note)
     started = time.perf_counter()
     settings, ignored = bake_settings_from(props, core.BakeSettings)
     if ignored:
         print("SMBS Caustics: settings this core does not use:", ", ".join(ignored))
+    if frame_pattern is not None or seq is not None:  # a frame of a sequence: its header says which
+        settings.frame = int(scene.frame_current)  # (the streams keyed by it with seeding "frame")
     settings.validate()
     data = core.export_scene(scene, context.evaluated_depsgraph_get(), warn=warnings.append)
     lights = [(ob.name, bool(ob.data.type == 'AREA' and getattr(ob.data.cycles, "is_portal", False)))
               for ob in scene.objects if ob.type == 'LIGHT' and not ob.hide_render]
-    return Prepared(data, settings, path, stored_path, warnings, lights, started, core.world_unread(scene))
+    return Prepared(data, settings, path, stored_path, warnings, lights, started, core.world_unread(scene), seq)
+
+
+def albedo_path(path):
+    """The per-albedo EXR beside a layer's."""
+    return os.path.splitext(path)[0] + "_per_albedo.exr" if path else None
+
+
+def write_layer(prep: Prepared, result, core, stats) -> str | None:
+    """Write the EXR (and the per-albedo one, for textured receivers) and the statistics, each read back
+    before any replaces the last bake's (io/exr.save_outputs); None, or why they could not be written."""
+    layer, per_albedo = result.layer(), result.per_albedo
+    try:
+        os.makedirs(os.path.dirname(prep.path), exist_ok=True)
+        metadata = core.exr_metadata(prep.settings, result)
+        outputs = [(prep.path, core.exr_writer(layer, metadata, core.exr_channels(result)))]
+        if per_albedo is not None:  # a file of its own beside it, for its Image datablock to read
+            outputs.append((albedo_path(prep.path), core.exr_writer(per_albedo, metadata)))
+        outputs.append((os.path.splitext(prep.path)[0] + ".json", core.json_writer(stats)))
+        core.save_outputs(outputs)
+    except (core.SceneError, OSError) as e:
+        return str(e)
+    return None
+
+
+def plain_stats(result) -> dict:
+    return json.loads(json.dumps(result.stats or {}, default=_json_default))
 
 
 def finish(scene, prep: Prepared, result, core, report) -> bool:
@@ -187,35 +245,42 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
 
     ``report(level_set, text)`` as Operator.report. Returns False on failure.
     """
-    props = scene.smbs_caustics
     warnings = list(prep.warnings)
-    warnings.extend(str(w) for w in (getattr(result, "warnings", None) or ()))
-    stats = json.loads(json.dumps(result.stats or {}, default=_json_default))
-
-    # On textured receivers the caustic is per_albedo x the render's Diffuse Color pass, added
-    # beside the rest of the layer (result.layer(); the whole image without them)
-    layer, per_albedo = result.layer(), result.per_albedo
-    path, stored_path = prep.path, prep.stored_path
-    albedo_stored = None
-    try:
-        os.makedirs(os.path.dirname(path), exist_ok=True)
-        metadata = core.exr_metadata(prep.settings, result)
-        # every file written and read back before any replaces the last bake's (io/exr.save_outputs)
-        outputs = [(path, core.exr_writer(layer, metadata, core.exr_channels(result)))]
-        if per_albedo is not None:  # a file of its own beside it, for its Image datablock to read
-            outputs.append((os.path.splitext(path)[0] + "_per_albedo.exr", core.exr_writer(per_albedo, metadata)))
-            albedo_stored = os.path.splitext(stored_path)[0] + "_per_albedo.exr" if stored_path else None
-        outputs.append((os.path.splitext(path)[0] + ".json", core.json_writer(stats)))
-        core.save_outputs(outputs)
-    except (core.SceneError, OSError) as e:
+    stats = plain_stats(result)
+    why = write_layer(prep, result, core, stats)
+    stored_path = prep.stored_path
+    if why is not None:
         # The bake is not thrown away: the layer is packed into the blend file instead (and the message
         # says where else the files were kept)
-        warnings.append(f"Could not write the caustic layer: {e}; it is packed into the blend file")
-        stored_path = albedo_stored = None
+        warnings.append(f"Could not write the caustic layer: {why}; it is packed into the blend file")
+        stored_path = None
+    seq = prep.sequence if stored_path else None
+    layer, per_albedo = result.layer(), result.per_albedo
+    if seq is not None:  # a frame of the range's sequence baked again: that frame's file replaced
+        f = scene.frame_current
+        frames = (min(seq[1], f), max(seq[2], f))
+
+        def apply():
+            core.apply_sequence(scene, layer, seq[0], frames, name=LAYER_NAME, per_albedo=per_albedo,
+                                albedo_pattern=albedo_path(seq[0]) if per_albedo is not None else None)
+    else:
+        def apply():
+            core.apply_layer(scene, layer, name=LAYER_NAME, filepath=stored_path, per_albedo=per_albedo,
+                             per_albedo_filepath=albedo_path(stored_path) if per_albedo is not None else None)
+    return conclude(scene, prep, result, core, report, (warnings, stats), apply,
+                    f"Caustics baked in {{:.1f}} s: {prep.path if stored_path else 'packed'}")
+
+
+def conclude(scene, prep: Prepared, result, core, report, said, apply, done) -> bool:
+    """Add the layer (apply()), keep the statistics, apply the Cycles policy and report (said: the
+    warnings so far and the statistics; done: the last report, {} for the seconds): the end of a bake,
+    and of a range of them (its last frame's prep and result)."""
+    props = scene.smbs_caustics
+    warnings, stats = said
+    warnings.extend(str(w) for w in (getattr(result, "warnings", None) or ()))
     had_pass = core.diffuse_color_switched_on(scene)
     try:
-        core.apply_layer(scene, layer, name=LAYER_NAME, filepath=stored_path, per_albedo=per_albedo,
-                         per_albedo_filepath=albedo_stored)
+        apply()
     except Exception as e:
         traceback.print_exc()
         report({'ERROR'}, f"Could not add the caustic layer to the compositor: {e}")
@@ -259,7 +324,7 @@ def finish(scene, prep: Prepared, result, core, report) -> bool:
     nothing = result.stats.get("nothing_to_bake")
     if nothing:  # not a failure: the layer is all zero, and the panel's plan says the same
         report({'WARNING'}, f"Nothing to bake: {nothing}; the caustic layer is all zero")
-    report({'INFO'}, f"Caustics baked in {seconds:.1f} s: {path if stored_path else 'packed'}")
+    report({'INFO'}, done.format(seconds))
     return True
 
 

@@ -3,7 +3,12 @@
 The options, outputs and exit codes are those of ``python -m smbs_addon bake``
 (the same argparse parser and ``main``): 0 done, 1 the scene cannot be baked,
 2 bad arguments, 3 unreadable input or unwritable output, 130 cancelled. An
-unexpected failure prints its traceback and returns 1.
+unexpected failure prints its traceback and returns 1. ``smbs_bake merge OUT IN...``
+and ``smbs_bake export IN OUT`` are the command line's merge and export.
+
+Without an input (``blender -b shot.blend -c smbs_bake --frames 1-250``: Blender
+loads the file before it runs the command) the command bakes the file Blender
+has open.
 
 Blender command ids must be Python identifiers, so the command is
 ``smbs_bake`` (``smbs-bake`` is refused by ``register_cli_command``). It exists
@@ -22,8 +27,11 @@ def smbs_bake(argv) -> int:
     from ..smbs_addon.cli.main import main
 
     args = [str(a) for a in argv]
-    if not args or args[0] not in ("bake", "export"):
+    if not args or args[0] not in ("bake", "export", "merge"):
         args.insert(0, "bake")  # `smbs_bake IN ...` means `bake IN ...`
+    if args[0] == "bake" and bpy.data.filepath and (len(args) == 1 or args[1].startswith("-")) \
+            and not {"-h", "--help"} & set(args):
+        args.insert(1, bpy.data.filepath)  # no input: the file Blender has open
     try:
         return int(main(args))
     except SystemExit as e:  # argparse: --help (0) and usage errors (2)

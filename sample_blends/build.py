@@ -17,8 +17,8 @@ from pathlib import Path
 
 import bpy
 
-from testkit.blend import (add_camera, add_light, black_world, bumped_glass, grid, hdri_image, hdri_world, material,
-                           mesh_object, node_material, render_settings, reset, save, uv_sphere)
+from testkit.blend import (add_camera, add_light, black_world, bumped_glass, grid, hdri_image, hdri_world, keys_linear,
+                           material, mesh_object, node_material, render_settings, reset, save, uv_sphere)
 
 HERE = Path(__file__).resolve().parent
 
@@ -183,6 +183,18 @@ def build_softbox(out):
     save(out / "softbox.blend")
 
 
+def build_moving_light(out):
+    """The glass ball (resting 0.5 above the floor) under a small square light that crosses over it in
+    24 frames, from 1.2 m to the left to 1.2 m to the right at 4 m (linear keys): the caustic slides
+    across the floor the other way. The animated sample: frame ranges, the farm, flicker."""
+    scene = _glass_ball_scene("MovingLight", 0.6)
+    light = add_light(scene, "Light", "AREA", (-1.2, 0, 4), energy=200.0, shape="SQUARE", size=0.5, spread=math.pi)
+    keys_linear(light, "location", {1: (-1.2, 0.0, 4.0), 24: (1.2, 0.0, 4.0)})
+    scene.frame_start, scene.frame_end, scene.frame_current = 1, 24, 1
+    add_camera(scene, (0, -4, 3), (0, 0, 0.3), lens=50)
+    save(out / "moving_light.blend")
+
+
 def main(argv=None):
     argv = sys.argv[1:] if argv is None else argv
     out = Path(argv[0]).resolve() if argv else HERE
@@ -195,6 +207,7 @@ def main(argv=None):
     build_hdri_glass(out)
     build_waves(out)
     build_softbox(out)
+    build_moving_light(out)
 
 
 if __name__ == "__main__":

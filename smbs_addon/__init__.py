@@ -15,6 +15,6 @@ from .baking.settings import BakeSettings
 from .baking.bake import bake
 from .core.errors import BakeCancelled, SceneError
 from .scene.arrays import Camera, Scene
+from .core.version import VERSION as __version__
 
 __all__ = ["Scene", "Camera", "BakeSettings", "BakeResult", "bake", "SceneError", "BakeCancelled"]
-__version__ = "0.1.0"

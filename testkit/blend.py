@@ -364,6 +364,19 @@ def add_light(scene, name, kind, location=(0, 0, 3), rotation=(0, 0, 0), energy=
     return ob
 
 
+def keys_linear(owner, path, keys):
+    """Keyframes of owner's property path ({frame: value}), interpolated linearly between them."""
+    edit = bpy.context.preferences.edit
+    before = edit.keyframe_new_interpolation_type
+    edit.keyframe_new_interpolation_type = "LINEAR"
+    try:
+        for frame, value in sorted(keys.items()):
+            setattr(owner, path, value)
+            owner.keyframe_insert(path, frame=frame)
+    finally:
+        edit.keyframe_new_interpolation_type = before
+
+
 def add_camera(scene=None, location=(0, -10, 0), target=None, rotation=(math.pi / 2, 0, 0), name="Camera",
                ortho_scale=None, **props):
     """The scene's camera (default: the context scene's), at location, looking at target if given (else

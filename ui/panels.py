@@ -317,6 +317,7 @@ class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
             row.operator("smbs.show_plan", text="", icon='OUTLINER')
             if settings.cycles_kept_out or _has_layer_image():
                 row.operator("smbs.remove_caustic_layer", text="", icon='TRASH')
+            _draw_frame_range(layout, scene, settings)
         plan_text = getattr(settings, "plan_text", "")
         if plan_text:
             box = layout.box()
@@ -332,6 +333,30 @@ class SMBS_PT_caustics(_RenderPanel, bpy.types.Panel):
         elif settings.keep_out_of_cycles:
             _draw_text(layout, context, "After a bake that covers every caster, receiver and light, "
                        "Cycles' own caustics are turned off so that nothing is counted twice.", icon='INFO')
+
+
+def _draw_frame_range(layout, scene, settings):
+    """Bake Frame Range and its frames: the scene's range, or Start and End."""
+    row = layout.row(align=True)
+    row.operator("smbs.bake_frame_range", icon='RENDER_ANIMATION')
+    row.prop(settings, "frame_range", text="")
+    if settings.frame_range == 'CUSTOM':
+        row = layout.row(align=True)
+        row.prop(settings, "range_start")
+        row.prop(settings, "range_end")
+    else:
+        layout.label(text=f"Frames {scene.frame_start}-{scene.frame_end}"
+                          + (f", every {scene.frame_step}" if scene.frame_step > 1 else "")
+                          + f": {_frames_name(settings.output_path)}")
+
+
+def _frames_name(path):
+    """The frames' file name, as Bake Frame Range writes them (a run of # for the frame)."""
+    name = (path.strip() or "//caustics.exr").replace("\\", "/").rsplit("/", 1)[-1] or "caustics.exr"
+    if "#" in name:
+        return name
+    root, dot, ext = name.rpartition(".")
+    return f"{root}_####.{ext}" if dot else f"{name}_####.exr"
 
 
 WARNINGS_SHOWN = 6  # the panel lists this many of the last bake's warnings; the Info editor has them all

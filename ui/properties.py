@@ -15,6 +15,10 @@ from bpy.props import (
     StringProperty,
 )
 
+# Blender 4.5+ warns when a path property without this option is set to a // path; older ones lack it
+_RELATIVE_PATH = ({'ANIMATABLE', 'PATH_SUPPORTS_BLEND_RELATIVE'}
+                  if "is_path_supports_blend_relative" in bpy.types.Property.bl_rna.properties else {'ANIMATABLE'})
+
 # Properties passed to BakeSettings by name (each must be a BakeSettings field).
 BAKE_FIELDS = (
     "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
@@ -161,10 +165,18 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
                     "caustics on/off difference includes them",
     )
     output_path: StringProperty(
-        name="Output", default="//caustics.exr", subtype='FILE_PATH',
+        name="Output", default="//caustics.exr", subtype='FILE_PATH', options=_RELATIVE_PATH,
         description="Where the caustic layer is written as an OpenEXR file, with the bake's "
                     "statistics beside it as JSON (// means relative to the blend file)",
     )
+    frame_range: EnumProperty(
+        name="Frames", default='SCENE',
+        items=(('SCENE', "Scene Range", "The scene's frame range (Output Properties > Frame Range), with its step"),
+               ('CUSTOM', "Custom", "The frames from Start to End")),
+        description="Which frames Bake Frame Range bakes",
+    )
+    range_start: IntProperty(name="Start", default=1, description="Bake Frame Range: the first frame (Custom)")
+    range_end: IntProperty(name="End", default=250, description="Bake Frame Range: the last frame (Custom)")
     keep_out_of_cycles: BoolProperty(
         name="Keep Out of Cycles", default=True,
         description="When the layer covers every caster, receiver and light, turn off "

@@ -118,9 +118,10 @@ def choose(scene, settings, plan, cancel=None, watch=None) -> dict:
         direct = _direct_pixels(sub, tracer, cam, plan)
         runs, cast = {}, tracer.rays_cast
         for m in CANDIDATES:
-            # a fixed pilot (one sample per pixel a batch), so that one seed makes one choice
+            # a fixed pilot (one sample per pixel a batch), so that one seed makes one choice; the same
+            # for every shard of a frame (its streams not keyed by the shard), so that shards bake alike
             s = dataclasses.replace(settings, method=m, spp=PILOT_BATCHES, batches=PILOT_BATCHES, time_budget=0.0,
-                                    noise_target=0.0, indirect=False, estimator="unbiased")
+                                    noise_target=0.0, indirect=False, estimator="unbiased", shard=0, shards=1)
             t = time.perf_counter()
             res = engine.bake_fixed(sub, s, cancel, watch)
             st = res.stats  # the work per sample: the rays past the plan, the photon pre-pass and the look

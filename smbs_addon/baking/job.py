@@ -82,8 +82,9 @@ class Job:
         return max(1, film_cells(self.cam, self.film) * self.settings.spp // self.settings.batches)
 
     def rng(self, *key):
-        """The random stream of this bake's seed and key (core.random)."""
-        return stream(self.settings.seed, *key)
+        """The random stream of this bake's seed and key (core.random), and of its shard or frame
+        where the settings key streams by them (BakeSettings.stream_suffix)."""
+        return stream(self.settings.seed, *key, *self.settings.stream_suffix())
 
     def on_film(self, film) -> "Job":
         """The same job writing to another film (a pass beside another: passes.DeferredFilm)."""

@@ -196,3 +196,20 @@ def _film_images(job):
         variance = variance[y0:y1, x0:x1]
         batch_lum = batch_lum[:, y0:y1, x0:x1]
     return image, variance, batch_lum
+
+
+def complete_layer(result: BakeResult, albedo) -> tuple[np.ndarray, np.ndarray | None]:
+    """(R, G, B, std) of the whole caustic: layer() + per_albedo x albedo, albedo (H,W,3) Cycles'
+    Diffuse Color pass (the one the add-on's compositor multiplies per_albedo by), so that the EXR
+    stands on its own; the std scaled by the luminance the albedo gives each pixel over the one the
+    bake assumed (exact where a pixel's caustic lies wholly on textured receivers, as the film keeps no
+    batch of the textured part apart). (layer(), std) where there is no albedo or no textured part."""
+    if result.per_albedo is None or albedo is None:
+        return result.layer(), result.std
+    rgb = (result.layer().astype(np.float64) + result.per_albedo * np.asarray(albedo, np.float64)).astype(np.float32)
+    std = result.std
+    if std is not None:
+        was, now = channel_mean(result.image.astype(np.float64)), channel_mean(rgb.astype(np.float64))
+        scale = np.divide(now, was, out=np.ones_like(was), where=was > 0)
+        std = (std * scale).astype(np.float32)
+    return rgb, std

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import dataclasses
+import hashlib
+import json
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.errors import SceneError
+from ..core.random import FRAME_TAG, SHARD_TAG, frame_key
 from ..walks.manifold import ManifoldOptions
 from ..walks.walk import STALL, WalkConfig
 
@@ -21,6 +24,12 @@ METHODS = ("auto", "reference", "mnee", "sms", "smbs")
 MAX_SOLVER_THRESHOLD = 1e-5
 UNIQUENESS_PER_THRESHOLD_SQ = 10.0
 ESTIMATORS = ("unbiased", "biased")
+# frames of a range: the random streams the same for every frame ("fixed": the noise of a still part
+# of the picture stays still), or keyed by the frame ("frame"); bench/results/flicker.md measured both
+SEEDINGS = ("fixed", "frame")
+DEFAULT_SEEDING = "fixed"
+# what the image does not depend on: a file baked with other values of these is the same bake
+NOT_THE_IMAGE = ("threads",)
 
 
 @dataclass
@@ -65,6 +74,11 @@ class BakeSettings:
     handoff: float = 4.0  # manifold methods: paths that focus light more than this many times (folds,
     # foci) are left to a light-tracing pass of spp photons per pixel and light, which is efficient
     # exactly there; the two partition path space, so the sum stays unbiased. 0: walks only
+    frame: int | None = None  # the scene's frame (a .blend exported at it); None: not said
+    seeding: str = DEFAULT_SEEDING  # "frame": the random streams keyed by frame as well (SEEDINGS)
+    shard: int = 0  # 1..shards: this bake is shard K of N of a frame's samples, its streams keyed by K
+    # (baking/shards.py); 0: the whole bake
+    shards: int = 1
 
     def validate(self) -> None:
         if self.method not in METHODS:
@@ -107,9 +121,33 @@ class BakeSettings:
             raise SceneError(f"handoff must be 0 (off) or a positive concentration, not {self.handoff}")
         if not (self.clamp_g >= 0):
             raise SceneError(f"clamp_g must be 0 (off) or a positive luminance, not {self.clamp_g}")
+        if self.seeding not in SEEDINGS:
+            raise SceneError(f"seeding must be one of {', '.join(SEEDINGS)}, not '{self.seeding}'")
+        if not (isinstance(self.shards, (int, np.integer)) and self.shards >= 1
+                and isinstance(self.shard, (int, np.integer)) and 0 <= self.shard <= self.shards
+                and (self.shard >= 1 or self.shards == 1)):
+            raise SceneError(f"shard {self.shard} of {self.shards}: a shard is K of N with 1 <= K <= N "
+                             f"(0 of 1: not sharded)")
         for c in self.chains:
             if not c or set(c) - {"R", "T"}:
                 raise SceneError(f"chain type '{c}' must be a string of R (reflect) and T (refract)")
+
+    def image_key(self) -> str:
+        """16 hex digits of what the image depends on of these settings (all but NOT_THE_IMAGE): a
+        frame's EXR records it, and a second run of a range skips a frame whose EXR says the same."""
+        d = {k: v for k, v in dataclasses.asdict(self).items() if k not in NOT_THE_IMAGE}
+        return hashlib.sha1(json.dumps(d, sort_keys=True, default=str).encode()).hexdigest()[:16]
+
+    def stream_suffix(self) -> tuple:
+        """What the bake's random streams add to their keys (core.random): nothing for a whole bake
+        of one frame, so that its pixels stay what they were; (SHARD_TAG, K) for shard K; (FRAME_TAG,
+        frame) with seeding "frame"."""
+        out = ()
+        if self.shard:
+            out += (SHARD_TAG, int(self.shard))
+        if self.seeding == "frame" and self.frame is not None:
+            out += (FRAME_TAG, frame_key(self.frame))
+        return out
 
     def manifold_options(self, method: str | None = None):
         """The walks' options; method overrides settings.method (auto: per light)."""
@@ -131,3 +169,20 @@ class BakeSettings:
                                chains=tuple(self.chains), max_chain=self.max_chain, walk=walk,
                                physical=self.radiance == "physical", clamp_g=float(self.clamp_g),
                                handoff=0.0 if self.method == "mnee" else float(self.handoff))
+
+
+def shard_of(settings: BakeSettings, k: int, n: int) -> BakeSettings:
+    """Shard k of n of a bake (k in 1..n): streams keyed by k (stream_suffix); by samples, its share of
+    spp (spp x k // n - spp x (k - 1) // n: the shares add up to spp); by time, the same time; by noise,
+    the target times sqrt(n), so that n shards merged reach about the target. SceneError where spp
+    leaves a shard no sample."""
+    if not (1 <= k <= n):
+        raise SceneError(f"shard {k}/{n}: K must lie between 1 and N")
+    rule = settings.time_budget > 0 or settings.noise_target > 0
+    spp = settings.spp if rule else settings.spp * k // n - settings.spp * (k - 1) // n
+    if spp < 1:
+        raise SceneError(f"spp {settings.spp} cannot be shared by {n} shards: each needs a sample per pixel at least")
+    out = dataclasses.replace(settings, shard=int(k), shards=int(n), spp=int(spp),
+                              noise_target=settings.noise_target * math.sqrt(n))
+    out.validate()
+    return out

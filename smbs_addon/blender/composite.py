@@ -33,6 +33,8 @@ import os
 import bpy
 import numpy as np
 
+from ..io.sequence import fill_frame
+
 TAG = "smbs_caustics"  # custom property: node role, True on our group, layer name on our image
 TREE_NAME = "SMBS Caustics Compositing"
 # Roles (the TAG value) of our nodes.
@@ -45,6 +47,7 @@ ENABLED_DIFFCOL = TAG + "_enabled_diffcol"  # scene property: the view layer we 
 _DIFFUSE_COLOR_OUTPUTS = ("Diffuse Color", "DiffCol")  # Render Layers output, Blender 5.0 / 4.x
 
 _LINEAR = ("Linear Rec.709", "Linear", "Linear BT.709")
+SEQUENCE = TAG + "_sequence"  # our image's property for a frame range: {pattern (a # run), first, last}
 
 
 # ---------------------------------------------------------------------------
@@ -442,3 +445,47 @@ def remove_layer(bpy_scene, name="SMBS Caustics"):
     _switch_diffuse_color(bpy_scene, None)
     _remove_image(name)
     _remove_image(albedo_image_name(name))
+
+
+# ---------------------------------------------------------------------------
+# Frame ranges: the layer as an image sequence
+
+
+def _sequence_nodes(bpy_scene, first, last):
+    """Our Image nodes (the layer's and the per-albedo one) play frames first..last: frame f of the scene
+    reads the file of frame f (the files are numbered by the scene's frames)."""
+    tree, _ = _scene_tree(bpy_scene, create=False)
+    for node in (_ours(tree, IMAGE) + _ours(tree, ALBEDO_IMAGE)) if tree is not None else ():
+        node.frame_start, node.frame_duration, node.frame_offset = first, last - first + 1, first - 1
+        node.use_cyclic, node.use_auto_refresh = False, True
+
+
+def _as_sequence(img, pattern, first, last):
+    img.source = 'SEQUENCE'
+    img.filepath = fill_frame(pattern, first)
+    img[SEQUENCE] = {"pattern": str(pattern), "first": int(first), "last": int(last)}
+    img.reload()
+
+
+def apply_sequence(bpy_scene, image, pattern, frames, name="SMBS Caustics", per_albedo=None, albedo_pattern=None):
+    """The layer of a frame range in the compositor: as apply_layer, from the EXRs ``pattern`` names (a run
+    of # for the frame, Blender's convention) for frames (first, last), each frame of a render
+    compositing its own. image, per_albedo: one frame's (for the size and whether the per-albedo part is
+    there). Returns the Image datablock."""
+    first, last = int(frames[0]), int(frames[1])
+    img = apply_layer(bpy_scene, image, name, filepath=fill_frame(pattern, first), per_albedo=per_albedo,
+                      per_albedo_filepath=fill_frame(albedo_pattern, first) if albedo_pattern else None)
+    _as_sequence(img, pattern, first, last)
+    if per_albedo is not None and albedo_pattern:
+        _as_sequence(_find_image(albedo_image_name(name)), albedo_pattern, first, last)
+    _sequence_nodes(bpy_scene, first, last)
+    return img
+
+
+def layer_sequence(name="SMBS Caustics"):
+    """(pattern, first, last) of our layer where it is an image sequence of a frame range, else None."""
+    img = _find_image(name)
+    if img is None or img.source != 'SEQUENCE' or not img.get(SEQUENCE):
+        return None
+    seq = img[SEQUENCE]
+    return str(seq["pattern"]), int(seq["first"]), int(seq["last"])

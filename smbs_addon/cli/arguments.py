@@ -2,7 +2,8 @@
 from __future__ import annotations
 
 import argparse
-from ..baking.settings import BakeSettings, METHODS
+from ..baking.settings import BakeSettings, METHODS, SEEDINGS
+from ..io.sequence import parse_frames
 from .exits import EXIT_USAGE
 
 class _Parser(argparse.ArgumentParser):
@@ -59,6 +60,33 @@ def _clamp(s):
     return v
 
 
+def _frames(s):
+    if s.strip().lower() == "scene":
+        return "scene"
+    try:
+        return parse_frames(s)
+    except ValueError as e:
+        raise argparse.ArgumentTypeError(f"{e}; or 'scene' for the .blend's own frame range") from None
+
+
+def _frame(s):
+    try:
+        return int(s)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a frame number") from None
+
+
+def _shard(s):
+    k, _, n = s.partition("/")
+    try:
+        k, n = int(k), int(n)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{s}' is not a shard K/N (e.g. 2/4)") from None
+    if not (1 <= k <= n):
+        raise argparse.ArgumentTypeError(f"'{s}': a shard K/N needs 1 <= K <= N")
+    return k, n
+
+
 def _methods(s):
 
     ms = tuple(m.strip() for m in s.split(",") if m.strip())
@@ -89,6 +117,23 @@ def _bake_options(b):
                         "clamp); trades the fireflies of a caustic's folds for a bias the statistics report")
 
 
+def _frame_options(b):
+    f = b.add_mutually_exclusive_group()
+    f.add_argument("--frames", type=_frames, default=None, metavar="A-B[:STEP]",
+                   help="bake each frame of a range (a .blend: the scene exported at each frame), e.g. 1-250, "
+                        "1-250:2, or 'scene' for the .blend's own range; frames whose EXR says it holds the same "
+                        "bake are skipped (--overwrite)")
+    f.add_argument("--frame", type=_frame, default=None, metavar="N", help="bake frame N of a .blend")
+    b.add_argument("--overwrite", action="store_true", help="frames: bake every frame again, even those whose EXR "
+                                                            "holds the same bake")
+    b.add_argument("--seeding", choices=SEEDINGS, default=None,
+                   help="frames: 'fixed' (default), the same random streams every frame, or 'frame', keyed by the "
+                        "frame (bench/results/flicker.md measures which flickers less)")
+    b.add_argument("--shard", type=_shard, default=None, metavar="K/N",
+                   help="bake shard K of N of the samples (its own random streams; by --spp, spp x K // N - spp x "
+                        "(K - 1) // N of them; by --noise, the target x sqrt(N)); `merge` puts the shards together")
+
+
 def bake_settings(args, method: str, spp: int, time_budget: float = 0.0, noise_target: float = 0.0):
 
     settings = BakeSettings(method=method, spp=spp, seed=args.seed, batches=args.batches,
@@ -96,6 +141,8 @@ def bake_settings(args, method: str, spp: int, time_budget: float = 0.0, noise_t
                             estimator=args.estimator, trials=args.trials,
                             indirect=args.indirect, time_budget=time_budget,
                             noise_target=noise_target, pilots=args.pilots, clamp_g=args.clamp)
+    if getattr(args, "seeding", None):
+        settings.seeding = args.seeding
     settings.validate()
     return settings
 
@@ -123,8 +170,11 @@ def build_parser() -> argparse.ArgumentParser:
                    help="with --time or --noise: when a signal (Ctrl-C, SIGTERM, SIGHUP) stops the bake, write "
                         "the whole batches done so far, with their error bar (the exit code still says a signal "
                         "stopped it)")
-    b.add_argument("--out", default=None, help="output EXR (default: IN with .caustics.exr)")
-    b.add_argument("--stats", default=None, help="statistics JSON (default: beside the EXR)")
+    _frame_options(b)
+    b.add_argument("--out", default=None, help="output EXR (default: IN with .caustics.exr); for a range, a # run is "
+                                               "the frame (out/caustics_####.exr), added as _#### where there is none")
+    b.add_argument("--stats", default=None, help="statistics JSON (default: beside the EXR); for a range, the range's "
+                                                 "summary (default: the pattern with # as 'summary', .json)")
     b.add_argument("--quiet", action="store_true")
     c = sub.add_parser("compare", help="bake with several methods for the same time and set their errors side by "
                                        "side (an equal-time table of your scene)")
@@ -144,6 +194,14 @@ def build_parser() -> argparse.ArgumentParser:
                    help="processes compiling at once (default: one per core)")
     r.add_argument("--check", action="store_true",
                    help="compile nothing: exit 0 if the kernels are compiled for this machine, 1 if not")
+    m = sub.add_parser("merge", help="merge bakes of one frame (shards, or a bake and more samples baked later) into "
+                                     "one EXR, weighted by their samples, with its std and error bar")
+    m.add_argument("output", help="the merged EXR (may be one of the inputs: it is replaced only when all is written)")
+    m.add_argument("inputs", nargs="+", help="EXRs of bakes of one frame with other seeds or shards; # runs and "
+                                             "* ? [] patterns are filled in (--frame) and matched here")
+    m.add_argument("--frame", type=_frame, default=None, help="the frame whose files the # runs name")
+    m.add_argument("--stats", default=None, help="statistics JSON (default: beside the EXR)")
+    m.add_argument("--quiet", action="store_true")
     e = sub.add_parser("export", help="export a .blend to a .npz scene")
     e.add_argument("input")
     e.add_argument("output")

@@ -2,8 +2,11 @@
 table of methods)."""
 from __future__ import annotations
 
+import glob
 import sys
 from pathlib import Path
+
+import numpy as np
 
 from ..baking import prepare
 from ..baking.compare import Reference, compare, json_report, table_lines
@@ -11,7 +14,9 @@ from ..core.compiles import counted
 from .arguments import bake_settings
 from .inputs import check_writable, load_input
 from ..core import signals
-from ..io.exr import write_json
+from ..baking import merge
+from ..io.exr import exr_writer, json_writer, read_channels, save_outputs, write_json
+from ..io.sequence import frame_path
 from .exits import EXIT_NOT_READY, EXIT_OK
 
 def prepare_command(args, say) -> int:
@@ -55,4 +60,45 @@ def compare_command(args, say) -> int:
         print(line)
     if out is not None:
         say(f"wrote {out}")
+    return EXIT_OK
+
+
+def _merge_inputs(names, frame) -> list:
+    """The inputs of a merge: # runs filled with the frame, patterns (* ? []) matched, in order."""
+    out = []
+    for name in names:
+        name = str(frame_path(name, frame)) if frame is not None else name
+        if not Path(name).exists() and glob.has_magic(name):
+            found = sorted(glob.glob(name))
+            if not found:
+                raise FileNotFoundError(f"no file matches '{name}'")
+            out += found
+        elif Path(name).is_dir():
+            raise IsADirectoryError(f"input '{name}' is a folder, not an EXR")
+        elif not Path(name).is_file():
+            raise FileNotFoundError(f"input '{name}' does not exist")
+        else:
+            out.append(name)
+    return out
+
+
+def merge_command(args, say) -> int:
+    """python -m smbs_addon merge OUT IN...: bakes of one frame merged (smbs_addon.baking.merge)."""
+    out = frame_path(args.output, args.frame) if args.frame is not None else Path(args.output)
+    stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
+    check_writable(out)
+    check_writable(stats_path)
+    names = _merge_inputs(args.inputs, args.frame)
+    parts = [merge.part(n, *read_channels(n)) for n in names]
+    channels, meta, stats = merge.merge(parts)
+    rgb = np.stack([channels[c] for c in "RGB"], axis=-1)
+    rest = ["std"] + sorted(n for n in channels if n not in ("R", "G", "B", "std"))
+    signals.check()
+    save_outputs([(out, exr_writer(rgb, meta, {n: channels[n] for n in rest})), (stats_path, json_writer(stats))],
+                 before_replace=signals.check)
+    errs = ", ".join("unknown" if p["relative_error"] is None else f"+-{p['relative_error']:.1%}"
+                     for p in stats["merged_from"])
+    say(f"merged {len(parts)} bakes ({stats['samples']:g} samples per pixel, {stats['batches_done']} batches): error "
+        f"+-{stats['relative_error']:.1%} (the inputs: {errs})")
+    say(f"wrote {out} and {stats_path}")
     return EXIT_OK

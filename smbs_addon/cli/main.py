@@ -12,22 +12,23 @@ the signal's number when SIGINT (130), SIGTERM (143) or SIGHUP (129) stopped it 
 from __future__ import annotations
 
 import sys
-import time
 from pathlib import Path
 
 from .arguments import bake_settings, build_parser
-from .inputs import check_writable, load_input
-from .commands import compare_command, prepare_command
-from ..io.exr import bytes_writer, exr_channels, exr_metadata, exr_writer, json_writer, save_outputs
-from .report import duration, summary_lines
+from .inputs import check_writable, load_input, open_input
+from .commands import compare_command, merge_command, prepare_command
+from .frames import range_command
+from .outputs import albedo_for, bake_outputs
+from .progress import Progress
+from ..io.exr import bytes_writer, save_outputs
+from .report import summary_lines
+from ..baking.settings import shard_of
 from ..core import signals
 from ..core.errors import BakeCancelled, SceneError
 from ..baking.bake import bake
 from ..baking.engine import check_samples
 from . import signals as cli_signals
 from .exits import EXIT_IO, EXIT_OK, EXIT_SCENE, EXIT_USAGE, cancelled
-
-SLOW_BAKE_S = 24 * 3600  # a bake whose measured rate says it takes longer is warned of, once
 
 
 def main(argv=None) -> int:
@@ -57,6 +58,8 @@ def _run(args) -> int:
             return compare_command(args, say)
         if args.command == "prepare":
             return prepare_command(args, say)
+        if args.command == "merge":
+            return merge_command(args, say)
         return _bake_command(args, say)
     except SceneError as e:
         print(f"smbs_addon: error: {e}", file=sys.stderr)
@@ -82,11 +85,23 @@ def _bake_command(args, say) -> int:
         return EXIT_USAGE
     spp = args.spp if args.spp is not None else (args.batches if stop_rule else 16)
     settings = bake_settings(args, args.method, spp, args.time or 0.0, args.noise or 0.0)
+    if args.shard is not None:
+        try:
+            settings = shard_of(settings, *args.shard)
+        except SceneError as e:
+            print(f"smbs_addon: error: --shard: {e}", file=sys.stderr)
+            return EXIT_USAGE
+    progress = Progress(args.quiet, sys.stderr.isatty())
+    if args.frames is not None or args.frame is not None:
+        inp = open_input(args.input)
+        return range_command(args, settings, inp, progress, say)
     out = Path(args.out) if args.out else Path(args.input).with_suffix(".caustics.exr")
     stats_path = Path(args.stats) if args.stats else out.with_suffix(".json")
     check_writable(out)
     check_writable(stats_path)
-    scene = load_input(args.input, warn=lambda m: print(f"warning: {m}", file=sys.stderr))
+    warn = lambda m: print(f"warning: {m}", file=sys.stderr)  # noqa: E731
+    inp = open_input(args.input)
+    scene = inp.scene_at(None, warn)
     try:
         check_samples(scene, settings)
     except SceneError as e:
@@ -103,64 +118,19 @@ def _bake_command(args, say) -> int:
         for line in lines:
             say(f"  {line}")
 
-    tty = sys.stderr.isatty()
-    progress = _Progress(args.quiet, tty)
     result = bake(scene, settings, progress=progress, on_plan=on_plan, keep_partial=args.keep_partial)
-    if not args.quiet and tty:
+    if not args.quiet and progress.tty:
         print(file=sys.stderr)
+    albedo = albedo_for(inp, scene, result, warn)
+    outputs = bake_outputs(settings, result, out, stats_path, albedo, scene.digest())[0]
     signals.check()  # a signal after the bake's last look at it: nothing is written
-    save_outputs([(out, exr_writer(result.layer(), exr_metadata(settings, result), exr_channels(result))),
-                  (stats_path, json_writer(result.stats))], before_replace=signals.check)
+    save_outputs(outputs, before_replace=signals.check)
     for line in summary_lines(result.stats):
         say(line)
     say(f"wrote {out} and {stats_path}")
     if result.stats.get("stopped_by") == "signal":
         return cancelled(signals.requested())
     return EXIT_OK
-
-
-class _Progress:
-    """The bake's progress on stderr: a line that rewrites itself on a terminal, a line per stage in
-    logs (render farms); with the time it will take at its rate so far, and a warning, once, where
-    that is more than SLOW_BAKE_S."""
-
-    def __init__(self, quiet: bool, tty: bool):
-        self.quiet, self.tty = quiet, tty
-        self.last = ""
-        self.t0 = time.perf_counter()
-        self.warned = False
-
-    def left(self, frac: float) -> float | None:
-        spent = time.perf_counter() - self.t0
-        if frac <= 0 or spent < 2.0:
-            return None
-        return spent * (1.0 - frac) / frac
-
-    def __call__(self, frac, msg):
-        if self.quiet:
-            return
-        left = self.left(frac)
-        if left is not None and left > SLOW_BAKE_S and not self.warned:
-            self.warned = True
-            print(f"{chr(10) if self.tty else ''}warning: at its rate so far this bake takes about {_long(left)} "
-                  f"more; fewer samples (--spp) or a --time or --noise rule end it sooner", file=sys.stderr,
-                  flush=True)
-        if self.tty:
-            eta = f" (about {_long(left)} left)" if left is not None and frac < 1 else ""
-            print(f"\r{frac:6.1%} {msg}{eta}\033[K", end="", file=sys.stderr, flush=True)
-        elif msg != self.last:
-            print(f"{frac:6.1%} {msg}", file=sys.stderr, flush=True)
-            self.last = msg
-
-
-def _long(s: float) -> str:
-    """A duration from seconds to ages."""
-    year = 365.25 * 86400
-    if s < 2 * 86400:
-        return duration(s)
-    if s < year:
-        return f"{s / 86400:.0f} days"
-    return f"{s / year:.3g} years"
 
 
 if __name__ == "__main__":

@@ -44,9 +44,12 @@ def summary_lines(stats: dict) -> list[str]:
                  f"standard error {nz['std_error_of_mean']:.2g}, per-pixel relative noise {nz['relative_noise']:.1%}")
     lines.extend(error_lines(stats))
     if "textured_share" in stats:
+        where = ("in R, G, B times the Diffuse Color pass Cycles rendered for the bake, and per unit albedo "
+                 "(channels per_albedo_R/G/B) for relighting" if stats.get("rgb") == "complete" else
+                 "per unit albedo (channels per_albedo_R/G/B) for the render's Diffuse Color pass to multiply, and "
+                 "left out of the colour channels")
         lines.append(f"  textured receivers: {stats['textured_share']:.0%} of the layer lies on them where the camera "
-                     f"sees them; it is written per unit albedo (channels per_albedo_R/G/B) for the render's "
-                     f"Diffuse Color pass to multiply, and left out of the colour channels")
+                     f"sees them; it is written {where}")
     return lines
 
 

@@ -23,10 +23,22 @@ PILOT_CASTER = 7  # the plan's pilots per light and caster: (light, caster)
 PILOT_INDIRECT = 8  # the plan's pilots of light after a diffuse bounce: (light,)
 PLAN_LOOK = 10  # the plan's look from the camera (seed 0): (part,)
 
+# What a bake's streams add after their own key (BakeSettings.stream_suffix), only where set, so that a
+# bake of one frame, unsharded, keeps the streams (and the pixels) it always had: a shard of a frame's
+# samples (K of N, keyed by K) and, with seeding "frame", the frame. Every stream of one kind has one
+# length, so a suffix (a tag and a number) never makes one stream's key another's.
+SHARD_TAG = 0x5348  # then the shard, 1..N
+FRAME_TAG = 0x4652  # then the frame (negative frames as their 64-bit two's complement)
+
 
 def light_key(name: str) -> int:
     """The key of a light or an object in a stream: its name's CRC-32."""
     return zlib.crc32(name.encode("utf-8"))
+
+
+def frame_key(frame: int) -> int:
+    """A frame as a stream's number: non-negative (Blender's frames may be negative)."""
+    return int(frame) % (1 << 64)
 
 
 def stream(seed, *key) -> np.random.Generator:

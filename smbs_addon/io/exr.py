@@ -30,6 +30,7 @@ except ImportError:  # pragma: no cover - Windows
     fcntl = resource = None
 
 from ..core.errors import SceneError, WriteError
+from ..core.version import code_version
 
 _PENDING: set = set()  # temporary files written and not yet in place (remove_pending)
 _FS_IOC_GETFLAGS, _IMMUTABLE, _APPEND = 0x80086601, 0x10, 0x20  # Linux: lsattr's i and a
@@ -395,6 +396,73 @@ def read_exr(path, channel: str | None = None) -> tuple[np.ndarray, dict]:
     return (img[:, :, colour] if colour else img), meta
 
 
+def read_header(path) -> dict:
+    """The smbs:* header entries of an EXR, without reading its pixels ({} where it is not one of
+    ours, or does not open)."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        oiio.geterror()  # clear it: a file that does not open is just not one to skip
+        return {}
+    try:
+        return {a.name[5:]: a.value for a in inp.spec().extra_attribs if a.name.startswith("smbs:")}
+    finally:
+        inp.close()
+
+
+def read_channels(path) -> tuple[dict, dict]:
+    """Every channel of an EXR by name, (H, W) float32 each, and its smbs:* header entries."""
+    import OpenImageIO as oiio
+
+    inp = oiio.ImageInput.open(str(path))
+    if inp is None:
+        raise SceneError(f"cannot read image '{path}': {oiio.geterror()}")
+    try:
+        spec = inp.spec()
+        img = inp.read_image(oiio.FLOAT)
+        meta = {a.name[5:]: a.value for a in spec.extra_attribs if a.name.startswith("smbs:")}
+    finally:
+        inp.close()
+    if img is None:
+        raise SceneError(f"cannot read image '{path}': its pixels do not read")
+    img = np.asarray(img, np.float32).reshape(spec.height, spec.width, spec.nchannels)
+    return {n: img[:, :, i] for i, n in enumerate(spec.channelnames)}, meta
+
+
+def remove_stale(path) -> list:
+    """Remove the temporary files a killed process left beside path (save_outputs' ``.NAME.PID.tmp.EXT``,
+    where no process PID runs any more: SIGKILL gives no time to clean up); returns those removed. The
+    output itself is never partial: it is only ever replaced by a rename."""
+    path = Path(path)
+    gone = []
+    prefix, suffix = f".{path.name}.", f".tmp{path.suffix}"
+    try:
+        names = [p for p in path.parent.iterdir() if p.name.startswith(prefix) and p.name.endswith(suffix)]
+    except OSError:
+        return gone
+    for p in names:
+        pid = p.name[len(prefix):-len(suffix)]
+        if not pid.isdigit() or int(pid) == os.getpid() or _alive(int(pid)):
+            continue
+        try:
+            p.unlink()
+            gone.append(p)
+        except OSError:
+            pass
+    return gone
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except (PermissionError, OSError):
+        return True  # another user's, or no telling: leave it
+    return True
+
+
 def read_passes(path) -> dict:
     """Every channel of every part of a multi-part EXR (Blender's multilayer render: a part per pass,
     channels named 'ViewLayer.Pass.X'), as (H, W) float32 keyed 'Pass.X' (the view layer's name
@@ -416,27 +484,51 @@ def read_passes(path) -> dict:
     return out
 
 
-def exr_metadata(settings, result) -> dict:
-    """The EXR header entries of a bake (also written by the Blender operator)."""
+def exr_metadata(settings, result, scene_digest: str | None = None, complete: bool = False) -> dict:
+    """The EXR header entries of a bake (also written by the Blender operator): the settings and
+    statistics, and what a second run and a merge read (baking/merge.py): the code that made it
+    (core.version), the key of the settings the image depends on, the scene's digest where known,
+    the frame, the shard, the samples per pixel and batches done. complete: R, G, B hold the caustic
+    on textured receivers too (the command line's EXR, baking.result.complete_layer)."""
     st = result.stats
     meta = {"method": settings.method, "spp": settings.spp, "seed": settings.seed,
             "time_s": st["time_s"], "rays": st["rays"],
-            "noise_relative": st["noise"]["relative_noise"], "stats": st}
+            "noise_relative": st["noise"]["relative_noise"], "stats": st,
+            "code": code_version(), "settings_key": settings.image_key(),
+            "samples": float(samples_done(settings, st)), "batches_done": int(st.get("batches_done", 0))}
+    if scene_digest:
+        meta["scene"] = scene_digest
+    if settings.frame is not None:
+        meta["frame"] = int(settings.frame)
+    if settings.shard:
+        meta["shard"] = f"{settings.shard}/{settings.shards}"
     for key in ("relative_error", "seconds_to_halve_error"):  # absent (None): not measurable
         if st.get(key) is not None:
             meta[key] = float(st[key])
     if getattr(result, "per_albedo", None) is not None:  # a pipeline reading R, G, B alone would miss it
-        meta["composite"] = ("R, G, B + per_albedo_R, _G, _B x the render's Diffuse Color pass (the caustic on "
+        meta["composite"] = ("R, G, B: the whole caustic (on textured receivers seen directly, per_albedo_R, _G, _B x "
+                             "the Diffuse Color pass Cycles rendered for the bake); per_albedo_* for relighting"
+                             if complete else
+                             "R, G, B + per_albedo_R, _G, _B x the render's Diffuse Color pass (the caustic on "
                              "textured receivers seen directly, per unit albedo)")
     return meta
 
 
-def exr_channels(result) -> dict:
+def samples_done(settings, stats: dict) -> float:
+    """Samples per pixel a bake took: its spp, or for a stop rule by time or noise spp per pass of
+    its batches times the passes done (a bake stopped by a signal with --keep-partial likewise)."""
+    if stats.get("stopped_by") in ("time", "noise", "signal", "max_batches"):
+        return settings.spp * stats.get("batches_done", 0) / settings.batches
+    return float(settings.spp)
+
+
+def exr_channels(result, std=None) -> dict:
     """The EXR's channels beside the colour: ``std``, each pixel's standard deviation of
-    the mean luminance (where the noise is, for a compositor); with textured receivers
+    the mean luminance (where the noise is, for a compositor; std: another one, that of the
+    whole caustic, baking.result.complete_layer); with textured receivers
     ``per_albedo_R``, ``_G``, ``_B`` (BakeResult.per_albedo: the caustic on them per unit albedo,
-    for the render's Diffuse Color pass to multiply; the colour is then BakeResult.layer())."""
-    std = getattr(result, "std", None)
+    for the render's Diffuse Color pass to multiply)."""
+    std = getattr(result, "std", None) if std is None else std
     out = {} if std is None else {"std": std}
     per_albedo = getattr(result, "per_albedo", None)
     if per_albedo is not None:

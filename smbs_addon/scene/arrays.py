@@ -9,6 +9,7 @@ A scene is saved and loaded as a single ``.npz`` file (``save`` / ``load``).
 from __future__ import annotations
 
 import dataclasses
+import hashlib
 import io
 import zipfile
 import zlib
@@ -377,6 +378,21 @@ class Scene:
         except BaseException:
             tmp.unlink(missing_ok=True)
             raise
+
+    def digest(self) -> str:
+        """16 hex digits of a digest of every array and value of the scene (a frame's EXR records it:
+        the same digest, settings and code give the same pixels, so a second run may skip the frame)."""
+        h = hashlib.sha1()
+        for f in dataclasses.fields(self):
+            v = getattr(self, f.name)
+            parts = ([np.asarray(getattr(v, cf.name)) for cf in dataclasses.fields(Camera)] if f.name == "camera"
+                     else [np.asarray(v, dtype=str) if isinstance(v, list) else np.asarray(v)])
+            h.update(f.name.encode())
+            for a in parts:
+                a = np.ascontiguousarray(a)
+                h.update(f"{a.dtype.str}{a.shape}".encode())
+                h.update(a.tobytes())
+        return h.hexdigest()[:16]
 
     def npz_bytes(self) -> bytes:
         """The scene's .npz file, in memory (save; the command line's export writes it checked)."""

@@ -45,7 +45,7 @@ def test_built_zip_contents(tmp_path):
                      "smbs_addon/blender/composite.py", "operators/bake.py", "ui/panels.py",
                      "ui/properties.py"):
         assert required in names, f"{required} missing from {sorted(names)}"
-    excluded = ("tests/", "testkit/", "tools/", "bench/", "sample_blends/", ".venv/", ".ci/", ".git/",
+    excluded = ("tests/", "testkit/", "tools/", "bench/", "farm/", "sample_blends/", ".venv/", ".ci/", ".git/",
                 "dist/", "out/", "pyproject.toml", "requirements.txt")
     leaked = sorted(n for n in names if n.startswith(excluded) or "__pycache__" in n
                     or ".egg-info" in n or n.endswith(".pyc"))
