@@ -115,6 +115,7 @@ def choose(scene, settings, plan, cancel=None, watch=None) -> dict:
         sub = _pilot_scene(scene, lp.index)
         cam = CameraModel(sub.camera)
         tracer = Tracer(sub, threads=settings.threads or None)
+        tracer.set_extent(*plan.bounds)  # the bake's tolerances: of what takes part
         direct = _direct_pixels(sub, tracer, cam, plan)
         runs, cast = {}, tracer.rays_cast
         for m in CANDIDATES:
@@ -123,7 +124,9 @@ def choose(scene, settings, plan, cancel=None, watch=None) -> dict:
             s = dataclasses.replace(settings, method=m, spp=PILOT_BATCHES, batches=PILOT_BATCHES, time_budget=0.0,
                                     noise_target=0.0, indirect=False, estimator="unbiased", shard=0, shards=1)
             t = time.perf_counter()
-            res = engine.bake_fixed(sub, s, cancel, watch)
+            # the casters the bake's plan left out stay out of the pilot's: alone with one light, a far
+            # ball too faint beside all the lights' caustic may not be, and its walks would move the choice
+            res = engine.bake_fixed(sub, s, cancel, watch, left_out=plan.flag_casters & ~plan.casters)
             st = res.stats  # the work per sample: the rays past the plan, the photon pre-pass and the look
             cast += st["rays"]
             work = (st["rays"] - st["plan"].get("rays", 0) - st.get("guide", {}).get("rays", 0)

@@ -20,15 +20,15 @@ from .settings import BakeSettings
 from .walking import bake_walks
 
 
-def start(scene, settings, report, cancel, on_plan, watch, keep_partial=False) -> Job | BakeResult:
+def start(scene, settings, report, cancel, on_plan, watch, keep_partial=False, left_out=None) -> Job | BakeResult:
     """Validate, plan, trace the plan and make the film: the job, or the all-zero result of a scene
     with nothing to bake. on_plan(lines) gets the plan in words before any caustic is traced;
-    keep_partial: see Job."""
+    keep_partial: see Job. left_out: (O,) bool, casters left out before planning (make_plan)."""
     settings = settings or BakeSettings()
     settings.validate()
     scene.validate()
     t0 = time.perf_counter()
-    plan = make_plan(scene, settings.use_cycles_flags)
+    plan = make_plan(scene, settings.use_cycles_flags, left_out)
     cam = CameraModel(scene.camera)
     check_memory(scene, cam.W, cam.H, settings.batches)
     check_samples(scene, settings)
@@ -55,9 +55,10 @@ def run(job, light_tracing: bool, choices=None) -> BakeResult:
     return finish(job, batches, stop, t_first, rays)
 
 
-def bake_fixed(scene, settings, cancel=None, watch=None) -> BakeResult:
-    """A whole bake of a fixed method (not auto): what auto's pilot runs for each candidate."""
-    job = start(scene, settings, None, cancel, None, watch)
+def bake_fixed(scene, settings, cancel=None, watch=None, left_out=None) -> BakeResult:
+    """A whole bake of a fixed method (not auto): what auto's pilot runs for each candidate. left_out:
+    (O,) bool, casters left out before planning (auto's pilots: those the bake's plan left out)."""
+    job = start(scene, settings, None, cancel, None, watch, left_out=left_out)
     if isinstance(job, BakeResult):
         return job
     return run(job, settings.method == "reference")

@@ -21,7 +21,9 @@ def bake_light_tracing(job):
         st.update(dict.fromkeys(PHOTON_COUNTERS, 0))
     # the film cells that can see a mirror or glass first: the look for one in view casts
     # from their pixels alone, and the eye paths start in them alone
-    eye_cells = specular_cells(scene, job.tracer, cam, film)
+    plan = job.plan
+    unseen = None if plan.first_specular is None else ~plan.casters & ~plan.first_specular
+    eye_cells = specular_cells(scene, job.tracer, cam, film, unseen)
     enabled, rays_visible = specular_visible(job, eye_cells)
     eye_stats = {"eye_paths": 0, "rays_eye": 0, "rays_visible": rays_visible, "eye_splats": 0, "time_s": 0.0,
                  "enabled": enabled, "film_cells": film_cells(cam, film)}

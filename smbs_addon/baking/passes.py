@@ -80,7 +80,7 @@ def photon_pass(job, b, lp, per_batch, st, stream_kind=PHOTONS, handoff=None, st
         start = c * CHUNK
         n = min(CHUNK, per_batch - start)
         rng = job.rng(stream_kind, lp.key, b, c)
-        ph = emit(job.scene, lp.index, lp.targets, n, rng)
+        ph = emit(job.scene, lp.index, lp.targets, n, rng, job.plan.bounds)
         ph.w *= n / per_batch  # emit() weights by 1/n; a batch averages per_batch photons
         photons.trace_photons(job.scene, job.tracer, job.cam, film_c, job.plan, ph, rng, st_c,
                               physical=job.physical, handoff=handoff)
@@ -107,7 +107,7 @@ def indirect_batch(job, b) -> None:
         def run_chunk(c, film_c, st_c, li=li, target=target, per_batch=per_batch):
             n = min(CHUNK, per_batch - c * CHUNK)
             rng = job.rng(INDIRECT, light_key(scene.light_names[li]), b, c)
-            ph = emit(scene, li, target, n, rng)
+            ph = emit(scene, li, target, n, rng, plan.bounds)
             ph.w *= n / per_batch
             indirect.trace_indirect_photons(scene, job.tracer, job.cam, film_c, plan, ph, rng, st_c, physical=job.physical)
 

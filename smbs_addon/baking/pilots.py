@@ -4,22 +4,40 @@ on which receivers, carrying how much light (plan.refine_plan reads their answer
 """
 from __future__ import annotations
 
+import dataclasses
 import math
+from typing import NamedTuple
 
 import numpy as np
 
 from ..core import lanes
 from ..scene import arrays as S
-from ..core.random import PILOT_CASTER, PILOT_INDIRECT, PLAN_LOOK, light_key, stream
-from ..core.vec import cosine_hemisphere, dot, frame, to_world
-from ..shading.lights import Photons, emit, light_axis
+from ..core.random import PILOT_BOUNCE, PILOT_CASTER, PILOT_INDIRECT, PILOT_PROBE, PLAN_LOOK, light_key, stream
+from ..core.vec import cosine_hemisphere, dot, frame, to_world, uniform_cone
+from ..shading.light_samples import sample_light
+from ..shading.lights import Photons, emit, light_axis, shadow_tmax
 from ..shading.microfacet import rough_materials
 from ..shading.optics import reflect, refract
 from ..paths.photons import scatter_specular
 from ..shading.fresnel import specular_weights
+from .pilot_sets import HIDDEN_PROBE, Pilots, bounce_count, pilot_count, view_reach
 
 PILOT_PHOTONS = 4096  # per light and caster
 PILOT_BOUNCES = 8  # specular bounces a pilot photon follows
+
+
+class PilotSetup(NamedTuple):
+    """What every pilot task of a plan shares: the scene, the camera model, the plan, what the camera
+    sees ((direct, through, sides): camera_sees'), the seed, the pilots per caster and the specular
+    bounces a pilot follows."""
+
+    scene: object
+    cam: object
+    plan: object
+    seen: tuple
+    seed: int
+    pilots: int
+    max_bounces: int
 
 
 CAMERA_RAYS = 1 << 18  # at most this many rays for what the camera sees (a grid over the frame)
@@ -34,22 +52,32 @@ def _surfaces(scene, tracer, o, d, camera=False, passable=None):
     return h, i, scene.tri_object[h.prim[i]], mat, scene.mat_kind[mat]
 
 
-def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
+def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES, scale=None):
     """Receivers the camera sees directly and through mirrors or glass: one ray per pixel
     (a grid of at most CAMERA_RAYS over a larger frame), split at glass into its reflection
     and its refraction. Returns (direct (O,) bool, through (O,2,3): per receiver the box of
     the points seen through mirrors or glass, padded (empty: lo > hi), sides (O,) the sides
     of them seen (1 front, 2 back, by the geometric normal), rays, specular: whether a mirror
-    or glass is what some pixel sees first, None where the grid skips pixels).
+    or glass is what some pixel sees first, None where the grid skips pixels). scale: the
+    length the boxes are padded by 2% of (None: plan.scale).
 
     The rays are traced in parts of SEES_PART that the threads take in turn (_sees_part); what
     they find is merged by or, min and max, so the result is the one of a single part (but in a
     maze of glass, where each part keeps its own regular subset of its rays)."""
+    return camera_look(scene, tracer, cam, plan, max_bounces, scale)[:5]
+
+
+def camera_look(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES, scale=None):
+    """camera_sees, the box (lo, hi) around every receiver point its rays saw, directly or through
+    mirrors or glass (unpadded; lo > hi where none), and (O,) bool: the objects whose mirror or
+    glass some pixel's ray meets first, None where the grid skips pixels."""
     direct, through, sides = _nothing_seen(len(scene.object_names))
+    view = np.stack([np.full(3, np.inf), np.full(3, -np.inf)])
+    first = np.zeros(len(scene.object_names), bool)
     x0, x1, y0, y1 = cam.region
     w, h = max(0, x1 - x0), max(0, y1 - y0)
     if w * h == 0 or scene.n_tris == 0:
-        return direct, through, sides, 0, False
+        return direct, through, sides, 0, False, view, first
     step = max(1, math.ceil(math.sqrt(w * h / CAMERA_RAYS)))
     _, _, o, d = cam.pixel_rays(step)
     n = len(o)
@@ -59,19 +87,23 @@ def camera_sees(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES):
                           stream(0, PLAN_LOOK, a))
 
     rays, specular = 0, False
-    for p_direct, p_through, p_sides, p_rays, p_specular in lanes.blocks(part, n, SEES_PART, tracer.threads):
+    for p_direct, p_through, p_sides, p_rays, p_specular, (p_view, p_first) in lanes.blocks(part, n, SEES_PART,
+                                                                                             tracer.threads):
         specular |= p_specular
+        first |= p_first
         direct |= p_direct
         np.minimum(through[:, 0], p_through[:, 0], out=through[:, 0])
         np.maximum(through[:, 1], p_through[:, 1], out=through[:, 1])
+        np.minimum(view[0], p_view[0], out=view[0])
+        np.maximum(view[1], p_view[1], out=view[1])
         sides |= p_sides
         rays += p_rays
     # the samples are a pixel apart: pad each box by a tenth of its size and 2% of the scene
     seen = through[:, 0, 0] <= through[:, 1, 0]
-    pad = 0.1 * np.linalg.norm(through[:, 1] - through[:, 0], axis=1) + 0.02 * plan.scale
+    pad = 0.1 * np.linalg.norm(through[:, 1] - through[:, 0], axis=1) + 0.02 * (plan.scale if scale is None else scale)
     through[seen, 0] -= pad[seen, None]
     through[seen, 1] += pad[seen, None]
-    return direct, through, sides, rays, (specular if step == 1 else None)
+    return direct, through, sides, rays, (specular if step == 1 else None), view, (first if step == 1 else None)
 
 
 SEES_PART = 1 << 16  # camera rays per part of camera_sees
@@ -86,9 +118,13 @@ def _nothing_seen(n_objects: int):
 
 def _sees_part(scene, tracer, plan, o, d, max_bounces, cap, rng):
     """camera_sees for the rays o, d: (direct, through (unpadded), sides, rays cast, whether a
-    mirror or glass is the first hit of one of them); past cap rays at a bounce, a regular subset
-    of them goes on. rng: the rough surfaces' directions (drawn only where the rays meet one)."""
+    mirror or glass is the first hit of one of them, (the box around the receiver points seen, (O,)
+    bool: the objects whose mirror or glass some ray meets first)); past cap rays at a bounce, a
+    regular subset of them goes on. rng: the rough surfaces' directions (drawn only where the rays
+    meet one)."""
     direct, through, sides = _nothing_seen(len(scene.object_names))
+    view = np.stack([np.full(3, np.inf), np.full(3, -np.inf)])
+    first = np.zeros(len(scene.object_names), bool)  # objects whose mirror or glass a ray meets first
     rays, specular = 0, False
     for depth in range(max_bounces + 1):
         if len(o) == 0:
@@ -96,6 +132,9 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap, rng):
         hit, i, obj, mat, kind = _surfaces(scene, tracer, o, d, camera=depth == 0)
         rays += len(o)
         r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj])
+        if r.size:
+            np.minimum(view[0], hit.p[i[r]].min(axis=0), out=view[0])
+            np.maximum(view[1], hit.p[i[r]].max(axis=0), out=view[1])
         if depth == 0:
             direct[np.unique(obj[r])] = True
         else:
@@ -105,6 +144,8 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap, rng):
             np.bitwise_or.at(sides, obj[r], np.where(front, 1, 2))
         spec = np.flatnonzero((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))  # any mirror or glass, as the eye
         specular |= depth == 0 and spec.size > 0
+        if depth == 0:
+            first[obj[spec]] = True
         if spec.size == 0 or depth == max_bounces:
             break
         j = i[spec]
@@ -129,7 +170,7 @@ def _sees_part(scene, tracer, plan, o, d, max_bounces, cap, rng):
             keep = np.arange(0, len(nd), math.ceil(len(nd) / max(cap, 1)))
             no, nd, nn = no[keep], nd[keep], nn[keep]
         o, d = tracer.spawn(no, nn, nd), nd
-    return direct, through, sides, rays, specular
+    return direct, through, sides, rays, specular, (view, first)
 
 
 def _sees_point(scene, tracer, cam, p, ng, w_in):
@@ -273,22 +314,6 @@ def caustic_irradiance(at: np.ndarray, w: np.ndarray, scale: float) -> float:
     return float(cell[bright].sum() / (bright.sum() * h * h))
 
 
-def chain_letters(row) -> str:
-    """Chain letters of one pilot path, the receiver's side first (the walks' order)."""
-    return "".join("R" if c == 1 else "T" for c in row[::-1] if c)
-
-
-def _chain_flux(letters: np.ndarray, w: np.ndarray) -> dict:
-    """{chain letters: flux} of pilot paths (letters (K, bounces) as _pilot gives them, w (K,)
-    their flux), the chains in the order they first appear. Each chain's flux is added up in the
-    paths' order, one path after the other (np.bincount), as a loop over the paths would."""
-    if not len(letters):
-        return {}
-    rows, first, inv = np.unique(letters, axis=0, return_index=True, return_inverse=True)
-    flux = np.bincount(inv.ravel(), weights=w, minlength=len(rows))
-    return {chain_letters(rows[u]): float(flux[u]) for u in np.argsort(first, kind="stable")}
-
-
 def spot_target(scene, li: int, sphere: np.ndarray) -> tuple[np.ndarray, float]:
     """Where light li's photons aim at a sphere (1,4) that holds what they may light (the
     diffuse surfaces for the plan's pilots, the scene for the bake's photons after a diffuse
@@ -318,30 +343,75 @@ def spot_target(scene, li: int, sphere: np.ndarray) -> tuple[np.ndarray, float]:
     return target, min(1.0, solid_angle(target[0, 3]) / solid_angle(float(sphere[0, 3])))
 
 
-def _caster_pilot(scene, tracer, cam, plan, seen, seed, lp, k, pilots, max_bounces):
-    """refine_plan's pilots of light lp's k-th caster: (photons, rays, None where none of its
-    caustic lands in view, else (chain shares, receiver names, flux, casters met, where the
-    pilots land, their flux))."""
+def _caster_pilot(setup: PilotSetup, tracer, lp, k, extent, view, part=None, view_sphere=None):
+    """refine_plan's pilots of light lp's k-th caster, traced with tracer (its tolerances those of
+    extent: the diffuse surfaces and this caster): (photons traced, rays, Pilots). view: the
+    light's flux towards what the camera sees (view_sphere: where); the photons traced are
+    pilot_count's share of the pilots, the first of those emitted (a caster catching little of
+    the light, or far from where the camera looks, costs few rays; one catching enough traces
+    every photon, as it always did, once the light was found to reach it: _lit_points), or part:
+    (a, b) the photons a..b-1 of them, traced with a random stream of their own (refine_plan's
+    second round)."""
+    scene, cam, plan, seen, seed, pilots, max_bounces = setup
     o = lp.caster_objects[k]
     rng = stream(seed, PILOT_CASTER, lp.key, light_key(scene.object_names[o]))
-    ph = emit(scene, lp.index, lp.targets[k:k + 1], pilots, rng)
+    ph = emit(scene, lp.index, lp.targets[k:k + 1], pilots, rng, extent)
+    aimed = float(ph.w.mean(axis=1).sum())
+    a, b = part or (0, pilot_count(aimed, view, pilots, view_reach(view_sphere, lp.targets[k])))
+    probed = 0
+    if part is None and b > HIDDEN_PROBE:
+        # shadow rays from HIDDEN_PROBE points on the caster towards the light: none unblocked, something
+        # nearer hides it from the light (a ball under the floor): the plan leaves it out on those
+        probed = HIDDEN_PROBE
+        probe = stream(seed, PILOT_PROBE, lp.key, light_key(scene.object_names[o]))
+        if not _lit_points(scene, tracer, lp.index, o, HIDDEN_PROBE, probe):
+            return 0, probed, Pilots.none(HIDDEN_PROBE, aimed, max_bounces, hidden=True)
+    if (a, b) != (0, pilots):
+        ph = dataclasses.replace(ph, o=ph.o[a:b], d=ph.d[a:b], w=ph.w[a:b] * (pilots / (b - a)))
+    if part is not None:
+        rng = stream(seed, PILOT_CASTER, lp.key, light_key(scene.object_names[o]), a)
     hist, letters, recv, wgt, at, r = _pilot(scene, tracer, cam, plan, ph, *seen, rng, max_bounces, o)
     first = hist[:, 0] == o
-    flux = float(wgt[first].sum())
-    if not flux > 0:
-        return pilots, r, None
-    chains = _chain_flux(letters[first], wgt[first])
-    return pilots, r, ({t: v / flux for t, v in chains.items()},
-                       [scene.object_names[x] for x in np.unique(recv[first])], flux,
-                       {int(x) for x in np.unique(hist[first]) if x >= 0}, at[first], wgt[first])
+    return b - a, r + probed, Pilots(b - a, aimed, hist[first], letters[first], recv[first], at[first], wgt[first])
 
 
-def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere, max_bounces):
+def _lit_points(scene, tracer, li, o, n, rng) -> int:
+    """Of n points uniform in area on object o, how many light li reaches unblocked (a shadow ray
+    each, towards a point of the light, or a direction of a sun or the world; past what does not
+    shadow it, Shadow Linking). A point on the far side of a closed caster is blocked by the caster:
+    a lit ball counts about half."""
+    tri = np.flatnonzero(scene.tri_object == o)
+    area = tracer.area2[tri]
+    if not area.sum() > 0:
+        return n
+    j = tri[np.minimum(np.searchsorted(np.cumsum(area), rng.random(n) * area.sum(), side="right"), len(tri) - 1)]
+    u, v = rng.random(n), rng.random(n)
+    flip = u + v > 1
+    u, v = np.where(flip, 1 - u, u), np.where(flip, 1 - v, v)
+    tv = tracer.v[j]
+    p = tv[:, 0] + u[:, None] * (tv[:, 1] - tv[:, 0]) + v[:, None] * (tv[:, 2] - tv[:, 0])
+    light = sample_light(scene, li, n, rng)
+    if light.directional:
+        to, dist = light.y, np.full(n, np.inf)
+    else:
+        to = light.y - p
+        dist = np.sqrt(dot(to, to))
+        to = to / np.maximum(dist, 1e-300)[:, None]
+    start = tracer.spawn(p, tracer.ng[j], to)
+    tmax = np.full(n, np.inf) if light.directional else \
+        shadow_tmax(scene, li, light.y, light.ys, light.yt, start, to, dist, tracer.eps)  # short of a mesh light
+    blocked = tracer.occluded_past(start, to, tmax, S.RAY_SHADOW, scene.unshadowing(li))
+    return int((~blocked).sum())
+
+
+def _indirect_pilot(setup: PilotSetup, tracer, li, n_ind, dif_sphere, extent):
     """refine_plan's pilots of light li through a diffuse bounce: n_ind photons onto the diffuse
-    surfaces (the sphere dif_sphere), a cosine bounce, then _pilot. (photons, rays, None where
-    none lands in view, else (flux, casters met, receiver names))."""
+    surfaces (the sphere dif_sphere), a cosine bounce, then _pilot. (photons, rays, (Pilots, the
+    bounce's sources: the diffuse points lit, their normals on the lit side and the flux each
+    sends on; None for none))."""
+    scene, cam, plan, seen, seed, _, max_bounces = setup
     rng = stream(seed, PILOT_INDIRECT, light_key(scene.light_names[li]))
-    ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng)  # onto the diffuse surfaces
+    ph = emit(scene, li, spot_target(scene, li, dif_sphere)[0], n_ind, rng, extent)  # onto the diffuse surfaces
     lit = np.flatnonzero(ph.w.max(axis=1) > 0)
     h = tracer.intersect_past(ph.o[lit], ph.d[lit], 0, ph.unshadowing)  # past what does not shadow it
     i = np.flatnonzero(h.hit)
@@ -351,18 +421,57 @@ def _indirect_pilot(scene, tracer, cam, plan, seen, seed, li, n_ind, dif_sphere,
         dif &= ph.lit[scene.tri_object[h.prim[i]]]
     dif = np.flatnonzero(dif)
     if dif.size == 0:
-        return n_ind, lit.size, None
+        return n_ind, lit.size, (Pilots.none(n_ind, 0.0, max_bounces), None)
     j = i[dif]
     ng = h.ng[j] * np.sign(-dot(ph.d[lit[j]], h.ng[j]))[:, None]  # the lit side
     s_, t_ = frame(ng)
     d2 = to_world(cosine_hemisphere(rng.random(j.size), rng.random(j.size)), s_, t_, ng)
     w2 = ph.w[lit[j]] * scene.mat_color[mat[dif]]  # cosine sampling: the albedo
+    sources = (h.p[j], ng, w2)
     bounce = Photons(tracer.spawn(h.p[j], ng, d2), d2, w2)
-    hist, letters, recv, wgt, _, r = _pilot(scene, tracer, cam, plan, bounce, *seen, rng, max_bounces, None)
-    if not wgt.sum() > 0:
-        return n_ind, lit.size + r, None
-    return n_ind, lit.size + r, (float(wgt.sum()), {int(x) for x in np.unique(hist) if x >= 0},
-                                 [scene.object_names[x] for x in np.unique(recv)])
+    hist, letters, recv, wgt, at, r = _pilot(scene, tracer, cam, plan, bounce, *seen, rng, max_bounces, None)
+    return n_ind, lit.size + r, (Pilots(n_ind, 0.0, hist, letters, recv, at, wgt), sources)
+
+
+def _bounce_pilot(setup: PilotSetup, tracer, li, o, sources, need):
+    """Pilots of light li's light after a diffuse bounce into caster o, which the plan leaves out:
+    from the diffuse points li lights (sources: _indirect_pilot's), towards o's bounding sphere (a
+    cone per point that has o above its horizon, picked in proportion to the most of its flux a
+    Lambertian bounce can send into the cone), then _pilot, its first hit on o. n photons
+    (pilot_sets.bounce_count): enough that none landing in view bounds o's flux in view below
+    `need`, or pilot_count's share, whichever is fewer. Returns (n, rays, Pilots or None where no
+    lit point can send any into the cone)."""
+    scene, cam, plan, seen, seed, pilots, max_bounces = setup
+    p, ng, w = sources
+    lo, hi = scene.object_bounds(o)
+    sph = np.concatenate([(lo + hi) / 2, [max(np.linalg.norm(hi - lo) / 2, 1e-9 * scene.scale)]])
+    to = sph[:3] - p
+    dist = np.sqrt(dot(to, to))
+    axis = to / np.maximum(dist, 1e-300)[:, None]
+    cos_half = np.where(dist <= sph[3], -1.0, np.sqrt(np.maximum(0.0, 1.0 - (sph[3] / np.maximum(dist, 1e-300)) ** 2)))
+    sin_half = np.sqrt(np.maximum(0.0, 1.0 - cos_half ** 2))
+    c_axis = dot(axis, ng)
+    # the largest cosine to the normal within the cone: 1 where the normal lies in it
+    top = np.where(c_axis >= cos_half, 1.0, c_axis * cos_half + np.sqrt(np.maximum(0.0, 1.0 - c_axis ** 2)) * sin_half)
+    omega = 2.0 * math.pi * (1.0 - cos_half)
+    bound = w.mean(axis=1) * np.maximum(top, 0.0) * omega / math.pi
+    most = float(bound.sum())
+    if not most > 0:
+        return 0, 0, None
+    n = bounce_count(most, float(w.mean(axis=1).sum()), need, pilots)
+    rng = stream(seed, PILOT_BOUNCE, light_key(scene.light_names[li]), light_key(scene.object_names[o]))
+    cdf = np.cumsum(bound)
+    k = np.minimum(np.searchsorted(cdf, rng.random(n) * cdf[-1], side="right"), len(cdf) - 1)
+    s_, t_ = frame(axis[k])
+    d = to_world(uniform_cone(rng.random(n), rng.random(n), cos_half[k]), s_, t_, axis[k])
+    # the point's flux x cos / pi into the direction, over the direction's density (1 / the cone's
+    # solid angle) and the point's (its bound over the sum), per photon
+    wk = w[k] * (np.maximum(dot(d, ng[k]), 0.0) * omega[k] / math.pi * most / (bound[k] * n))[:, None]
+    ph = Photons(tracer.spawn(p[k], ng[k], d), d, wk)
+    hist, letters, recv, wgt, at, r = _pilot(scene, tracer, cam, plan, ph, *seen, rng, max_bounces, o)
+    first = hist[:, 0] == o
+    return n, r, Pilots(n, float(wk.mean(axis=1).sum()), hist[first], letters[first], recv[first], at[first],
+                        wgt[first])
 
 
 CELLS = 64  # caustic_irradiance's cells: this many across the diagonal of what takes part

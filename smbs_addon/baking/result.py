@@ -102,7 +102,8 @@ def finite_or_none(x: float):
 
 
 def plan_stats(plan) -> dict:
-    return {"words": plan.words(), "notes": list(plan.notes), "seen": dict(plan.seen), **plan.cost}
+    return {"words": plan.words(), "notes": list(plan.notes), "seen": dict(plan.seen),
+            "dropped": dict(plan.dropped), **plan.cost}
 
 
 def nothing_to_bake(scene, settings, plan, cam, t0, on_plan) -> BakeResult:

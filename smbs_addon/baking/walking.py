@@ -13,10 +13,9 @@ import numpy as np
 
 from ..core import lanes
 from ..core.random import GUIDE
-from ..scene import arrays as S
 from ..scene.light_paths import Limits
 from ..shading.microfacet import rough_casters
-from ..walks.guide import Guide, build_guide, photon_budget
+from ..walks.guide import Guide, build_guide, hidden_in_reach, photon_budget
 from ..walks.manifold import chain_types
 from .job import Progress
 from .passes import DeferredFilm, WALK_CHUNK, eye_rays, handoff_batch, hands_off, indirect_batch, rays, walks_batch
@@ -66,7 +65,8 @@ def _add_guide(job, walk) -> None:
     scene, plan, settings, tracer = job.scene, job.plan, job.settings, job.tracer
     # the guide's pre-pass traces its photons past no surface: where some object's Ray Visibility leaves
     # out a kind of a path's rays it would miss paths that pass it, and leave their chain types unwalked
-    hides = bool(np.any(tracer.hid & S.PATH_RAYS))
+    # (such an object out of the photons' reach changes nothing: guide.hidden_in_reach)
+    hides = hidden_in_reach(scene, tracer, plan)
     if hides and settings.guide:
         plan.notes.append("the photon pre-pass (the guide) is off: some object's Ray Visibility leaves out "
                           "diffuse, glossy or transmission rays")

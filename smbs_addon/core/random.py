@@ -21,7 +21,10 @@ HANDOFF = 4  # the photon hand-off beside the walks: (light, batch, chunk)
 INDIRECT = 5  # photons after a diffuse bounce: (light, batch, chunk)
 PILOT_CASTER = 7  # the plan's pilots per light and caster: (light, caster)
 PILOT_INDIRECT = 8  # the plan's pilots of light after a diffuse bounce: (light,)
+PILOT_VIEW = 9  # the plan's photons weighing a light's flux towards what the camera sees: (light,)
 PLAN_LOOK = 10  # the plan's look from the camera (seed 0): (part,)
+PILOT_BOUNCE = 11  # the plan's pilots after a diffuse bounce aimed at a left-out caster: (light, caster)
+PILOT_PROBE = 12  # the plan's shadow rays probing whether a light reaches a caster: (light, caster)
 
 # What a bake's streams add after their own key (BakeSettings.stream_suffix), only where set, so that a
 # bake of one frame, unsharded, keeps the streams (and the pixels) it always had: a shard of a frame's

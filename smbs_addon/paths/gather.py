@@ -159,10 +159,11 @@ def seen_light(scene, tracer, li, o, d, refl, surf_t, obj):
     refl = np.broadcast_to(np.asarray(refl, bool), (len(o),))
     passable = scene.unshadowing(li)
     if passable is None:
-        L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t)
+        L, tl = light_radiance(scene, li, o, d, escaped=~np.isfinite(surf_t), refl=refl, surf_t=surf_t,
+                               eps=tracer.eps)
         seen = tl < surf_t
     else:
-        L, tl = light_radiance(scene, li, o, d, refl=refl, beyond=True)
+        L, tl = light_radiance(scene, li, o, d, refl=refl, beyond=True, eps=tracer.eps)
         seen = L.max(axis=1) > 0
         for r, kind in ((True, S.RAY_GLOSSY), (False, S.RAY_TRANSMISSION)):
             j = np.flatnonzero(seen & (refl == r))
@@ -310,6 +311,11 @@ class _GatherInNumpy:
                                    & (seen_l.max(axis=1) > 0) & lim.fits(path["before"]))
             np.add.at(self.radiance, lane[count], beta[count] * seen_l[count])
         prim, hmat, kind = surface_at(scene, h)
+        if self.plan.left_out is not None:
+            # a path meeting a caster the plan left out ends there, as it ends where it meets nothing (its
+            # light is that caster's caustic, which the plan bounds and drops): lanes going on from it
+            # drew random numbers that every later lane's draws moved by
+            kind = np.where(h.hit & self.plan.left_out[scene.tri_object[prim]], -1, kind)
         if self.absorbing:  # the segment just crossed, inside a glass's volume (absorption.absorbed1)
             seg_medium = optics.arriving(scene, path["medium"], hmat, h.hit, d, h.ng)
             path["beta"] = beta * optics.transmittance(scene, seg_medium, np.where(h.hit, h.t, 0.0))

@@ -437,12 +437,18 @@ def _cone_probs(origin, targets, grow=0.0):
     return omega / omega.sum()
 
 
-def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) -> Photons:
+def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator, extent=None) -> Photons:
     """n photons of light li towards the target spheres (K,4). Weights include 1/n.
 
     Directions are drawn from a mixture of the cones around the targets (in proportion to their
-    solid angles seen from the light's centre) and weighted by the mixture's density."""
-    ph = _emit(scene, li, targets, n, rng)
+    solid angles seen from the light's centre) and weighted by the mixture's density.
+
+    extent: (lo, hi) of what takes part (the plan's bounds; None: the whole scene's), which sets a
+    mesh light's offset off its own faces (with the light's faces) and how far behind the targets a
+    sun's or the world's photons start (extent_tolerances): an object out of the plan changes no
+    photon (a far glass ball made the sun's photons start 3x farther, every first hit a few ulps
+    apart)."""
+    ph = _emit(scene, li, targets, n, rng, extent)
     if scene.light_visibility.size:
         ph.visibility = int(scene.light_visibility[li])
     if scene.light_linked(li):
@@ -451,7 +457,20 @@ def emit(scene, li: int, targets: np.ndarray, n: int, rng: np.random.Generator) 
     return ph
 
 
-def _emit(scene, li, targets, n, rng) -> Photons:
+def extent_tolerances(scene, extent=None, li=None) -> tuple[float, float]:
+    """(the self-intersection offset, the length) of geometry within extent ((lo, hi); None: the
+    whole scene's bounds), with mesh light li's own faces if li is one: scene.offset_eps and the
+    extent's diagonal (1 for none), as Scene.scale gives them for the whole scene."""
+    lo, hi = scene.bounds() if extent is None else (np.asarray(extent[0], float), np.asarray(extent[1], float))
+    if li is not None and extent is not None and scene.light_type[li] == S.MESH:
+        tv = scene.mesh_light(li)[1].reshape(-1, 3)
+        if len(tv):
+            lo, hi = np.minimum(lo, tv.min(axis=0)), np.maximum(hi, tv.max(axis=0))
+    d = float(np.linalg.norm(hi - lo))
+    return S.offset_eps(lo, hi), (d if d > 0 else 1.0)
+
+
+def _emit(scene, li, targets, n, rng, extent=None) -> Photons:
     typ = scene.light_type[li]
     color = np.asarray(scene.light_color[li], np.float64)
     m = scene.light_matrix[li]
@@ -482,13 +501,13 @@ def _emit(scene, li, targets, n, rng) -> Photons:
     if typ == S.MESH:
         _, tv, ng, tri_cdf, total = scene.mesh_light(li)
         probs = _cone_probs(c, targets)
-        _emit_mesh(u, tv, ng, tri_cdf, total, color, S.offset_eps(*scene.bounds()),
-                   Targets(targets, np.cumsum(probs), probs), out)
+        eps = extent_tolerances(scene, extent, li)[0]
+        _emit_mesh(u, tv, ng, tri_cdf, total, color, eps, Targets(targets, np.cumsum(probs), probs), out)
         return Photons(o, d, w)
     if typ in S.DISTANT:
         area_k = math.pi * targets[:, 3] ** 2
         probs = area_k / area_k.sum()
-        far = 2.0 * (scene.scale + float(np.abs(targets[:, :3]).max()))
+        far = 2.0 * (extent_tolerances(scene, extent)[1] + float(np.abs(targets[:, :3]).max()))
         env = env_map(scene, li)
         if env is not None:  # towards the light from the map, then along -that
             to_light = env.sample(u[:, 0], u[:, 1], rng.random(n))
@@ -546,7 +565,8 @@ def _sphere_hit(o, d, c, r):
 
 
 def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.ndarray | None = None,
-                   refl: np.ndarray | None = None, surf_t: np.ndarray | None = None, beyond: bool = False):
+                   refl: np.ndarray | None = None, surf_t: np.ndarray | None = None, beyond: bool = False,
+                   eps: float | None = None):
     """Radiance a ray o + t d sees from light li, and the distance (inf if the ray
     misses it). escaped marks rays that left the scene (needed for a sun or the world).
     Point lights of radius 0 cannot be hit (delta lights). refl: per ray, whether it leaves a
@@ -555,11 +575,12 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
     the scene's first surface (inf: none), which a mesh light needs: its triangles are that surface
     or none of the ray's. beyond: the light as if no surface hid it (every ray escaped; a mesh light's
     triangles wherever they lie, t their distance), for rays whose shadows are found apart (Shadow
-    Linking's)."""
+    Linking's). eps: the tracer's offset (Tracer.eps, from what takes part), the slack a mesh light's
+    triangle may lie past the surface the ray met (None: the whole scene's offset)."""
     if beyond:
         escaped, surf_t = np.ones(len(o), bool), None
     if scene.light_type[li] == S.MESH:
-        L, t = _mesh_light_radiance(scene, li, o, d, surf_t, beyond)
+        L, t = _mesh_light_radiance(scene, li, o, d, surf_t, beyond, eps)
     else:
         L, t = _light_radiance(scene, li, o, d, escaped)
     if refl is not None and scene.light_visibility.size:
@@ -570,7 +591,7 @@ def light_radiance(scene, li: int, o: np.ndarray, d: np.ndarray, escaped: np.nda
     return L, t
 
 
-def _mesh_light_radiance(scene, li, o, d, surf_t, beyond=False):
+def _mesh_light_radiance(scene, li, o, d, surf_t, beyond=False, eps=None):
     """A mesh light's radiance where a ray's first surface (at surf_t) is one of its triangles: met
     again in an embree scene of its triangles alone, no farther than that surface (within float32's
     error); t is then just before that surface, as the callers count a light before it. beyond: where
@@ -589,7 +610,8 @@ def _mesh_light_radiance(scene, li, o, d, surf_t, beyond=False):
     prim, tl = np.full(idx.size, -1, np.int64), np.full(idx.size, np.inf)
     embree.cast_rays(embree.rays(own), np.ascontiguousarray(o[idx], np.float64),
                      np.ascontiguousarray(d[idx], np.float64),
-                     surf_t[idx] * (1.0 + 1e-5) + S.offset_eps(*scene.bounds()), False, prim, tl)
+                     surf_t[idx] * (1.0 + 1e-5) + (S.offset_eps(*scene.bounds()) if eps is None else eps), False,
+                     prim, tl)
     hit = idx[prim >= 0]
     L[hit] = scene.light_color[li]
     t[hit] = tl[prim >= 0] if beyond else surf_t[hit] * (1.0 - 1e-12)

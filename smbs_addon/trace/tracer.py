@@ -9,6 +9,7 @@ normal by a distance relative to the scene's size.
 """
 from __future__ import annotations
 
+import copy
 import os
 from dataclasses import dataclass
 
@@ -65,7 +66,7 @@ class Tracer:
         self.obj_lo, self.obj_hi, self.obj_has_tris = (x.copy() for x in scene.object_boxes())
         self.set_extent(*scene.bounds())
         self._embree = embree.Scene(self.v) if scene.n_tris else None
-        self.rays_cast = 0
+        self._cast = [0]  # rays cast, shared with the views of with_extent
         self.hid = scene.hidden_kinds()  # (O,) the kinds of ray each object does not meet (empty: none)
         self.hidden = scene.camera_hidden()  # (O,) bool: objects camera rays pass (empty: none)
 
@@ -77,6 +78,23 @@ class Tracer:
         scale = d if d > 0 else 1.0
         self.eps = S.offset_eps(lo, hi)
         self.degenerate = ~(self.area2 > 1e-14 * max(scale, 1e-30) ** 2)
+
+    @property
+    def rays_cast(self) -> int:
+        """Rays cast by this tracer and its views (with_extent)."""
+        return self._cast[0]
+
+    @rays_cast.setter
+    def rays_cast(self, n: int) -> None:
+        self._cast[0] = n
+
+    def with_extent(self, lo, hi) -> "Tracer":
+        """A view of this tracer (the same embree scene, arrays, threads and ray count) whose
+        tolerances follow [lo, hi] (set_extent), for tracing on several threads at once with
+        tolerances of their own (the plan's pilots: plan.refine_plan)."""
+        view = copy.copy(self)
+        view.set_extent(lo, hi)
+        return view
 
     # ------------------------------------------------------------- low level
     def rays(self) -> embree.RayContext:

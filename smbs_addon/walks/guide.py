@@ -15,12 +15,14 @@ marked tiles (behind the camera, off screen) are always walked.
 """
 from __future__ import annotations
 
+import math
+
 import numpy as np
 
 from ..scene import arrays as S
 from ..scene.light_paths import Limits, ONE_DIFFUSE, specular_kind
 from ..core.vec import box
-from ..shading.lights import emit
+from ..shading.lights import area_light_shape, distant_cone, emit
 from ..shading.optics import absorbing, arriving, inside, transmittance
 from ..paths.photons import scatter_specular
 from ..shading.microfacet import rough_objects
@@ -93,6 +95,55 @@ class Guide:
         return np.where(hit | (seen & ~inside), 1.0, Q)
 
 
+def hidden_in_reach(scene, tracer, plan) -> bool:
+    """Does an object whose Ray Visibility leaves out diffuse, glossy or transmission rays lie where
+    the pre-pass's photons may meet it? They leave the planned lights for the planned casters and
+    go on to the receivers: within the box around what takes part (plan.bounds) and the lights'
+    own extent, or, from a sun, in the box's shadow towards the sun (a cylinder widened by the
+    sun's angle); from the world, anywhere. The pre-pass traces past no surface, so such an object
+    in reach turns it off (bake.py); one out of reach (a glass ball 40 m beyond the floor whose
+    Ray Visibility is off for diffuse rays, skipped by the plan) changes nothing it traces, and
+    turned it off all the same: every walk unguided, the image another."""
+    if not tracer.hid.size:
+        return False
+    hiding = np.flatnonzero(tracer.hid & S.PATH_RAYS)
+    if hiding.size == 0:
+        return False
+    lo, hi = (np.array(x, float) for x in plan.bounds)
+    suns = []
+    for lp in plan.lights:
+        li = lp.index
+        typ = scene.light_type[li]
+        if typ == S.WORLD:
+            return True
+        if typ == S.SUN:
+            axis, half, _ = distant_cone(scene, li)
+            suns.append((axis, half))
+            continue
+        if typ == S.MESH:
+            pts = scene.mesh_light(li)[1].reshape(-1, 3)
+        elif typ == S.AREA:
+            cen, ex, ey, _, hx, hy, _ = area_light_shape(scene, li)
+            pts = np.array([cen + a * hx * ex + b * hy * ey for a in (-1, 1) for b in (-1, 1)])
+        else:
+            c, r = scene.light_matrix[li][:3, 3], float(scene.light_radius[li])
+            pts = np.array([c - r, c + r])
+        lo, hi = np.minimum(lo, pts.min(axis=0)), np.maximum(hi, pts.max(axis=0))
+    mid, rad = (lo + hi) / 2, float(np.linalg.norm(hi - lo)) / 2
+    for o in hiding:
+        olo, ohi = scene.object_bounds(int(o))
+        c, r = (olo + ohi) / 2, float(np.linalg.norm(ohi - olo)) / 2
+        if np.linalg.norm(np.maximum(0.0, np.maximum(lo - c, c - hi))) <= r:
+            return True  # in the box
+        for axis, half in suns:  # the photons come along axis: from mid - t axis, t > 0
+            v = c - mid
+            t = -float(np.dot(v, axis))
+            off = float(np.linalg.norm(v + t * axis))
+            if t > -(rad + r) and off <= rad + r + math.tan(min(half, 1.5)) * max(t, 0.0):
+                return True
+    return False
+
+
 def build_guide(scene, tracer, cam, plan, types_list, rng, photons_per_light, max_bounces=16, check=None):
     """Trace photons_per_light photons per planned light and mark tiles per chain type.
     check() is called between bounces (it raises to cancel).
@@ -153,7 +204,7 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
     limits = Limits.of(scene)
     marks = {t: np.zeros((ny, nx), bool) for t in types_list}
     flux = {t: np.zeros((ny, nx)) for t in types_list}  # arriving on receivers in the frame
-    ph = emit(scene, lp.index, lp.targets, n, rng)
+    ph = emit(scene, lp.index, lp.targets, n, rng, plan.bounds)
     o, d, beta = ph.o, ph.d, ph.w * (n / total)
     sig = np.zeros(len(o), np.int64)  # chain signature in base 3 (R = 1, T = 2), light side first
     length = np.zeros(len(o), np.int64)
@@ -185,9 +236,13 @@ def _guide_part(scene, tracer, cam, plan, lp, types_list, rng, n, total, tiles, 
             beta = beta * transmittance(scene, seg_medium, h.t[idx])
         kind = scene.mat_kind[mat]
         obj = scene.tri_object[prim]
-        spec = (kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)
-        if bounce == 0:  # a planned caster the light lights (Light Linking)
-            spec &= plan.casters[obj] & (True if ph.lit is None else ph.lit[obj])
+        # a planned caster, first one the light lights (Light Linking): a photon meeting a mirror or glass the
+        # plan leaves out ends there, as where it meets nothing (no walk takes a path through one; the
+        # random numbers its scattering drew moved every later photon's: a glass ball 50 m away, hidden
+        # from diffuse rays, met by 37 rays of a bake's pre-pass, changed the walks over a third of it)
+        spec = ((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC)) & plan.casters[obj]
+        if bounce == 0:
+            spec &= True if ph.lit is None else ph.lit[obj]
         diff = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj] & (bounce > 0))
         if diff.size:
             rx, ry, _, _, _, valid = cam.project(h.p[idx][diff])
