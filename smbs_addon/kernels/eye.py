@@ -22,6 +22,7 @@ from ..shading.optics import bump_shadowing1, scatter1
 from ..shading.coat import coat_factor1, table_weight1
 from ..core.embree import intersect1, occluded1, ray_state
 from .rays import next_past
+from .chain import spawn1
 from .keyed import keyed_uniform3
 
 
@@ -112,7 +113,7 @@ def _camera_clear(ray, o, d, tmax, tng, tri_object, hid, eps):
         if not hid[tri_object[pr]] & RAY_CAMERA:
             return False
         g = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
-        o = add3(add3(o, scale3(t, d)), scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn
+        o = spawn1(add3(o, scale3(t, d)), g, d, eps)  # tracer.spawn
         tmax -= t
     return False
 
@@ -175,7 +176,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
         ci_g, co_g, ci_s = dot1(w, ng), dot1(to_cam, ng), dot1(w, ns)
         if not (ci_g * co_g > 0 and ci_s * (1.0 if ci_g > 0 else -1.0) > 0):  # same side, lit per shading normal
             continue
-        o = add3(y, scale3(eps if co_g >= 0 else -eps, ng))  # tracer.spawn
+        o = spawn1(y, ng, to_cam, eps)  # tracer.spawn
         rays += 1
         if not _camera_clear(ray, o, to_cam, tmax - eps, tng, tri_object, hid, eps):
             continue
@@ -261,7 +262,7 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, o
             else:
                 nt += 1
                 bit = RAY_TRANSMISSION
-            o = add3(p, scale3(eps if dot1(dd, g) >= 0 else -eps, g))  # tracer.spawn
+            o = spawn1(p, g, dd, eps)  # tracer.spawn
             medium = medium_after1(m, kind, dd, g)
             d, b = dd, bb
     return nrec
