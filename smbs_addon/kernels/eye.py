@@ -71,7 +71,8 @@ def _cam_mat(cam, a, v):
 @njit(inline="always", **JIT)
 def _camera_ray(cam, x, y):
     """camera.CameraModel.rays of raster position (x, y), moved to the near clip plane: (origin,
-    unit direction)."""
+    unit direction, the distance from there to the far clip plane: Cycles' camera rays end at
+    the depth clip_end, as they start at the depth clip_start)."""
     fx = cam[CAM_XMIN] + x * cam[CAM_PIX_W]
     fy = cam[CAM_YMIN] + (cam[CAM_H] - y) * cam[CAM_PIX_H]
     if cam[CAM_ORTHO] > 0:
@@ -83,7 +84,8 @@ def _camera_ray(cam, x, y):
     d = _cam_mat(cam, CAM_AXES, ld)
     stretch = math.sqrt(dot1(d, d))  # 1 unless the axes are sheared
     d = scale3(1.0 / stretch, d)
-    return add3(o, scale3(cam[CAM_CLIP] * stretch / abs(ld[2]), d)), d
+    far = (cam[CAM_CLIP_END] - cam[CAM_CLIP]) * stretch / abs(ld[2])
+    return add3(o, scale3(cam[CAM_CLIP] * stretch / abs(ld[2]), d)), d, far
 
 
 @njit(**JIT)
@@ -93,7 +95,7 @@ def camera_rays(cam, x, y):
     n = x.shape[0]
     o, d = np.empty((n, 3)), np.empty((n, 3))
     for i in range(n):
-        oi, di = _camera_ray(cam, x[i], y[i])
+        oi, di, _ = _camera_ray(cam, x[i], y[i])
         for c in range(3):
             o[i, c], d[i, c] = oi[c], di[c]
     return o, d
@@ -231,14 +233,14 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, o
     rec, rec_i, prior = out.rec, out.rec_i, out.prior
     nrec = 0
     for lane in range(rx.shape[0]):
-        o, d = _camera_ray(cam, rx[lane], ry[lane])
+        o, d, far = _camera_ray(cam, rx[lane], ry[lane])
         b = (1.0, 1.0, 1.0)
         ngl = nt = 0  # the camera's glossy and transmission bounces so far
         medium = -1
         bit = RAY_CAMERA  # the kind of the next ray: the camera's, then the latest event's
         for depth in range(max_bounces + 1):
             pr, t, p, g, n, b1, b2 = next_past(ray, o, d, tv, tng, tns, tri_object, hid, bit, eps)
-            if pr < 0:
+            if pr < 0 or (depth == 0 and t > far):  # past the far clip plane the camera sees nothing
                 break
             b = absorbed1(mats.kind, mats.absorb, medium, tri_material[pr], d, g, t, b)
             m = tri_material[pr]

@@ -195,9 +195,14 @@ class Tracer:
                 getattr(h, f)[j] = getattr(g, f)
         return h
 
-    def camera_intersect(self, o: np.ndarray, d: np.ndarray) -> Hits:
-        """intersect_past for the camera's own rays."""
-        return self.intersect_past(o, d, S.RAY_CAMERA)
+    def camera_intersect(self, o: np.ndarray, d: np.ndarray, far: np.ndarray | None = None) -> Hits:
+        """intersect_past for the camera's own rays; with far (CameraModel.clip_far), what lies
+        past the far clip plane is a miss, as in Cycles (kernels.eye._eye_rows)."""
+        h = self.intersect_past(o, d, S.RAY_CAMERA)
+        if far is not None:
+            j = np.flatnonzero(h.hit & (h.t > far))
+            h.hit[j], h.prim[j], h.t[j] = False, -1, np.inf
+        return h
 
     def occluded_past(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, kind: int,
                       passable: np.ndarray | None = None) -> np.ndarray:

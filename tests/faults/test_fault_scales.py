@@ -44,7 +44,6 @@ def test_a_huge_floor_keeps_the_balls_tolerances(size_m):
     assert eps_huge < 1e-3 * 0.5, f"an offset of {eps_huge:.3g} m off a ball of radius 0.5 m"
 
 
-@pytest.mark.xfail(strict=True, reason="defect 7: the walks' camera rays have no far limit (kernels/eye._eye_rows)")
 def test_clip_end_before_the_glass_shows_nothing():
     sc = scenes.glass_sphere_scene(resolution=(32, 24))
     sc.camera.clip_end = 0.5  # the ball is 3.6 m from the camera: Cycles renders black
