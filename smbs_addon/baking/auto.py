@@ -83,7 +83,7 @@ def _direct_pixels(scene, tracer, cam, plan) -> np.ndarray:
     jj, ii, o, d = cam.pixel_rays()
     if jj.size == 0:
         return mask
-    h = tracer.camera_intersect(o, d)
+    h = tracer.camera_intersect(o, d, cam.clip_far(d))
     prim = np.where(h.hit, h.prim, 0)
     ok = h.hit & (scene.mat_kind[scene.tri_material[prim]] == S.DIFFUSE) & plan.receivers[scene.tri_object[prim]]
     mask[jj, ii] = ok

@@ -108,8 +108,9 @@ def trace_plan(plan, scene, settings, cam) -> Tracer:
     """The traced part of the plan (plan.refine_plan) with the bake's tracer; the tracer's
     tolerances then follow what takes part, not objects out of the plan."""
     tracer = Tracer(scene, threads=settings.threads or None)
+    tracer.set_extent(*scene.bounds(), plan.casters)  # the pilots' tolerances: no caster lost to them either
     refine_plan(plan, scene, tracer, cam, settings.seed, settings.pilots, indirect=settings.indirect)
-    tracer.set_extent(*plan.bounds)
+    tracer.set_extent(*plan.bounds, plan.casters)
     return tracer
 
 

@@ -223,7 +223,7 @@ def specular_visible(job, cells=None) -> tuple[bool, int]:
         o, d = cam.centre_rays(jj, ii)
     if jj.size == 0:
         return False, 0
-    h = job.tracer.camera_intersect(o, d)
+    h = job.tracer.camera_intersect(o, d, cam.clip_far(d))
     kind = scene.mat_kind[scene.tri_material[h.prim[h.hit]]]
     return bool(np.any((kind == S.CONDUCTOR) | (kind == S.DIELECTRIC))), int(jj.size)
 

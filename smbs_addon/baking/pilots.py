@@ -43,10 +43,11 @@ class PilotSetup(NamedTuple):
 CAMERA_RAYS = 1 << 18  # at most this many rays for what the camera sees (a grid over the frame)
 
 
-def _surfaces(scene, tracer, o, d, camera=False, passable=None):
-    """Trace rays (camera: the camera's own, Tracer.camera_intersect; passable: past the objects it marks,
-    Tracer.intersect_past): (hits, indices of the rays that hit, their object, material and kind)."""
-    h = tracer.camera_intersect(o, d) if camera else tracer.intersect_past(o, d, 0, passable)
+def _surfaces(scene, tracer, o, d, far=None, passable=None):
+    """Trace rays (far: the camera's own, Tracer.camera_intersect, up to the far clip plane at far; passable:
+    past the objects it marks, Tracer.intersect_past): (hits, indices of the rays that hit, their object,
+    material and kind)."""
+    h = tracer.camera_intersect(o, d, far) if far is not None else tracer.intersect_past(o, d, 0, passable)
     i = np.flatnonzero(h.hit)
     mat = scene.tri_material[h.prim[i]]
     return h, i, scene.tri_object[h.prim[i]], mat, scene.mat_kind[mat]
@@ -80,11 +81,11 @@ def camera_look(scene, tracer, cam, plan, max_bounces=PILOT_BOUNCES, scale=None)
         return direct, through, sides, 0, False, view, first
     step = max(1, math.ceil(math.sqrt(w * h / CAMERA_RAYS)))
     _, _, o, d = cam.pixel_rays(step)
-    n = len(o)
+    far, n = cam.clip_far(d), len(o)
 
     def part(a, b):
-        return _sees_part(scene, tracer, plan, o[a:b], d[a:b], max_bounces, 4 * CAMERA_RAYS * (b - a) // max(n, 1),
-                          stream(0, PLAN_LOOK, a))
+        return _sees_part(scene, tracer, plan, (o[a:b], d[a:b], far[a:b]), max_bounces,
+                          4 * CAMERA_RAYS * (b - a) // max(n, 1), stream(0, PLAN_LOOK, a))
 
     rays, specular = 0, False
     for p_direct, p_through, p_sides, p_rays, p_specular, (p_view, p_first) in lanes.blocks(part, n, SEES_PART,
@@ -116,20 +117,21 @@ def _nothing_seen(n_objects: int):
     return np.zeros(n_objects, bool), through, np.zeros(n_objects, np.int64)
 
 
-def _sees_part(scene, tracer, plan, o, d, max_bounces, cap, rng):
-    """camera_sees for the rays o, d: (direct, through (unpadded), sides, rays cast, whether a
-    mirror or glass is the first hit of one of them, (the box around the receiver points seen, (O,)
-    bool: the objects whose mirror or glass some ray meets first)); past cap rays at a bounce, a
-    regular subset of them goes on. rng: the rough surfaces' directions (drawn only where the rays
-    meet one)."""
+def _sees_part(scene, tracer, plan, rays_in, max_bounces, cap, rng):
+    """camera_sees for the camera rays rays_in (origins, directions, clip_far's distances): (direct,
+    through (unpadded), sides, rays cast, whether a mirror or glass is the first hit of one of them,
+    (the box around the receiver points seen, (O,) bool: the objects whose mirror or glass some ray
+    meets first)); past cap rays at a bounce, a regular subset of them goes on. rng: the rough
+    surfaces' directions (drawn only where the rays meet one)."""
     direct, through, sides = _nothing_seen(len(scene.object_names))
+    o, d, far = rays_in
     view = np.stack([np.full(3, np.inf), np.full(3, -np.inf)])
     first = np.zeros(len(scene.object_names), bool)  # objects whose mirror or glass a ray meets first
     rays, specular = 0, False
     for depth in range(max_bounces + 1):
         if len(o) == 0:
             break
-        hit, i, obj, mat, kind = _surfaces(scene, tracer, o, d, camera=depth == 0)
+        hit, i, obj, mat, kind = _surfaces(scene, tracer, o, d, far if depth == 0 else None)
         rays += len(o)
         r = np.flatnonzero((kind == S.DIFFUSE) & plan.receivers[obj])
         if r.size:

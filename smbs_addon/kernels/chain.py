@@ -12,7 +12,7 @@ from numba import njit
 from ..core.jit import JIT, LANES
 from ..scene.arrays import CONDUCTOR, DIELECTRIC, RAY_DIFFUSE, RAY_GLOSSY, RAY_TRANSMISSION
 from .records import (
-    DNS, DNT, HIDDEN_PASSES, MAT, MISS, NF, NG, NOT_CASTER, NS, OBJ, OK, P, PRIM, RAYS_SEED, REFRACT, S,
+    DNS, DNT, EPS_REL, HIDDEN_PASSES, MAT, MISS, NF, NG, NOT_CASTER, NS, OBJ, OK, P, PRIM, RAYS_SEED, REFRACT, S,
     SEED_OBJECT, SIDE, SIDE_INNER, T, TIR, TIR_INNER, WRONG_MATERIAL)
 from .typed import TypedOnce
 from ..core.vec3 import add3, cols3, cross3, div3, dot1, normalize3, scale3, sub3, vertex_cols3
@@ -21,6 +21,27 @@ from .newton import smap
 
 
 # ------------------------------------------------------------------ a ray's hit in float64
+@njit(inline="always", **JIT)
+def offset1(eps, p, g):
+    """The self-intersection offset at point p of unit geometric normal g (tracer.Tracer.offsets):
+    eps (Tracer.eps, over what takes part), or, where more, EPS_REL of p's coordinates along g
+    (Pharr et al., PBR 3.9.5: float32's error at p, weighted by |g|, so that a flat floor spawns
+    as close at 100 km as at its centre), or of its largest (Wachter and Binder, Ray Tracing Gems
+    ch. 6: relative to p's magnitude), whichever is less. Within the bounds eps was taken over
+    both are below it: eps, bit for bit."""
+    a = abs(g[0] * p[0]) + abs(g[1] * p[1]) + abs(g[2] * p[2])
+    m = max(abs(p[0]), max(abs(p[1]), abs(p[2])))
+    return max(eps, EPS_REL * min(a, m))
+
+
+@njit(inline="always", **JIT)
+def spawn1(p, g, d, eps):
+    """tracer.spawn: the origin of a ray leaving point p (unit geometric normal g) along d,
+    offset1 off the surface on the side d leaves on."""
+    e = offset1(eps, p, g)
+    return add3(p, scale3(e if dot1(d, g) >= 0 else -e, g))
+
+
 @njit(**JIT)
 def hit_point(o, d, xo, exact, t32, pr, tv, tng, eps):
     """tracer.intersect's float64 hit of the ray o + t d (the offset origin embree traced from;
@@ -36,7 +57,7 @@ def hit_point(o, d, xo, exact, t32, pr, tv, tng, eps):
     den = dot1(d, g)
     num = dot1(sub3(v0, xo), g)
     ti = num / den if abs(den) > 1e-12 else tt
-    if not math.isfinite(ti) or abs(ti - tt) > 1e-3 * abs(tt) + eps:
+    if not math.isfinite(ti) or abs(ti - tt) > 1e-3 * abs(tt) + offset1(eps, add3(xo, scale3(tt, d)), g):
         ti = tt
     return ti, add3(xo, scale3(ti, d)), g, v0, sub3(v1, v0), sub3(v2, v0)
 
@@ -213,8 +234,7 @@ def _lane_vertex(kinds, j, lane, o, d, prev, exact, pr, t32, geo, eps, rows):
     out[lane, 0], out[lane, 1], out[lane, 2] = wn
     if code != OK:
         return False, zero, zero, zero
-    side = 1.0 if dot1(wn, g) >= 0 else -1.0
-    return True, add3(p, scale3(eps * side, g)), wn, p
+    return True, spawn1(p, g, wn, eps), wn, p
 
 
 @njit(**LANES)
@@ -245,7 +265,7 @@ def trace_lane(ray, kind, lane, x0, o, d, kinds, geo, eps, rows):
                 if pr < 0 or not hid[tri_object[pr]] & bit:
                     break
                 g = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
-                o = add3(add3(o, scale3(t32, d)), scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn
+                o = spawn1(add3(o, scale3(t32, d)), g, d, eps)
                 pr, t32 = intersect1(ray, o, d, np.inf, kind)
                 passed = True
             if pr >= 0 and hid[tri_object[pr]] & bit:
@@ -291,9 +311,8 @@ def seed_lane(ray, i, x0, ng0, seeds, kinds, geo, eps, rows):
     xi = cols3(x0, i, 0)
     di = cols3(seeds.d, i, 0)
     g = cols3(ng0, i, 0)
-    side = 1.0 if dot1(di, g) >= 0 else -1.0
     # (np.int64: a constant argument would compile trace_lane once per value, see its docstring)
-    trace_lane(ray, np.int64(RAYS_SEED), i, xi, add3(xi, scale3(eps * side, g)), di, kinds, geo, eps, rows)
+    trace_lane(ray, np.int64(RAYS_SEED), i, xi, spawn1(xi, g, di, eps), di, kinds, geo, eps, rows)
     if want_obj[i] >= 0 and rows.status[i] == OK and rows.I[i, 0, OBJ] != want_obj[i]:
         rows.status[i] = SEED_OBJECT
 

@@ -22,6 +22,7 @@ from ..shading.optics import bump_shadowing1, scatter1
 from ..shading.coat import coat_factor1, table_weight1
 from ..core.embree import intersect1, occluded1, ray_state
 from .rays import next_past
+from .chain import spawn1
 from .keyed import keyed_uniform3
 
 
@@ -70,7 +71,8 @@ def _cam_mat(cam, a, v):
 @njit(inline="always", **JIT)
 def _camera_ray(cam, x, y):
     """camera.CameraModel.rays of raster position (x, y), moved to the near clip plane: (origin,
-    unit direction)."""
+    unit direction, the distance from there to the far clip plane: Cycles' camera rays end at
+    the depth clip_end, as they start at the depth clip_start)."""
     fx = cam[CAM_XMIN] + x * cam[CAM_PIX_W]
     fy = cam[CAM_YMIN] + (cam[CAM_H] - y) * cam[CAM_PIX_H]
     if cam[CAM_ORTHO] > 0:
@@ -82,7 +84,8 @@ def _camera_ray(cam, x, y):
     d = _cam_mat(cam, CAM_AXES, ld)
     stretch = math.sqrt(dot1(d, d))  # 1 unless the axes are sheared
     d = scale3(1.0 / stretch, d)
-    return add3(o, scale3(cam[CAM_CLIP] * stretch / abs(ld[2]), d)), d
+    far = (cam[CAM_CLIP_END] - cam[CAM_CLIP]) * stretch / abs(ld[2])
+    return add3(o, scale3(cam[CAM_CLIP] * stretch / abs(ld[2]), d)), d, far
 
 
 @njit(**JIT)
@@ -92,7 +95,7 @@ def camera_rays(cam, x, y):
     n = x.shape[0]
     o, d = np.empty((n, 3)), np.empty((n, 3))
     for i in range(n):
-        oi, di = _camera_ray(cam, x[i], y[i])
+        oi, di, _ = _camera_ray(cam, x[i], y[i])
         for c in range(3):
             o[i, c], d[i, c] = oi[c], di[c]
     return o, d
@@ -112,7 +115,7 @@ def _camera_clear(ray, o, d, tmax, tng, tri_object, hid, eps):
         if not hid[tri_object[pr]] & RAY_CAMERA:
             return False
         g = (tng[pr, 0], tng[pr, 1], tng[pr, 2])
-        o = add3(add3(o, scale3(t, d)), scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn
+        o = spawn1(add3(o, scale3(t, d)), g, d, eps)  # tracer.spawn
         tmax -= t
     return False
 
@@ -175,7 +178,7 @@ def _camera_splat_rows(ray, cam, margin, rec, mat, mats, first_order, eps, textu
         ci_g, co_g, ci_s = dot1(w, ng), dot1(to_cam, ng), dot1(w, ns)
         if not (ci_g * co_g > 0 and ci_s * (1.0 if ci_g > 0 else -1.0) > 0):  # same side, lit per shading normal
             continue
-        o = add3(y, scale3(eps if co_g >= 0 else -eps, ng))  # tracer.spawn
+        o = spawn1(y, ng, to_cam, eps)  # tracer.spawn
         rays += 1
         if not _camera_clear(ray, o, to_cam, tmax - eps, tng, tri_object, hid, eps):
             continue
@@ -230,14 +233,14 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, o
     rec, rec_i, prior = out.rec, out.rec_i, out.prior
     nrec = 0
     for lane in range(rx.shape[0]):
-        o, d = _camera_ray(cam, rx[lane], ry[lane])
+        o, d, far = _camera_ray(cam, rx[lane], ry[lane])
         b = (1.0, 1.0, 1.0)
         ngl = nt = 0  # the camera's glossy and transmission bounces so far
         medium = -1
         bit = RAY_CAMERA  # the kind of the next ray: the camera's, then the latest event's
         for depth in range(max_bounces + 1):
             pr, t, p, g, n, b1, b2 = next_past(ray, o, d, tv, tng, tns, tri_object, hid, bit, eps)
-            if pr < 0:
+            if pr < 0 or (depth == 0 and t > far):  # past the far clip plane the camera sees nothing
                 break
             b = absorbed1(mats.kind, mats.absorb, medium, tri_material[pr], d, g, t, b)
             m = tri_material[pr]
@@ -261,7 +264,7 @@ def _eye_rows(ray, cam, rx, ry, sample, key, geo, receivers, mats, rules, eps, o
             else:
                 nt += 1
                 bit = RAY_TRANSMISSION
-            o = add3(p, scale3(eps if dot1(dd, g) >= 0 else -eps, g))  # tracer.spawn
+            o = spawn1(p, g, dd, eps)  # tracer.spawn
             medium = medium_after1(m, kind, dd, g)
             d, b = dd, bb
     return nrec

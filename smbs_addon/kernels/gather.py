@@ -15,8 +15,9 @@ from .typed import TypedOnce
 from .handoff import diffuse_scatter
 from .photons import fits_limits
 from .eye import next_past
+from .chain import spawn1
 from ..shading.absorption import absorbed1, medium_after1
-from ..core.vec3 import add3, cols3, dot1, neg3, scale3
+from ..core.vec3 import cols3, dot1, neg3, scale3
 from ..shading.coat import coat_factor1, table_weight1
 from .keyed import keyed_uniform, keyed_uniform3
 from ..shading.optics import scatter1
@@ -72,7 +73,7 @@ def _gather_bounces(ray, key, lane, vx0, d, b, cnt, geo, mats, rules, eps, out):
                                                 cnt.nvx)
     v = vx0
     bd, bg, bt = nd, ngl, nt  # the events before the latest
-    o = add3(v.p, scale3(eps if dot1(d, v.g) >= 0 else -eps, v.g))  # tracer.spawn
+    o = spawn1(v.p, v.g, d, eps)  # tracer.spawn
     last_caster = False
     last_obj = -1  # the latest specular vertex's object
     last_refl = False  # the latest specular event a reflection
@@ -125,7 +126,7 @@ def _gather_bounces(ray, key, lane, vx0, d, b, cnt, geo, mats, rules, eps, out):
             nt += 1
         if not fits_limits(lim, bd, bg, bt):  # the events before the latest no longer fit
             break
-        o = add3(hp, scale3(eps if dot1(dd, hg) >= 0 else -eps, hg))
+        o = spawn1(hp, hg, dd, eps)
         medium = medium_after1(hm, kind, dd, hg)
         d, b = dd, bb
     return full, go_on, v, b, _Counts(nd, ngl, nt, has_s, depth, ev, nseg, nvx)

@@ -13,7 +13,7 @@ from ..scene.arrays import CONDUCTOR, DIELECTRIC, RAY_DIFFUSE, RAY_GLOSSY, RAY_T
 from .records import HIST_B, HIST_BENT, HIST_CASTER, HIST_P, HIST_REFL, NEAR_ALL, NEAR_DISK, NEAR_RECT, NEAR_SPHERE, \
     SEG_BETA, SEG_D, SEG_O, SEG_T
 from .typed import TypedOnce
-from .chain import barycentric1, shading_normal1
+from .chain import barycentric1, shading_normal1, spawn1
 
 from ..shading.absorption import absorbed1, medium_after1
 from ..core.vec3 import add3, cols3, dot1, frame1, max_nan, neg3, scale3, sub3
@@ -180,7 +180,7 @@ def _handoff_rows(ray, key, a0, samples, K, receivers, geo, mats, physical, eps,
         # and a bumped receiver's shadowing (1 where ns0 is sn0, its smooth normal: no bump)
         kc = scale3(bump_shadowing1(cols3(sn0, i, 0), cols3(ns0, i, 0), d, mats.bump_correction[mat0[i]] != 0), kc)
         b = (b[0] * kc[0], b[1] * kc[1], b[2] * kc[2])
-        o = add3(cols3(x0, i, 0), scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn
+        o = spawn1(cols3(x0, i, 0), g, d, eps)  # tracer.spawn
         medium = -1
         bit = RAY_DIFFUSE  # the kind of the next ray: x0's bounce, then the latest event's
         for bounce in range(K + 1):
@@ -212,7 +212,7 @@ def _handoff_rows(ray, key, a0, samples, K, receivers, geo, mats, physical, eps,
             refl = dot1(d, n) * dot1(dd, n) < 0
             put_vertex(hist, h_prim, lane, bounce, pr, p, b1, b2, refl, casters[tri_object[pr]])
             bit = RAY_GLOSSY if refl else RAY_TRANSMISSION
-            o = add3(p, scale3(eps if dot1(dd, gg) >= 0 else -eps, gg))
+            o = spawn1(p, gg, dd, eps)
             medium = medium_after1(m, kind, dd, gg)
             d, b = dd, bb
 

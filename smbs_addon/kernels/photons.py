@@ -12,11 +12,11 @@ from ..scene.light_paths import ALL_EVENTS, DIFFUSE_EVENTS, GLOSSY_EVENTS, TRANS
 from .records import HIDDEN_PASSES, PH_BEYOND, PH_LOST, PH_PHOTONS, PH_TRUNCATED
 from ..core.embree import KINDS, LOGGED, SEEN, ray_state
 from .typed import TypedOnce
-from .chain import shading_normal1
+from .chain import shading_normal1, spawn1
 from .eye import put_record
 from .handoff import diffuse_scatter, put_vertex
 from ..shading.absorption import absorbed1, medium_after1
-from ..core.vec3 import add3, cols3, dot1, max_nan, neg3, scale3, sub3
+from ..core.vec3 import cols3, dot1, max_nan, neg3, scale3, sub3
 from .keyed import keyed_uniform, keyed_uniform3
 from ..shading.optics import scatter1
 from ..shading.coat import table_weight1
@@ -184,7 +184,7 @@ def _photon_path(ray, photons, key, lane, b, geo, receivers, mats, rules, eps, o
         if act == _END:
             break
         if act == _PASS:
-            o = add3(p, scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn, on along d
+            o = spawn1(p, g, d, eps)  # tracer.spawn, on along d
             continue
         if it == 0 and soft_r > 0:  # lights.soft_falloff_factor
             dc = sub3(p, (soft_c[0], soft_c[1], soft_c[2]))
@@ -213,7 +213,7 @@ def _photon_path(ray, photons, key, lane, b, geo, receivers, mats, rules, eps, o
             ok, dd, bb, ev = _photon_specular(key, lane, d, hit, b, ev, prev_vis, passed, geo, mats, rules, out)
         if not ok:
             break
-        o = add3(p, scale3(eps if dot1(dd, g) >= 0 else -eps, g))  # tracer.spawn
+        o = spawn1(p, g, dd, eps)  # tracer.spawn
         medium = medium_after1(m, kind, dd, g)
         d, b = dd, bb
         prev_vis, passed, n_pass = PATH_RAYS & ~hid[obj] if hid.shape[0] > 0 else PATH_RAYS, 0, 0

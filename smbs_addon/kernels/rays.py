@@ -11,8 +11,8 @@ from ..core.jit import JIT
 
 
 from .records import HIDDEN_PASSES
-from ..core.vec3 import add3, dot1, scale3, sub3
-from .chain import barycentric1, hit_point, shading_normal1
+from ..core.vec3 import sub3
+from .chain import barycentric1, hit_point, shading_normal1, spawn1
 from ..core.embree import intersect1
 @njit(inline="always", **JIT)
 def hit_or_miss(ray, o, d, tv, tng, eps):
@@ -38,7 +38,7 @@ def hit_or_miss_past(ray, o, d, tv, tng, tri_object, hid, bit, eps):
         if k == HIDDEN_PASSES:
             pr = -1
             break
-        ob = add3(p, scale3(eps if dot1(d, g) >= 0 else -eps, g))  # tracer.spawn
+        ob = spawn1(p, g, d, eps)  # tracer.spawn
         pr, t32 = intersect1(ray, ob, d, np.inf, 0)
         if pr >= 0:
             t, p, g, v0, e1, e2 = hit_point(ob, d, o, True, t32, pr, tv, tng, eps)

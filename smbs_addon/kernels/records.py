@@ -42,6 +42,12 @@ TRIGGERS = ("none", "tir", "backlit", "slow")
 # the surfaces of objects a ray's kind does not meet (Scene.hidden_kinds) it passes, at most: past them
 # it counts as a miss (a maze of hidden glass)
 HIDDEN_PASSES = 16
+# the self-intersection offset per unit of coordinate, scene.offset_eps's: 67 float32 ulps (2^-24 each)
+# for embree's float32 vertices and arithmetic against the float64 hit points (chain.offset1)
+EPS_REL = 4e-6
+# the most of the smallest planned caster's size that offset may take (Tracer.set_extent): a
+# hundredth of a millimetre on a 10 cm caster
+EPS_OF_CASTER = 1e-4
 # ray kinds the walk kernels count (embree.ray_state's counters)
 RAYS_SEED, RAYS_WALK = 0, 1
 # the shapes segments_near tests (a row of NEAR_F numbers per light)

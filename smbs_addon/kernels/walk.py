@@ -16,8 +16,8 @@ from .records import (
 from .typed import TypedOnce
 from .newton import copy_rows, lane_newton, lane_scratch
 from .large_mutation import lane_large
-from .chain import lane_mismatch, seed_lane, trace_lane
-from ..core.vec3 import add3, cols3, dot1, normalize3, scale3, sub3, vertex_cols3
+from .chain import lane_mismatch, seed_lane, spawn1, trace_lane
+from ..core.vec3 import add3, cols3, dot1, normalize3, sub3, vertex_cols3
 from ..core.embree import ray_state
 from ..core.jit import JIT, LANES
 from .keyed import keyed_uniform
@@ -57,8 +57,7 @@ def backlit_lanes(kinds, backlit_at, x0, F, ly, directional):
 @njit(**JIT)
 def _spawn_aim1(x0, g, d, target, eps):
     """tracer.spawn of x0 (normal g) towards d, and the unit direction from there to target."""
-    side = 1.0 if dot1(d, g) >= 0 else -1.0
-    on = add3(x0, scale3(eps * side, g))
+    on = spawn1(x0, g, d, eps)
     return on, normalize3(sub3(target, on))
 
 

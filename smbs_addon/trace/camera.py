@@ -106,6 +106,12 @@ class CameraModel:
         tnear = self.cam.clip_start * stretch / np.abs(local_d[:, 2])
         return o, d, tnear
 
+    def clip_far(self, d: np.ndarray) -> np.ndarray:
+        """The distance along camera rays of unit directions d (N,3) from the near clip plane,
+        where rays() starts them, to the far one: Cycles clips by depth, not by distance."""
+        per_depth = 1.0 / np.abs(d @ self.inv_axes[2])  # the rays' length per unit of depth
+        return (self.cam.clip_end - self.cam.clip_start) * per_depth
+
     def kernel_params(self) -> np.ndarray:
         """What rays(), towards() and importance() need, for the kernels (kernels.CAM_* entries:
         eye._camera_ray, eye.camera_splats)."""

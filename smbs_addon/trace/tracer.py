@@ -5,7 +5,8 @@ kernels). A kernel call casts its rays on one core without the GIL, so large bat
 across a thread pool; the walks cast theirs from their own kernels (kernels.walk_lanes).
 Embree works in float32; positions, normals and barycentrics are re-computed in float64 from
 the primitive id (ray-plane intersection), and spawned rays are offset along the geometric
-normal by a distance relative to the scene's size.
+normal by a distance relative to the size of what takes part, at most a small part of the smallest
+caster's, and more where float32 needs it at the point (Tracer.offsets).
 """
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ from ..core import embree, lanes
 from ..scene import arrays as S
 from ..kernels.chain import barycentric_rows, intersect_rays, shading_normal_rows
 from ..core.vec import cross, dot, norm, normalize
-from ..kernels.records import HIDDEN_PASSES, Geometry, HitRows
+from ..kernels.records import EPS_OF_CASTER, EPS_REL, HIDDEN_PASSES, Geometry, HitRows
 
 _MIN_SPLIT = 8192  # rays per thread task below which splitting does not pay
 
@@ -70,13 +71,24 @@ class Tracer:
         self.hid = scene.hidden_kinds()  # (O,) the kinds of ray each object does not meet (empty: none)
         self.hidden = scene.camera_hidden()  # (O,) bool: objects camera rays pass (empty: none)
 
-    def set_extent(self, lo, hi) -> None:
+    def set_extent(self, lo, hi, casters: np.ndarray | None = None) -> None:
         """Tolerances for geometry within [lo, hi] (the bake's plan: objects out of it change
-        none): the self-intersection offset, a few float32 ulps of the largest coordinate,
-        and the area below which a triangle counts as degenerate."""
+        none): the self-intersection offset, a few float32 ulps of the largest coordinate
+        (scene.offset_eps), and the area below which a triangle counts as degenerate. With
+        casters ((O,) bool: the planned ones), neither takes more than EPS_OF_CASTER of the
+        smallest caster's size, so that a floor of 100 km loses no glass ball of 1 m: where
+        float32 needs more, at points far from the origin, spawn takes it point by point
+        (offsets). Where the bounds' offset is below that cap, as in every scene of ordinary
+        extent, it is kept as it was, bit for bit."""
         d = float(np.linalg.norm(np.asarray(hi) - np.asarray(lo)))
         scale = d if d > 0 else 1.0
-        self.eps = S.offset_eps(lo, hi)
+        cap = np.inf
+        if casters is not None and (casters & self.obj_has_tris).any():
+            c = np.flatnonzero(casters & self.obj_has_tris)
+            cap = EPS_OF_CASTER * float(np.linalg.norm(self.obj_hi[c] - self.obj_lo[c], axis=1).min())
+        self.eps = min(S.offset_eps(lo, hi), cap)
+        # the scale at which offset_eps would reach the cap (past the bounds' own in ordinary scenes)
+        scale = min(scale, cap / EPS_REL)
         self.degenerate = ~(self.area2 > 1e-14 * max(scale, 1e-30) ** 2)
 
     @property
@@ -201,9 +213,14 @@ class Tracer:
                 getattr(h, f)[j] = getattr(g, f)
         return h
 
-    def camera_intersect(self, o: np.ndarray, d: np.ndarray) -> Hits:
-        """intersect_past for the camera's own rays."""
-        return self.intersect_past(o, d, S.RAY_CAMERA)
+    def camera_intersect(self, o: np.ndarray, d: np.ndarray, far: np.ndarray | None = None) -> Hits:
+        """intersect_past for the camera's own rays; with far (CameraModel.clip_far), what lies
+        past the far clip plane is a miss, as in Cycles (kernels.eye._eye_rows)."""
+        h = self.intersect_past(o, d, S.RAY_CAMERA)
+        if far is not None:
+            j = np.flatnonzero(h.hit & (h.t > far))
+            h.hit[j], h.prim[j], h.t[j] = False, -1, np.inf
+        return h
 
     def occluded_past(self, o: np.ndarray, d: np.ndarray, tmax: np.ndarray, kind: int,
                       passable: np.ndarray | None = None) -> np.ndarray:
@@ -299,7 +316,13 @@ class Tracer:
         dndv = proj(dn1 * db1dv[:, None] + dn2 * db2dv[:, None])
         return {"dpdu": dpdu, "dpdv": dpdv, "dndu": dndu, "dndv": dndv, "n": n}
 
+    def offsets(self, p: np.ndarray, ng: np.ndarray) -> np.ndarray:
+        """The offset of a ray spawned at each point p (N,3) of unit geometric normal ng
+        (kernels.chain.offset1, row by row): self.eps, or what float32 needs there if more."""
+        need = np.minimum(np.abs(ng * p).sum(1), np.abs(p).max(1, initial=0.0))
+        return np.maximum(self.eps, EPS_REL * need)
+
     def spawn(self, p: np.ndarray, ng: np.ndarray, d: np.ndarray) -> np.ndarray:
         """Ray origins offset from surface points to the side d leaves on."""
         side = np.where(dot(d, ng) >= 0, 1.0, -1.0)
-        return p + (self.eps * side)[:, None] * ng
+        return p + (self.offsets(p, ng) * side)[:, None] * ng

@@ -209,6 +209,9 @@ def test_rays_invert_project(blender, type, fit, res, aspect):
         np.testing.assert_allclose(cos, 1.0)
     _, _, dnear, *_ = cm.project(o + tnear[:, None] * d)
     np.testing.assert_allclose(dnear, ob.data.clip_start, rtol=1e-9)
+    # the rays end on the far clip plane (Cycles clips camera rays by depth): clip_far from where they start
+    _, _, dfar, *_ = cm.project(o + (tnear + cm.clip_far(d))[:, None] * d)
+    np.testing.assert_allclose(dfar, ob.data.clip_end, rtol=1e-9)
     _kernel_rays_match(cm, rx, ry)
 
 

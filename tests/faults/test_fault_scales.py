@@ -1,13 +1,12 @@
-"""Extreme scenes: extents far beyond the caustic's, and the camera's clip range. Both defects live in
-the kernels, which are being changed as this is written, so they are kept here as strict expected
-failures: when a fix lands they pass, and strict=True makes the run say so (then drop the mark).
+"""Extreme scenes: extents far beyond the caustic's, and the camera's clip range (issue 59).
 
-Issue 59, defect 5: the same glass ball over a floor of 100 km gives a sixth of its caustic, of
-1000 km none: the tracer's one self-intersection offset follows the whole plan's bounds (every
-diffuse surface's: plan._finish), 0.77 m at 100 km for a ball of radius 0.5, 7.7 m at 1000 km, where
-every triangle of the ball is also taken for degenerate (Tracer.set_extent).
-Defect 7: with clip_end 0.5 Cycles renders black; the walks' eye paths (kernels/eye._eye_rows) trace
-the camera ray with no far limit and add the light seen through the glass.
+Defect 5: the same glass ball over a floor of 100 km gave a sixth of its caustic, of 1000 km none: the
+tracer's one self-intersection offset followed the whole plan's bounds (every diffuse surface's:
+plan._finish), 0.77 m at 100 km for a ball of radius 0.5, 7.7 m at 1000 km, where every triangle of
+the ball was also taken for degenerate. Now it takes at most EPS_OF_CASTER of the smallest caster's
+size, and more point by point where float32 needs it (Tracer.set_extent, kernels.chain.offset1).
+Defect 7: with clip_end 0.5 Cycles renders black; the walks' eye paths (kernels/eye._eye_rows) traced
+the camera ray with no far limit and added the light seen through the glass.
 """
 from __future__ import annotations
 
@@ -28,7 +27,6 @@ def _ball_over_a_floor(size_m: float):
     return sc
 
 
-@pytest.mark.xfail(strict=True, reason="defect 5: tolerances follow the whole scene's bounds, not what takes part")
 @pytest.mark.parametrize("size_m", [1e5, 1e6])
 def test_a_huge_floor_keeps_the_balls_tolerances(size_m):
     """The offset a ray leaving the ball takes, and which of its triangles count, do not depend on how far
@@ -38,7 +36,7 @@ def test_a_huge_floor_keeps_the_balls_tolerances(size_m):
     for sc in (small, huge):
         plan = make_plan(sc, "OFF")
         tracer = Tracer(sc, threads=1)
-        tracer.set_extent(*plan.bounds)
+        tracer.set_extent(*plan.bounds, plan.casters)
         ball = sc.tri_object == sc.object_names.index("Ball")
         out.append((tracer.eps, int(tracer.degenerate[ball].sum())))
     (eps_small, lost_small), (eps_huge, lost_huge) = out
@@ -46,7 +44,6 @@ def test_a_huge_floor_keeps_the_balls_tolerances(size_m):
     assert eps_huge < 1e-3 * 0.5, f"an offset of {eps_huge:.3g} m off a ball of radius 0.5 m"
 
 
-@pytest.mark.xfail(strict=True, reason="defect 7: the walks' camera rays have no far limit (kernels/eye._eye_rows)")
 def test_clip_end_before_the_glass_shows_nothing():
     sc = scenes.glass_sphere_scene(resolution=(32, 24))
     sc.camera.clip_end = 0.5  # the ball is 3.6 m from the camera: Cycles renders black
