@@ -115,7 +115,7 @@ def choose(scene, settings, plan, cancel=None, watch=None) -> dict:
         sub = _pilot_scene(scene, lp.index)
         cam = CameraModel(sub.camera)
         tracer = Tracer(sub, threads=settings.threads or None)
-        tracer.set_extent(*plan.bounds)  # the bake's tolerances: of what takes part
+        tracer.set_extent(*plan.bounds, plan.casters)  # the bake's tolerances: of what takes part
         direct = _direct_pixels(sub, tracer, cam, plan)
         runs, cast = {}, tracer.rays_cast
         for m in CANDIDATES:

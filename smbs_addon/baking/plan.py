@@ -406,7 +406,7 @@ def refine_plan(plan: Plan, scene: S.Scene, tracer, cam, seed: int = 0, pilots: 
     has_diff = np.unique(scene.tri_object[scene.mat_kind[scene.tri_material] == S.DIFFUSE])
     dif = _bounds_over(scene, has_diff)
     core = dif or _bounds_over(scene, np.flatnonzero(plan.casters | plan.receivers)) or scene.bounds()
-    look = tracer.with_extent(*core)
+    look = tracer.with_extent(*core, plan.casters)
     direct, through, sides, rays, plan.specular_seen, view, plan.first_specular = camera_look(
         scene, look, cam, plan, scale=float(np.linalg.norm(core[1] - core[0])) or 1.0)
     for o in np.flatnonzero(plan.receivers):
@@ -465,7 +465,7 @@ class _PilotRun:
         self.extents = {o: (np.minimum(core[0], scene.object_bounds(o)[0]),
                             np.maximum(core[1], scene.object_bounds(o)[1]))
                         for lp in plan.lights for o in lp.caster_objects}
-        self.views = {o: tracer.with_extent(*e) for o, e in self.extents.items()}
+        self.views = {o: tracer.with_extent(*e, plan.casters) for o, e in self.extents.items()}
         self.found = [{} for _ in plan.lights]
         self.indirect, self.sources = {}, {}
         self.photons, self.rays = 0, 0

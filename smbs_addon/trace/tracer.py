@@ -100,12 +100,12 @@ class Tracer:
     def rays_cast(self, n: int) -> None:
         self._cast[0] = n
 
-    def with_extent(self, lo, hi) -> "Tracer":
+    def with_extent(self, lo, hi, casters: np.ndarray | None = None) -> "Tracer":
         """A view of this tracer (the same embree scene, arrays, threads and ray count) whose
-        tolerances follow [lo, hi] (set_extent), for tracing on several threads at once with
-        tolerances of their own (the plan's pilots: plan.refine_plan)."""
+        tolerances follow [lo, hi] and casters (set_extent), for tracing on several threads at once
+        with tolerances of their own (the plan's pilots: plan.refine_plan)."""
         view = copy.copy(self)
-        view.set_extent(lo, hi)
+        view.set_extent(lo, hi, casters)
         return view
 
     # ------------------------------------------------------------- low level
