@@ -20,6 +20,8 @@ The cache locator installed here does two things numba's own does not:
   seeded with the entries of every cache folder that can be read (the package's own, numba's user
   cache, NUMBA_CACHE_DIR), so that kernels compiled there load instead of compiling again; one
   line on stderr says so.
+
+And a kernel loaded from the cache runs the code a fresh compile runs (_install_callees_first).
 """
 from __future__ import annotations
 
@@ -203,4 +205,92 @@ def _install_locator():
     caching.CacheImpl._locator_classes.insert(0, Locator)
 
 
+# A kernel's library holds a copy of every helper it calls without inlining (numba links the helper's
+# library into the caller's, its functions weak, and optimizes the whole again: the copy's machine code
+# is not the helper's own). In a fresh compile the helper compiles first, as a library of its own, and
+# LLVM's loader binds the kernel's calls to that definition (a weak symbol already defined is not
+# defined again); a kernel loaded from the disk cache alone binds them to its own copies. The two
+# differ: walk_lanes' copy of the walk's loop (walk_jobs) walked 1.4x slower than walk_jobs' own
+# (bench/results/cache_load.md). So before a cached kernel of the package loads, the cached entries of
+# the helpers it holds copies of load first (and theirs before them), as a fresh compile has them.
+_LOADING: set = set()  # the helpers being loaded (a recursion guard)
+
+
+def _held_functions(libdata, own: str) -> list:
+    """The package's functions whose code a cached library holds besides its own function (numba's
+    serialized library: name, "object", (object code, the module it links into callers as bitcode))."""
+    import llvmlite.binding as ll
+
+    _, kind, data = libdata
+    if kind != "object":
+        return []
+    prefix = "_ZN" + "".join(f"{len(p)}{p}" for p in _PACKAGE.split("."))
+    return [fn.name for fn in ll.parse_bitcode(data[1]).functions
+            if not fn.is_declaration and fn.name.startswith(prefix) and fn.name != own]
+
+
+def _dispatcher_of(symbol: str):
+    """The dispatcher of a function of the package by its mangled name (numba's: _ZN, each part of the
+    module and the function's name as <length><part>, then its tags and types), or None."""
+    parts, rest = [], symbol[3:]
+    while rest[:1].isdigit():
+        n = len(rest) - len(rest.lstrip("0123456789"))
+        size = int(rest[:n])
+        parts.append(rest[n:n + size])
+        rest = rest[n + size:]
+    module = sys.modules.get(".".join(parts[:-1]))
+    found = getattr(module, parts[-1], None) if parts else None
+    found = getattr(found, "dispatcher", found)  # kernels.TypedOnce
+    return found if hasattr(found, "_cache") and hasattr(found, "compile") else None
+
+
+def _load_cached(dispatcher, symbol: str) -> None:
+    """The overload of dispatcher compiled as symbol (its name ends with its argument types, mangled),
+    loaded if its disk cache holds it for this code and this processor (never compiled)."""
+    from numba.core import itanium_mangler
+
+    cache = getattr(dispatcher, "_cache", None)
+    codegen = dispatcher.targetctx.codegen()
+    try:
+        index = cache._cache_file._load_index()
+        keys = [key for key in index if key == cache._index_key(key[0], codegen)
+                and symbol.endswith("E" + itanium_mangler.mangle_args(key[0]))]
+    except Exception:  # noqa: BLE001 - no disk cache (cache=False) or numba's internals moved: nothing to load
+        return
+    for key in keys:
+        dispatcher.compile(key[0])
+
+
+def _install_callees_first():
+    """numba's rebuilding of a cached function, for the package's functions: the helpers whose copies its
+    library holds (_held_functions) load first from their own cache entries (_load_cached), each of them
+    the same way. A helper that fails to load leaves the kernel its own copy (slower, the same results)."""
+    try:
+        from numba.core import caching
+    except ImportError:  # pragma: no cover - numba's layout changed: default loading
+        return
+    rebuild = caching.CompileResultCacheImpl.rebuild
+
+    def rebuild_callees_first(self, target_context, payload):
+        if getattr(self.locator, "_smbs_per_module", False):
+            try:
+                held = _held_functions(payload[0], payload[1].mangled_name)
+            except Exception:  # noqa: BLE001 - numba's payload changed: the kernel binds its own copies
+                held = []
+            for symbol in held:
+                dispatcher = _dispatcher_of(symbol)
+                if dispatcher is not None and id(dispatcher) not in _LOADING:
+                    _LOADING.add(id(dispatcher))
+                    try:
+                        _load_cached(dispatcher, symbol)
+                    except Exception:  # noqa: BLE001 - e.g. an unreadable entry: the kernel binds its own copy
+                        pass
+                    finally:
+                        _LOADING.discard(id(dispatcher))
+        return rebuild(self, target_context, payload)
+
+    caching.CompileResultCacheImpl.rebuild = rebuild_callees_first
+
+
 _install_locator()
+_install_callees_first()

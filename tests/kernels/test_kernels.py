@@ -226,6 +226,57 @@ def test_disk_cache_follows_every_file_with_kernels(tmp_path):
     assert hits() == 0 and hits() == 1
 
 
+_CALLS_HELPERS = r"""
+import ctypes, struct
+from numba.core import caching
+from smbs_addon.shading import thinfilm as T
+loaded = []  # the functions rebuilt from the disk cache, in the order their code was loaded
+rebuild = caching.CompileResultCacheImpl.rebuild
+
+
+def recorded(self, target_context, payload):
+    out = rebuild(self, target_context, payload)
+    loaded.append(payload[1].qualname)
+    return out
+
+
+caching.CompileResultCacheImpl.rebuild = recorded
+T.f82_film1(20.0, 1.5, 0.6, (0.9, 0.6, 0.3), (0.8, 0.8, 0.8))
+kernel = next(iter(T.f82_film1.overloads.values()))
+engine = kernel.library._codegen._engine
+entry = engine.get_function_address(kernel.fndesc.mangled_name)
+end = engine.get_function_address(kernel.fndesc.llvm_cpython_wrapper_name)  # next in the kernel's code
+code = ctypes.string_at(entry, end - entry) if 0 < end - entry < 1 << 20 else b""
+helper = [c.fndesc.mangled_name for c in T._f82_film_channel.overloads.values()]
+# numba's large code model calls through an absolute address (movabsq $<address>, %reg; callq *%reg)
+calls = [struct.pack("<Q", engine.get_function_address(name)) in code for name in helper]
+print("RESULT", loaded, len(helper), calls)
+"""
+
+
+def test_a_cached_kernel_calls_its_helpers_own_code(tmp_path):
+    """A kernel holds a copy of the helpers it calls without inlining (thinfilm.f82_film1 of
+    _f82_film_channel, that of iridescence1), optimized again with the kernel: a fresh compile binds
+    the kernel's calls to the helper's own code, compiled first; loaded from the disk cache, the
+    helpers' own entries load first (jit._install_callees_first) and the kernel calls them too, not
+    its copies (walk_lanes' copy of walk_jobs walked 1.4x slower: bench/results/cache_load.md)."""
+    import os
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(tmp_path / "cache"), "PYTHONPATH": str(root)}
+    runs = []
+    for _ in range(2):  # compiled, then loaded
+        proc = subprocess.run([sys.executable, "-c", _CALLS_HELPERS], env=env, capture_output=True, text=True,
+                              timeout=600, cwd=tmp_path)
+        assert proc.returncode == 0 and "RESULT" in proc.stdout, proc.stderr[-2000:]
+        runs.append(proc.stdout.split("RESULT", 1)[1].strip())
+    assert runs[0] == "[] 1 [True]"  # compiled in the process: the helper first, its code called
+    assert runs[1] == "['iridescence1', '_f82_film_channel', 'f82_film1'] 1 [True]"
+
+
 def test_cache_stamp_covers_every_file_with_kernels():
     """Every module of the package that compiles with numba (imports jit.JIT) is in jit.py's stamp:
     a kernel inlines or links helpers of other files (optics.scatter1 the rough lobes of rough.py),
