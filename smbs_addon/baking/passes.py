@@ -179,8 +179,8 @@ def hands_off(scene, plan, opts, types) -> bool:
 def sees_directly(plan) -> bool:
     """Can the camera see a receiver directly, where alone a photon reaches it? False only where the
     plan's look from the camera found every receiver it sees behind mirrors or glass (a pool seen
-    through its water: there the photon hand-off traced 150,000 photons per 8 spp and splatted none,
-    a quarter of an anchored bake's time; issue 61)."""
+    through its water: there the photon hand-off traced 150,000 photons per 8 spp and splatted none;
+    issue 61)."""
     return not plan.seen or "directly" in plan.seen.values()
 
 
