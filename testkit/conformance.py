@@ -60,7 +60,8 @@ def scene_arrays(name: str):
     from smbs_addon.scene.arrays import Scene
 
     here = Path(__file__).resolve().parent
-    src = (here / "conformance_scenes.py").read_bytes() + (here / "blend.py").read_bytes()
+    src = (here / "conformance_scenes.py").read_bytes() + (here / "blend.py").read_bytes() + \
+        (here / "pools.py").read_bytes()
     # the export: every module of the blender package (export.py and the modules it calls; the few that
     # do not, such as composite.py, only cost a fresh export when they change) and of the scene package
     # it builds the arrays with

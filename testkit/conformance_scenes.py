@@ -31,6 +31,7 @@ import bpy
 
 from testkit import blend as B
 from testkit.lens import biconvex_lens as _lens
+from testkit import pools
 
 WIDTH, HEIGHT = 96, 72
 
@@ -1076,6 +1077,10 @@ SCENES = {
                        "sphere_point_soft's bulb"),
     "hdri_ball": (hdri_ball, "an Environment Texture (a sky and a sun of 4 deg) turned by a Mapping node, "
                   "through a Glass BSDF ball"),
+    # issue 61's pools at 160 x 120 (testkit/pools.py)
+    "pool_sun": (pools.pool_sun, "pool_sun4 at 160 x 120 (wavy water, sun of 4 deg, seen through the water)"),
+    "pool_hdri": (pools.pool_hdri, "pool_sun's water lit by an environment image alone: a dim sky and a "
+                  "disc of 5 deg"),
 }
 # scenes whose reference is Cycles' MNEE (the light cannot be found by path tracing)
 MNEE_REFERENCE = {"water_flat_sun0"}

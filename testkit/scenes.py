@@ -306,3 +306,34 @@ def water_sun_expected(scene):
     c = math.cos(math.radians(30))
     E = 3.0 * c * (1 - fresnel(c, 1.33))
     return np.full(region.shape, FLOOR_ALBEDO / math.pi * E), region
+
+
+def wavy_water_sun_scene(resolution=(40, 30), amplitude=0.05, k=10.0, n=80, tilt_deg=20.0, angle_deg=4.0,
+                         above=False):
+    """Wavy water (a smooth-shaded height field A sin(kx) sin(0.7ky) over 3 x 3 m, 1 m over the floor)
+    under a sun of angle_deg, tilted tilt_deg; its waves focus above the floor (focal length about
+    n / ((n - 1) A k^2) = 0.8 m), so most floor points see the sun through several wave crests: one
+    solution from the straight line to the sun and others beside it. The camera under the surface
+    looks down at the floor (no refraction on the eye's side); above: from 3 m, through the water,
+    as at a pool."""
+    b = SceneBuilder("wavy water under a sun")
+    floor = b.material("floor", "diffuse", color=(FLOOR_ALBEDO,) * 3)
+    water = b.material("water", "dielectric", color=(1, 1, 1), ior=1.33)
+    b.plane("Floor", (0, 0, 0), 20, floor)
+    u = np.linspace(-1.5, 1.5, n + 1)
+    X, Y = np.meshgrid(u, u, indexing="ij")
+    Z = 1.0 + amplitude * np.sin(k * X) * np.sin(0.7 * k * Y)
+    dzdx = amplitude * k * np.cos(k * X) * np.sin(0.7 * k * Y)
+    dzdy = amplitude * 0.7 * k * np.sin(k * X) * np.cos(0.7 * k * Y)
+    N = np.stack([-dzdx, -dzdy, np.ones_like(Z)], -1)
+    N /= np.linalg.norm(N, axis=-1, keepdims=True)
+    idx = np.arange((n + 1) * (n + 1)).reshape(n + 1, n + 1)
+    F = np.stack([idx[:-1, :-1], idx[1:, :-1], idx[1:, 1:], idx[:-1, 1:]], -1).reshape(-1, 4)
+    b.mesh("Water", np.stack([X, Y, Z], -1).reshape(-1, 3), F, water, normals=N.reshape(-1, 3))
+    t = math.radians(tilt_deg)
+    d = np.array([-math.sin(t), 0.0, -math.cos(t)])
+    b.light("Sun", "SUN", location=(0, 0, 10), target=np.array([0, 0, 10]) + d, power=3.0,
+            angle=math.radians(angle_deg))
+    b.set_camera((0, 0, 3.0 if above else 0.8), (0, 0, 0), type=1, ortho_scale=1.6, resolution_x=resolution[0],
+                 resolution_y=resolution[1], clip_start=0.01)
+    return b.build()

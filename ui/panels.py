@@ -465,6 +465,7 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         sub.active = settings.method != "mnee" and settings.estimator == "unbiased"
         sub.prop(settings, "first_step")
         sub.prop(settings, "stall_stop")
+        sub.prop(settings, "anchor")
         col.prop(settings, "solver_threshold")
         col.prop(settings, "uniqueness")
         col.prop(settings, "max_chain")

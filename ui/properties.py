@@ -23,7 +23,7 @@ _RELATIVE_PATH = ({'ANIMATABLE', 'PATH_SUPPORTS_BLEND_RELATIVE'}
 BAKE_FIELDS = (
     "method", "estimator", "trials", "max_trials", "spp", "seed", "batches", "threads",
     "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "first_step",
-    "stall_stop", "solver_threshold",
+    "stall_stop", "anchor", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
     "max_chain", "clamp_g", "handoff", "indirect", "pilots",
 )
@@ -200,6 +200,13 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         description="Unbiased SMS and SMBS: a walk that cannot make large mutations gives up when "
                     "four steps in a row shrank its distance to the light by less than 10%; the "
                     "estimate stays unbiased. MNEE and the biased estimator never give up early",
+    )
+    anchor: BoolProperty(
+        name="Anchor Walk", default=True,
+        description="Unbiased SMS and SMBS, one refraction (water, a window) under a sun or the world: "
+                    "each sample also walks once from the straight line to the light and counts that "
+                    "solution with weight 1; the random walks count only the others. Unbiased; fewer "
+                    "Bernoulli trials where the solution is unique",
     )
     solver_threshold: FloatProperty(
         name="Threshold", default=1e-6, min=1e-12, soft_min=1e-9, max=1e-5,

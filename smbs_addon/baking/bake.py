@@ -72,8 +72,12 @@ def _choose(job, on_plan) -> tuple[bool, dict]:
         "time_s": time.perf_counter() - t_a, "bake": "reference" if alone else "manifold", "pilot": bool(choices),
         "rays": sum(c.rays for c in choices.values()),
         "lights": {scene.light_names[li]: {"walks": c.walk, "direct": "photons" if c.photons_direct else c.walk,
-                                           "photon_factor": c.photon_factor, "why": c.why, "pilot": c.measured}
+                                           "photon_factor": c.photon_factor, "why": c.why, "pilot": c.measured,
+                                           "anchor_only": c.anchor_only, "anchor_bound": c.anchor_bound}
                    for li, c in choices.items()}}
+    for li, c in choices.items():
+        if c.anchor_only:
+            job.light_stats[scene.light_names[li]]["anchor_only_bound"] = c.anchor_bound
     for lp in plan.lights:
         plan.notes.append(f"auto, {lp.name}: {why[lp.name]}")
     if on_plan is not None:

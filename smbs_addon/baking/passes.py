@@ -176,13 +176,21 @@ def hands_off(scene, plan, opts, types) -> bool:
     return bool(rough_casters(scene, plan.casters).any()) or (opts.handoff > 0 and bool(types))
 
 
+def sees_directly(plan) -> bool:
+    """Can the camera see a receiver directly, where alone a photon reaches it? False only where the
+    plan's look from the camera found every receiver it sees behind mirrors or glass (a pool seen
+    through its water: there the photon hand-off traced 150,000 photons per 8 spp and splatted none;
+    issue 61)."""
+    return not plan.seen or "directly" in plan.seen.values()
+
+
 def handoff_batch(job, b, walk, light_stats) -> None:
     """The photons' share of a manifold bake: the paths focusing more than opts.handoff,
     and every path of a chain type the guide found too weak to be worth walks; walk.factors:
     {light index: photons per walk sample} (auto's share of the time, default 1). Counted in
     light_stats (per light name)."""
     scene, plan, opts, types, guide = job.scene, job.plan, walk.opts, walk.types, walk.guide
-    if not hands_off(scene, plan, opts, types):
+    if not hands_off(scene, plan, opts, types) or not sees_directly(plan):
         return
     tau0 = opts.handoff if opts.handoff > 0 else math.inf
     for lp in plan.lights:

@@ -89,6 +89,10 @@ def bias_left_out(settings: BakeSettings, light_stats: dict) -> list[str]:
         out.append("MNEE's bias (one walk per point, no Bernoulli weights)")
     elif settings.method != "reference" and settings.estimator == "biased":
         out.append(f"the biased estimator's bias ({settings.trials} walks per point)")
+    for name, st in light_stats.items():
+        if "anchor_only_bound" in st:
+            out.append(f"the bias of {name}'s straight-line walk alone, MNEE's way (auto: its pilot bounds the "
+                       f"other solutions' light below {st['anchor_only_bound']:.2%} of the light's caustic)")
     if any(st.get("clamped", 0) > 0 for st in light_stats.values()):
         out.append(f"the clamp's bias (clamp_g {settings.clamp_g:g})")
     capped = sum(st.get("trials", {}).get("capped_share_min", 0.0) for st in light_stats.values())

@@ -63,6 +63,10 @@ class BakeSettings:
     large_mutation_tir: bool = True
     large_mutation_backlit: bool = True
     large_mutation_slow: bool = True
+    anchor: bool = True  # unbiased SMS, SMBS, one refraction (water, a window) under a sun or a world: one
+    # walk per sample from the straight line to the light finds a solution at weight one, the random walks
+    # and their Bernoulli trials only the others (estimators._anchored)
+    anchor_walks: float = 1.0  # the share of samples that also walk from random seeds (weight 1/share)
     max_chain: int = 4
     chains: tuple = ()  # explicit chain types ("R", "TT", ...); empty: what the scene calls for
     clamp_g: float = 0.0  # manifold methods: cap on one solution's luminance (RGB mean), biased; 0: off.
@@ -119,6 +123,8 @@ class BakeSettings:
             raise SceneError(f"pilots must be 0 (bounds only) or a positive whole number, not {self.pilots!r}")
         if not (self.handoff >= 0 and math.isfinite(self.handoff)):
             raise SceneError(f"handoff must be 0 (off) or a positive concentration, not {self.handoff}")
+        if not (0.0 < self.anchor_walks <= 1.0):
+            raise SceneError(f"anchor_walks must be a share in (0, 1], not {self.anchor_walks}")
         if not (self.clamp_g >= 0):
             raise SceneError(f"clamp_g must be 0 (off) or a positive luminance, not {self.clamp_g}")
         if self.seeding not in SEEDINGS:
@@ -168,7 +174,8 @@ class BakeSettings:
                                max_trials=self.max_trials, uniqueness=self.uniqueness,
                                chains=tuple(self.chains), max_chain=self.max_chain, walk=walk,
                                physical=self.radiance == "physical", clamp_g=float(self.clamp_g),
-                               handoff=0.0 if self.method == "mnee" else float(self.handoff))
+                               handoff=0.0 if self.method == "mnee" else float(self.handoff),
+                               anchor=bool(self.anchor), anchor_walks=float(self.anchor_walks))
 
 
 def shard_of(settings: BakeSettings, k: int, n: int) -> BakeSettings:

@@ -4,6 +4,7 @@ the photon hand-off beside them, and light after a diffuse bounce.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 import time
 from concurrent.futures import wait
@@ -40,7 +41,8 @@ def setup_walks(job, choices) -> WalkSetup:
     scene, plan, settings = job.scene, job.plan, job.settings
     opts = settings.manifold_options()
     walk = WalkSetup(opts, chain_types(scene, plan, opts),
-                     {li: settings.manifold_options(c.walk) for li, c in choices.items()})
+                     {li: dataclasses.replace(settings.manifold_options(c.walk), anchor_only=c.anchor_only)
+                      for li, c in choices.items()})
     rough = [scene.object_names[o] for o in np.flatnonzero(rough_casters(scene, plan.casters))]
     if rough:
         plan.notes.append(f"{', '.join(rough)}: rough, so {'its' if len(rough) == 1 else 'their'} caustic comes "

@@ -685,6 +685,10 @@ def _handoff_block(scene, tracer, plan, rc: Receivers, key, a0, stats, handoffs:
             stats["handoff_paths"] = stats.get("handoff_paths", 0) + int(t.size - other.sum())
             stats["other_paths"] = stats.get("other_paths", 0) + int(other.sum())
             found[li] = found.get(li, 0) + int(t.size - other.sum())
+            # and their light (as splatted), which tells later chunks whether the hand-off is worth its rays
+            focus = t[~other]
+            found[("energy", li)] = found.get(("energy", li), 0.0) + float(
+                ((beta[focus] * L[focus]).mean(axis=1) * rc.weight[row[focus] // samples]).sum())
     return radiance
 
 

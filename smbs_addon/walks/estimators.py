@@ -8,6 +8,8 @@ to solutions and weigh what each solution contributes (contribution.py).
 from __future__ import annotations
 
 
+import dataclasses
+
 import numpy as np
 
 from ..scene.light_paths import Limits
@@ -55,6 +57,13 @@ def _walk(ctx, opts, seeder, types, x0, ng0, light, rng):
 
 
 def estimate(ctx, opts, li, types, rc, rng, guide=None):
+    """_estimate's radiance, and its light at receivers seen through mirrors or glass counted."""
+    out = _estimate(ctx, opts, li, types, rc, rng, guide)
+    _count_seen(ctx, rc, out)
+    return out
+
+
+def _estimate(ctx, opts, li, types, rc, rng, guide=None):
     """Per-receiver radiance (M,3) of one light and one chain type at receivers rc: light samples,
     the lanes worth a walk, the walks, what their solutions contribute, the focusing paths left to
     the photon hand-off, and the estimator's weights (unbiased: Bernoulli trials; biased: each unique
@@ -82,6 +91,12 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
         return out
     # primary walks from receivers seen through mirrors or glass (auto's cost of that effect)
     ctx.stats["walks_seen"] = ctx.stats.get("walks_seen", 0) + int((rc.eye_specular[lanes] > 0).sum())
+    anchor = _anchor_dir(ctx, opts, seeder, types, light)
+    if anchor is not None:  # one solution found by a deterministic walk, the rest by random seeds
+        lanes, rr_weight, anchored = _anchored(ctx, opts, (li, types, emit_scale), rc, ng_eye, light, anchor,
+                                               (lanes, rr_weight), out, rng)
+        if lanes.size == 0:  # auto's anchor alone (ManifoldOptions.anchor_only), or nothing left to walk
+            return out
     res = _walk(ctx, opts, seeder, types, rc.p[lanes], ng_eye[lanes], light.take(lanes), rng)
     conv = np.flatnonzero(res.converged)
     if conv.size == 0:
@@ -92,6 +107,8 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     if opts.handoff > 0:
         _drop_handed_off(ctx, opts, types, rc, owner, light, chain, val, ok)
     val = val * rr_weight[owner][:, None]
+    if anchor is not None:  # the anchor's solution is counted once, by the anchor: no trials for it
+        _drop_anchored(ctx, opts, anchored, rc.p[owner], owner, chain, val, ok)
     if opts.method == "mnee" and seeder.reflect_first:  # one caster picked uniformly per lane
         val = val * len(seeder.centers)
     cut = None if ctx.clamp_cut is None else (  # what the clamp removed from the image, with the same weights
@@ -105,6 +122,88 @@ def estimate(ctx, opts, li, types, rc, rng, guide=None):
     else:
         _unbiased_sum(ctx, opts, seeder, types, rc, ng_eye, light, (out, owner, val, ok), (d1, obj1), cut, rng)
     return out
+
+
+def _count_seen(ctx, rc, out) -> None:
+    """The light the walks bring to receivers seen through mirrors or glass (as splatted), against
+    which manifold._hand_off_seen weighs the hand-off's."""
+    if ctx.first_order:
+        seen = rc.eye_specular > 0
+        ctx.stats["seen_energy"] = ctx.stats.get("seen_energy", 0.0) + float(
+            (out[seen].mean(axis=1) * rc.weight[seen]).sum())
+
+
+def _anchor_dir(ctx, opts, seeder, types, light):
+    """The anchor's seed directions (N,3), towards the light, where the walks are anchored
+    (ManifoldOptions.anchor: the unbiased estimator, one refraction, a distant light: water or a window
+    under a sun or a world); else None. (A mirror's anchor, the light's direction mirrored in its mean
+    plane, is not measured yet: mirrors walk as before.)"""
+    if not (opts.anchor and opts.estimator == "unbiased" and opts.method != "mnee" and types == "T"
+            and light.directional):
+        return None
+    return light.y
+
+
+def _anchored(ctx, opts, what, rc, ng_eye, light, anchor, walked, out, rng):
+    """The anchor of an unbiased estimate: per lane one walk from a fixed seed (anchor's direction,
+    the walk deterministic), whose solution s* adds its contribution with weight one; the random
+    walks and their Bernoulli trials then count only the other solutions (_drop_anchored), so
+    sum_s f(s) = f(s*) + E[the rest] stays unbiased whatever s* the anchor finds. Where s* is the
+    one solution (most of a pool), the trials never run. The random walks run on a share
+    opts.anchor_walks of the lanes (Russian roulette, weight 1/share). what: (light index, chain
+    type, emitter scale); walked: (lanes, rr_weight) of _walked. Adds into out; returns the lanes
+    that walk from random seeds, their weights, and the anchor's solutions (owner, d1, obj1)."""
+    li, types, emit_scale = what
+    lanes, rr_weight = walked
+    cfg = dataclasses.replace(opts.walk, beta0=1.0)
+    res = newton_walk(ctx, cfg, types, rc.p[lanes], ng_eye[lanes], light.take(lanes),
+                      large_ok=np.ones(len(lanes), bool), seed=(anchor[lanes], None))
+    st = ctx.stats
+    st["anchor_walks"] = st.get("anchor_walks", 0) + len(lanes)
+    st["anchor_successes"] = st.get("anchor_successes", 0) + int(res.converged.sum())
+    st["anchor_mutations"] = st.get("anchor_mutations", 0) + int(res.mutations.sum())
+    conv = np.flatnonzero(res.converged)
+    chain = res.chain.take(conv)
+    owner = lanes[conv]
+    val, ok = _contribution(ctx, li, types, rc, owner, light.take(owner), chain, emit_scale)
+    if opts.handoff > 0:
+        _drop_handed_off(ctx, opts, types, rc, owner, light, chain, val, ok)
+    np.add.at(out, owner[ok], val[ok] * rr_weight[owner[ok]][:, None])
+    # the anchor's light, against which auto weighs what the random walks add (auto.anchor_bias)
+    st["anchor_energy"] = st.get("anchor_energy", 0.0) + float(
+        (val[ok].mean(axis=1) * rr_weight[owner[ok]] * rc.weight[owner[ok]]).sum())
+    if ctx.clamp_cut is not None:
+        _count_clamped(ctx, (ctx.clamp_cut * rr_weight[owner] * rc.weight[owner] * (
+            1.0 if ctx.film is None else ctx.film.frame_share(rc.rx[owner], rc.ry[owner])))[ok])
+    d1 = normalize(chain.verts[0].p - rc.p[owner])
+    if opts.anchor_only:
+        return lanes[:0], rr_weight, (owner, d1, chain.verts[0].obj)
+    share = opts.anchor_walks
+    if share < 1.0:
+        keep = rng.random(len(lanes)) < share
+        lanes = lanes[keep]
+        rr_weight = rr_weight / share
+    return lanes, rr_weight, (owner, d1, chain.verts[0].obj)
+
+
+def _drop_anchored(ctx, opts, anchored, x0, owner, chain, val, ok) -> None:
+    """Random walks that found their lane's anchor solution (estimators.same_solution) add nothing
+    and need no trials (val and ok, in place)."""
+    a_owner, a_d1, a_obj = anchored
+    idx = np.full(int(max(owner.max(initial=-1), a_owner.max(initial=-1))) + 1, -1, np.int64)
+    idx[a_owner] = np.arange(len(a_owner))
+    j = idx[owner]
+    has = j >= 0
+    jj = np.where(has, j, 0)
+    same = np.zeros(len(owner), bool)
+    if len(a_owner):
+        d1 = normalize(chain.verts[0].p - x0)
+        same = has & same_solution(d1, a_d1[jj], chain.verts[0].obj, a_obj[jj], opts.uniqueness)
+    ok[same] = False
+    val[same] = 0.0
+    if ctx.clamp_cut is not None:
+        ctx.clamp_cut[same] = 0.0
+    ctx.stats["anchor_found_again"] = ctx.stats.get("anchor_found_again", 0) + int(same.sum())
 
 
 def _walked(ctx, li, types, rc, light, seeder, rng, guide):
@@ -206,4 +305,9 @@ def _unbiased_sum(ctx, opts, seeder, types, rc, ng_eye, light, found, first_dir,
         (val[cp].mean(axis=1) * rc.weight[owner[cp]]).sum() * opts.max_trials)
     w = np.where(capped, 0.0, count)
     np.add.at(out, owner[pend], val[pend] * w[:, None])
+    # what the random walks add, per lane as splatted (under an anchor: the other solutions' light,
+    # whose mean and spread bound the anchor-alone estimator's bias: auto.anchor_bias)
+    e = val[pend].mean(axis=1) * w * rc.weight[owner[pend]]
+    st["walk_energy"] = st.get("walk_energy", 0.0) + float(e.sum())
+    st["walk_energy_sq"] = st.get("walk_energy_sq", 0.0) + float((e * e).sum())
     _count_clamped(ctx, None if cut is None else cut[pend] * w)

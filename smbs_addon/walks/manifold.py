@@ -47,6 +47,10 @@ class ManifoldOptions:
     clamp_g: float = 0.0  # > 0: cap on each solution's contribution (luminance); 0: off
     handoff: float = 0.0  # > 0: paths focusing more than this (estimators.concentration) go to photons
     max_chain: int = 4
+    anchor: bool = False  # unbiased, one refraction, distant lights: a deterministic walk per lane
+    # finds one solution at weight one, the random walks and their trials the others (estimators._anchored)
+    anchor_walks: float = 1.0  # the share of lanes that walk from random seeds beside the anchor
+    anchor_only: bool = False  # auto, where its pilot bounds the other solutions' light: the anchor alone (biased)
     walk: WalkConfig = field(default_factory=WalkConfig)
 
 
@@ -63,6 +67,12 @@ class ManifoldOptions:
 SEEN_HANDOFF_HITS = 0.05
 SEEN_HANDOFF_EVIDENCE = 16
 SEEN_HANDOFF_RATIO = 0.5
+# ... and under a world only while the paths it takes carry this share of the light's caustic at those
+# receivers or more. A world fills every cosine direction: its 64 per receiver find the dim sky's paths
+# focused near the horizon. On issue 61's pool lit by a sky and a bright disc they were 75% of a
+# bake's time (the walks met 1 focusing path where the gather found 39,000, so the count rule kept it
+# on) for 0.02% of the caustic seen there
+SEEN_HANDOFF_SHARE = 0.02
 # ... and there the paths no walk takes (chains longer than max_chain, ...) go to it too, for each
 # light whose photon pre-pass (the guide) found them carrying at least this share of the light it
 # brought into the frame: below, they are left out at those receivers (their cosine rays cost as
@@ -198,6 +208,7 @@ def manifold_chunk(job, walk, start, n, rng, eye_stats) -> None:
         for li in handoffs:
             st = ctxs[li].stats
             st["seen_handoff_paths"] = st.get("seen_handoff_paths", 0) + found.get(li, 0)
+            st["seen_handoff_energy"] = st.get("seen_handoff_energy", 0.0) + found.get(("energy", li), 0.0)
     lights_direct = job.indirect_lights()
     if lights_direct:
         gather(scene, tracer, film, plan, rc_seen, rng, eye_stats,
@@ -319,6 +330,12 @@ def _hand_off_seen(scene, lp, st) -> bool:
     walked, gathered = st.get("seen_focus", 0), st.get("seen_handoff_paths", 0)
     if st.get("seen_handoff_chunks", 0) > 0 and walked >= SEEN_HANDOFF_EVIDENCE \
             and gathered < SEEN_HANDOFF_RATIO * walked:
+        return False
+    # ... nor, for a world, once it has run and brought under SEEN_HANDOFF_SHARE of the light's caustic
+    # seen there
+    e_gather, e_walks = st.get("seen_handoff_energy", 0.0), st.get("seen_energy", 0.0)
+    if scene.light_type[lp.index] == S.WORLD and st.get("seen_handoff_chunks", 0) > 0 \
+            and e_gather < SEEN_HANDOFF_SHARE * (e_gather + e_walks):
         return False
     if walked > 0 or gathered > 0:
         return True

@@ -41,6 +41,12 @@ CASES = [
     ("sphere_refraction_spot", "reference", 32),
     ("sphere_refraction_spot", "smbs", 4),
     ("pool_sun4", "smbs", 4),
+    # issue 61's pool at 160 x 120: auto bakes it by the straight-line walk alone (MNEE's way), the
+    # pilot bounding the light of the other solutions below 0.05%
+    ("pool_sun", "auto", 8),
+    # ... and under a dim sky with a bright disc of 5 degrees, where the pilot meets other solutions
+    # (bound 2.1%) and auto stays unbiased: anchored SMBS
+    ("pool_hdri", "smbs", 16),
     # an area light's spread of 30 degrees: 0.08 of Cycles before the soft-box factor
     ("mirror_spread30", "reference", 256),
     ("mirror_spread30", "sms", 4),
