@@ -340,6 +340,7 @@ def _draw_frame_range(layout, scene, settings):
     row = layout.row(align=True)
     row.operator("smbs.bake_frame_range", icon='RENDER_ANIMATION')
     row.prop(settings, "frame_range", text="")
+    layout.prop(settings, "seeding")
     if settings.frame_range == 'CUSTOM':
         row = layout.row(align=True)
         row.prop(settings, "range_start")

@@ -25,7 +25,7 @@ BAKE_FIELDS = (
     "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "first_step",
     "stall_stop", "anchor", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
-    "max_chain", "clamp_g", "handoff", "indirect", "pilots",
+    "max_chain", "clamp_g", "handoff", "indirect", "pilots", "seeding",
 )
 
 METHOD_ITEMS = (
@@ -177,6 +177,14 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
     )
     range_start: IntProperty(name="Start", default=1, description="Bake Frame Range: the first frame (Custom)")
     range_end: IntProperty(name="End", default=250, description="Bake Frame Range: the last frame (Custom)")
+    seeding: EnumProperty(
+        name="Noise", default="fixed",
+        items=(("fixed", "Fixed", "The same random numbers every frame: what moves little keeps its noise, so "
+                "frames flicker less (bench/results/flicker.md)"),
+               ("frame", "Per Frame", "Random numbers keyed by the frame as well: each frame's noise is "
+                "independent of the others'")),
+        description="The random numbers from frame to frame (a still's image does not depend on it with Fixed)",
+    )
     keep_out_of_cycles: BoolProperty(
         name="Keep Out of Cycles", default=True,
         description="When the layer covers every caster, receiver and light, turn off "

@@ -113,16 +113,17 @@ def test_ui_settings_are_the_core_settings(empty_bpy, addon):
     names = addon.ui.properties.BAKE_FIELDS
     assert set(names) <= set(fields), set(names) - set(fields)
     # the core fields without a UI setting: the explicit chain list (empty: from the scene), the frame
-    # (Bake Frame Range sets it to each frame's), the farm's shards and the seeding of frames (the
-    # command line's; the panel bakes with the default, bench/results/flicker.md), and the anchored
+    # (Bake Frame Range sets it to each frame's), the farm's shards (the command line's), and the anchored
     # estimator's share of samples that also walk at random (a research setting: 1, bench/results/pools.md)
-    assert set(fields) - set(names) == {"chains", "frame", "shard", "shards", "seeding", "anchor_walks"}
+    assert set(fields) - set(names) == {"chains", "frame", "shard", "shards", "anchor_walks"}
     settings, ignored = bake_op.bake_settings_from(props, core.BakeSettings)
     assert ignored == []
     assert settings == core.BakeSettings()
     props.solver_threshold, props.tau, props.spp, props.method = 3e-7, 0.9, 5, "mnee"
+    props.anchor, props.seeding = False, "frame"
     settings, _ = bake_op.bake_settings_from(props, core.BakeSettings)
     assert (settings.solver_threshold, settings.tau, settings.spp, settings.method) == (3e-7, 0.9, 5, "mnee")
+    assert (settings.anchor, settings.seeding) == (False, "frame")
     # Stop By: samples ignores the time limit and the noise target; time and noise bake in passes
     # of one sample per pixel per batch, noise with the time limit as a cap
     props.time_budget, props.noise_target = 30.0, 0.08
