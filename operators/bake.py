@@ -368,6 +368,24 @@ def running_bake(scene=None):
     return _running.get(scene.name_full)
 
 
+def load_core(report):
+    """The render core (_core), or None once report (an operator's) has said why it does not load."""
+    try:
+        return _core()
+    except ImportError as e:
+        traceback.print_exc()
+        report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
+        return None
+
+
+def free_to_bake(report, scene) -> bool:
+    """No bake runs for scene; else report says so."""
+    if running_bake(scene) is not None:
+        report({'ERROR'}, f"A caustics bake is already running for scene '{scene.name}'")
+        return False
+    return True
+
+
 class ModalBake:
     """The state of one interactive bake, driven by the modal operator's events.
 
@@ -385,15 +403,9 @@ class ModalBake:
         self.text = ""
 
     def start(self, context) -> bool:
-        try:
-            self.core = _core()
-        except ImportError as e:
-            traceback.print_exc()
-            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
-            return False
+        self.core = load_core(self.report)
         scene = context.scene
-        if running_bake(scene) is not None:
-            self.report({'ERROR'}, f"A caustics bake is already running for scene '{scene.name}'")
+        if self.core is None or not free_to_bake(self.report, scene):
             return False
         try:
             if self.task is None:

@@ -14,12 +14,11 @@ frame's file (bake.prepare). In background mode ``execute()`` runs the same step
 from __future__ import annotations
 
 import time
-import traceback
 
 import bpy
 
-from .bake import (LAYER_NAME, ModalBake, ModalOperator, _core, _Progress, _running, albedo_path, conclude, frames_pattern,
-                   plain_stats, prepare, report_failure, resolve_output_path, running_bake, write_layer)
+from .bake import (LAYER_NAME, ModalBake, ModalOperator, _Progress, _running, albedo_path, conclude, free_to_bake,
+                   frames_pattern, load_core, plain_stats, prepare, report_failure, resolve_output_path, write_layer)
 from .job import BakeJob
 
 
@@ -47,14 +46,9 @@ class RangeBake:
         self.cancelled, self.text = False, ""
 
     def start(self, context) -> bool:
-        try:
-            self.core = _core()
-        except ImportError as e:
-            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
-            return False
+        self.core = load_core(self.report)
         scene = context.scene
-        if running_bake(scene) is not None:
-            self.report({'ERROR'}, f"A caustics bake is already running for scene '{scene.name}'")
+        if self.core is None or not free_to_bake(self.report, scene):
             return False
         self.frames = range_frames(scene)
         if not self.frames:
@@ -189,10 +183,8 @@ class SMBS_OT_bake_frame_range(ModalOperator, bpy.types.Operator):
         """The frames on this thread (background mode): progress lines, a signal or an error ends the
         range with the frames done kept."""
         rb = RangeBake(self.report)
-        try:
-            rb.core = _core()
-        except ImportError as e:
-            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
+        rb.core = load_core(self.report)
+        if rb.core is None:
             return {'CANCELLED'}
         scene = context.scene
         rb.frames, rb.key, rb.frame0 = range_frames(scene), scene.name_full, scene.frame_current

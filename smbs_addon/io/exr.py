@@ -368,10 +368,8 @@ def write_json(path, obj) -> Path:
     return save_outputs([(Path(path), json_writer(obj))])[0]
 
 
-def read_exr(path, channel: str | None = None) -> tuple[np.ndarray, dict]:
-    """Read an image as (H, W, C) float32 plus its smbs:* header entries: its colour
-    channels (R, G, B, A, whichever it has; all channels if it has none of them), or with
-    channel, that one channel as (H, W)."""
+def _read_pixels(path) -> tuple[np.ndarray, list, dict]:
+    """An image's pixels as (H, W, C) float32, its channel names and its smbs:* header entries."""
     import OpenImageIO as oiio
 
     inp = oiio.ImageInput.open(str(path))
@@ -380,14 +378,19 @@ def read_exr(path, channel: str | None = None) -> tuple[np.ndarray, dict]:
     try:
         spec = inp.spec()
         img = inp.read_image(oiio.FLOAT)
-        meta = {}
-        for a in spec.extra_attribs:
-            if a.name.startswith("smbs:"):
-                meta[a.name[5:]] = a.value
+        meta = {a.name[5:]: a.value for a in spec.extra_attribs if a.name.startswith("smbs:")}
     finally:
         inp.close()
-    img = np.asarray(img, np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    names = list(spec.channelnames)
+    if img is None:
+        raise SceneError(f"cannot read image '{path}': its pixels do not read")
+    return np.asarray(img, np.float32).reshape(spec.height, spec.width, spec.nchannels), list(spec.channelnames), meta
+
+
+def read_exr(path, channel: str | None = None) -> tuple[np.ndarray, dict]:
+    """Read an image as (H, W, C) float32 plus its smbs:* header entries: its colour
+    channels (R, G, B, A, whichever it has; all channels if it has none of them), or with
+    channel, that one channel as (H, W)."""
+    img, names, meta = _read_pixels(path)
     if channel is not None:
         if channel not in names:
             raise SceneError(f"image '{path}' has no channel '{channel}' (it has {', '.join(names)})")
@@ -413,21 +416,8 @@ def read_header(path) -> dict:
 
 def read_channels(path) -> tuple[dict, dict]:
     """Every channel of an EXR by name, (H, W) float32 each, and its smbs:* header entries."""
-    import OpenImageIO as oiio
-
-    inp = oiio.ImageInput.open(str(path))
-    if inp is None:
-        raise SceneError(f"cannot read image '{path}': {oiio.geterror()}")
-    try:
-        spec = inp.spec()
-        img = inp.read_image(oiio.FLOAT)
-        meta = {a.name[5:]: a.value for a in spec.extra_attribs if a.name.startswith("smbs:")}
-    finally:
-        inp.close()
-    if img is None:
-        raise SceneError(f"cannot read image '{path}': its pixels do not read")
-    img = np.asarray(img, np.float32).reshape(spec.height, spec.width, spec.nchannels)
-    return {n: img[:, :, i] for i, n in enumerate(spec.channelnames)}, meta
+    img, names, meta = _read_pixels(path)
+    return {n: img[:, :, i] for i, n in enumerate(names)}, meta
 
 
 def remove_stale(path) -> list:

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 from testkit import scenes
+from testkit.checks import TARGETS, hits_spheres, mean_se, uniform_sphere
 from smbs_addon import BakeSettings, bake
 from smbs_addon.core import embree
 from smbs_addon.kernels import eye
@@ -22,8 +23,6 @@ from smbs_addon.shading.lights import emit
 from smbs_addon.baking.plan import make_plan
 from smbs_addon.trace.tracer import Tracer
 
-# two overlapping spheres under a light at (0, 0, 3)
-TARGETS = np.array([[0.3, 0.0, 0.5, 0.4], [-0.2, 0.1, 0.6, 0.5]])
 POWER = 100.0
 
 
@@ -33,26 +32,6 @@ def _light_scene(kind, **kw):
     b.light("L", kind, location=(0, 0, 3), target=(0, 0, 0), power=POWER, **kw)
     b.set_camera((0, -6, 5), (0, 0, 0), resolution_x=8, resolution_y=6)
     return b.build()
-
-
-def _hits_spheres(o, d, spheres):
-    """Whether rays o + t d (t > 0) meet any of the spheres."""
-    hit = np.zeros(len(d), bool)
-    for c, r in zip(spheres[:, :3], spheres[:, 3]):
-        oc = o - c
-        b = (oc * d).sum(-1)
-        disc = b * b - ((oc * oc).sum(-1) - r * r)
-        hit |= (disc >= 0) & (-b + np.sqrt(np.maximum(disc, 0)) > 0)
-    return hit
-
-
-def _uniform_sphere(rng, n):
-    d = rng.standard_normal((n, 3))
-    return d / np.linalg.norm(d, axis=1, keepdims=True)
-
-
-def _mean_se(x):
-    return x.mean(), x.std(ddof=1) / math.sqrt(len(x))
 
 
 @pytest.mark.parametrize("kind, kw", [("POINT", dict(radius=0.0)), ("POINT", dict(radius=0.15)),
@@ -68,12 +47,12 @@ def test_emitted_flux_is_the_light_s_flux_into_its_targets(kind, kw):
     scene = _light_scene(kind, **kw)
     ph = emit(scene, 0, TARGETS, 400_000, np.random.default_rng(1))
     assert np.all(np.isfinite(ph.w)) and np.allclose(np.linalg.norm(ph.d, axis=1), 1.0)
-    got, got_se = _mean_se(ph.w[:, 0] * len(ph.w))
+    got, got_se = mean_se(ph.w[:, 0] * len(ph.w))
     rng = np.random.default_rng(2)
     n = 2_000_000
     if kind == "POINT":
         grown = TARGETS + np.array([0, 0, 0, kw["radius"]])
-        hit = _hits_spheres(np.array([0.0, 0.0, 3.0]), _uniform_sphere(rng, n), grown)
+        hit = hits_spheres(np.array([0.0, 0.0, 3.0]), uniform_sphere(rng, n), grown)
         x = POWER / (4 * math.pi) * 4 * math.pi * hit
     elif kind == "AREA":
         if kw["shape"] == "DISK":
@@ -87,7 +66,7 @@ def test_emitted_flux_is_the_light_s_flux_into_its_targets(kind, kw):
         s = np.sqrt(u1)
         d = np.column_stack([s * np.cos(2 * math.pi * u2), s * np.sin(2 * math.pi * u2), -np.sqrt(1 - u1)])
         assert abs(area - scene.light_size[0].prod() * (math.pi / 4 if kw["shape"] == "DISK" else 1)) < 1e-12
-        x = POWER / (math.pi * area) * math.pi * area * _hits_spheres(o, d, TARGETS)
+        x = POWER / (math.pi * area) * math.pi * area * hits_spheres(o, d, TARGETS)
     else:  # a sun straight down: the discs' union seen from above
         lo, hi = (TARGETS[:, :2] - TARGETS[:, 3:]).min(0), (TARGETS[:, :2] + TARGETS[:, 3:]).max(0)
         q = lo + (hi - lo) * rng.random((n, 2))
@@ -95,7 +74,7 @@ def test_emitted_flux_is_the_light_s_flux_into_its_targets(kind, kw):
         for c, r in zip(TARGETS[:, :2], TARGETS[:, 3]):
             inside |= ((q - c) ** 2).sum(1) <= r * r
         x = POWER * np.prod(hi - lo) * inside
-    want, want_se = _mean_se(x)
+    want, want_se = mean_se(x)
     se = math.hypot(got_se, want_se)
     assert se < 0.01 * want
     assert abs(got - want) < 4 * se, (got, want, se)
