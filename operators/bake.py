@@ -368,6 +368,17 @@ def running_bake(scene=None):
     return _running.get(scene.name_full)
 
 
+def run_modal(op, context, bake):
+    """Start bake (a ModalBake or frames.RangeBake) for the modal operator op, whose timer then steps it."""
+    op._bake = bake
+    if not bake.start(context):
+        return {'CANCELLED'}
+    wm = context.window_manager
+    op._timer = wm.event_timer_add(0.1, window=context.window)
+    wm.modal_handler_add(op)
+    return {'RUNNING_MODAL'}
+
+
 def load_core(report):
     """The render core (_core), or None once report (an operator's) has said why it does not load."""
     try:
@@ -511,13 +522,7 @@ class ModalOperator:
         task = self.modal_task(context)
         if task is False:
             return {'CANCELLED'}
-        self._bake = ModalBake(self.report, task)
-        if not self._bake.start(context):
-            return {'CANCELLED'}
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.modal_handler_add(self)
-        return {'RUNNING_MODAL'}
+        return run_modal(self, context, ModalBake(self.report, task))
 
     def modal(self, context, event):
         result = self._bake.step(context, event.type, event.value)

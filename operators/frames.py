@@ -18,7 +18,8 @@ import time
 import bpy
 
 from .bake import (LAYER_NAME, ModalBake, ModalOperator, _Progress, _running, albedo_path, conclude, free_to_bake,
-                   frames_pattern, load_core, plain_stats, prepare, report_failure, resolve_output_path, write_layer)
+                   frames_pattern, load_core, plain_stats, prepare, report_failure, resolve_output_path, run_modal,
+                   write_layer)
 from .job import BakeJob
 
 
@@ -171,13 +172,7 @@ class SMBS_OT_bake_frame_range(ModalOperator, bpy.types.Operator):
     def invoke(self, context, event):
         if bpy.app.background or context.window is None:
             return self.execute(context)
-        self._bake = RangeBake(self.report)
-        if not self._bake.start(context):
-            return {'CANCELLED'}
-        wm = context.window_manager
-        self._timer = wm.event_timer_add(0.1, window=context.window)
-        wm.modal_handler_add(self)
-        return {'RUNNING_MODAL'}
+        return run_modal(self, context, RangeBake(self.report))
 
     def execute(self, context):
         """The frames on this thread (background mode): progress lines, a signal or an error ends the

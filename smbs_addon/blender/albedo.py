@@ -18,6 +18,7 @@ import numpy as np
 
 from ..io.exr import read_passes
 from ..trace.camera import CameraModel
+from .cycles_passes import plain_passes_render
 
 ALBEDO_SAMPLES = 64  # the pass's samples per pixel: a checker's edges inside a pixel within ~1%
 
@@ -38,24 +39,12 @@ def diffuse_color(bpy_scene, camera) -> np.ndarray:
         with tempfile.TemporaryDirectory() as tmp:
             sc.name = "smbs_albedo"
             sc.frame_set(bpy_scene.frame_current, subframe=bpy_scene.frame_subframe)
-            r = sc.render
-            r.engine = "CYCLES"
-            r.use_border = False
-            r.use_motion_blur = False
-            r.use_compositing = r.use_sequencer = False
-            r.image_settings.media_type = "MULTI_LAYER_IMAGE"
-            r.image_settings.color_depth = "32"
-            r.filepath = str(Path(tmp) / "albedo.exr")
-            c = sc.cycles
-            c.device = "CPU"
-            c.samples, c.seed, c.use_animated_seed = ALBEDO_SAMPLES, 0, False
-            c.use_adaptive_sampling = c.use_denoising = False
-            c.max_bounces = 0
+            plain_passes_render(sc, Path(tmp) / "albedo.exr", samples=ALBEDO_SAMPLES)
             for vl in sc.view_layers:
                 vl.use = vl.name == layer
             sc.view_layers[layer].use_pass_diffuse_color = True
             _render(sc)
-            chans = read_passes(r.filepath)
+            chans = read_passes(sc.render.filepath)
             name = next((n for n in ("Diffuse Color", "DiffCol") if f"{n}.R" in chans), None)
             if name is None:  # Blender 5.0 names the pass in full, 4.x DiffCol
                 raise RuntimeError(f"the render has no Diffuse Color pass (it has {', '.join(sorted(chans))})")

@@ -100,6 +100,26 @@ VIEW_SUBPIXELS = 2_000_000  # the view maps' sub-pixels at most (two float32 map
 VIEW_MOST = 4  # sub-pixels per pixel side at most
 
 
+def plain_passes_render(sc, path, samples: int):
+    """Set the copy sc of a scene to render its passes plainly with Cycles on the CPU: to a 32-bit multilayer
+    EXR at path, no border, motion blur, compositing or sequencer, a fixed seed, samples per pixel, no
+    adaptive sampling, denoising or bounces. Returns its Cycles settings for more."""
+    r = sc.render
+    r.engine = "CYCLES"
+    r.use_border = False
+    r.use_motion_blur = False
+    r.use_compositing = r.use_sequencer = False
+    r.image_settings.media_type = "MULTI_LAYER_IMAGE"
+    r.image_settings.color_depth = "32"
+    r.filepath = str(path)
+    c = sc.cycles
+    c.device = "CPU"
+    c.samples, c.seed, c.use_animated_seed = samples, 0, False
+    c.use_adaptive_sampling = c.use_denoising = False
+    c.max_bounces = 0
+    return c
+
+
 def _view_render(sc):
     """Cycles' render of scene sc to its render.filepath."""
     bpy.ops.render.render(write_still=True, scene=sc.name)
@@ -129,20 +149,9 @@ def view_maps(bpy_scene, objects, camera, warn):
             sc.camera = bpy_scene.camera
             sc.frame_set(bpy_scene.frame_current, subframe=bpy_scene.frame_subframe)
             r, ur = sc.render, bpy_scene.render
-            r.engine = "CYCLES"
             r.resolution_x, r.resolution_y, r.resolution_percentage = W * s, H * s, 100
             r.pixel_aspect_x, r.pixel_aspect_y = ur.pixel_aspect_x, ur.pixel_aspect_y
-            r.use_border = False
-            r.use_motion_blur = False
-            r.use_compositing = r.use_sequencer = False
-            r.image_settings.media_type = "MULTI_LAYER_IMAGE"
-            r.image_settings.color_depth = "32"
-            r.filepath = str(Path(tmp) / "view.exr")
-            c = sc.cycles
-            c.device = "CPU"
-            c.samples, c.seed, c.use_animated_seed = 1, 0, False
-            c.use_adaptive_sampling = c.use_denoising = False
-            c.max_bounces = 0
+            c = plain_passes_render(sc, Path(tmp) / "view.exr", samples=1)
             c.filter_width = 0.01  # each sub-pixel's sample at its centre
             vl = sc.view_layers[0]
             vl.use_pass_normal = vl.use_pass_position = True
