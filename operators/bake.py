@@ -539,10 +539,8 @@ class ModalOperator:
     def execute_task(self, context, task) -> set:
         """execute() of a task's operator: the task on this thread (background mode, or no
         window), with the same progress lines and reports as a bake."""
-        try:
-            core = _core()
-        except ImportError as e:
-            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
+        core = load_core(self.report)
+        if core is None:
             return {'CANCELLED'}
         background = bpy.app.background
         progress = _Progress(context.window_manager, background)
@@ -572,11 +570,8 @@ class SMBS_OT_bake_caustics(ModalOperator, bpy.types.Operator):
 
     def execute(self, context):
         background = bpy.app.background
-        try:
-            core = _core()
-        except ImportError as e:
-            traceback.print_exc()
-            self.report({'ERROR'}, f"SMBS Caustics cannot load its render core: {e}")
+        core = load_core(self.report)
+        if core is None:
             return {'CANCELLED'}
         progress = _Progress(context.window_manager, background)
         if not background:

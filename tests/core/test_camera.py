@@ -29,16 +29,20 @@ pytestmark = pytest.mark.bpy
 F32_TOL = 2e-6
 
 
+def _empty_scene_with_camera():
+    """An empty Blender session's scene with one camera object, its scene camera: (scene, object)."""
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    sc = bpy.context.scene
+    ob = bpy.data.objects.new("Cam", bpy.data.cameras.new("Cam"))
+    sc.collection.objects.link(ob)
+    sc.camera = ob
+    return sc, ob
+
+
 @pytest.fixture(scope="module")
 def blender():
     """An empty Blender session with one camera object (module scoped: cheap tests)."""
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    data = bpy.data.cameras.new("Cam")
-    ob = bpy.data.objects.new("Cam", data)
-    sc.collection.objects.link(ob)
-    sc.camera = ob
-    yield sc, ob
+    yield _empty_scene_with_camera()
     bpy.ops.wm.read_factory_settings(use_empty=True)
 
 
@@ -265,12 +269,7 @@ def cycles_borders(tmp_path_factory):
     pixels it rendered (alpha > 0), top row first."""
     import OpenImageIO as oiio
 
-    bpy.ops.wm.read_factory_settings(use_empty=True)
-    sc = bpy.context.scene
-    data = bpy.data.cameras.new("Cam")
-    ob = bpy.data.objects.new("Cam", data)
-    sc.collection.objects.link(ob)
-    sc.camera = ob
+    sc, ob = _empty_scene_with_camera()
     sc.world = bpy.data.worlds.new("World")
     sc.render.engine = "CYCLES"
     sc.cycles.device = "CPU"
