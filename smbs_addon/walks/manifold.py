@@ -163,7 +163,7 @@ def chain_types(scene, plan, opts: ManifoldOptions, light_paths: bool = True) ->
     return out
 
 
-def manifold_chunk(job, walk, start, n, rng, eye_stats) -> None:
+def manifold_chunk(job, walk, start, n, rng, eye_stats, strata=None) -> None:
     """Eye samples start..start+n of a batch (of job.eye_per_batch()): receivers, then every light x
     chain type; for receivers seen through mirrors or glass, also the caustic light that meets more
     diffuse surfaces (indirect.gather, with these walks at every diffuse vertex).
@@ -171,10 +171,10 @@ def manifold_chunk(job, walk, start, n, rng, eye_stats) -> None:
     job: the bake (baking.job.Job: scene, tracer, cam, film, plan, light_stats, physical,
     indirect_lights(): the lights whose direct light counts after a diffuse bounce); walk: its walks
     (baking.walking.WalkSetup: opts, types, guide, opts_by_light: {light index: ManifoldOptions}
-    where a light walks otherwise, method auto)."""
+    where a light walks otherwise, method auto); strata: the eye samples stratified (eye.film_samples)."""
     scene, tracer, film, plan, opts = job.scene, job.tracer, job.film, job.plan, walk.opts
     rc = eye_receivers(scene, tracer, job.cam, film, plan, start, n, job.eye_per_batch(), rng, eye_stats,
-                       EyePaths(min_specular=0, scale_eta=opts.physical))
+                       EyePaths(min_specular=0, scale_eta=opts.physical), strata=strata)
     ctxs = {}
     for lp in plan.lights:
         ctx = Ctx(scene, tracer, plan, job.light_stats[lp.name])
@@ -339,7 +339,10 @@ def _hand_off_seen(scene, lp, st) -> bool:
         return False
     if walked > 0 or gathered > 0:
         return True
-    return st.get("walks", 0) == 0 and can_focus(scene, lp)
+    # the first chunk: no walk of any kind yet (an anchored bake's straight-line walks count; auto's
+    # anchor alone walks no other, and counting only the others kept the hand-off on in every chunk of
+    # pool_sun, 80% of its time for no path found)
+    return st.get("walks", 0) + st.get("anchor_walks", 0) == 0 and can_focus(scene, lp)
 
 
 def handoff_hits(scene, li, casters=()) -> float:

@@ -205,7 +205,12 @@ def test_seen_handoff_stops_where_its_gather_finds_fewer_focusing_paths_than_the
                      ({**ran, "seen_focus": 16, "seen_handoff_paths": 7}, False),
                      ({**ran, "seen_focus": 16, "seen_handoff_paths": 8}, True),
                      ({**ran, "seen_focus": 225, "seen_handoff_paths": 1}, False),
-                     ({"walks": 10, "seen_focus": 225, "seen_handoff_paths": 1}, True)):  # it has not run yet
+                     ({"walks": 10, "seen_focus": 225, "seen_handoff_paths": 1}, True),  # it has not run yet
+                     # auto's anchor alone walks from the straight line only: those walks tell as well (they
+                     # once did not, and the pool under a sun handed off in every chunk, 80% of its time)
+                     ({"anchor_walks": 10}, False),
+                     ({"anchor_walks": 10, "seen_handoff_chunks": 1}, False),
+                     ({"anchor_walks": 10, "seen_focus": 3}, True)):
         assert manifold._hand_off_seen(ball, lp, st) is want, st
 
 
