@@ -95,6 +95,8 @@ def indirect_batch(job, b) -> None:
     receivers the camera sees directly (indirect.trace_indirect_photons): photons over the whole
     scene, spp per pixel and light."""
     scene, plan, settings = job.scene, job.plan, job.settings
+    if not sees_directly(plan):  # they splat at receivers seen directly only (pool_sun: 5% of its time, no splat)
+        return
     for li in job.indirect_lights():
         st = job.indirect_stats.setdefault(scene.light_names[li], {"photons": 0, "rays_photon": 0, "rays_camera": 0,
                                                                    "splats": 0, "time_s": 0.0})
@@ -165,7 +167,7 @@ def walks_batch(job, b, walk, eye_stats) -> None:
     for c, start in enumerate(range(0, per_batch, WALK_CHUNK)):
         job.prog.check()
         n = min(WALK_CHUNK, per_batch - start)
-        manifold_chunk(job, walk, start, n, job.rng(WALKS, 0, b, c), eye_stats)
+        manifold_chunk(job, walk, start, n, job.rng(WALKS, 0, b, c), eye_stats, job.strata(b))
         job.prog.step(f"{job.settings.method}, batch {b + 1}/{job.settings.batches}")
 
 
