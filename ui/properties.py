@@ -25,7 +25,7 @@ BAKE_FIELDS = (
     "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "first_step",
     "stall_stop", "anchor", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
-    "max_chain", "clamp_g", "handoff", "indirect", "pilots", "seeding",
+    "max_chain", "clamp_g", "handoff", "indirect", "pilots", "seeding", "sampling",
 )
 
 METHOD_ITEMS = (
@@ -208,6 +208,13 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
         description="Unbiased SMS and SMBS: a walk that cannot make large mutations gives up when "
                     "four steps in a row shrank its distance to the light by less than 10%; the "
                     "estimate stays unbiased. MNEE and the biased estimator never give up early",
+    )
+    sampling: EnumProperty(
+        name="Sampling", default="stratified",
+        items=(("stratified", "Stratified", "Each pixel's positions and light samples over the whole bake "
+                "spread evenly (a scrambled Sobol' sequence per pixel): less noise for the same samples"),
+               ("independent", "Independent", "Each sample's position and light sample drawn independently")),
+        description="How the manifold walks' eye samples and their light samples are drawn (unbiased either way)",
     )
     anchor: BoolProperty(
         name="Anchor Walk", default=True,

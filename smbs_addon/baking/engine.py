@@ -30,7 +30,7 @@ def start(scene, settings, report, cancel, on_plan, watch, keep_partial=False, l
     t0 = time.perf_counter()
     plan = make_plan(scene, settings.use_cycles_flags, left_out)
     cam = CameraModel(scene.camera)
-    check_memory(scene, cam.W, cam.H, settings.batches)
+    check_memory(scene, cam.W, cam.H, settings.batches, settings.batches if settings.sampling == "stratified" else 0)
     check_samples(scene, settings)
     if plan.nothing:
         return nothing_to_bake(scene, settings, plan, cam, t0, on_plan)
@@ -64,13 +64,15 @@ def bake_fixed(scene, settings, cancel=None, watch=None, left_out=None) -> BakeR
     return run(job, settings.method == "reference")
 
 
-def film_memory(width: int, height: int, batches: int, textured: bool = False) -> int:
+def film_memory(width: int, height: int, batches: int, textured: bool = False, replicates: int = 0) -> int:
     """Bytes the film of a bake needs: per pixel the sum, sum of squares and current batch
     (3 float64 each), the image and variance made from them (float64, then float32), and one
     float32 luminance image per batch (kept, then stacked); with textured receivers, their two
-    sums and the current batch's two (3 float64 each) and the two float32 images made from them."""
+    sums and the current batch's two (3 float64 each) and the two float32 images made from them;
+    with replicates (Film.use_replicates), each one's sum and then its mean (3 float64 each)."""
     px = int(width) * int(height)
     extra = px * 2 * 3 * (2 * 8 + 4) if textured else 0
+    extra += 2 * int(replicates) * px * 3 * 8
     return px * (3 * 3 * 8 + 2 * 3 * 8 + 2 * 3 * 4) + 2 * int(batches) * px * 4 + extra
 
 
@@ -93,9 +95,9 @@ def check_samples(scene, settings) -> None:
                          f"spp {MAX_SAMPLES // max((x1 - x0) * (y1 - y0), 1)} here")
 
 
-def check_memory(scene, width: int, height: int, batches: int) -> None:
+def check_memory(scene, width: int, height: int, batches: int, replicates: int = 0) -> None:
     """Refuse, before anything is allocated, a film bigger than MEMORY_BUDGET."""
-    need = film_memory(width, height, batches, scene.textured_materials() is not None)
+    need = film_memory(width, height, batches, scene.textured_materials() is not None, replicates)
     if need > MEMORY_BUDGET:
         raise SceneError(
             f"scene '{scene.name}': a {width} x {height} caustic layer needs about "

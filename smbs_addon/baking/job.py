@@ -7,9 +7,9 @@ import dataclasses
 import time
 from dataclasses import dataclass, field
 
-from ..core import signals
+from ..core import qmc, signals
 from ..core.errors import BakeCancelled
-from ..core.random import stream
+from ..core.random import STRATA, stream
 from ..trace.eye import film_cells
 
 MEMORY_BUDGET = 8 * 2**30  # bytes the film may take; a bigger resolution is refused before baking
@@ -80,6 +80,15 @@ class Job:
         the batches) is a sparser batch over the whole film (eye.film_samples), not a whole pass:
         1 spp in 8 batches costs 1 spp, not 8."""
         return max(1, film_cells(self.cam, self.film) * self.settings.spp // self.settings.batches)
+
+    def strata(self, b: int):
+        """Batch b's stratified eye samples (core.qmc.Strata), or None where the settings draw them
+        independently (sampling "independent"): batch b continues replicate b mod batches's
+        sequences (film.Film.use_replicates), each replicate scrambled apart."""
+        if self.settings.sampling != "stratified":
+            return None
+        r, k = divmod(b, self.settings.batches)[::-1]
+        return qmc.Strata(int(self.rng(STRATA, r).integers(2**32)), k)
 
     def rng(self, *key):
         """The random stream of this bake's seed and key (core.random), and of its shard or frame

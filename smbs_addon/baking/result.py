@@ -25,7 +25,8 @@ class BakeResult:
     image: np.ndarray  # (H,W,3) float32, top row first
     variance: np.ndarray  # (H,W,3) float32, variance of the image estimate
     stats: dict = field(default_factory=dict)
-    batch_luminance: np.ndarray | None = None  # (B,H,W) float32, one image per independent batch
+    batch_luminance: np.ndarray | None = None  # (B,H,W) float32, one image per independent group: a batch, or a
+    # replicate of batches (stratified eye samples: film.Film.use_replicates)
     # (or per group of equal batches, film.MAX_GROUPS at most)
     std: np.ndarray | None = None  # (H,W) float32, standard deviation of each pixel's mean luminance
     # Receivers whose colour is a texture (Scene.mat_textured), where the camera sees them
@@ -140,11 +141,13 @@ def finish(job, batches, stop, t_first, rays) -> BakeResult:
         extra["indirect"] = job.indirect_stats
         rays += sum(st["rays_photon"] + st["rays_camera"] for st in job.indirect_stats.values())
     rays += extra.get("auto", {}).get("rays", 0)  # the pilot's bakes: the bake's time counts them too
-    image, variance, batch_lum = _film_images(job)
+    # batch_lum: the batches in time (the convergence fit); groups: the independent ones the error bar
+    # reads, the batches themselves or their replicates (film.Film.use_replicates)
+    image, variance, batch_lum, groups = _film_images(job)
     region = caustic_region(image)
     conv = convergence.convergence(batch_lum, np.array(film.batch_end), t_first, region,
                                    film.group_size * len(batch_lum))
-    std = convergence.pixel_std(batch_lum)
+    std = convergence.pixel_std(groups)
     layer = float(channel_mean(image).sum())
     for st in job.light_stats.values():  # the trial cap's bias, at least, as a share of the layer
         if "trials" in st:
@@ -161,14 +164,14 @@ def finish(job, batches, stop, t_first, rays) -> BakeResult:
         "skipped": [{"kind": k, "name": n, "reason": r} for k, n, r in plan.skipped],
         "plan": plan_stats(plan),
         "nothing_to_bake": None,
-        "noise": noise_summary(image, variance, batch_lum, region),
+        "noise": noise_summary(image, variance, groups, region),
         # an error bar and a price (convergence.py): noise only, a biased estimator's bias is not in it
-        "relative_error": finite_or_none(convergence.relative_error(batch_lum, region)),
+        "relative_error": finite_or_none(convergence.relative_error(groups, region)),
         "error_leaves_out": bias_left_out(settings, job.light_stats),
         "seconds_to_halve_error": conv["seconds_to_halve_error"],
         "convergence": {**conv, "setup_s": t_first, "last_batch_end_s": film.batch_end[-1] if film.batch_end else 0.0,
                         "batches_kept": int(len(batch_lum)),
-                        "batches_per_kept": film.group_size},
+                        "batches_per_kept": film.group_size, "replicates": int(film.replicates)},
         "stopped_by": stop.reason,
     }
     if stop.reason == "signal":  # a bake with keep_partial stopped by a signal: the batches done
@@ -178,7 +181,7 @@ def finish(job, batches, stop, t_first, rays) -> BakeResult:
         stats["textured_share"] = float(channel_mean(textured).sum()) / layer if layer > 0 else 0.0
         textured, per_albedo = textured.astype(np.float32), per_albedo.astype(np.float32)
     return BakeResult(image=image.astype(np.float32), variance=variance.astype(np.float32), stats=stats,
-                      batch_luminance=batch_lum, std=std, textured=textured, per_albedo=per_albedo)
+                      batch_luminance=groups, std=std, textured=textured, per_albedo=per_albedo)
 
 
 def _film_images(job):
@@ -195,12 +198,14 @@ def _film_images(job):
                          f"float32 image holds; lower the lights' power (the brightest: '{bright}')")
     variance = np.minimum(variance, F32_MAX)  # its square can overflow where the image does not
     batch_lum = np.stack(film.batch_luminance)
+    groups = batch_lum if not film.replicates else np.stack(film.error_luminance)
     if scene.camera.use_border and scene.camera.use_crop_to_border:
         x0, x1, y0, y1 = job.cam.region
         image = image[y0:y1, x0:x1]
         variance = variance[y0:y1, x0:x1]
         batch_lum = batch_lum[:, y0:y1, x0:x1]
-    return image, variance, batch_lum
+        groups = groups[:, y0:y1, x0:x1]
+    return image, variance, batch_lum, groups
 
 
 def complete_layer(result: BakeResult, albedo) -> tuple[np.ndarray, np.ndarray | None]:

@@ -27,6 +27,9 @@ ESTIMATORS = ("unbiased", "biased")
 # frames of a range: the random streams the same for every frame ("fixed": the noise of a still part
 # of the picture stays still), or keyed by the frame ("frame"); bench/results/flicker.md measured both
 SEEDINGS = ("fixed", "frame")
+# the walks' eye samples: each film cell's jitter and light samples a scrambled Sobol' sequence over the
+# bake (core.qmc), or independent uniforms; bench/results/pools.md measured both
+SAMPLINGS = ("stratified", "independent")
 DEFAULT_SEEDING = "fixed"
 # what the image does not depend on: a file baked with other values of these is the same bake
 NOT_THE_IMAGE = ("threads",)
@@ -83,6 +86,7 @@ class BakeSettings:
     shard: int = 0  # 1..shards: this bake is shard K of N of a frame's samples, its streams keyed by K
     # (baking/shards.py); 0: the whole bake
     shards: int = 1
+    sampling: str = "stratified"  # the walks' eye samples (SAMPLINGS): stratified per film cell, or independent
 
     def validate(self) -> None:
         if self.method not in METHODS:
@@ -127,6 +131,8 @@ class BakeSettings:
             raise SceneError(f"anchor_walks must be a share in (0, 1], not {self.anchor_walks}")
         if not (self.clamp_g >= 0):
             raise SceneError(f"clamp_g must be 0 (off) or a positive luminance, not {self.clamp_g}")
+        if self.sampling not in SAMPLINGS:
+            raise SceneError(f"sampling must be one of {', '.join(SAMPLINGS)}, not '{self.sampling}'")
         if self.seeding not in SEEDINGS:
             raise SceneError(f"seeding must be one of {', '.join(SEEDINGS)}, not '{self.seeding}'")
         if not (isinstance(self.shards, (int, np.integer)) and self.shards >= 1

@@ -40,7 +40,8 @@ class StopRule:
         return time.perf_counter() - self.t0 - self.watch.now()
 
     def _error(self) -> float:
-        groups = np.stack(self.film.batch_luminance) if len(self.film.batch_luminance) >= 2 else None
+        groups = self.film.error_luminance
+        groups = np.stack(groups) if len(groups) >= 2 else None
         if groups is None:
             return math.inf
         lum = channel_mean(self.film.image)

@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 import argparse
-from ..baking.settings import BakeSettings, METHODS, SEEDINGS
+from ..baking.settings import BakeSettings, METHODS, SAMPLINGS, SEEDINGS
 from ..io.sequence import parse_frames
 from .exits import EXIT_USAGE
 
@@ -110,6 +110,9 @@ def _bake_options(b):
     b.add_argument("--threads", type=_positive_int, default=None, help="worker threads (default: all cores)")
     b.add_argument("--flags", choices=("AUTO", "ON", "OFF"), default="AUTO",
                    help="honour Cycles' caustic caster/receiver/light flags")
+    b.add_argument("--sampling", choices=SAMPLINGS, default=SAMPLINGS[0],
+                   help="manifold methods: each pixel's sample positions and light samples over the bake 'stratified' "
+                        "(default: a scrambled Sobol' sequence per pixel) or 'independent'")
     b.add_argument("--no-indirect", dest="indirect", action="store_false",
                    help="leave out caustics seen after further diffuse bounces (first-order only)")
     b.add_argument("--clamp", type=_clamp, default=0.0, metavar="LUMINANCE",
@@ -140,7 +143,8 @@ def bake_settings(args, method: str, spp: int, time_budget: float = 0.0, noise_t
                             threads=args.threads or 0, use_cycles_flags=args.flags,
                             estimator=args.estimator, trials=args.trials,
                             indirect=args.indirect, time_budget=time_budget,
-                            noise_target=noise_target, pilots=args.pilots, clamp_g=args.clamp)
+                            noise_target=noise_target, pilots=args.pilots, clamp_g=args.clamp,
+                            sampling=args.sampling)
     if getattr(args, "seeding", None):
         settings.seeding = args.seeding
     settings.validate()

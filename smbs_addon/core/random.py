@@ -25,6 +25,7 @@ PILOT_VIEW = 9  # the plan's photons weighing a light's flux towards what the ca
 PLAN_LOOK = 10  # the plan's look from the camera (seed 0): (part,)
 PILOT_BOUNCE = 11  # the plan's pilots after a diffuse bounce aimed at a left-out caster: (light, caster)
 PILOT_PROBE = 12  # the plan's shadow rays probing whether a light reaches a caster: (light, caster)
+STRATA = 13  # the scramble of the walks' stratified eye samples (core.qmc): (replicate,), one draw
 
 # What a bake's streams add after their own key (BakeSettings.stream_suffix), only where set, so that a
 # bake of one frame, unsharded, keeps the streams (and the pixels) it always had: a shard of a frame's

@@ -32,7 +32,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..core import embree, lanes
+from ..core import embree, lanes, qmc
 from ..kernels.gather import gather_lanes
 from ..kernels import handoff, records
 from ..shading import coat as layer, optics
@@ -81,13 +81,16 @@ def _albedo(scene, mat):
     return scene.mat_color[mat]
 
 
-def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint):
+def _diffuse_bounce(rng, w_in, ng, ns, beta, albedo, adjoint, direction_u=None):
     """Cosine-sampled bounce off diffuse vertices (about the shading normal on w_in's side),
-    with Russian roulette on the albedo (handoff.diffuse_rows). Returns (directions, weights,
-    kept vertices)."""
+    with Russian roulette on the albedo (handoff.diffuse_rows). direction_u: (rows, (n, 2)
+    uniforms) the direction's two numbers of those rows (stratified: qmc.BOUNCE). Returns
+    (directions, weights, kept vertices)."""
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
-    return handoff.diffuse_rows(rng.random((3, len(w_in))), f64(w_in), f64(ng), f64(ns), f64(beta), f64(albedo),
-                                bool(adjoint))
+    u = rng.random((3, len(w_in)))
+    if direction_u is not None:
+        u[:2, direction_u[0]] = direction_u[1].T
+    return handoff.diffuse_rows(u, f64(w_in), f64(ng), f64(ns), f64(beta), f64(albedo), bool(adjoint))
 
 
 def trace_indirect_photons(scene, tracer, cam, film, plan, photons, rng, stats, physical=False):
@@ -254,8 +257,10 @@ class _GatherInNumpy:
         scene, lim = self.scene, self.lim
         # a diffuse bounce is never a caustic path's last event: it must fit the limits
         go = np.flatnonzero(lim.fits(f["cnt"] + ONE_DIFFUSE))
+        first = np.flatnonzero(f["depth"][go] == 0)  # bounces off x0: stratified where its sample is
+        strat = None if self.rc.strata is None else (first, self.rc.strata[f["lane"][go[first]], qmc.BOUNCE])
         d, beta, k = _diffuse_bounce(self.rng, f["w"][go], f["ng"][go], f["ns"][go], f["beta"][go],
-                                     _albedo(scene, f["mat"][go]), False)
+                                     _albedo(scene, f["mat"][go]), False, strat)
         sel = go[k]
         x0 = np.flatnonzero(f["depth"][sel] == 0)
         if x0.size and layer.has_layers(scene):  # x0 under a Principled coat (kernels/gather.py's gather_rows the same)
@@ -344,7 +349,8 @@ class _GatherInNumpy:
                 sub = Receivers(rx=rc.rx[ln], ry=rc.ry[ln], p=g["p"][rec], ng=g["ng"][rec], ns=g["ns"][rec],
                                 w_eye=g["w"][rec], beta=g["beta"][rec], mat=g["mat"][rec],
                                 eye_specular=np.maximum(rc.eye_specular[ln], 1), weight=rc.weight[ln],
-                                prior=g["cnt"][rec])
+                                prior=g["cnt"][rec],
+                                strata=None if rc.strata is None else qmc.after_bounce(rc.strata[ln]))
                 np.add.at(self.radiance, ln, connect(sub))
         return g
 

@@ -2,20 +2,22 @@
 
 Film positions are stratified: the render region widened by the pixel filter's
 radius (so border pixels get their whole filter footprint) is cut into unit
-cells, sample i of a batch goes to cell i mod cells at a uniform position in it,
+cells, sample i of a batch goes to cell i mod cells at a uniform position in it
+(with strata, a cell's positions over the bake a scrambled Sobol' sequence: core.qmc),
 and an estimate is splatted through the filter with weight 1 / (samples in its
 cell this batch), an unbiased estimate of integral h(x - c) L(x) dx.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 
 from ..scene import arrays as S
 from ..shading.coat import has_layers, table as layer_table, weight as layer_weight
 from ..core.vec import dot
-from ..core import embree, lanes
+from ..core import embree, lanes, qmc
 from ..kernels import eye, records
 from ..kernels.records import EyeOut, EyePaths, REC_BETA, REC_NG, REC_NS, REC_P, REC_W, ViewTables
 from ..shading.optics import materials
@@ -44,13 +46,16 @@ class Receivers:
     # (M,3) x0's smooth shading normal (Cycles' sd->N), which ns is unless a bump bends it there
     # (view_bumped): the bump's shadowing term reads both (optics.bump_shadowing1); None: ns
     sn: np.ndarray = None
+    # (M, qmc.PATH_DIMS) the receiver's sample's stratified uniforms beyond its film position (film_samples
+    # with strata; columns qmc.LIGHT, qmc.BOUNCE, qmc.BOUNCE_LIGHT); None: drawn independently
+    strata: np.ndarray | None = None
 
     def __post_init__(self):
         if self.sn is None:
             self.sn = self.ns
 
     def take(self, idx) -> "Receivers":
-        return Receivers(*(getattr(self, f)[idx] for f in self.__dataclass_fields__))
+        return Receivers(*(None if (v := getattr(self, f)) is None else v[idx] for f in self.__dataclass_fields__))
 
 
 def view_tables(scene, cam) -> ViewTables:
@@ -124,15 +129,25 @@ def film_cells(cam, film) -> int:
     return (x1 - x0 + 2 * r) * (y1 - y0 + 2 * r)
 
 
-def film_samples(cam, film, start, n, n_batch, rng, mask=None):
-    """Samples start..start+n of a batch of n_batch stratified film samples: (rx, ry, weight,
-    the samples' indices in the batch); with mask (bool per film cell, film_cells' grid row by
+class FilmSamples(NamedTuple):
+    rx: np.ndarray  # (N,) raster positions
+    ry: np.ndarray
+    weight: np.ndarray  # (N,) splat weights
+    sample: np.ndarray  # (N,) the samples' indices in the batch
+    strata: np.ndarray | None  # (N, qmc.PATH_DIMS) the path's stratified uniforms (strata given), else None
+
+
+def film_samples(cam, film, start, n, n_batch, rng, mask=None, strata=None) -> FilmSamples:
+    """Samples start..start+n of a batch of n_batch stratified film samples; with mask (bool per film cell, film_cells' grid row by
     row), only those in its cells: the others are drawn all the same, so the samples kept are
     the whole film's, bit for bit. n_batch at least the cells: sample i in cell i % cells (each
     cell's weight 1 / its samples); fewer (the light tracer's bent pass below 512 spp): sample i
     in a cell drawn from the i-th of n_batch equal stretches of the cells, row by row, weighted
     by the stretch's length, so that every cell is sampled (in expectation once per batch), not
-    only the first n_batch."""
+    only the first n_batch. strata (core.qmc.Strata), with n_batch at least the cells: each cell's
+    jitter, and the path's uniforms (qmc.PATH_DIMS: the light sample's, the first diffuse bounce's and
+    its light sample's), from the cell's scrambled Sobol' sequence (qmc), the batch's samples
+    continuing it."""
     x0, x1, y0, y1 = cam.region
     r = int(np.ceil(film.filter_width))
     cw = x1 - x0 + 2 * r
@@ -146,12 +161,17 @@ def film_samples(cam, film, start, n, n_batch, rng, mask=None):
         stretch = cells / n_batch
         c = np.minimum(((i + rng.random(n)) * stretch).astype(np.int64), cells - 1)
         weight = np.full(n, stretch)
-    rx = x0 - r + (c % cw) + rng.random(n)
-    ry = y0 - r + (c // cw) + rng.random(n)
+    if strata is not None and n_batch >= cells:
+        u = qmc.cell_points(c, strata.round * (per + (c < extra)) + i // cells, strata.seed)
+        jx, jy, path_u = u[:, 0], u[:, 1], u[:, 2:]
+    else:
+        jx, jy, path_u = rng.random(n), rng.random(n), None
+    rx = x0 - r + (c % cw) + jx
+    ry = y0 - r + (c // cw) + jy
     if mask is not None:
         keep = mask[c]
-        return rx[keep], ry[keep], weight[keep], i[keep]
-    return rx, ry, weight, i
+        return FilmSamples(rx[keep], ry[keep], weight[keep], i[keep], None if path_u is None else path_u[keep])
+    return FilmSamples(rx, ry, weight, i, path_u)
 
 
 def specular_cells(scene, tracer, cam, film, unseen=None) -> np.ndarray | None:
@@ -208,13 +228,14 @@ def specular_cells(scene, tracer, cam, film, unseen=None) -> np.ndarray | None:
 
 
 def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, paths: EyePaths = EyePaths(),
-                  cells=None) -> Receivers:
+                  cells=None, strata=None) -> Receivers:
     """Trace n eye samples (of a batch of n_batch; with cells, a mask over the film cells, only
     those in its cells) to their first diffuse receiver through up to paths.max_bounces mirrors and
     glass (glass by Fresnel choice; paths.scale_eta: radiance in physical units), keeping those with
     at least paths.min_specular specular vertices on the way: one kernel call (eye.eye_lanes), its
-    random numbers keyed by one draw from rng and each sample's index in the batch."""
-    rx, ry, weight, sample = film_samples(cam, film, start, n, n_batch, rng, cells)
+    random numbers keyed by one draw from rng and each sample's index in the batch. strata: the
+    film samples stratified (film_samples), each receiver keeping its path's uniforms."""
+    rx, ry, weight, sample, path_u = film_samples(cam, film, start, n, n_batch, rng, cells, strata)
     key = int(rng.integers(2**63))
     n = len(rx)
     stats["eye_paths"] = stats.get("eye_paths", 0) + n
@@ -243,4 +264,5 @@ def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
     if has_layers(scene):  # x0's diffuse under its glossy layer, towards the eye (layer.py)
         beta = beta * layer_weight(layer_table(scene), rec_i[:, 2], dot(col(REC_W), ns))[:, None]
     return Receivers(rx=rx[ln], ry=ry[ln], weight=weight[ln], p=col(REC_P), ng=col(REC_NG), ns=ns,
-                     w_eye=col(REC_W), beta=beta, mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior, sn=sn)
+                     w_eye=col(REC_W), beta=beta, mat=rec_i[:, 2], eye_specular=rec_i[:, 1], prior=prior, sn=sn,
+                     strata=None if path_u is None else path_u[ln])

@@ -35,6 +35,11 @@ class Film:
     ``image`` is the mean over batches; ``variance`` the per-pixel variance of
     that mean (from the spread between batches), so the noise estimate is
     honest whatever the estimator's distribution.
+
+    With replicates R (stratified eye samples: core.qmc), batch b belongs to replicate b mod R,
+    whose batches continue one stratified sequence per pixel and are not independent of each
+    other, while the R replicates are: the variance and the error's groups (error_luminance) then
+    come from the spread between the replicates' means.
     """
 
     def __init__(self, width: int, height: int, filter_width: float = 1.5,
@@ -55,6 +60,7 @@ class Film:
         self.batch_end = []
         self.group_size = 1
         self._pending, self._pending_n = None, 0
+        self.replicates, self._rep_sum, self._rep_n = 0, None, None  # use_replicates
         # with textured receivers (Scene.mat_textured): the splats that fell on them where the camera
         # sees them, as they are and per unit albedo, summed over every batch (BakeResult.per_albedo);
         # the current batch's apart until it ends (drop_batch)
@@ -120,6 +126,8 @@ class Film:
             cur = self._cur[a:b]
             self.sum[a:b] += cur
             self.sumsq[a:b] += cur * cur
+            if self._rep_sum is not None:
+                self._rep_sum[self.batches % self.replicates, a:b] += cur
             lum[a:b] = channel_mean(cur)
             cur[:] = 0.0
             if self.textured is not None:
@@ -128,6 +136,8 @@ class Film:
                     part_cur[a:b] = 0.0
 
         lanes.run(part, self.H * self.W, self.threads, END_BATCH_PART)
+        if self.replicates:
+            self._rep_n[self.batches % self.replicates] += 1
         lum = lum.reshape(self.H, self.W)
         self._pending = lum if self._pending is None else self._pending + lum
         self._pending_n += 1
@@ -162,9 +172,34 @@ class Film:
         b = max(self.batches, 1)
         return (self.sum / b).reshape(self.H, self.W, 3)
 
+    def use_replicates(self, replicates: int) -> None:
+        """Group the batches into replicates (before the first batch ends)."""
+        assert self.batches == 0, "replicates are set before the first batch"
+        self.replicates = int(replicates)
+        self._rep_sum = np.zeros((self.replicates, self.H * self.W, 3))
+        self._rep_n = np.zeros(self.replicates, np.int64)
+
+    def _replicate_means(self) -> np.ndarray:
+        """(R', H*W, 3) the means of the replicates that have a batch."""
+        have = np.flatnonzero(self._rep_n)
+        return self._rep_sum[have] / self._rep_n[have, None, None]
+
+    @property
+    def error_luminance(self) -> list:
+        """The independent groups the error bar reads, (H,W) float32 luminance each: the
+        replicates' means, or without replicates the batches' (batch_luminance)."""
+        if not self.replicates:
+            return self.batch_luminance
+        return [channel_mean(m).reshape(self.H, self.W).astype(np.float32) for m in self._replicate_means()]
+
     @property
     def variance(self) -> np.ndarray:
-        """Variance of the mean image per pixel and channel (zero with < 2 batches)."""
+        """Variance of the mean image per pixel and channel (zero with < 2 batches, or replicates)."""
+        if self.replicates:
+            m = self._replicate_means()
+            if len(m) < 2:
+                return np.zeros((self.H, self.W, 3))
+            return (m.var(axis=0, ddof=1) / len(m)).reshape(self.H, self.W, 3)
         b = self.batches
         if b < 2:
             return np.zeros((self.H, self.W, 3))

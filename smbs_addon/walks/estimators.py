@@ -21,6 +21,7 @@ from .trials import bernoulli_trials
 from ..paths.focus import concentration
 from .walk import newton_walk
 from ..shading.light_samples import sample_light, sphere_cap
+from ..core.qmc import LIGHT, StratifiedDraws
 from ..core.vec import dot, normalize
 
 
@@ -79,7 +80,9 @@ def _estimate(ctx, opts, li, types, rc, rng, guide=None):
     if seeder.total <= 0:
         return out
     cap = sphere_cap(ctx.scene, li, ctx.caster_lo, ctx.caster_hi)
-    light = sample_light(ctx.scene, li, n, rng, cap)
+    # stratified per film cell where the receivers carry their light samples' uniforms
+    light = sample_light(ctx.scene, li, n, rng if rc.strata is None else StratifiedDraws(rc.strata[:, LIGHT], rng),
+                         cap)
     emit_scale = 1.0 if cap is None else 0.5 * (1.0 - cap[1])  # the cap's share of the sphere's area
     # the eye side of x0 must see the light side: offset origins towards the receiver's eye side
     ng_eye = rc.ng * np.sign(dot(rc.w_eye, rc.ng))[:, None]

@@ -226,16 +226,18 @@ def test_resolution_too_large_is_refused_before_anything_is_allocated():
     scene.camera = dataclasses.replace(scene.camera, resolution_x=32000, resolution_y=18000,
                                        resolution_percentage=50)
     assert bake_error(scene, batches=8) == (
-        "scene 'mirror': a 16000 x 9000 caustic layer needs about 27.9 GiB for its film (8 batches), more "
+        "scene 'mirror': a 16000 x 9000 caustic layer needs about 79.4 GiB for its film (8 batches), more "
         "than the 8 GiB limit; lower the resolution (or its percentage) or the number of batches")
 
 
 def test_memory_estimate_is_the_film(monkeypatch):
     """The estimate counts what the film holds: 3 float64 accumulators per pixel and channel,
-    the image and variance (float64, then float32), and a float32 image per batch."""
+    the image and variance (float64, then float32), a float32 image per batch, and with stratified
+    samples (the default) each replicate's sum and mean (3 float64 each)."""
     assert bake_module.film_memory(64, 48, 8) == 64 * 48 * (9 * 8 + 6 * 8 + 6 * 4) + 2 * 8 * 64 * 48 * 4
     assert bake_module.film_memory(64, 48, 8, textured=True) == bake_module.film_memory(64, 48, 8) + 64 * 48 * 120
-    monkeypatch.setattr(bake_module, "MEMORY_BUDGET", bake_module.film_memory(16, 12, 2))
+    assert bake_module.film_memory(64, 48, 8, replicates=8) == bake_module.film_memory(64, 48, 8) + 8 * 64 * 48 * 48
+    monkeypatch.setattr(bake_module, "MEMORY_BUDGET", bake_module.film_memory(16, 12, 2, replicates=2))
     scene = scenes.mirror_scene(resolution=(16, 12))
     res = bake(scene, BakeSettings(method="mnee", spp=1, batches=2))  # exactly at the limit: fine
     assert res.image.shape == (12, 16, 3)
@@ -523,7 +525,7 @@ def test_too_large_resolution_leaves_the_scene_as_it_was(fresh_bpy, addon, tmp_p
     scene.smbs_caustics.output_path = str(tmp_path / "layer.exr")
     scene.smbs_caustics.batches = 8
     before = snapshot()
-    with pytest.raises(RuntimeError, match=r"scene 'Scene': a 16000 x 9000 caustic layer needs about 27\.9 GiB "
+    with pytest.raises(RuntimeError, match=r"scene 'Scene': a 16000 x 9000 caustic layer needs about 79\.4 GiB "
                                            r"for its film \(8 batches\), more than the 8 GiB limit"):
         bpy.ops.smbs.bake_caustics()
     assert snapshot() == before

@@ -189,7 +189,7 @@ def test_fewer_eye_samples_than_cells_reach_every_cell_with_unit_weight():
     rng = np.random.default_rng(1)
     per_cell = np.zeros(cells)
     for _ in range(200):
-        rx, ry, w, i = film_samples(cam, film, 0, n_batch, n_batch, rng)
+        rx, ry, w, i, _ = film_samples(cam, film, 0, n_batch, n_batch, rng)
         c = (np.floor(ry).astype(int) - (y0 - r)) * cw + (np.floor(rx).astype(int) - (x0 - r))
         assert np.array_equal(i, np.arange(n_batch))
         assert np.all((c >= np.floor(i * stretch)) & (c < np.ceil((i + 1) * stretch)))  # its own stretch
@@ -198,9 +198,9 @@ def test_fewer_eye_samples_than_cells_reach_every_cell_with_unit_weight():
     assert per_cell.min() > 0  # every cell, the last ones too
     assert per_cell.mean() / 200 == pytest.approx(1.0)
     # a batch's samples in two pieces: the same stretches, so the same cells
-    rx, ry, w, i = film_samples(cam, film, 10, 20, n_batch, rng)
+    rx, ry, w, i, _ = film_samples(cam, film, 10, 20, n_batch, rng)
     c = (np.floor(ry).astype(int) - (y0 - r)) * cw + (np.floor(rx).astype(int) - (x0 - r))
     assert np.all((c >= np.floor(i * stretch)) & (c < np.ceil((i + 1) * stretch))) and i[0] == 10
     # as many samples as cells or more: one each in turn, as before
-    rx, ry, w, i = film_samples(cam, film, 0, 2 * cells + 5, 2 * cells + 5, rng)
+    rx, ry, w, i, _ = film_samples(cam, film, 0, 2 * cells + 5, 2 * cells + 5, rng)
     assert np.allclose(w[:5], 1 / 3) and np.allclose(w[5:cells], 0.5)
