@@ -38,7 +38,7 @@ from ..kernels import handoff, records
 from ..shading import coat as layer, optics
 from ..scene import arrays as S
 from ..scene.light_paths import GLOSSY_EVENTS, Limits, ONE_DIFFUSE, specular_kind
-from ..trace.eye import Receivers, direct_albedo, eye_receivers, surface_at
+from ..trace.eye import BatchPart, Receivers, direct_albedo, eye_receivers, surface_at
 from ..scene.geometry import triangle_areas
 from ..shading.lights import area_light_shape, light_radiance, shadow_tmax
 from ..shading.light_samples import light_can_be_hit, light_end_at_solution, sample_light
@@ -714,7 +714,7 @@ def trace_eye(scene, tracer, cam, film, plan, light_indices, samples, rng, stats
     a mask over the film cells whose samples are traced (eye.specular_cells: those that can see a
     mirror or glass first; None: all)."""
     start, n, n_batch = samples
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
+    rc = eye_receivers(scene, tracer, cam, film, plan, BatchPart(start, n, n_batch), rng, stats,
                        EyePaths(max_bounces=MAX_SPECULAR_BOUNCES, min_specular=1, scale_eta=physical), cells=cells)
     gather(scene, tracer, film, plan, rc, rng, stats, GatherLights(direct=lights_direct, hit=light_indices,
                                                                    count_first=True), physical=physical)
@@ -727,7 +727,7 @@ def trace_bent(scene, tracer, cam, film, plan, lights, start, n, n_batch, rng, s
     them): eye samples start..start+n of the batch to their first surface, kept where it is a
     diffuse receiver seen directly."""
 
-    rc = eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats,
+    rc = eye_receivers(scene, tracer, cam, film, plan, BatchPart(start, n, n_batch), rng, stats,
                        EyePaths(min_specular=0, scale_eta=physical))
     bent_gather(scene, tracer, film, plan, rc.take(np.flatnonzero(rc.eye_specular == 0)), rng, stats, lights,
                 physical=physical)

@@ -227,15 +227,22 @@ def specular_cells(scene, tracer, cam, film, unseen=None) -> np.ndarray | None:
     return mask.ravel()
 
 
-def eye_receivers(scene, tracer, cam, film, plan, start, n, n_batch, rng, stats, paths: EyePaths = EyePaths(),
+class BatchPart(NamedTuple):
+    """Eye samples start..start+n of a batch of n_batch (film_samples)."""
+    start: int
+    n: int
+    n_batch: int
+
+
+def eye_receivers(scene, tracer, cam, film, plan, part: BatchPart, rng, stats, paths: EyePaths = EyePaths(),
                   cells=None, strata=None) -> Receivers:
-    """Trace n eye samples (of a batch of n_batch; with cells, a mask over the film cells, only
+    """Trace a part of a batch's eye samples (BatchPart; with cells, a mask over the film cells, only
     those in its cells) to their first diffuse receiver through up to paths.max_bounces mirrors and
     glass (glass by Fresnel choice; paths.scale_eta: radiance in physical units), keeping those with
     at least paths.min_specular specular vertices on the way: one kernel call (eye.eye_lanes), its
     random numbers keyed by one draw from rng and each sample's index in the batch. strata: the
     film samples stratified (film_samples), each receiver keeping its path's uniforms."""
-    rx, ry, weight, sample, path_u = film_samples(cam, film, start, n, n_batch, rng, cells, strata)
+    rx, ry, weight, sample, path_u = film_samples(cam, film, *part, rng, cells, strata)
     key = int(rng.integers(2**63))
     n = len(rx)
     stats["eye_paths"] = stats.get("eye_paths", 0) + n

@@ -19,7 +19,7 @@ import numpy as np
 from ..core import lanes
 from ..scene import arrays as S
 from ..scene.light_paths import Limits
-from ..trace.eye import direct_albedo, eye_receivers
+from ..trace.eye import BatchPart, direct_albedo, eye_receivers
 from ..shading.coat import has_layers
 from ..shading.lights import cone_solid_angle, distant_cone
 from ..shading.fresnel import has_reflection
@@ -173,7 +173,7 @@ def manifold_chunk(job, walk, start, n, rng, eye_stats, strata=None) -> None:
     (baking.walking.WalkSetup: opts, types, guide, opts_by_light: {light index: ManifoldOptions}
     where a light walks otherwise, method auto); strata: the eye samples stratified (eye.film_samples)."""
     scene, tracer, film, plan, opts = job.scene, job.tracer, job.film, job.plan, walk.opts
-    rc = eye_receivers(scene, tracer, job.cam, film, plan, start, n, job.eye_per_batch(), rng, eye_stats,
+    rc = eye_receivers(scene, tracer, job.cam, film, plan, BatchPart(start, n, job.eye_per_batch()), rng, eye_stats,
                        EyePaths(min_specular=0, scale_eta=opts.physical), strata=strata)
     ctxs = {}
     for lp in plan.lights:

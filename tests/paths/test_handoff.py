@@ -350,7 +350,7 @@ def test_paths_no_walk_takes_count_through_glass():
     Exact partition on the same random numbers, floor seen through a glass ball with T T the only
     walked type: (the others) + (every T T path) = (every path), and the others are not empty."""
     from smbs_addon.paths import gather as indirect
-    from smbs_addon.trace.eye import eye_receivers
+    from smbs_addon.trace.eye import BatchPart, eye_receivers
 
     ball = scenes.glass_sphere_scene(resolution=(32, 24), height=0.9)
     plan = make_plan(ball)
@@ -358,7 +358,7 @@ def test_paths_no_walk_takes_count_through_glass():
     tracer = Tracer(ball)
     rng = np.random.default_rng(5)
     film = Film(cam.W, cam.H, ball.camera.filter_width, cam.region)
-    rc = eye_receivers(ball, tracer, cam, film, plan, 0, 4 * cam.W * cam.H, 4 * cam.W * cam.H, rng, {})
+    rc = eye_receivers(ball, tracer, cam, film, plan, BatchPart(0, 4 * cam.W * cam.H, 4 * cam.W * cam.H), rng, {})
     rc = rc.take(np.flatnonzero(rc.eye_specular > 0))
     assert len(rc.p) > 100
     long = "T" + "R" * (indirect.OTHERS_DEPTH - 2) + "T"  # walked, never handed off: depth OTHERS_DEPTH throughout

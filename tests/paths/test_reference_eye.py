@@ -141,7 +141,7 @@ def test_eye_paths_reflect_in_the_mirror_onto_the_floor():
     bounce before it, and the direction back along the reflected ray."""
     from smbs_addon.trace.camera import CameraModel
     from smbs_addon.kernels.records import EyePaths
-    from smbs_addon.trace.eye import eye_receivers, film_cells
+    from smbs_addon.trace.eye import BatchPart, eye_receivers, film_cells
     from smbs_addon.trace.film import Film
     from smbs_addon.baking.plan import make_plan
     from smbs_addon.trace.tracer import Tracer
@@ -151,7 +151,7 @@ def test_eye_paths_reflect_in_the_mirror_onto_the_floor():
     film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region)
     tracer = Tracer(scene)
     n = film_cells(cam, film)
-    rc = eye_receivers(scene, tracer, cam, film, make_plan(scene, "ON"), 0, n, n, np.random.default_rng(3), {},
+    rc = eye_receivers(scene, tracer, cam, film, make_plan(scene, "ON"), BatchPart(0, n, n), np.random.default_rng(3), {},
                        EyePaths(min_specular=1))
     assert len(rc.p) > 1000 and np.all(rc.eye_specular == 1)
     o, d, tnear = cam.rays(rc.rx, rc.ry)
