@@ -138,8 +138,8 @@ class FilmSamples(NamedTuple):
 
 
 def film_samples(cam, film, start, n, n_batch, rng, mask=None, strata=None) -> FilmSamples:
-    """Samples start..start+n of a batch of n_batch stratified film samples; with mask (bool per film cell, film_cells' grid row by
-    row), only those in its cells: the others are drawn all the same, so the samples kept are
+    """Samples start..start+n of a batch of n_batch stratified film samples; with mask (bool per
+    film cell, film_cells' grid row by row), only those in its cells: the others are drawn all the same, so the samples kept are
     the whole film's, bit for bit. n_batch at least the cells: sample i in cell i % cells (each
     cell's weight 1 / its samples); fewer (the light tracer's bent pass below 512 spp): sample i
     in a cell drawn from the i-th of n_batch equal stretches of the cells, row by row, weighted

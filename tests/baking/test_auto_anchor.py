@@ -62,3 +62,51 @@ def test_anchor_bias_bound():
     st.update(walk_energy=10.0, walk_energy_sq=100.0)  # one sample of 10 among 1000
     se = np.sqrt(100.0 - 100.0 / 1000)
     assert np.isclose(auto.anchor_bias(st), (10.0 + 3 * (se + 10.0)) / 1010.0)
+
+
+def test_gather_copies_where_every_light_walks_its_straight_line_alone(monkeypatch):
+    """Receivers seen through the water take GATHER_COPIES gathers after a diffuse bounce, each of a
+    quarter of their weight, where auto walks every light's straight line alone; one where it walks
+    otherwise (exact counts of gather's calls). The copies' mean is the single gather's, within noise."""
+    from smbs_addon.walks import manifold
+
+    calls = []
+    gather = manifold.gather
+
+    def counted(*a, **k):
+        calls.append(float(a[4].beta.sum()))
+        return gather(*a, **k)
+
+    monkeypatch.setattr(manifold, "gather", counted)
+    gentle = scenes.wavy_water_sun_scene(amplitude=0.01, above=True)
+    res = bake(gentle, BakeSettings(spp=2, batches=2, seed=1))
+    assert _auto(res)["anchor_only"] and manifold.GATHER_COPIES == 4
+    assert len(calls) % 4 == 0 and len(calls) > 0
+    assert all(c == pytest.approx(calls[i - i % 4]) for i, c in enumerate(calls))  # a quarter each
+    calls.clear()
+    folded = scenes.wavy_water_sun_scene(amplitude=0.05, above=True)
+    res = bake(folded, BakeSettings(spp=2, batches=2, seed=1))
+    assert not _auto(res)["anchor_only"] and len(calls) == res.stats["batches_done"] * 1  # one chunk a batch
+    monkeypatch.setattr(manifold, "gather", gather)
+    four = bake(gentle, BakeSettings(spp=64, seed=2, batches=8))
+    monkeypatch.setattr(manifold, "GATHER_COPIES", 1)
+    one = bake(gentle, BakeSettings(spp=64, seed=3, batches=8))
+    rel, noise, beyond = against_reference(four, one, caustic_region(one.image))
+    assert noise < 0.02 and abs(rel) < 3 * noise and beyond < 0.03, (rel, noise, beyond)
+
+
+def test_a_gather_copy_takes_its_share_of_the_weight_and_shifted_samples():
+    """Copy k of 4: a quarter of the weight (the receivers' own untouched), the stratified numbers
+    shifted by k / 4 mod 1."""
+    from smbs_addon.trace.eye import Receivers
+    from smbs_addon.walks.manifold import _gather_copy
+
+    n = 5
+    z = np.zeros((n, 3))
+    rc = Receivers(rx=np.zeros(n), ry=np.zeros(n), p=z, ng=z, ns=z, w_eye=z, beta=np.ones((n, 3)),
+                   mat=np.zeros(n, int), eye_specular=np.ones(n, int), weight=np.ones(n), prior=np.zeros((n, 3), int),
+                   strata=np.full((n, 6), 0.9))
+    assert _gather_copy(rc, 0, 1) is rc
+    c0, c3 = _gather_copy(rc, 0, 4), _gather_copy(rc, 3, 4)
+    assert np.all(c0.beta == 0.25) and np.all(rc.beta == 1.0)
+    assert np.all(c0.strata == 0.9) and np.allclose(c3.strata, 0.65)
