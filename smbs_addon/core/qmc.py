@@ -23,24 +23,16 @@ DIMS = 8  # in pairs: the pixel's jitter (x, y), then the path's (PATH_DIMS)
 PATH_DIMS = DIMS - 2
 LIGHT, BOUNCE, BOUNCE_LIGHT = slice(0, 2), slice(2, 4), slice(4, 6)
 BITS = 32
-# Sobol's second dimension (Joe and Kuo: primitive polynomial x + 1, m_1 = 1); the first is van der Corput's
-_POLYS = ((1, 0, (1,)),)
 
 
 def _directions() -> np.ndarray:
-    """(2, BITS) uint32 direction numbers v_k of Sobol's first two dimensions."""
-    v = np.zeros((1 + len(_POLYS), BITS), np.uint64)
+    """(2, BITS) uint32 direction numbers v_k of Sobol's first two dimensions: van der Corput's, and
+    Joe and Kuo's second (primitive polynomial x + 1, m_1 = 1: v_k = v_(k-1) xor v_(k-1) >> 1)."""
+    v = np.zeros((2, BITS), np.uint64)
     v[0] = [1 << (BITS - 1 - k) for k in range(BITS)]
-    for d, (s, a, m) in enumerate(_POLYS, start=1):
-        for k in range(BITS):
-            if k < s:
-                v[d, k] = m[k] << (BITS - 1 - k)
-            else:
-                x = v[d, k - s] ^ (v[d, k - s] >> np.uint64(s))
-                for i in range(1, s):
-                    if (a >> (s - 1 - i)) & 1:
-                        x ^= v[d, k - i]
-                v[d, k] = x
+    v[1, 0] = 1 << (BITS - 1)
+    for k in range(1, BITS):
+        v[1, k] = v[1, k - 1] ^ (v[1, k - 1] >> np.uint64(1))
     return v.astype(np.uint32)
 
 
