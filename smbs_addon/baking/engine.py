@@ -30,7 +30,7 @@ def start(scene, settings, report, cancel, on_plan, watch, keep_partial=False, l
     t0 = time.perf_counter()
     plan = make_plan(scene, settings.use_cycles_flags, left_out)
     cam = CameraModel(scene.camera)
-    check_memory(scene, cam.W, cam.H, settings.batches, settings.batches if settings.sampling == "stratified" else 0)
+    check_memory(scene, cam.W, cam.H, settings.batches, settings.replicates())
     check_samples(scene, settings)
     if plan.nothing:
         return nothing_to_bake(scene, settings, plan, cam, t0, on_plan)

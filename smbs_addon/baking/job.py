@@ -85,9 +85,10 @@ class Job:
         """Batch b's stratified eye samples (core.qmc.Strata), or None where the settings draw them
         independently (sampling "independent"): batch b continues replicate b mod batches's
         sequences (film.Film.use_replicates), each replicate scrambled apart."""
-        if self.settings.sampling != "stratified":
+        replicates = self.settings.replicates()
+        if not replicates:
             return None
-        r, k = divmod(b, self.settings.batches)[::-1]
+        r, k = divmod(b, replicates)[::-1]
         return qmc.Strata(int(self.rng(STRATA, r).integers(2**32)), k)
 
     def rng(self, *key):

@@ -144,6 +144,11 @@ class BakeSettings:
             if not c or set(c) - {"R", "T"}:
                 raise SceneError(f"chain type '{c}' must be a string of R (reflect) and T (refract)")
 
+    def replicates(self) -> int:
+        """The independent replicates a walks bake groups its batches into (trace/film.Film.use_replicates):
+        its batches with stratified samples, 0 (the batches themselves) with independent ones."""
+        return self.batches if self.sampling == "stratified" else 0
+
     def image_key(self) -> str:
         """16 hex digits of what the image depends on of these settings (all but NOT_THE_IMAGE): a
         frame's EXR records it, and a second run of a range skips a frame whose EXR says the same."""

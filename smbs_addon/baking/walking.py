@@ -96,8 +96,8 @@ def _add_guide(job, walk) -> None:
 def bake_walks(job, choices):
     """Run the batches: (batches done, the stop rule, seconds before the first, rays cast)."""
     walk = setup_walks(job, choices)
-    if job.settings.sampling == "stratified":  # each replicate one stratified sequence per pixel (Job.strata)
-        job.film.use_replicates(job.settings.batches)
+    if job.settings.replicates():  # each replicate one stratified sequence per pixel (Job.strata)
+        job.film.use_replicates(job.settings.replicates())
     eye_stats = {"eye_paths": 0, "rays_eye": 0}
     job.prog = Progress(job.settings.batches * math.ceil(job.eye_per_batch() / WALK_CHUNK), job.report, job.cancel)
     beside = job.tracer.threads > 1 and not lanes.nested() and hands_off(job.scene, job.plan, walk.opts, walk.types)

@@ -1,14 +1,15 @@
 """Stratified sample dimensions: Sobol' points, Owen-scrambled by a hash (Burley 2020, "Practical
-Hash-based Owen Scrambling"), one scramble per film cell.
+Hash-based Owen Scrambling"), one scramble per film cell and replicate.
 
-A film cell's eye samples of a whole bake are one scrambled Sobol' sequence: the cell's sample g (its
-index over the bake's batches) takes the sequence's point g, so a cell's first 2^m samples are a
-(0, m, 2)-net in each pair of dimensions (the pixel's jitter, the light sample's, the first diffuse
-bounce's, the light sample's after it), and so is each run of 2^m samples from a multiple of 2^m. The scrambles, keyed by the cell and the bake's
-stream, make every point uniform on [0, 1)^DIMS (every estimate stays unbiased) and the cells' sequences
-independent of each other. Within a cell the batches' samples are not independent: their spread
-overstates the error of their mean a little (baking/stop's error bar errs on the cautious side;
-bench/results/pools.md measured it).
+A film cell's eye samples within one replicate of a bake (baking/job.Job.strata: batch b continues
+replicate b mod batches) are one scrambled Sobol' sequence: the cell's sample g there takes the
+sequence's point g, so its first 2^m samples are a (0, m, 2)-net in each pair of dimensions (the
+pixel's jitter, the light sample's, the first diffuse bounce's, the light sample's after it), and so
+is each run of 2^m samples from a multiple of 2^m. The scrambles, keyed by the cell and the
+replicate's stream, make every point uniform on [0, 1)^DIMS (every estimate stays unbiased) and the
+cells' and replicates' sequences independent of each other. Within a replicate the samples are not
+independent (they fill each other's gaps), so the error bar reads the spread between replicates
+(trace/film.Film.use_replicates), not between batches.
 """
 from __future__ import annotations
 
