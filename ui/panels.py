@@ -457,6 +457,7 @@ class SMBS_PT_caustics_advanced(_RenderPanel, bpy.types.Panel):
         col.prop(settings, "threads")
         col.prop(settings, "guide")
         col.prop(settings, "sampling")
+        col.prop(settings, "world_split")
         col.prop(settings, "indirect")
         col.prop(settings, "radiance")
 

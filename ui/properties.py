@@ -25,7 +25,7 @@ BAKE_FIELDS = (
     "time_budget", "noise_target", "use_cycles_flags", "radiance", "guide", "max_iterations", "first_step",
     "stall_stop", "anchor", "solver_threshold",
     "uniqueness", "tau", "large_mutation_tir", "large_mutation_backlit", "large_mutation_slow",
-    "max_chain", "clamp_g", "handoff", "indirect", "pilots", "seeding", "sampling",
+    "max_chain", "clamp_g", "handoff", "indirect", "pilots", "seeding", "sampling", "world_split",
 )
 
 METHOD_ITEMS = (
@@ -215,6 +215,12 @@ class SMBSCausticsSettings(bpy.types.PropertyGroup):
                 "spread evenly (a scrambled Sobol' sequence per pixel): less noise for the same samples"),
                ("independent", "Independent", "Each sample's position and light sample drawn independently")),
         description="How the manifold walks' eye samples and their light samples are drawn (unbiased either way)",
+    )
+    world_split: BoolProperty(
+        name="Split the World's Map", default=True,
+        description="A world map with a sun's disc in a dimmer sky: the walks take the disc, path tracing from "
+                    "the receivers the sky (the sky's light through water is rare and bright for a walk, easy "
+                    "for a bounce). Unbiased either way; off: the walks take the whole map",
     )
     anchor: BoolProperty(
         name="Anchor Walk", default=True,

@@ -5,10 +5,15 @@ candidate method.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
+
+import numpy as np
 
 from ..core.errors import SceneError
 from ..paths.gather import bending_lights, bent_candidates
+from ..scene.light_paths import Limits
+from ..shading.world_parts import split_world
 from ..trace.camera import CameraModel
 from ..trace.film import Film
 from ..trace.tracer import Tracer
@@ -38,11 +43,35 @@ def start(scene, settings, report, cancel, on_plan, watch, keep_partial=False, l
     film = Film(cam.W, cam.H, scene.camera.filter_width, cam.region, textured=scene.textured_materials() is not None,
                 threads=tracer.threads)
     _note_bent(scene, tracer, plan)
+    parts = None if plan.nothing else world_parts(scene, settings, plan)
     if on_plan is not None:
         on_plan(plan.words())
     if plan.nothing:
         return nothing_to_bake(scene, settings, plan, cam, t0, None)
-    return Job(scene, settings, plan, cam, tracer, film, t0, report, cancel, watch, keep_partial=keep_partial)
+    return Job(scene if parts is None else parts.walked, settings, plan, cam, tracer, film, t0, report, cancel, watch,
+               keep_partial=keep_partial, sky=parts)
+
+
+def world_parts(scene, settings, plan):
+    """The world's map split for the bake (shading.world_parts.split_world: the bright part walked,
+    the rest path-traced), or None: not for the light tracer (method "reference", the independent
+    estimator), nor with settings.world_split off, nor where the plan bakes no caustic of the world.
+    Where the plan traces no light of the world after a diffuse bounce, its path-traced part keeps to
+    one diffuse vertex too. The plan says so."""
+    if settings.method == "reference" or not settings.world_split:
+        return None
+    parts = split_world(scene)
+    if parts is None or parts.light not in [lp.index for lp in plan.lights]:
+        return None
+    traced = parts.traced
+    if not (settings.indirect and parts.light in plan.indirect_lights):
+        limits = np.array(traced.light_paths, np.int64)
+        limits[1] = min(Limits.of(traced).diffuse, 1)  # (total, diffuse, glossy, transmission)
+        traced = dataclasses.replace(traced, light_paths=limits)
+    parts.walked.validate()
+    traced.validate()
+    plan.notes.append(parts.words(scene.light_names[parts.light]))
+    return dataclasses.replace(parts, traced=traced)
 
 
 def run(job, light_tracing: bool, choices=None) -> BakeResult:

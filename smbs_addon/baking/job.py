@@ -55,11 +55,17 @@ class Job:
     indirect_stats: dict = field(default_factory=dict)  # per light name: indirect.trace_indirect_photons' photons
     extra: dict = field(default_factory=dict)  # the statistics beside the lights'
     keep_partial: bool = False  # a time or noise rule stopped by a signal keeps the batches done (stop.py)
+    # a world's map split (shading.world_parts.WorldParts): scene is then lit by its bright part, and
+    # the rest is path-traced from the receivers (passes.sky_batch); None: not split
+    sky: object = None
 
     def __post_init__(self):
         self.light_stats = self.light_stats or {
             lp.name: {"time_s": 0.0, "casters": [self.scene.object_names[o] for o in lp.caster_objects]}
             for lp in self.plan.lights}
+        if self.sky is not None:
+            self.extra.setdefault("sky", {"light": self.scene.light_names[self.sky.light],
+                                          "bright_share": self.sky.bright_share, "eye_paths": 0, "time_s": 0.0})
 
     @property
     def per_light(self) -> int:

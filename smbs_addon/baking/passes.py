@@ -11,12 +11,14 @@ from collections import defaultdict
 import numpy as np
 
 from ..core import lanes
-from ..core.random import EYE, HANDOFF, INDIRECT, PHOTONS, WALKS, light_key
+from ..core.random import EYE, HANDOFF, INDIRECT, PHOTONS, SKY, WALKS, light_key
 from ..paths import gather as indirect, photons
+from ..paths.sky import trace_sky
 from ..paths.handoff import Handoff
 from ..scene import arrays as S
 from ..shading.lights import emit
 from ..shading.microfacet import rough_casters
+from ..trace.eye import BatchPart
 from ..walks.manifold import manifold_chunk
 from .pilots import spot_target
 
@@ -169,6 +171,29 @@ def walks_batch(job, b, walk, eye_stats) -> None:
         n = min(WALK_CHUNK, per_batch - start)
         manifold_chunk(job, walk, start, n, job.rng(WALKS, 0, b, c), eye_stats, job.strata(b))
         job.prog.step(f"{job.settings.method}, batch {b + 1}/{job.settings.batches}")
+
+
+def sky_batch(job, b, strata=None) -> None:
+    """The rest of a split world (job.sky: shading.world_parts.WorldParts), path-traced from the
+    receivers of as many eye samples as the walks take (paths.sky.trace_sky), in chunks on the
+    threads; counted in job.extra["sky"]. strata: batch b's stratified eye samples (Job.strata) where
+    the film keeps replicates."""
+    parts = job.sky
+    if parts is None:
+        return
+    t = time.perf_counter()
+    per_batch = job.eye_per_batch()
+    direct = (parts.light,) if parts.light in job.indirect_lights() else ()
+
+    def run_chunk(c, film_c, st_c):
+        start = c * CHUNK
+        trace_sky(parts.traced, job.tracer, job.cam, film_c, job.plan, parts.light,
+                  BatchPart(start, min(CHUNK, per_batch - start), per_batch), job.rng(SKY, 0, b, c), st_c,
+                  physical=job.physical, direct=direct, strata=strata)
+
+    st = job.extra["sky"]
+    threaded_chunks(job, -(-per_batch // CHUNK), run_chunk, st)
+    st["time_s"] += time.perf_counter() - t
 
 
 def hands_off(scene, plan, opts, types) -> bool:

@@ -87,6 +87,9 @@ class BakeSettings:
     # (baking/shards.py); 0: the whole bake
     shards: int = 1
     sampling: str = "stratified"  # the walks' eye samples (SAMPLINGS): stratified per film cell, or independent
+    world_split: bool = True  # a world's map with a bright, compact part (a sun's disc) and a dim rest (a
+    # sky): the walks take the bright part, path tracing from the receivers the rest (shading/world_parts.py);
+    # not for the light tracer (method "reference")
 
     def validate(self) -> None:
         if self.method not in METHODS:

@@ -19,7 +19,8 @@ from ..shading.microfacet import rough_casters
 from ..walks.guide import Guide, build_guide, hidden_in_reach, photon_budget
 from ..walks.manifold import chain_types
 from .job import Progress
-from .passes import DeferredFilm, WALK_CHUNK, eye_rays, handoff_batch, hands_off, indirect_batch, rays, walks_batch
+from .passes import (DeferredFilm, WALK_CHUNK, eye_rays, handoff_batch, hands_off, indirect_batch, rays, sky_batch,
+                     walks_batch)
 from .stop import run_batches
 
 
@@ -109,13 +110,14 @@ def bake_walks(job, choices):
             walks_batch(job, b, walk, eye_stats)
             handoff_batch(job, b, walk, job.light_stats)
         indirect_batch(job, b)
+        sky_batch(job, b, job.strata(b))
 
     b, stop, t_first = run_batches(job, run_batch)
     job.extra["batches_done"] = b
     _summarise(job, walk, eye_stats, b)
-    rays = (sum(st["rays"] for st in job.light_stats.values()) + eye_rays(eye_stats)
-            + job.extra.get("guide", {}).get("rays", 0) + job.plan.cost.get("rays", 0))
-    return b, stop, t_first, rays
+    cast = (sum(st["rays"] for st in job.light_stats.values()) + eye_rays(eye_stats)
+            + job.extra.get("guide", {}).get("rays", 0) + job.plan.cost.get("rays", 0) + rays(job.extra.get("sky", {})))
+    return b, stop, t_first, cast
 
 
 def _walks_beside_photons(job, b, walk, eye_stats) -> None:

@@ -113,6 +113,9 @@ def _bake_options(b):
     b.add_argument("--sampling", choices=SAMPLINGS, default=SAMPLINGS[0],
                    help="manifold methods: each pixel's sample positions and light samples over the bake 'stratified' "
                         "(default: a scrambled Sobol' sequence per pixel) or 'independent'")
+    b.add_argument("--no-world-split", dest="world_split", action="store_false",
+                   help="manifold methods: walk a world map's sun and sky alike, instead of walking its bright "
+                        "part (a sun's disc) and path tracing the rest (a sky) from the receivers")
     b.add_argument("--no-indirect", dest="indirect", action="store_false",
                    help="leave out caustics seen after further diffuse bounces (first-order only)")
     b.add_argument("--clamp", type=_clamp, default=0.0, metavar="LUMINANCE",
@@ -144,7 +147,7 @@ def bake_settings(args, method: str, spp: int, time_budget: float = 0.0, noise_t
                             estimator=args.estimator, trials=args.trials,
                             indirect=args.indirect, time_budget=time_budget,
                             noise_target=noise_target, pilots=args.pilots, clamp_g=args.clamp,
-                            sampling=args.sampling)
+                            sampling=args.sampling, world_split=args.world_split)
     if getattr(args, "seeding", None):
         settings.seeding = args.seeding
     settings.validate()

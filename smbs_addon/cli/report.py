@@ -28,7 +28,10 @@ def summary_lines(stats: dict) -> list[str]:
     for name, s in stats["lights"].items():
         if "walks" in s:
             lm = ", ".join(f"{k} {v:,}" for k, v in s.get("large_mutations", {}).items())
-            lines.append(f"  light '{name}': {s['walks']:,} walks, success {s['success_rate']:.1%}, "
+            anchor = (f"{s['anchor_walks']:,} straight-line walks (success "
+                      f"{s.get('anchor_successes', 0) / s['anchor_walks']:.1%}); from random seeds " if s.get("anchor_walks")
+                      else "")
+            lines.append(f"  light '{name}': {anchor}{s['walks']:,} walks, success {s['success_rate']:.1%}, "
                          f"{s['mutations_per_path']:.2f} mutations/path ({s['mutations_per_success']:.1f}/solution), "
                          f"large mutations ({lm}), "
                          f"trials mean {s['trials']['mean']:.2f} max {s['trials']['max']} capped {s['trials']['capped']}"
@@ -37,6 +40,11 @@ def summary_lines(stats: dict) -> list[str]:
         else:
             lines.append(f"  light '{name}': {s['photons']:,} light paths, {s['splats']:,} reached the camera, "
                          f"{s['rays_photon'] + s['rays_camera']:,} rays, {s['time_s']:.2f} s")
+    sky = stats.get("sky")
+    if sky:
+        lines.append(f"  the rest of {sky['light']}'s map ({1 - sky['bright_share']:.0%} of its light, a sky): "
+                     f"{sky['eye_paths']:,} paths traced from the receivers, "
+                     f"{sum(v for k, v in sky.items() if k.startswith('rays_')):,} rays, {sky['time_s']:.2f} s")
     for sk in stats["skipped"]:  # also in the plan's words, printed before the bake
         lines.append(f"  skipped {sk['kind']} '{sk['name']}': {sk['reason']}")
     nz = stats["noise"]

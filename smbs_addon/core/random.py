@@ -26,6 +26,7 @@ PLAN_LOOK = 10  # the plan's look from the camera (seed 0): (part,)
 PILOT_BOUNCE = 11  # the plan's pilots after a diffuse bounce aimed at a left-out caster: (light, caster)
 PILOT_PROBE = 12  # the plan's shadow rays probing whether a light reaches a caster: (light, caster)
 STRATA = 13  # the scramble of the walks' stratified eye samples (core.qmc): (replicate,), one draw
+SKY = 14  # the rest of a split world, path-traced from the receivers (paths.sky): (0, batch, chunk)
 
 # What a bake's streams add after their own key (BakeSettings.stream_suffix), only where set, so that a
 # bake of one frame, unsharded, keeps the streams (and the pixels) it always had: a shard of a frame's
