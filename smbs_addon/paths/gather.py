@@ -213,15 +213,22 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights: GatherL
 
     Without connect (and unless compiled is False: the same estimator in numpy, per bounce, for
     the tests), the paths are traced in compiled code (_traced_gather)."""
-    n = len(rc.p)
-    if n == 0:
+    if len(rc.p) == 0:
         return
+    splat_gathered(scene, film, rc, gather_radiance(scene, tracer, plan, rc, rng, stats, lights, physical, compiled),
+                   stats)
+
+
+def gather_radiance(scene, tracer, plan, rc: Receivers, rng, stats, lights: GatherLights, physical=False,
+                    compiled=True) -> np.ndarray:
+    """gather's radiance (n,3) at the receivers rc (times their eye paths' throughput), not splatted."""
+    if len(rc.p) == 0:
+        return np.zeros((0, 3))
     if lights.connect is None and compiled:
-        radiance = _traced_gather(scene, tracer, plan, rc, rng, stats, lights.direct, physical, lights.hit,
-                                  lights.count_first)
-        return _splat_gathered(scene, film, rc, radiance, stats)
-    _GatherInNumpy(scene, tracer, plan, rc, rng, stats, physical, lights.others if lights.connect else None).run(
-        film, lights.direct, lights.connect, lights.hit, lights.count_first)
+        return _traced_gather(scene, tracer, plan, rc, rng, stats, lights.direct, physical, lights.hit,
+                              lights.count_first)
+    return _GatherInNumpy(scene, tracer, plan, rc, rng, stats, physical, lights.others if lights.connect else None).run(
+        lights.direct, lights.connect, lights.hit, lights.count_first)
 
 
 class _GatherInNumpy:
@@ -238,7 +245,8 @@ class _GatherInNumpy:
         self.walked = walk_casters(scene, plan.casters) if self.others else None  # objects a walk takes
         self.absorbing = optics.absorbing(scene)
 
-    def run(self, film, lights_direct, connect, lights_hit, count_first):
+    def run(self, lights_direct, connect, lights_hit, count_first) -> np.ndarray:
+        """The radiance (n,3) gathered at each receiver."""
         rc = self.rc
         n = len(rc.p)
         # the frontier: diffuse vertices to bounce from, with the events before them
@@ -249,7 +257,7 @@ class _GatherInNumpy:
             if not nxt:
                 break
             front = {key: np.concatenate([g[key] for g in nxt]) for key in nxt[0]}
-        _splat_gathered(self.scene, film, rc, self.radiance, self.stats)
+        return self.radiance
 
     def _generation(self, f, lights_direct, connect, lights_hit, count_first) -> list:
         """One diffuse bounce from the frontier f and the specular chain after it: the next
@@ -406,7 +414,8 @@ def _count_others(scene, tracer, others, segments, path, k, ok, radiance, stats)
         stats["other_paths_later"] = stats.get("other_paths_later", 0) + int(seen.size)
 
 
-def _splat_gathered(scene, film, rc: Receivers, radiance, stats):
+def splat_gathered(scene, film, rc: Receivers, radiance, stats):
+    """Splat the radiance gathered at the receivers rc (gather_radiance) at their film positions."""
     hit = np.flatnonzero(radiance.max(axis=1) > 0)
     if hit.size:
         film.splat(rc.rx[hit], rc.ry[hit], radiance[hit] * rc.weight[hit, None], direct_albedo(scene, rc, hit))

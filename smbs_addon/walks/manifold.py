@@ -28,11 +28,10 @@ from .estimators import estimate
 from ..shading.microfacet import rough_casters, walk_casters
 from .walk import WalkConfig
 from ..shading.light_samples import light_can_be_hit
-from ..paths.gather import (HANDOFF_SAMPLES, UNWALKED_SAMPLES, bending_lights, bent_gather, bent_receivers, gather,
-                            handoff_gather)
+from ..paths.gather import (HANDOFF_SAMPLES, UNWALKED_SAMPLES, GatherLights, HandoffRays, bending_lights, bent_gather,
+                            bent_receivers, gather_radiance, handoff_gather, splat_gathered)
 from ..paths.handoff import Handoff, SEEN_HANDOFF_MIN
 from ..kernels.records import EyePaths
-from ..paths.gather import GatherLights, HandoffRays
 
 
 @dataclass
@@ -85,6 +84,9 @@ OTHERS_MIN_SHARE = 0.01
 # RMSE 0.0406, 0.0307, 0.0259, 0.0239 in 8.0, 10.4, 13.5, 14.1 s (error^2 x time 1.6x lower at 4). Under a
 # world (pool_hdri, SMBS's walks at the second vertex) 4 copies cost 2.3x the time for 0.82x the error: 1
 GATHER_COPIES = 4
+# receivers per block of the gather after a diffuse bounce (_gather_after_bounce); blocks run on the threads
+# at once
+GATHER_BLOCK = 32768
 # receivers per part of a chunk's walks (manifold_chunk): parts run on the threads in turn, so one
 # part's numpy (light samples, contributions) runs beside another's walk kernels
 ESTIMATE_PART = 8192
@@ -215,12 +217,41 @@ def manifold_chunk(job, walk, start, n, rng, eye_stats, strata=None) -> None:
             st = ctxs[li].stats
             st["seen_handoff_paths"] = st.get("seen_handoff_paths", 0) + found.get(li, 0)
             st["seen_handoff_energy"] = st.get("seen_handoff_energy", 0.0) + found.get(("energy", li), 0.0)
-    lights_direct = job.indirect_lights()
-    if lights_direct:
-        copies = gather_copies(plan, walk)
+    if job.indirect_lights():
+        _gather_after_bounce(job, walk, caustic, rc_seen, handoffs, rng, eye_stats)
+
+
+def _gather_after_bounce(job, walk, caustic, rc, others, rng, eye_stats) -> None:
+    """The caustic light after a diffuse bounce at the receivers rc, seen through mirrors or glass
+    (indirect.gather, these walks at every diffuse vertex; others: the hand-off's Handoffs for the
+    paths no walk takes), gather_copies gathers per receiver, in blocks of GATHER_BLOCK receivers
+    that the threads take at once (lanes.blocks), each block with its random stream (keyed by one
+    draw from rng and its first receiver), its walks' (CausticEstimate.keyed) and its counters: one
+    block's numpy runs beside another's (the gather's numpy alone left half a core idle on the pool
+    under a sun). Their light is splatted and their counters added here, in block order, so the image
+    does not depend on the thread count."""
+    copies = gather_copies(job.plan, walk)
+    lights = job.indirect_lights()
+    key = int(rng.integers(2**63))
+
+    def block(a, b):
+        brng = np.random.default_rng([key, a])
+        connect, st = caustic.keyed(brng), {}
+        sub = rc.take(slice(a, b))
+        radiance = np.zeros((b - a, 3))
         for k in range(copies):
-            gather(scene, tracer, film, plan, _gather_copy(rc_seen, k, copies), rng, eye_stats,
-                   GatherLights(direct=lights_direct, connect=caustic, others=handoffs), physical=opts.physical)
+            radiance += gather_radiance(job.scene, job.tracer, job.plan, _gather_copy(sub, k, copies), brng, st,
+                                        GatherLights(direct=lights, connect=connect, others=others),
+                                        physical=walk.opts.physical)
+        return radiance, st, connect.light_stats
+
+    parts = lanes.blocks(block, len(rc.p), GATHER_BLOCK, job.tracer.threads)
+    for _, st, light_stats in parts:
+        lanes.add_stats(eye_stats, st)
+        for name, ls in light_stats.items():
+            lanes.add_stats(job.light_stats[name], ls)
+    if parts:
+        splat_gathered(job.scene, job.film, rc, np.concatenate([p[0] for p in parts]), eye_stats)
 
 
 def gather_copies(plan, walk) -> int:
@@ -254,6 +285,14 @@ class CausticEstimate:
 
     def __init__(self, job, walk, ctxs, rng):
         self.job, self.walk, self.ctxs, self.rng = job, walk, ctxs, rng
+        self.light_stats = job.light_stats  # per light name: where the parts' counters are added
+
+    def keyed(self, rng) -> "CausticEstimate":
+        """The same estimate for a block of receivers on a thread of its own: its random stream rng, and
+        counters of its own (light_stats, for the caller to add in block order)."""
+        c = copy.copy(self)
+        c.rng, c.light_stats = rng, {name: {"time_s": 0.0} for name in self.job.light_stats}
+        return c
 
     def __call__(self, receivers):
         n = len(receivers.p)
@@ -265,7 +304,7 @@ class CausticEstimate:
                              ESTIMATE_PART if n >= 2 * ESTIMATE_PART else max(n, 1), self.job.tracer.threads)
         wall = time.perf_counter() - t0
         busy = sum(sum(p[2].values()) for p in parts)
-        stats_per_light = self.job.light_stats
+        stats_per_light = self.light_stats
         for _, stats, secs in parts:
             for name, st in stats.items():
                 lanes.add_stats(stats_per_light[name], st)

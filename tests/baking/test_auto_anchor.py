@@ -71,13 +71,13 @@ def test_gather_copies_where_every_light_walks_its_straight_line_alone(monkeypat
     from smbs_addon.walks import manifold
 
     calls = []
-    gather = manifold.gather
+    gather = manifold.gather_radiance
 
     def counted(*a, **k):
-        calls.append(float(a[4].beta.sum()))
+        calls.append(float(a[3].beta.sum()))
         return gather(*a, **k)
 
-    monkeypatch.setattr(manifold, "gather", counted)
+    monkeypatch.setattr(manifold, "gather_radiance", counted)
     gentle = scenes.wavy_water_sun_scene(amplitude=0.01, above=True)
     res = bake(gentle, BakeSettings(spp=2, batches=2, seed=1))
     assert _auto(res)["anchor_only"] and manifold.GATHER_COPIES == 4
@@ -86,8 +86,9 @@ def test_gather_copies_where_every_light_walks_its_straight_line_alone(monkeypat
     calls.clear()
     folded = scenes.wavy_water_sun_scene(amplitude=0.05, above=True)
     res = bake(folded, BakeSettings(spp=2, batches=2, seed=1))
-    assert not _auto(res)["anchor_only"] and len(calls) == res.stats["batches_done"] * 1  # one chunk a batch
-    monkeypatch.setattr(manifold, "gather", gather)
+    # one chunk a batch, its receivers one block (manifold.GATHER_BLOCK)
+    assert not _auto(res)["anchor_only"] and len(calls) == res.stats["batches_done"] * 1
+    monkeypatch.setattr(manifold, "gather_radiance", gather)
     four = bake(gentle, BakeSettings(spp=64, seed=2, batches=8))
     monkeypatch.setattr(manifold, "GATHER_COPIES", 1)
     one = bake(gentle, BakeSettings(spp=64, seed=3, batches=8))
