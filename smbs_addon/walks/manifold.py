@@ -84,9 +84,9 @@ OTHERS_MIN_SHARE = 0.01
 # RMSE 0.0406, 0.0307, 0.0259, 0.0239 in 8.0, 10.4, 13.5, 14.1 s (error^2 x time 1.6x lower at 4). Under a
 # world (pool_hdri, SMBS's walks at the second vertex) 4 copies cost 2.3x the time for 0.82x the error: 1
 GATHER_COPIES = 4
-# receivers per block of the gather after a diffuse bounce (_gather_after_bounce); blocks run on the threads
-# at once
-GATHER_BLOCK = 32768
+# the gather after a diffuse bounce (_gather_after_bounce) runs a chunk's receivers in two halves at once from
+# this many receivers on
+GATHER_SPLIT = 4096
 # receivers per part of a chunk's walks (manifold_chunk): parts run on the threads in turn, so one
 # part's numpy (light samples, contributions) runs beside another's walk kernels
 ESTIMATE_PART = 8192
@@ -224,12 +224,16 @@ def manifold_chunk(job, walk, start, n, rng, eye_stats, strata=None) -> None:
 def _gather_after_bounce(job, walk, caustic, rc, others, rng, eye_stats) -> None:
     """The caustic light after a diffuse bounce at the receivers rc, seen through mirrors or glass
     (indirect.gather, these walks at every diffuse vertex; others: the hand-off's Handoffs for the
-    paths no walk takes), gather_copies gathers per receiver, in blocks of GATHER_BLOCK receivers
-    that the threads take at once (lanes.blocks), each block with its random stream (keyed by one
-    draw from rng and its first receiver), its walks' (CausticEstimate.keyed) and its counters: one
-    block's numpy runs beside another's (the gather's numpy alone left half a core idle on the pool
-    under a sun). Their light is splatted and their counters added here, in block order, so the image
-    does not depend on the thread count."""
+    paths no walk takes), gather_copies gathers per receiver, in two halves (from GATHER_SPLIT
+    receivers on) that the threads take at once (lanes.blocks), each with its random stream (keyed by
+    one draw from rng and its first receiver), its walks' (CausticEstimate.keyed) and its counters:
+    one half's numpy runs beside the other's (the gather's numpy alone left half a core idle on the
+    pool under a sun). Their light is splatted and their counters added here, in order, so the image
+    does not depend on the thread count. Halves, not blocks of a fixed size: a default bake's batch
+    is one chunk of 40,000 receivers on the pool, and blocks of 32,768 left one thread a small rest;
+    blocks of 8,192 paid a walk call's fixed cost too often (pool_sun at 64 spp: 11.2 s against 7.9
+    s in one block). Inside a half the kernels do not split over more threads; on 2 cores the numpy
+    is the larger part."""
     copies = gather_copies(job.plan, walk)
     lights = job.indirect_lights()
     key = int(rng.integers(2**63))
@@ -245,7 +249,8 @@ def _gather_after_bounce(job, walk, caustic, rc, others, rng, eye_stats) -> None
                                         physical=walk.opts.physical)
         return radiance, st, connect.light_stats
 
-    parts = lanes.blocks(block, len(rc.p), GATHER_BLOCK, job.tracer.threads)
+    n = len(rc.p)
+    parts = lanes.blocks(block, n, -(-n // 2) if n >= GATHER_SPLIT else n, job.tracer.threads)
     for _, st, light_stats in parts:
         lanes.add_stats(eye_stats, st)
         for name, ls in light_stats.items():

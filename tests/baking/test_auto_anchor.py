@@ -86,7 +86,7 @@ def test_gather_copies_where_every_light_walks_its_straight_line_alone(monkeypat
     calls.clear()
     folded = scenes.wavy_water_sun_scene(amplitude=0.05, above=True)
     res = bake(folded, BakeSettings(spp=2, batches=2, seed=1))
-    # one chunk a batch, its receivers one block (manifold.GATHER_BLOCK)
+    # one chunk a batch, its receivers too few to split (manifold.GATHER_SPLIT)
     assert not _auto(res)["anchor_only"] and len(calls) == res.stats["batches_done"] * 1
     monkeypatch.setattr(manifold, "gather_radiance", gather)
     four = bake(gentle, BakeSettings(spp=64, seed=2, batches=8))
