@@ -94,6 +94,12 @@ SEG_F = 12
 # point, geometric and shading normals, the direction back along the path, throughput x albedo, its object
 VX_P, VX_NG, VX_NS, VX_W, VX_BETA, VX_OBJ = 0, 3, 6, 9, 12, 15
 VX_F = 16
+# a connect record (a later diffuse vertex on a planned receiver whose caustic the walks estimate, the
+# events before it and its own bounce fitting): point, geometric and shading normals, the direction
+# back along the path, the throughput (before its albedo), its material, its events so far (diffuse,
+# glossy, transmission)
+CX_P, CX_NG, CX_NS, CX_W, CX_BETA, CX_MAT, CX_CNT = 0, 3, 6, 9, 12, 15, 16
+CX_F = 19
 
 
 
@@ -178,12 +184,16 @@ PhotonOut = namedtuple("PhotonOut", "rec rec_i hist h_prim tally")
 
 # The gather's receivers (gather.gather_lanes): x0, its normals, the direction back to the eye, the
 # eye path's throughput (N,3); its material, the camera's events before it (N,3)
-GatherReceivers = namedtuple("GatherReceivers", "p ng ns w_eye beta mat prior")
+# ... and the two uniforms of x0's own bounce direction (N,2), stratified (core.qmc.BOUNCE), or (0,2): keyed
+GatherReceivers = namedtuple("GatherReceivers", "p ng ns w_eye beta mat prior u0")
 # ... its rules: the Light Paths limits, the specular vertices at most, physical units, whether x0's
-# own segments count, which records to write (segments, vertices)
-GatherRules = namedtuple("GatherRules", "lim max_specular physical count_first want_seg want_vx")
-# ... what it writes: segment records (SEG_* columns) and their lanes, vertex records (VX_*) and theirs
-GatherOut = namedtuple("GatherOut", "seg seg_i vx vx_i")
+# own segments count, which records to write (segments, vertices, connect records), the objects
+# whose diffuse vertices the walks connect at (O,) bool, the objects where a path ends (the plan's
+# left-out casters, (O,) bool)
+GatherRules = namedtuple("GatherRules", "lim max_specular physical count_first want_seg want_vx want_cx receivers ends")
+# ... what it writes: segment records (SEG_* columns) and their lanes, vertex records (VX_*) and theirs,
+# connect records (CX_*) and theirs
+GatherOut = namedtuple("GatherOut", "seg seg_i vx vx_i cx cx_i")
 
 # The hand-off's receivers (handoff.handoff_lanes): x0, its normals (ns: bumped; sn: its smooth
 # normal), the direction back to the eye, the throughput, the albedo (N,3); the material (N,)

@@ -227,6 +227,8 @@ def gather_radiance(scene, tracer, plan, rc: Receivers, rng, stats, lights: Gath
     if lights.connect is None and compiled:
         return _traced_gather(scene, tracer, plan, rc, rng, stats, lights.direct, physical, lights.hit,
                               lights.count_first)
+    if compiled and not any(ho.others for ho in (lights.others or {}).values()):
+        return _connected_gather(scene, tracer, plan, rc, rng, stats, lights.direct, physical, lights.connect)
     return _GatherInNumpy(scene, tracer, plan, rc, rng, stats, physical, lights.others if lights.connect else None).run(
         lights.direct, lights.connect, lights.hit, lights.count_first)
 
@@ -422,35 +424,81 @@ def splat_gathered(scene, film, rc: Receivers, radiance, stats):
         stats["eye_splats"] = stats.get("eye_splats", 0) + int(hit.size)
 
 
-def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct, physical, lights_hit, count_first):
-    """gather's radiance (n,3) at the receivers without walks to connect (the light tracer's):
-    the paths traced in kernel calls (gather.gather_lanes, their random numbers keyed by one draw
-    from rng and the receiver's index), the lights on the segments it records and the direct light
-    at the vertices it records found here, as gather finds them."""
-
+def _gather_records(scene, tracer, plan, rc: Receivers, rng, stats, physical, want: tuple, count_first=False):
+    """The records of gather's paths from the receivers rc, traced in kernel calls (gather.gather_lanes,
+    their random numbers keyed by one draw from rng and the receiver's index; x0's own bounce stratified
+    where rc is): want = (segments, vertices, connect records) which to write. Returns (seg, seg_i, vx,
+    vx_i, cx, cx_i)."""
     n = len(rc.p)
     lim = Limits.of(scene)
-    hit_lights = [li for li in lights_hit if light_can_be_hit(scene, li)]
+    want_seg, want_vx, want_cx = (bool(w) for w in want)
     f64 = lambda a: np.ascontiguousarray(a, np.float64)  # noqa: E731
+    u0 = np.zeros((0, 2)) if rc.strata is None else f64(rc.strata[:, qmc.BOUNCE])
+    ends = np.zeros(len(scene.object_names), bool) if plan.left_out is None else np.asarray(plan.left_out, bool)
     args = (GatherReceivers(f64(rc.p), f64(rc.ng), f64(rc.ns), f64(rc.w_eye), f64(rc.beta),
-                            np.ascontiguousarray(rc.mat, np.int64), np.ascontiguousarray(rc.prior, np.int64)),
+                            np.ascontiguousarray(rc.mat, np.int64), np.ascontiguousarray(rc.prior, np.int64), u0),
             tracer.kernel_geometry(plan.casters), optics.materials(scene),
-            GatherRules(lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), bool(hit_lights),
-                        bool(lights_direct)), tracer.eps)
+            GatherRules(lim.array(), MAX_SPECULAR, bool(physical), bool(count_first), want_seg, want_vx, want_cx,
+                        np.ascontiguousarray(plan.receivers, bool), np.ascontiguousarray(ends)), tracer.eps)
     key = int(rng.integers(2**63))
     # a lane records at most MAX_SPECULAR segments and one vertex per diffuse vertex: every call moves on
     cap = max(n, (int(lim.diffuse) + 2) * (MAX_SPECULAR + 2))
-    n_seg, n_vx = (cap if hit_lights else 0), (cap if lights_direct else 0)
+    n_seg, n_vx, n_cx = (cap if want_seg else 0), (cap if want_vx else 0), (cap if want_cx else 0)
     parts, lane = [], 0
     while lane < n:
         seg, seg_i = np.empty((n_seg, records.SEG_F)), np.empty(n_seg, np.int64)
         vx, vx_i = np.empty((n_vx, records.VX_F)), np.empty(n_vx, np.int64)
+        cx, cx_i = np.empty((n_cx, records.CX_F)), np.empty(n_cx, np.int64)
         rt = tracer.rays()
-        lane, ms, mv, counts = gather_lanes(rt, key, lane, *args, GatherOut(seg, seg_i, vx, vx_i))
+        lane, ms, mv, mc, counts = gather_lanes(rt, key, lane, *args, GatherOut(seg, seg_i, vx, vx_i, cx, cx_i))
         tracer.cast_by_kernel(rt, counts)
         stats["rays_gather"] = stats.get("rays_gather", 0) + int(counts[embree.KINDS:].sum())
-        parts.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv]))
-    seg, seg_i, vx, vx_i = (np.concatenate([p[k] for p in parts]) for k in range(4))
+        parts.append((seg[:ms], seg_i[:ms], vx[:mv], vx_i[:mv], cx[:mc], cx_i[:mc]))
+    return tuple(np.concatenate([p[k] for p in parts]) for k in range(6))
+
+
+def _direct_at_vertices(scene, tracer, vx, vx_i, lights_direct, rng, stats, radiance) -> None:
+    """The direct light of lights_direct at gather's vertex records (VX_*), added to radiance per lane."""
+    if not len(vx):
+        return
+    c = lambda k: vx[:, k:k + 3]  # noqa: E731
+    vx_obj = vx[:, records.VX_OBJ].astype(np.int64)
+    for li in lights_direct:
+        rad = direct_light(scene, tracer, li, c(records.VX_P), c(records.VX_NG), c(records.VX_NS),
+                           c(records.VX_W), rng, stats, vx_obj)
+        np.add.at(radiance, vx_i, c(records.VX_BETA) * rad)
+
+
+def _connected_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct, physical, connect):
+    """gather's radiance (n,3) with the walks to connect and no paths no walk takes to add: the paths
+    traced in kernel calls (_gather_records), then at every later diffuse vertex on a planned receiver
+    the walks' caustic (connect, one call for them all) and lights_direct's direct light, as
+    _GatherInNumpy finds them generation by generation."""
+    n = len(rc.p)
+    _, _, vx, vx_i, cx, cx_i = _gather_records(scene, tracer, plan, rc, rng, stats, physical,
+                                               (False, bool(lights_direct), True))
+    radiance = np.zeros((n, 3))
+    _direct_at_vertices(scene, tracer, vx, vx_i, lights_direct, rng, stats, radiance)
+    if len(cx):
+        c = lambda k: cx[:, k:k + 3]  # noqa: E731
+        sub = Receivers(rx=rc.rx[cx_i], ry=rc.ry[cx_i], p=c(records.CX_P), ng=c(records.CX_NG), ns=c(records.CX_NS),
+                        w_eye=c(records.CX_W), beta=c(records.CX_BETA), mat=cx[:, records.CX_MAT].astype(np.int64),
+                        eye_specular=np.maximum(rc.eye_specular[cx_i], 1), weight=rc.weight[cx_i],
+                        prior=c(records.CX_CNT).astype(np.int64),
+                        strata=None if rc.strata is None else qmc.after_bounce(rc.strata[cx_i]))
+        np.add.at(radiance, cx_i, connect(sub))
+    return radiance
+
+
+def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct, physical, lights_hit, count_first):
+    """gather's radiance (n,3) at the receivers without walks to connect (the light tracer's):
+    the paths traced in kernel calls (_gather_records), the lights on the segments it records and
+    the direct light at the vertices it records found here, as gather finds them."""
+
+    n = len(rc.p)
+    hit_lights = [li for li in lights_hit if light_can_be_hit(scene, li)]
+    seg, seg_i, vx, vx_i, _, _ = _gather_records(scene, tracer, plan, rc, rng, stats, physical,
+                                                 (hit_lights, lights_direct, False), count_first)
     radiance = np.zeros((n, 3))
     if len(seg):
         o, d, surf_t = seg[:, records.SEG_O:records.SEG_O + 3], seg[:, records.SEG_D:records.SEG_D + 3], \
@@ -461,13 +509,7 @@ def _traced_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_direct
             seen, L, tl = seen_light(scene, tracer, li, o, d, refl, surf_t, seg_obj)
             seen = np.flatnonzero(seen)
             np.add.at(radiance, seg_i[seen], beta[seen] * L[seen])
-    if len(vx):
-        c = lambda k: vx[:, k:k + 3]  # noqa: E731
-        vx_obj = vx[:, records.VX_OBJ].astype(np.int64)
-        for li in lights_direct:
-            rad = direct_light(scene, tracer, li, c(records.VX_P), c(records.VX_NG), c(records.VX_NS),
-                               c(records.VX_W), rng, stats, vx_obj)
-            np.add.at(radiance, vx_i, c(records.VX_BETA) * rad)
+    _direct_at_vertices(scene, tracer, vx, vx_i, lights_direct, rng, stats, radiance)
     return radiance
 
 

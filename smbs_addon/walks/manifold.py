@@ -227,13 +227,12 @@ def _gather_after_bounce(job, walk, caustic, rc, others, rng, eye_stats) -> None
     paths no walk takes), gather_copies gathers per receiver, in two halves (from GATHER_SPLIT
     receivers on) that the threads take at once (lanes.blocks), each with its random stream (keyed by
     one draw from rng and its first receiver), its walks' (CausticEstimate.keyed) and its counters:
-    one half's numpy runs beside the other's (the gather's numpy alone left half a core idle on the
-    pool under a sun). Their light is splatted and their counters added here, in order, so the image
+    the gather's kernel call (indirect._connected_gather) is one thread's, and so is the numpy
+    between the calls. Their light is splatted and their counters added here, in order, so the image
     does not depend on the thread count. Halves, not blocks of a fixed size: a default bake's batch
     is one chunk of 40,000 receivers on the pool, and blocks of 32,768 left one thread a small rest;
-    blocks of 8,192 paid a walk call's fixed cost too often (pool_sun at 64 spp: 11.2 s against 7.9
-    s in one block). Inside a half the kernels do not split over more threads; on 2 cores the numpy
-    is the larger part."""
+    blocks of 8,192 paid a walk call's fixed cost too often. Inside a half the walks' kernels do not
+    split over more threads (on more than 2 cores the halves leave some idle)."""
     copies = gather_copies(job.plan, walk)
     lights = job.indirect_lights()
     key = int(rng.integers(2**63))
