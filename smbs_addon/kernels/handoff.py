@@ -27,7 +27,7 @@ from .rays import hit_or_miss_past
 # ------------------------------------------------------------------ diffuse bounces, the hand-off's cosine paths
 @njit(inline="always", **JIT)
 def _cosine_bounce(u1, u2, w, g, n):
-    """indirect._diffuse_bounce's direction: cosine-distributed about the shading normal n on
+    """path_light.diffuse_bounce's direction: cosine-distributed about the shading normal n on
     w's side of the geometric normal g (vec.frame, vec.cosine_hemisphere); also that side."""
     side = 1.0 if dot1(w, g) >= 0 else -1.0
     nn = scale3(side, n)
@@ -40,7 +40,7 @@ def _cosine_bounce(u1, u2, w, g, n):
 
 @njit(inline="always", **JIT)
 def diffuse_scatter(u1, u2, u3, w, g, n, a, beta, adjoint):
-    """indirect._diffuse_bounce of one lane: a cosine direction about the shading normal n on w's
+    """path_light.diffuse_bounce of one lane: a cosine direction about the shading normal n on w's
     side of g (_cosine_bounce), Russian roulette on the albedo a (u3), the weight beta * a / q,
     with Veach's shading-normal correction when adjoint (light carried from w to the new
     direction). Returns (kept, direction, weight)."""
@@ -223,7 +223,7 @@ def handoff_lanes(rt, key, a0, samples, K, receivers, geo, mats, physical, eps, 
     """indirect.handoff_gather's paths, lane i // samples's receiver (HandoffReceivers: p, ng, ns,
     w_eye: the direction back to the eye, beta: the throughput, albedo; sn: the smooth normal ns
     a bump bent, eye.Receivers.sn): a cosine bounce with
-    Russian roulette on the albedo (indirect._diffuse_bounce), then through up to K specular
+    Russian roulette on the albedo (path_light.diffuse_bounce), then through up to K specular
     vertices (optics.scatter1, not adjoint; physical: scale_eta), every ray cast here. Lane l is
     sample s = l % samples of receiver a0 + l // samples, its uniform numbers keyed_uniform(key,
     a0 + l // samples, s, dim) (dim 0-2: direction and roulette, 3 + j: the j-th specular vertex),
