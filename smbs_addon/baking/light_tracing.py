@@ -8,7 +8,7 @@ import math
 
 from ..trace.eye import film_cells, specular_cells
 from .job import Progress
-from .passes import CHUNK, eye_rays, indirect_batch, light_tracing_batch, rays as rays_of, sky_batch, specular_visible
+from .passes import CHUNK, eye_rays, indirect_batch, light_tracing_batch, rays, sky_batch, specular_visible
 from .stop import run_batches
 
 PHOTON_COUNTERS = ("photons", "rays_photon", "rays_camera", "splats", "truncated", "lost_shading_normal")
@@ -42,6 +42,6 @@ def bake_light_tracing(job):
     b, stop, t_first = run_batches(job, run_batch)
     job.extra["batches_done"] = b
     job.extra["eye_pass"] = eye_stats
-    rays = (sum(s["rays_photon"] + s["rays_camera"] for s in job.light_stats.values())
-            + eye_rays(eye_stats) + job.plan.cost.get("rays", 0) + rays_of(job.extra.get("sky", {})))
-    return b, stop, t_first, rays
+    cast = (sum(s["rays_photon"] + s["rays_camera"] for s in job.light_stats.values())
+            + eye_rays(eye_stats) + job.plan.cost.get("rays", 0) + rays(job.extra.get("sky", {})))
+    return b, stop, t_first, cast

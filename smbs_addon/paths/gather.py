@@ -24,7 +24,7 @@ Two estimators, split by how the camera sees x0:
   light tracer, by lights hit after a specular vertex.
 Bounces are counted as Cycles counts them, within the scene's Light Paths limits
 (bounces.py; without limits, 4 diffuse bounces). The paths are traced in compiled code
-(kernels/gather.py); gather_numpy.py is their numpy form, path_light.py what they meet.
+(kernels/gather.py); gather_generations.py is their numpy form, path_light.py what they meet.
 """
 from __future__ import annotations
 
@@ -42,9 +42,10 @@ from ..trace.eye import BatchPart, Receivers, direct_albedo, eye_receivers
 from ..scene.geometry import triangle_areas
 from ..shading.lights import area_light_shape
 from ..shading.light_samples import light_can_be_hit
-from .gather_numpy import NumpyGather
+from .gather_generations import GatherByGenerations
 from .handoff import handoff_select, other_paths, walked_casters
-from .path_light import MAX_SPECULAR, albedo, direct_light, seen_light  # noqa: F401 (seen_light: the gathers' light test)
+# seen_light: the gathers' light test, here too for its callers
+from .path_light import MAX_SPECULAR, albedo, direct_light, seen_light  # noqa: F401
 from .photons import MAX_SPECULAR_BOUNCES, run_photons, splat_records
 from ..kernels.records import (
     BentTargets, EyePaths, GatherOut, GatherReceivers, GatherRules, HIST_B, HIST_BENT, HIST_CASTER, HIST_F, HIST_P,
@@ -138,7 +139,8 @@ def gather_radiance(scene, tracer, plan, rc: Receivers, rng, stats, lights: Gath
                               lights.count_first)
     if compiled and not any(ho.others for ho in (lights.others or {}).values()):
         return _connected_gather(scene, tracer, plan, rc, rng, stats, lights.direct, physical, lights.connect)
-    return NumpyGather(scene, tracer, plan, rc, rng, stats, physical, lights.others if lights.connect else None).run(
+    others = lights.others if lights.connect else None
+    return GatherByGenerations(scene, tracer, plan, rc, rng, stats, physical, others).run(
         lights.direct, lights.connect, lights.hit, lights.count_first)
 
 
@@ -199,7 +201,7 @@ def _connected_gather(scene, tracer, plan, rc: Receivers, rng, stats, lights_dir
     """gather's radiance (n,3) with the walks to connect and no paths no walk takes to add: the paths
     traced in kernel calls (_gather_records), then at every later diffuse vertex on a planned receiver
     the walks' caustic (connect, one call for them all) and lights_direct's direct light, as
-    NumpyGather finds them generation by generation."""
+    GatherByGenerations finds them generation by generation."""
     n = len(rc.p)
     _, _, vx, vx_i, cx, cx_i = _gather_records(scene, tracer, plan, rc, rng, stats, physical,
                                                (False, bool(lights_direct), True))

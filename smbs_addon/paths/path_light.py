@@ -1,6 +1,6 @@
 """What a gather path meets at its vertices and along its segments: the cosine bounce off a diffuse
 vertex, a light's direct light there (one light sample), and the lights a segment sees before its next
-surface. The compiled gather (gather.py), its numpy form (gather_numpy.py) and the hand-off's cosine
+surface. The compiled gather (gather.py), its numpy form (gather_generations.py) and the hand-off's cosine
 gather take them from here.
 """
 from __future__ import annotations

@@ -81,8 +81,10 @@ OTHERS_MIN_SHARE = 0.01
 # gathers after a diffuse bounce per receiver seen through glass where every light walks its straight line
 # alone (gather_copies). pool_sun (64 spp, 160 x 120): a quarter of its layer comes after a diffuse bounce
 # (its own caustic through the water's underside) and held most of the variance; 1, 2, 3, 4 copies: relative
-# RMSE 0.0406, 0.0307, 0.0259, 0.0239 in 8.0, 10.4, 13.5, 14.1 s (error^2 x time 1.6x lower at 4). Under a
-# world (pool_hdri, SMBS's walks at the second vertex) 4 copies cost 2.3x the time for 0.82x the error: 1
+# RMSE 0.0406, 0.0307, 0.0259, 0.0239 in 8.0, 10.4, 13.5, 14.1 s (error^2 x time 1.6x lower at 4); with the
+# gather compiled since, 3, 4, 6, 8 copies: error^2 x time 0.0053, 0.0050, 0.0049, 0.0054. Under SMBS's walks
+# at the second vertex (pool_hdri's whole map, before its sky was path-traced) 4 copies cost 2.3x the time for
+# 0.82x the error: 1
 GATHER_COPIES = 4
 # the gather after a diffuse bounce (_gather_after_bounce) runs a chunk's receivers in two halves at once from
 # this many receivers on

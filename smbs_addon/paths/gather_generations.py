@@ -18,7 +18,7 @@ from .path_light import MAX_SPECULAR, albedo, diffuse_bounce, direct_light, seen
 from .photons import scatter_specular
 
 
-class NumpyGather:
+class GatherByGenerations:
     """gather's generations in numpy, one diffuse bounce and its specular chain at a time: what
     the walks' connect needs at every diffuse vertex (a Python callback), and the tests' second
     form of _traced_gather's compiled paths."""
