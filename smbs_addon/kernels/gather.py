@@ -60,14 +60,15 @@ def _put_vertex(vx, vx_i, row, lane, v, b, a, obj):
 
 
 @njit(inline="always", **JIT)
-def _put_connect(cx, cx_i, row, lane, v, b, cnt):
+def _put_connect(cx, cx_i, row, lane, v, b, nd, ngl, nt):
     """A connect record at row `row` of cx (CX_* columns: v's point, normals, direction back and
-    material, the throughput b, the events cnt (_Counts) so far) and cx_i (its lane)."""
+    material, the throughput b, the events so far: nd diffuse, ngl glossy, nt transmission) and cx_i
+    (its lane)."""
     for c in range(3):
         cx[row, CX_P + c], cx[row, CX_NG + c], cx[row, CX_NS + c] = v.p[c], v.g[c], v.n[c]
         cx[row, CX_W + c], cx[row, CX_BETA + c] = v.w[c], b[c]
     cx[row, CX_MAT] = v.m
-    cx[row, CX_CNT], cx[row, CX_CNT + 1], cx[row, CX_CNT + 2] = cnt.nd, cnt.ngl, cnt.nt
+    cx[row, CX_CNT], cx[row, CX_CNT + 1], cx[row, CX_CNT + 2] = nd, ngl, nt
     cx_i[row] = lane
 
 
@@ -124,7 +125,7 @@ def _gather_bounces(ray, key, lane, vx0, d, b, cnt, geo, mats, rules, eps, out):
                 if ncx == out.cx.shape[0]:
                     full = True
                     break
-                _put_connect(out.cx, out.cx_i, ncx, lane, v, b, _Counts(nd, ngl, nt, has_s, depth, ev, nseg, nvx, ncx))
+                _put_connect(out.cx, out.cx_i, ncx, lane, v, b, nd, ngl, nt)
                 ncx += 1
             go_on = True
             break
@@ -156,7 +157,7 @@ def _gather_bounces(ray, key, lane, vx0, d, b, cnt, geo, mats, rules, eps, out):
 def _gather_rows(ray, key, lane0, receivers, geo, mats, rules, eps, out):
     """gather_lanes' loop over its lanes from lane0 (its caller holds the arrays).
     Returns (the lane it stopped before: the last + 1, or one whose records did not fit; segment
-    records written; vertex records written)."""
+    records written; vertex records written; connect records written)."""
     x0, lim, u0 = receivers.p, rules.lim, receivers.u0
     counts = ray.counts
     nseg = nvx = ncx = 0
@@ -202,9 +203,9 @@ def _gather_rows(ray, key, lane0, receivers, geo, mats, rules, eps, out):
 @TypedOnce
 @njit(**JIT)
 def gather_lanes(rt, key, lane0, receivers, geo, mats, rules, eps, out):
-    """indirect.gather's paths for the light tracer (no walks to connect): from each receiver x0
-    (GatherReceivers: p, ng, ns, w_eye: the direction back to the eye, beta: the eye path's
-    throughput, mat, prior: the camera's events before x0), cosine bounces with Russian roulette
+    """indirect.gather's paths, the light tracer's and the walks' (who connect at the vertices recorded
+    here): from each receiver x0 (GatherReceivers: p, ng, ns, w_eye: the direction back to the eye,
+    beta: the eye path's throughput, mat, prior: the camera's events before x0), cosine bounces with Russian roulette
     (diffuse_scatter; x0's own bounce direction from receivers.u0 where given) through up to
     rules.max_specular mirrors and glass (GatherRules; optics.scatter1, not adjoint; physical:
     scale_eta) to the next diffuse vertices, within the Light Paths limits (lim: Limits.array()),

@@ -121,8 +121,9 @@ def gather(scene, tracer, film, plan, rc: Receivers, rng, stats, lights: GatherL
     Every path keeps to the scene's Light Paths limits as Cycles counts them (bounces.py:
     the events before the last one, from the camera, rc.prior before x0).
 
-    Without connect (and unless compiled is False: the same estimator in numpy, per bounce, for
-    the tests), the paths are traced in compiled code (_traced_gather)."""
+    The paths are traced in compiled code (_traced_gather without connect, _connected_gather with it),
+    unless compiled is False (the same estimator in numpy, per bounce, for the tests) or others
+    has paths no walk takes to add along the way (gather_generations.GatherByGenerations)."""
     if len(rc.p) == 0:
         return
     splat_gathered(scene, film, rc, gather_radiance(scene, tracer, plan, rc, rng, stats, lights, physical, compiled),

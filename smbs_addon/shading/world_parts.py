@@ -69,8 +69,7 @@ def split_world(scene) -> WorldParts | None:
     if bright is None:
         return None
     env = env_map(scene, li)
-    power = env.image.mean(axis=2) * env.omega[:, None]
-    share = float(power[bright].sum() / power.sum())
+    share = float(env.p.reshape(bright.shape)[bright].sum())  # EnvMap.p: each pixel's share of the power
     if not (MIN_PART_SHARE <= share <= 1.0 - MIN_PART_SHARE):
         return None
     m = np.asarray(scene.world_map)
